@@ -1,0 +1,49 @@
+/* main.c - `prodygs` entry point: dispatches to the subcommands. */
+#include "cli/cli.h"
+
+#include <stdio.h>
+#include <string.h>
+
+typedef struct {
+    const char *name;
+    int (*run)(int argc, char **argv);
+    const char *summary;
+} command;
+
+static const command commands[] = {
+    { "run",     cmd_run,     "whole pipeline: depth prep, proxies, training, renders" },
+    { "demo",    cmd_demo,    "build the sample scene and run the pipeline on it" },
+    { "info",    cmd_info,    "describe a video, frame folder, dataset, depth file or PLY" },
+    { "synth",   cmd_synth,   "render the built-in sample scene (DyNeRF layout)" },
+    { "prepare", cmd_prepare, "refine and temporally align per-frame depth" },
+    { "proxies", cmd_proxies, "render proxy views from virtual cameras" },
+    { "train",   cmd_train,   "train canonical Gaussians + deformation network" },
+    { "render",  cmd_render,  "render a trained model along a camera path" },
+    { "export",  cmd_export,  "export deformed Gaussians as 3DGS PLY" },
+    { "eval",    cmd_eval,    "DyNeRF protocol evaluation (PSNR/SSIM, masked)" },
+    { "bench",   cmd_bench,   "speed benchmarks printing one JSON line" },
+};
+
+static void usage(FILE *out)
+{
+    fprintf(out, "usage: prodygs COMMAND [options]   (prodygs COMMAND --help for details)\n\ncommands:\n");
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        fprintf(out, "  %-8s %s\n", commands[i].name, commands[i].summary);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) {
+        usage(stderr);
+        return 2;
+    }
+    if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0 || strcmp(argv[1], "help") == 0) {
+        usage(stdout);
+        return 0;
+    }
+    cli_install_progress();
+    for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
+        if (strcmp(argv[1], commands[i].name) == 0) return commands[i].run(argc - 1, argv + 1);
+    fprintf(stderr, "prodygs: unknown command '%s' (try prodygs --help)\n", argv[1]);
+    return 2;
+}

@@ -1,0 +1,122 @@
+/* fileutil.c - atomic writes and path helpers. */
+#include "core/fileutil.h"
+
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+pg_status pg_atomic_open(pg_atomic_file *f, const char *path)
+{
+    f->fp = NULL;
+    if (strlen(path) >= sizeof f->path) return pg_fail(PG_ERR_ARG, "%s: path too long", path);
+    strcpy(f->path, path);
+    snprintf(f->tmp_path, sizeof f->tmp_path, "%s.tmp.%ld", path, (long)getpid());
+    f->fp = fopen(f->tmp_path, "wb");
+    if (!f->fp) return pg_fail(PG_ERR_IO, "%s: cannot write: %s", path, strerror(errno));
+    return PG_OK;
+}
+
+pg_status pg_atomic_commit(pg_atomic_file *f)
+{
+    if (!f->fp) return pg_fail(PG_ERR_INTERNAL, "%s: file not open", f->path);
+    int bad = ferror(f->fp);
+    if (fclose(f->fp) != 0) bad = 1;
+    f->fp = NULL;
+    if (bad) {
+        remove(f->tmp_path);
+        return pg_fail(PG_ERR_IO, "%s: write failed: %s", f->path, strerror(errno));
+    }
+    if (rename(f->tmp_path, f->path) != 0) {
+        int e = errno;
+        remove(f->tmp_path);
+        return pg_fail(PG_ERR_IO, "%s: cannot rename into place: %s", f->path, strerror(e));
+    }
+    return PG_OK;
+}
+
+void pg_atomic_abort(pg_atomic_file *f)
+{
+    if (f->fp) {
+        fclose(f->fp);
+        f->fp = NULL;
+        remove(f->tmp_path);
+    }
+}
+
+pg_status pg_mkdir_p(const char *path)
+{
+    char buf[4096];
+    size_t n = strlen(path);
+    if (n == 0 || n >= sizeof buf) return pg_fail(PG_ERR_ARG, "bad directory path '%s'", path);
+    memcpy(buf, path, n + 1);
+    for (size_t i = 1; i <= n; i++) {
+        if (buf[i] == '/' || buf[i] == '\0') {
+            char c = buf[i];
+            buf[i] = '\0';
+            if (mkdir(buf, 0777) != 0 && errno != EEXIST)
+                return pg_fail(PG_ERR_IO, "%s: cannot create directory: %s", buf, strerror(errno));
+            buf[i] = c;
+        }
+    }
+    if (!pg_path_is_dir(path)) return pg_fail(PG_ERR_IO, "%s: exists and is not a directory", path);
+    return PG_OK;
+}
+
+int pg_path_exists(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0;
+}
+
+int pg_path_is_dir(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+pg_status pg_path_join(char *out, size_t size, const char *dir, const char *name)
+{
+    size_t dl = strlen(dir);
+    int slash = dl > 0 && dir[dl - 1] != '/';
+    int n = snprintf(out, size, "%s%s%s", dir, slash ? "/" : "", name);
+    if (n < 0 || (size_t)n >= size) return pg_fail(PG_ERR_ARG, "%s/%s: path too long", dir, name);
+    return PG_OK;
+}
+
+pg_status pg_read_file(const char *path, size_t limit, char **data, size_t *size)
+{
+    *data = NULL;
+    *size = 0;
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    if (fseek(fp, 0, SEEK_END) != 0) { fclose(fp); return pg_fail(PG_ERR_IO, "%s: cannot seek", path); }
+    long len = ftell(fp);
+    if (len < 0) { fclose(fp); return pg_fail(PG_ERR_IO, "%s: cannot tell size", path); }
+    if ((size_t)len > limit) {
+        fclose(fp);
+        return pg_fail(PG_ERR_SIZE, "%s: file is %ld bytes, more than the %zu allowed", path, len, limit);
+    }
+    rewind(fp);
+    char *buf = pg_malloc((size_t)len + 1, path);
+    if (!buf) { fclose(fp); return PG_ERR_NOMEM; }
+    size_t got = fread(buf, 1, (size_t)len, fp);
+    fclose(fp);
+    if (got != (size_t)len) { free(buf); return pg_fail(PG_ERR_IO, "%s: short read", path); }
+    buf[len] = '\0';
+    *data = buf;
+    *size = (size_t)len;
+    return PG_OK;
+}
+
+pg_status pg_write_file_atomic(const char *path, const void *data, size_t size)
+{
+    pg_atomic_file f;
+    PG_TRY(pg_atomic_open(&f, path));
+    if (size && fwrite(data, 1, size, f.fp) != size) {
+        pg_atomic_abort(&f);
+        return pg_fail(PG_ERR_IO, "%s: write failed", path);
+    }
+    return pg_atomic_commit(&f);
+}

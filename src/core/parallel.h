@@ -1,0 +1,13 @@
+/* parallel.h - thread count control on top of OpenMP. */
+#ifndef PG_PARALLEL_H
+#define PG_PARALLEL_H
+
+/* Sets the number of worker threads (<= 0: all cores). */
+void pg_set_threads(int n);
+int pg_get_threads(void);
+/* Index of the calling thread inside a parallel region (0 outside). */
+int pg_thread_index(void);
+/* Monotonic wall clock in seconds. */
+double pg_time_seconds(void);
+
+#endif

@@ -1,0 +1,173 @@
+/* image_io.c - PNG through libpng's simplified API, JPEG through libjpeg(-turbo). */
+#include "io/image_io.h"
+#include "core/fileutil.h"
+
+#include <png.h>
+#include <jpeglib.h>
+#include <setjmp.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static pg_status load_png(const char *path, pg_image *img)
+{
+    png_image pi;
+    memset(&pi, 0, sizeof pi);
+    pi.version = PNG_IMAGE_VERSION;
+    if (!png_image_begin_read_from_file(&pi, path))
+        return pg_fail(PG_ERR_FORMAT, "%s: not a readable PNG: %s", path, pi.message);
+    if (pi.width == 0 || pi.height == 0 || pi.width > PG_MAX_IMAGE_SIDE || pi.height > PG_MAX_IMAGE_SIDE) {
+        png_image_free(&pi);
+        return pg_fail(PG_ERR_SIZE, "%s: PNG size %u x %u is out of range", path, pi.width, pi.height);
+    }
+    pi.format = PNG_FORMAT_RGB;
+    size_t n = (size_t)pi.width * pi.height * 3;
+    uint8_t *buf = pg_malloc(n, path);
+    if (!buf) { png_image_free(&pi); return PG_ERR_NOMEM; }
+    if (!png_image_finish_read(&pi, NULL, buf, 0, NULL)) {
+        free(buf);
+        return pg_fail(PG_ERR_FORMAT, "%s: corrupt PNG: %s", path, pi.message);
+    }
+    pg_status st = pg_image_create(img, (int)pi.width, (int)pi.height, 3);
+    if (st == PG_OK)
+        for (size_t i = 0; i < n; i++) img->data[i] = buf[i] * (1.0f / 255.0f);
+    free(buf);
+    return st;
+}
+
+struct jpeg_error_jump {
+    struct jpeg_error_mgr mgr;
+    jmp_buf jump;
+    char message[JMSG_LENGTH_MAX];
+};
+
+static void jpeg_error_exit_jump(j_common_ptr cinfo)
+{
+    struct jpeg_error_jump *err = (struct jpeg_error_jump *)cinfo->err;
+    (*cinfo->err->format_message)(cinfo, err->message);
+    longjmp(err->jump, 1);
+}
+
+static pg_status load_jpeg(const char *path, pg_image *img)
+{
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open", path);
+    struct jpeg_decompress_struct cinfo;
+    struct jpeg_error_jump err;
+    uint8_t *volatile row = NULL;
+    img->data = NULL;
+    cinfo.err = jpeg_std_error(&err.mgr);
+    err.mgr.error_exit = jpeg_error_exit_jump;
+    if (setjmp(err.jump)) {
+        jpeg_destroy_decompress(&cinfo);
+        fclose(fp);
+        free(row);
+        pg_image_destroy(img);
+        return pg_fail(PG_ERR_FORMAT, "%s: corrupt JPEG: %s", path, err.message);
+    }
+    jpeg_create_decompress(&cinfo);
+    jpeg_stdio_src(&cinfo, fp);
+    jpeg_read_header(&cinfo, TRUE);
+    cinfo.out_color_space = JCS_RGB;
+    jpeg_start_decompress(&cinfo);
+    pg_status st = pg_image_create(img, (int)cinfo.output_width, (int)cinfo.output_height, 3);
+    if (st == PG_OK) row = pg_malloc((size_t)cinfo.output_width * 3, path);
+    if (st == PG_OK && !row) st = PG_ERR_NOMEM;
+    if (st != PG_OK) {
+        jpeg_destroy_decompress(&cinfo);
+        fclose(fp);
+        return pg_fail_context(st, "%s", path);
+    }
+    while (cinfo.output_scanline < cinfo.output_height) {
+        int y = (int)cinfo.output_scanline;
+        JSAMPROW rows[1] = { row };
+        jpeg_read_scanlines(&cinfo, rows, 1);
+        float *dst = pg_image_at(img, 0, y);
+        for (int i = 0; i < img->width * 3; i++) dst[i] = row[i] * (1.0f / 255.0f);
+    }
+    jpeg_finish_decompress(&cinfo);
+    jpeg_destroy_decompress(&cinfo);
+    fclose(fp);
+    free(row);
+    return PG_OK;
+}
+
+pg_status io_image_load(const char *path, pg_image *img)
+{
+    img->data = NULL;
+    img->width = img->height = img->channels = 0;
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open", path);
+    uint8_t magic[8] = {0};
+    size_t got = fread(magic, 1, sizeof magic, fp);
+    fclose(fp);
+    if (got >= 8 && png_sig_cmp(magic, 0, 8) == 0) return load_png(path, img);
+    if (got >= 3 && magic[0] == 0xFF && magic[1] == 0xD8 && magic[2] == 0xFF) return load_jpeg(path, img);
+    return pg_fail(PG_ERR_FORMAT, "%s: not a PNG or JPEG image", path);
+}
+
+static uint8_t to_u8(float v)
+{
+    v = v < 0 ? 0 : (v > 1 ? 1 : v);
+    return (uint8_t)(v * 255.0f + 0.5f);
+}
+
+pg_status io_image_save_png(const char *path, const pg_image *img)
+{
+    if (img->channels != 1 && img->channels != 3)
+        return pg_fail(PG_ERR_ARG, "%s: PNG writer takes 1 or 3 channels, got %d", path, img->channels);
+    size_t n = (size_t)img->width * img->height * img->channels;
+    uint8_t *buf = pg_malloc(n, path);
+    if (!buf) return PG_ERR_NOMEM;
+    for (size_t i = 0; i < n; i++) buf[i] = to_u8(img->data[i]);
+    png_image pi;
+    memset(&pi, 0, sizeof pi);
+    pi.version = PNG_IMAGE_VERSION;
+    pi.width = (png_uint_32)img->width;
+    pi.height = (png_uint_32)img->height;
+    pi.format = img->channels == 3 ? PNG_FORMAT_RGB : PNG_FORMAT_GRAY;
+    pg_atomic_file f;
+    pg_status st = pg_atomic_open(&f, path);
+    if (st == PG_OK) {
+        if (!png_image_write_to_stdio(&pi, f.fp, 0, buf, 0, NULL)) {
+            pg_atomic_abort(&f);
+            st = pg_fail(PG_ERR_IO, "%s: PNG write failed: %s", path, pi.message);
+        } else {
+            st = pg_atomic_commit(&f);
+        }
+    }
+    free(buf);
+    return st;
+}
+
+pg_status io_image_save_jpeg(const char *path, const pg_image *img, int quality)
+{
+    if (img->channels != 3) return pg_fail(PG_ERR_ARG, "%s: JPEG writer takes 3 channels", path);
+    pg_atomic_file f;
+    PG_TRY(pg_atomic_open(&f, path));
+    uint8_t *row = pg_malloc((size_t)img->width * 3, path);
+    if (!row) { pg_atomic_abort(&f); return PG_ERR_NOMEM; }
+    struct jpeg_compress_struct cinfo;
+    struct jpeg_error_mgr jerr;
+    cinfo.err = jpeg_std_error(&jerr);
+    jpeg_create_compress(&cinfo);
+    jpeg_stdio_dest(&cinfo, f.fp);
+    cinfo.image_width = (JDIMENSION)img->width;
+    cinfo.image_height = (JDIMENSION)img->height;
+    cinfo.input_components = 3;
+    cinfo.in_color_space = JCS_RGB;
+    jpeg_set_defaults(&cinfo);
+    jpeg_set_quality(&cinfo, quality, TRUE);
+    jpeg_start_compress(&cinfo, TRUE);
+    for (int y = 0; y < img->height; y++) {
+        const float *src = pg_image_at(img, 0, y);
+        for (int i = 0; i < img->width * 3; i++) row[i] = to_u8(src[i]);
+        JSAMPROW rows[1] = { row };
+        jpeg_write_scanlines(&cinfo, rows, 1);
+    }
+    jpeg_finish_compress(&cinfo);
+    jpeg_destroy_compress(&cinfo);
+    free(row);
+    return pg_atomic_commit(&f);
+}

@@ -1,0 +1,58 @@
+/* testlib.c - implementation of the small test harness. */
+#include "testlib.h"
+#include "core/fileutil.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+int test_passed, test_failed;
+
+int test_summary(const char *name)
+{
+    printf("%s: %d passed, %d failed\n", name, test_passed, test_failed);
+    return test_failed ? 1 : 0;
+}
+
+void test_tmpdir(const char *name, char *out, size_t size)
+{
+    snprintf(out, size, "%s/%s", PG_TEST_TMP, name);
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s'", out, out);
+    if (system(cmd) != 0) fprintf(stderr, "warning: could not prepare %s\n", out);
+}
+
+int test_run_cli(const char *args, char *err, size_t size)
+{
+    char tmp[4096], cmd[16384];
+    snprintf(tmp, sizeof tmp, "%s/cli-stderr-%d.txt", PG_TEST_TMP, (int)getpid());
+    snprintf(cmd, sizeof cmd, "mkdir -p '%s' && '%s' %s 2>'%s' >/dev/null </dev/null", PG_TEST_TMP, PG_CLI_PATH, args, tmp);
+    int rc = system(cmd);
+    if (err && size) {
+        err[0] = '\0';
+        FILE *fp = fopen(tmp, "rb");
+        if (fp) {
+            size_t n = fread(err, 1, size - 1, fp);
+            err[n] = '\0';
+            fclose(fp);
+        }
+    }
+    remove(tmp);
+    if (rc == -1 || !WIFEXITED(rc)) return -1;
+    return WEXITSTATUS(rc);
+}
+
+double test_rel_err(double a, double b, double floor)
+{
+    double m = fabs(a) > fabs(b) ? fabs(a) : fabs(b);
+    if (m < floor) m = floor;
+    return fabs(a - b) / m;
+}
+
+int test_shared_data(const char *name, char *out, size_t size)
+{
+    snprintf(out, size, "%s/data/%s", PG_SHARED_DIR, name);
+    return pg_path_is_dir(out);
+}
