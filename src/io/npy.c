@@ -1,0 +1,210 @@
+/* npy.c - reader/writer for NumPy's .npy format. The header is a Python dict literal;
+ * we parse just the three keys it always has ('descr', 'fortran_order', 'shape'). */
+#include "io/npy.h"
+#include "core/fileutil.h"
+
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define NPY_MAX_ELEMENTS ((size_t)1 << 31)
+
+void pg_array_destroy(pg_array *arr)
+{
+    if (!arr) return;
+    free(arr->data);
+    memset(arr, 0, sizeof *arr);
+}
+
+typedef struct {
+    char kind;     /* 'f', 'u', 'i', 'b' */
+    int bytes;
+    int big_endian;
+} npy_dtype;
+
+static int parse_descr(const char *h, npy_dtype *dt)
+{
+    const char *p = strstr(h, "'descr'");
+    if (!p) return -1;
+    p = strchr(p + 7, ':');
+    if (!p) return -1;
+    p = strchr(p, '\'');
+    if (!p) return -1;
+    p++;
+    char order = *p++;
+    if (order != '<' && order != '>' && order != '|' && order != '=') return -1;
+    dt->big_endian = order == '>';
+    dt->kind = *p++;
+    dt->bytes = atoi(p);
+    if (strchr("fuib", dt->kind) == NULL) return -1;
+    if (dt->kind == 'f' && dt->bytes != 4 && dt->bytes != 8 && dt->bytes != 2) return -1;
+    if ((dt->kind == 'u' || dt->kind == 'i') && dt->bytes != 1 && dt->bytes != 2 && dt->bytes != 4 && dt->bytes != 8) return -1;
+    if (dt->kind == 'b' && dt->bytes != 1) return -1;
+    return 0;
+}
+
+static int parse_shape(const char *h, pg_array *arr)
+{
+    const char *p = strstr(h, "'shape'");
+    if (!p) return -1;
+    p = strchr(p, '(');
+    if (!p) return -1;
+    p++;
+    arr->ndim = 0;
+    arr->count = 1;
+    for (;;) {
+        while (*p == ' ' || *p == ',') p++;
+        if (*p == ')') break;
+        if (*p < '0' || *p > '9') return -1;
+        char *end;
+        unsigned long long v = strtoull(p, &end, 10);
+        if (arr->ndim >= PG_NPY_MAX_DIMS) return -2;
+        if (v > NPY_MAX_ELEMENTS) return -3;
+        arr->shape[arr->ndim++] = (size_t)v;
+        if (pg_size_mul(arr->count, (size_t)v, &arr->count) || arr->count > NPY_MAX_ELEMENTS) return -3;
+        p = end;
+    }
+    return 0;
+}
+
+static float half_to_float(uint16_t h)
+{
+    uint32_t sign = (uint32_t)(h >> 15) << 31, exp = (h >> 10) & 0x1f, mant = h & 0x3ff, bits;
+    if (exp == 0) {
+        if (mant == 0) bits = sign;
+        else {
+            exp = 127 - 15 + 1;
+            while (!(mant & 0x400)) { mant <<= 1; exp--; }
+            bits = sign | (exp << 23) | ((mant & 0x3ff) << 13);
+        }
+    } else if (exp == 31) bits = sign | 0x7f800000u | (mant << 13);
+    else bits = sign | ((exp + 127 - 15) << 23) | (mant << 13);
+    float f;
+    memcpy(&f, &bits, 4);
+    return f;
+}
+
+static float convert_one(const uint8_t *src, const npy_dtype *dt)
+{
+    uint8_t b[8];
+    for (int i = 0; i < dt->bytes; i++) b[i] = dt->big_endian ? src[dt->bytes - 1 - i] : src[i];
+    switch (dt->kind) {
+    case 'f':
+        if (dt->bytes == 4) { float f; memcpy(&f, b, 4); return f; }
+        if (dt->bytes == 8) { double d; memcpy(&d, b, 8); return (float)d; }
+        { uint16_t h; memcpy(&h, b, 2); return half_to_float(h); }
+    case 'u':
+        if (dt->bytes == 1) return b[0];
+        if (dt->bytes == 2) { uint16_t v; memcpy(&v, b, 2); return v; }
+        if (dt->bytes == 4) { uint32_t v; memcpy(&v, b, 4); return (float)v; }
+        { uint64_t v; memcpy(&v, b, 8); return (float)v; }
+    case 'i':
+        if (dt->bytes == 1) return (int8_t)b[0];
+        if (dt->bytes == 2) { int16_t v; memcpy(&v, b, 2); return v; }
+        if (dt->bytes == 4) { int32_t v; memcpy(&v, b, 4); return (float)v; }
+        { int64_t v; memcpy(&v, b, 8); return (float)v; }
+    default:
+        return b[0] ? 1.0f : 0.0f;
+    }
+}
+
+pg_status io_npy_load(const char *path, pg_array *arr)
+{
+    memset(arr, 0, sizeof *arr);
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open", path);
+    uint8_t pre[12];
+    pg_status st = PG_OK;
+    char *header = NULL;
+    uint8_t *raw = NULL;
+    if (fread(pre, 1, 10, fp) != 10 || memcmp(pre, "\x93NUMPY", 6) != 0) {
+        st = pg_fail(PG_ERR_FORMAT, "%s: not a .npy file (bad magic)", path);
+        goto done;
+    }
+    size_t hlen;
+    if (pre[6] == 1) hlen = pre[8] | (pre[9] << 8);
+    else if (pre[6] == 2 || pre[6] == 3) {
+        if (fread(pre + 10, 1, 2, fp) != 2) { st = pg_fail(PG_ERR_FORMAT, "%s: truncated header", path); goto done; }
+        hlen = (size_t)pre[8] | ((size_t)pre[9] << 8) | ((size_t)pre[10] << 16) | ((size_t)pre[11] << 24);
+    } else {
+        st = pg_fail(PG_ERR_FORMAT, "%s: unsupported .npy version %d", path, pre[6]);
+        goto done;
+    }
+    if (hlen > (1 << 20)) { st = pg_fail(PG_ERR_FORMAT, "%s: header length %zu is absurd", path, hlen); goto done; }
+    header = pg_malloc(hlen + 1, path);
+    if (!header) { st = PG_ERR_NOMEM; goto done; }
+    if (fread(header, 1, hlen, fp) != hlen) { st = pg_fail(PG_ERR_FORMAT, "%s: truncated header", path); goto done; }
+    header[hlen] = '\0';
+    npy_dtype dt;
+    if (parse_descr(header, &dt)) { st = pg_fail(PG_ERR_FORMAT, "%s: unsupported or bad dtype in header", path); goto done; }
+    if (strstr(header, "'fortran_order': True")) {
+        st = pg_fail(PG_ERR_FORMAT, "%s: Fortran-ordered arrays are not supported (save with C order)", path);
+        goto done;
+    }
+    int sr = parse_shape(header, arr);
+    if (sr == -2) { st = pg_fail(PG_ERR_SIZE, "%s: more than %d dimensions", path, PG_NPY_MAX_DIMS); goto done; }
+    if (sr == -3) { st = pg_fail(PG_ERR_SIZE, "%s: array shape in header is absurdly large", path); goto done; }
+    if (sr) { st = pg_fail(PG_ERR_FORMAT, "%s: cannot parse shape in header", path); goto done; }
+    size_t bytes = arr->count * (size_t)dt.bytes;
+    long pos = ftell(fp);
+    fseek(fp, 0, SEEK_END);
+    long end = ftell(fp);
+    fseek(fp, pos, SEEK_SET);
+    if (end - pos < (long)bytes) {
+        st = pg_fail(PG_ERR_FORMAT, "%s: truncated: header promises %zu bytes of data, file has %ld", path, bytes, end - pos);
+        goto done;
+    }
+    raw = pg_malloc(bytes, path);
+    arr->data = pg_malloc(arr->count * sizeof(float), path);
+    if (!raw || !arr->data) { st = PG_ERR_NOMEM; goto done; }
+    if (fread(raw, 1, bytes, fp) != bytes) { st = pg_fail(PG_ERR_FORMAT, "%s: truncated data", path); goto done; }
+    if (dt.kind == 'f' && dt.bytes == 4 && !dt.big_endian) memcpy(arr->data, raw, bytes);
+    else
+        for (size_t i = 0; i < arr->count; i++) arr->data[i] = convert_one(raw + i * dt.bytes, &dt);
+done:
+    fclose(fp);
+    free(header);
+    free(raw);
+    if (st != PG_OK) pg_array_destroy(arr);
+    return st;
+}
+
+static pg_status save_raw(const char *path, const void *data, const char *descr, size_t elem, int ndim, const size_t *shape)
+{
+    char dict[256], shp[160] = "";
+    size_t count = 1;
+    for (int i = 0; i < ndim; i++) {
+        char part[32];
+        snprintf(part, sizeof part, "%zu%s", shape[i], (ndim == 1 || i < ndim - 1) ? ", " : "");
+        strncat(shp, part, sizeof shp - strlen(shp) - 1);
+        count *= shape[i];
+    }
+    if (ndim == 1) shp[strlen(shp) - 1] = '\0'; /* "(5,)" */
+    int n = snprintf(dict, sizeof dict, "{'descr': '%s', 'fortran_order': False, 'shape': (%s), }", descr, shp);
+    size_t total = 10 + (size_t)n + 1;
+    size_t pad = (64 - total % 64) % 64;
+    size_t hlen = (size_t)n + pad + 1;
+    uint8_t pre[10] = { 0x93, 'N', 'U', 'M', 'P', 'Y', 1, 0, (uint8_t)(hlen & 0xff), (uint8_t)(hlen >> 8) };
+    pg_atomic_file f;
+    PG_TRY(pg_atomic_open(&f, path));
+    fwrite(pre, 1, 10, f.fp);
+    fwrite(dict, 1, (size_t)n, f.fp);
+    for (size_t i = 0; i < pad; i++) fputc(' ', f.fp);
+    fputc('\n', f.fp);
+    if (count && fwrite(data, elem, count, f.fp) != count) {
+        pg_atomic_abort(&f);
+        return pg_fail(PG_ERR_IO, "%s: write failed", path);
+    }
+    return pg_atomic_commit(&f);
+}
+
+pg_status io_npy_save(const char *path, const float *data, int ndim, const size_t *shape)
+{
+    return save_raw(path, data, "<f4", sizeof(float), ndim, shape);
+}
+
+pg_status io_npy_save_u8(const char *path, const unsigned char *data, int ndim, const size_t *shape)
+{
+    return save_raw(path, data, "|u1", 1, ndim, shape);
+}

@@ -1,0 +1,30 @@
+/* npy.h - NumPy .npy arrays (format 1.0/2.0/3.0, C order).
+ *
+ * Loading converts any of float32/float64/uint8/uint16/int16/int32/int64 (either byte
+ * order) to float32; saving writes little-endian float32 ('<f4') or uint8 ('|u1').
+ */
+#ifndef PG_NPY_H
+#define PG_NPY_H
+
+#include <stddef.h>
+#include "core/status.h"
+
+#define PG_NPY_MAX_DIMS 4
+
+typedef struct {
+    int ndim;
+    size_t shape[PG_NPY_MAX_DIMS];
+    size_t count;  /* product of shape */
+    float *data;   /* (shape...) as float32 */
+} pg_array;
+
+/* Loads path; fails with a message naming the file on truncation, bad header, unsupported
+ * dtype, Fortran order or absurd sizes (limit: 2^31 elements). */
+pg_status io_npy_load(const char *path, pg_array *arr);
+/* Saves float32 data of the given shape atomically. */
+pg_status io_npy_save(const char *path, const float *data, int ndim, const size_t *shape);
+/* Saves uint8 data of the given shape atomically (masks). */
+pg_status io_npy_save_u8(const char *path, const unsigned char *data, int ndim, const size_t *shape);
+void pg_array_destroy(pg_array *arr);
+
+#endif
