@@ -1,0 +1,50 @@
+/* raster.h - differentiable tile-based Gaussian rasterizer (3DGS forward and backward).
+ *
+ *   splat_raster *r;
+ *   splat_raster_create(&r);
+ *   pg_render_settings s = splat_default_settings();
+ *   splat_render_forward(r, &gaussians, &camera, &s, &out);     // out.rgb/depth/alpha
+ *   ... loss gradients d_rgb (H,W,3), d_depth (H,W), d_alpha (H,W), any may be NULL ...
+ *   splat_render_backward(r, &gaussians, &camera, &s, d_rgb, d_depth, d_alpha, &grads, grad2d);
+ *   splat_raster_destroy(r);
+ *
+ * The rasterizer keeps what the backward needs (projected Gaussians, sorted tile lists,
+ * per-pixel final transmittance and last contributor) from the latest forward call, so a
+ * backward must follow the forward of the same Gaussians and camera.
+ */
+#ifndef PG_RASTER_H
+#define PG_RASTER_H
+
+#include "core/camera.h"
+#include "splat/gaussians.h"
+
+typedef struct {
+    float background[3]; /* colour behind everything */
+    float near_clip;     /* cull Gaussians with camera z below this (0.01) */
+    int sh_degree;       /* -1: use the Gaussians' own sh_degree */
+} pg_render_settings;
+
+typedef struct {
+    int width, height;
+    float *rgb;   /* (H, W, 3) composited colour incl. background, owned by the rasterizer */
+    float *depth; /* (H, W) expected depth sum_i z_i alpha_i T_i (not normalised by alpha) */
+    float *alpha; /* (H, W) 1 - T_final */
+    long intersections; /* tile-Gaussian pairs rendered (for benchmarks) */
+    double preprocess_ms, forward_ms; /* timing of the last forward */
+} pg_render_output;
+
+typedef struct splat_raster splat_raster;
+
+pg_render_settings splat_default_settings(void);
+pg_status splat_raster_create(splat_raster **r);
+void splat_raster_destroy(splat_raster *r);
+/* Renders; out's buffers stay valid until the next forward or destroy. */
+pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
+                               const pg_render_settings *s, pg_render_output *out);
+/* Accumulates (+=) gradients w.r.t. every Gaussian parameter into grad (same count as g).
+ * viewspace_grad_norm (N), if not NULL, gets += |dL/d(mean2D)| per Gaussian (densification). */
+pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
+                                const pg_render_settings *s, const float *d_rgb, const float *d_depth,
+                                const float *d_alpha, pg_gaussians *grad, float *viewspace_grad_norm);
+
+#endif
