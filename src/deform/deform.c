@@ -180,6 +180,9 @@ struct deform_ws {
     const int *idx;
     long n;
     float t;
+    long *order;          /* (order_cap) processing order: row j of the chunks is point order[j] */
+    long order_cap;
+    long *bins;           /* (SORT_BINS + 1) counting-sort histogram */
 };
 
 static size_t ws_scratch_floats(const deform_ws *ws)
@@ -260,15 +263,60 @@ void deform_ws_destroy(deform_ws *ws)
     free(ws->store);
     free(ws->scratch);
     free(ws->tgrads);
+    free(ws->order);
+    free(ws->bins);
     free(ws);
 }
 
 /* ---------------------------------------------------------------------------------------------- */
 /* forward / backward                                                                              */
 
-static inline const float *point_pos(const deform_ws *ws, long i)
+/* Row of means (and d_means) of the point processed at position j. */
+static inline long point_row(const deform_ws *ws, long j)
 {
-    return ws->means + 3 * (ws->idx ? (long)ws->idx[i] : i);
+    long i = ws->order[j];
+    return ws->idx ? (long)ws->idx[i] : i;
+}
+
+#define SORT_BITS 5 /* per axis: 32^3 Morton cells */
+#define SORT_BINS (1L << (3 * SORT_BITS))
+
+/* Orders the points along a Morton curve of 32^3 cells over the AABB (stable counting sort).
+ * Neighbouring points then touch neighbouring plane texels, which roughly halves the time of the
+ * memory-bound HexPlane gather/scatter compared with a random order. O(n + 32768). */
+static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
+{
+    if (n > ws->order_cap) {
+        long *o = malloc((size_t)n * sizeof(long));
+        if (!o) return pg_fail(PG_ERR_NOMEM, "deform: no memory to order %ld points", n);
+        free(ws->order);
+        ws->order = o;
+        ws->order_cap = n;
+    }
+    if (!ws->bins && !(ws->bins = malloc((SORT_BINS + 1) * sizeof(long))))
+        return pg_fail(PG_ERR_NOMEM, "deform: no memory for the point sort");
+    /* key of point i is stored temporarily in order[i] */
+    for (long i = 0; i < n; i++) {
+        const float *p = ws->means + 3 * (ws->idx ? (long)ws->idx[i] : i);
+        long key = 0;
+        for (int d = 0; d < 3; d++) {
+            float u = (p[d] - g->aabb[d]) / (g->aabb[3 + d] - g->aabb[d]);
+            int c = u > 0.0f ? (int)(u * (1 << SORT_BITS)) : 0; /* NaN -> 0 */
+            if (c > (1 << SORT_BITS) - 1) c = (1 << SORT_BITS) - 1;
+            for (int b = 0; b < SORT_BITS; b++) key |= (long)((c >> b) & 1) << (3 * b + d);
+        }
+        ws->order[i] = key;
+    }
+    memset(ws->bins, 0, (SORT_BINS + 1) * sizeof(long));
+    for (long i = 0; i < n; i++) ws->bins[ws->order[i] + 1]++;
+    for (long b = 0; b < SORT_BINS; b++) ws->bins[b + 1] += ws->bins[b];
+    /* second array: reuse the tail trick - place indices via a temporary copy of keys */
+    long *keys = malloc((size_t)n * sizeof(long));
+    if (!keys) return pg_fail(PG_ERR_NOMEM, "deform: no memory to order %ld points", n);
+    memcpy(keys, ws->order, (size_t)n * sizeof(long));
+    for (long i = 0; i < n; i++) ws->order[ws->bins[keys[i]]++] = i;
+    free(keys);
+    return PG_OK;
 }
 
 /* Activations of chunk k: stored, or this thread's scratch. Layout (m rows each): feat (m, F),
@@ -292,7 +340,8 @@ static float *layer_out(const deform_ws *ws, float *acts, int l, int m)
 static void chunk_forward_hidden(const deform_network *net, deform_ws *ws, float *acts, long start, int m)
 {
     const int F = ws->F;
-    for (int i = 0; i < m; i++) hex_sample_forward(acts + (size_t)i * F, &net->grid, point_pos(ws, start + i), ws->t);
+    for (int i = 0; i < m; i++)
+        hex_sample_forward(acts + (size_t)i * F, &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
     for (int l = 0; l < net->num_layers; l++) {
         const deform_layer *L = &net->layers[l];
         mlp_linear_forward(layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
@@ -309,6 +358,7 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
     ws->idx = idx;
     ws->n = n;
     ws->t = t;
+    PG_TRY(ws_sort_points(ws, &net->grid, n));
     const int W5 = DEFORM_HEADS * ws->W;
     long nchunks = (n + ws->chunk - 1) / ws->chunk;
     #pragma omp parallel for schedule(static)
@@ -319,12 +369,15 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
         float *acts = chunk_acts(ws, k, tid, &stored);
         chunk_forward_hidden(net, ws, acts, start, m);
         const float *a = layer_out(ws, acts, net->num_layers - 1, m);
+        float *y = ws->scratch + (size_t)tid * ws->scratch_floats + (size_t)ws->chunk * ws->act_pp; /* (m, 59) */
         for (int h = 0; h < DEFORM_HEADS; h++) {
             const deform_layer *L = &net->heads[h];
-            mlp_linear_forward(out + (size_t)start * DEFORM_OUT_DIM + deform_head_offset[h], DEFORM_OUT_DIM,
-                               a + (size_t)h * ws->W, W5, net->params + L->w_off, net->params + L->b_off, m, L->in,
-                               L->out, 0);
+            mlp_linear_forward(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, W5,
+                               net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 0);
         }
+        for (int i = 0; i < m; i++)
+            memcpy(out + (size_t)ws->order[start + i] * DEFORM_OUT_DIM, y + (size_t)i * DEFORM_OUT_DIM,
+                   DEFORM_OUT_DIM * sizeof(float));
     }
     return PG_OK;
 }
@@ -361,7 +414,9 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
             int m = (int)(n - start < ws->chunk ? n - start : ws->chunk);
             float *acts = chunk_acts(ws, k, tid, &stored);
             if (!stored) chunk_forward_hidden(net, ws, acts, start, m);
-            memcpy(dy, d_out + (size_t)start * DEFORM_OUT_DIM, (size_t)m * DEFORM_OUT_DIM * sizeof(float));
+            for (int i = 0; i < m; i++)
+                memcpy(dy + (size_t)i * DEFORM_OUT_DIM, d_out + (size_t)ws->order[start + i] * DEFORM_OUT_DIM,
+                       DEFORM_OUT_DIM * sizeof(float));
             const float *a = layer_out(ws, acts, net->num_layers - 1, m);
             for (int h = 0; h < DEFORM_HEADS; h++) {
                 const deform_layer *L = &net->heads[h];
@@ -380,7 +435,7 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
             }
             /* dcur = d features (m, F) */
             for (int i = 0; i < m; i++) {
-                long gi = ws->idx ? (long)ws->idx[start + i] : start + i;
+                long gi = point_row(ws, start + i);
                 hex_sample_backward(dplanes, d_means ? d_means + 3 * gi : NULL, dcur + (size_t)i * F, &net->grid,
                                     ws->means + 3 * gi, ws->t);
             }

@@ -62,8 +62,8 @@ void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float 
         for (int p = 0; p < HEX_PLANES; p++) {
             const hex_axis *A = &ax[hex_plane_axes[p][0]], *B = &ax[hex_plane_axes[p][1]];
             int Wp = hex_axis_res(g, s, hex_plane_axes[p][0]);
-            const float *t00 = g->planes[s][p] + ((size_t)B->i0 * Wp + A->i0) * C;
-            const float *t01 = t00 + C, *t10 = t00 + (size_t)Wp * C, *t11 = t10 + C;
+            const float *restrict t00 = g->planes[s][p] + ((size_t)B->i0 * Wp + A->i0) * C;
+            const float *restrict t01 = t00 + C, *restrict t10 = t00 + (size_t)Wp * C, *restrict t11 = t10 + C;
             float wa = A->w, wb = B->w;
             float w00 = (1 - wa) * (1 - wb), w01 = wa * (1 - wb), w10 = (1 - wa) * wb, w11 = wa * wb;
             #pragma omp simd
@@ -91,11 +91,13 @@ void hex_sample_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], floa
             const float *t00 = base[p], *t01 = t00 + C, *t10 = t00 + (size_t)Wp[p] * C, *t11 = t10 + C;
             float wa = A->w, wb = B->w;
             float w00 = (1 - wa) * (1 - wb), w01 = wa * (1 - wb), w10 = (1 - wa) * wb, w11 = wa * wb;
+            #pragma omp simd
             for (int c = 0; c < C; c++) v[p][c] = w00 * t00[c] + w01 * t01[c] + w10 * t10[c] + w11 * t11[c];
         }
         /* product of the other five planes without division (samples can be 0): prefix * suffix */
         for (int c = 0; c < C; c++) suf[HEX_PLANES - 1][c] = 1.0f;
         for (int p = HEX_PLANES - 2; p >= 0; p--)
+            #pragma omp simd
             for (int c = 0; c < C; c++) suf[p][c] = suf[p + 1][c] * v[p + 1][c];
         for (int c = 0; c < C; c++) pre[c] = 1.0f;
         for (int p = 0; p < HEX_PLANES; p++) {
@@ -105,9 +107,11 @@ void hex_sample_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], floa
             float w00 = (1 - wa) * (1 - wb), w01 = wa * (1 - wb), w10 = (1 - wa) * wb, w11 = wa * wb;
             size_t off = (size_t)(base[p] - g->planes[s][p]);
             size_t row = (size_t)Wp[p] * C;
-            float *d00 = d_planes[s][p] + off, *d01 = d00 + C, *d10 = d00 + row, *d11 = d10 + C;
+            float *restrict d00 = d_planes[s][p] + off, *restrict d01 = d00 + C, *restrict d10 = d00 + row,
+                  *restrict d11 = d10 + C;
             const float *t00 = base[p], *t01 = t00 + C, *t10 = t00 + row, *t11 = t10 + C;
             float ga = 0, gb = 0;
+            #pragma omp simd reduction(+ : ga, gb)
             for (int c = 0; c < C; c++) {
                 float gp = df[c] * pre[c] * suf[p][c];
                 d00[c] += w00 * gp;
