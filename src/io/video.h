@@ -77,6 +77,8 @@ void io_video_target_size(const io_video_options *opt, int src_w, int src_h, int
  * malloc'd full paths (free with io_free_names). Fails if the folder has none. */
 pg_status io_list_images(const char *dir, char ***names, int *count);
 void io_free_names(char **names, int count);
+/* Sorts paths by their file names in natural order ("f2" < "f10"). */
+void io_sort_names(char **names, int count);
 
 /* ---- writing ---- */
 

@@ -105,6 +105,11 @@ static int cmp_names(const void *x, const void *y)
     return natural_cmp(sa ? sa + 1 : a, sb ? sb + 1 : b);
 }
 
+void io_sort_names(char **names, int count)
+{
+    if (count > 1) qsort(names, (size_t)count, sizeof *names, cmp_names);
+}
+
 void io_free_names(char **names, int count)
 {
     if (!names) return;
@@ -140,7 +145,7 @@ pg_status io_list_images(const char *dir, char ***names, int *count)
     closedir(d);
     if (st == PG_OK && n == 0) st = pg_fail(PG_ERR_FORMAT, "%s: folder holds no .png/.jpg frames", dir);
     if (st != PG_OK) { io_free_names(list, n); return st; }
-    qsort(list, (size_t)n, sizeof *list, cmp_names);
+    io_sort_names(list, n);
     *names = list;
     *count = n;
     return PG_OK;
