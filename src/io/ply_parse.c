@@ -192,11 +192,15 @@ pg_status io_ply_probe(const char *path, io_ply_info *info)
         ply_free(&pf);
         return pg_fail(PG_ERR_FORMAT, "%s: vertex element lacks x, y or z", path);
     }
-    int nrest = 0;
+    int nrest = 0, highest = 0;
     char name[32];
     for (int k = 0; k < 45; k++) {
         snprintf(name, sizeof name, "f_rest_%d", k);
-        if (ply_find(&pf, name) >= 0) nrest++;
+        if (ply_find(&pf, name) >= 0) nrest++, highest = k + 1;
+    }
+    if (nrest != highest || (nrest != 0 && nrest != 9 && nrest != 24 && nrest != 45)) {
+        ply_free(&pf);
+        return pg_fail(PG_ERR_FORMAT, "%s: %d f_rest properties (expected f_rest_0.. with 0, 9, 24 or 45)", path, nrest);
     }
     info->count = pf.count;
     info->num_rest = nrest;
