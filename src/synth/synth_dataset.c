@@ -373,12 +373,16 @@ static pg_status write_panoptic_meta(const char *path, const synth_options *o, c
 
 /* ---------------------------------------------------------------- the writer */
 
+/* Frames are rendered CHUNK at a time and their images encoded in parallel (PNG/JPEG encoding
+ * is serial per image and would otherwise dominate small datasets). */
+#define CHUNK 8
+
 typedef struct {
     float *depth;          /* (F, H, W) */
     float *mono;           /* (F, H, W) */
     unsigned char *mask;   /* (F, H, W) */
     float *scratch;        /* (H, W) */
-    pg_image rgb;
+    pg_image rgb[CHUNK];
     synth_mono_info mono_info;
 } writer_buffers;
 
@@ -388,8 +392,28 @@ static void writer_free(writer_buffers *b)
     free(b->mono);
     free(b->mask);
     free(b->scratch);
-    pg_image_destroy(&b->rgb);
+    for (int i = 0; i < CHUNK; i++) pg_image_destroy(&b->rgb[i]);
     synth_mono_info_destroy(&b->mono_info);
+}
+
+/* Encodes frames [f0, f0 + n) of one camera into dir, in parallel; returns the first failure
+ * (in frame order) with its message. */
+static pg_status save_chunk(const writer_buffers *b, const char *dir, int f0, int n, int jpeg)
+{
+    pg_status st[CHUNK];
+    char msg[CHUNK][512];
+#pragma omp parallel for schedule(dynamic, 1)
+    for (int i = 0; i < n; i++) {
+        char path[4096];
+        int len = snprintf(path, sizeof path, jpeg ? "%s/%06d.jpg" : "%s/%04d.png", dir, f0 + i);
+        if (len < 0 || (size_t)len >= sizeof path) st[i] = pg_fail(PG_ERR_ARG, "synth: output path too long");
+        else st[i] = jpeg ? io_image_save_jpeg(path, &b->rgb[i], 95) : io_image_save_png(path, &b->rgb[i]);
+        msg[i][0] = '\0';
+        if (st[i]) snprintf(msg[i], sizeof msg[i], "%s", pg_last_error());
+    }
+    for (int i = 0; i < n; i++)
+        if (st[i]) return pg_fail(st[i], "%s", msg[i]);
+    return PG_OK;
 }
 
 static pg_status check_options(const synth_options *o)
@@ -428,7 +452,7 @@ static pg_status write_dataset_impl(const char *out, const synth_options *o, wri
     b->mask = pg_malloc(vol, "synth masks");
     b->scratch = pg_malloc(plane * sizeof(float), "synth scratch");
     if (!b->depth || !b->mono || !b->mask || !b->scratch) return PG_ERR_NOMEM;
-    PG_TRY(pg_image_create(&b->rgb, W, H, 3));
+    for (int i = 0; i < CHUNK; i++) PG_TRY(pg_image_create(&b->rgb[i], W, H, 3));
 
     char path[4096];
     PG_TRY(pg_mkdir_p(out));
@@ -453,18 +477,15 @@ static pg_status write_dataset_impl(const char *out, const synth_options *o, wri
             else st = join_fmt(dir, sizeof dir, "%s/cam%02d/images", out, c);
         }
         if (!st) st = pg_mkdir_p(dir);
-        for (int f = 0; f < F && !st; f++) {
-            pg_progress_report("synth", (long)c * F + f, (long)N * F, "cam%02d frame %d", c, f);
-            st = synth_render_frame(&sc, &cams[c], synth_frame_time(f, F), &b->rgb, b->depth + f * plane,
-                                    c == 0 ? b->mask + f * plane : NULL);
-            if (st) break;
-            if (o->layout == SYNTH_LAYOUT_PANOPTIC) {
-                st = join_fmt(path, sizeof path, "%s/%06d.jpg", dir, f);
-                if (!st) st = io_image_save_jpeg(path, &b->rgb, 95);
-            } else {
-                st = join_fmt(path, sizeof path, "%s/%04d.png", dir, f);
-                if (!st) st = io_image_save_png(path, &b->rgb);
+        for (int f0 = 0; f0 < F && !st; f0 += CHUNK) {
+            int n = F - f0 < CHUNK ? F - f0 : CHUNK;
+            pg_progress_report("synth", (long)c * F + f0, (long)N * F, "cam%02d frame %d", c, f0);
+            for (int i = 0; i < n && !st; i++) {
+                int f = f0 + i;
+                st = synth_render_frame(&sc, &cams[c], synth_frame_time(f, F), &b->rgb[i], b->depth + f * plane,
+                                        c == 0 ? b->mask + f * plane : NULL);
             }
+            if (!st) st = save_chunk(b, dir, f0, n, o->layout == SYNTH_LAYOUT_PANOPTIC);
         }
         if (st) break;
         depth_bounds(b->depth, plane, b->scratch, &near_far[2 * c], &near_far[2 * c + 1]);

@@ -178,8 +178,8 @@ void synth_scene_default(synth_scene *sc, uint64_t seed)
     sc->spp = 2;
     set3(sc->background, 0.6f, 0.7f, 0.85f);
 
-    set3(sc->target, 0.0f, 0.35f, 0.12f);
-    sc->radius = 2.8f;
+    set3(sc->target, 0.0f, 0.42f, 0.12f);
+    sc->radius = 2.45f;
     sc->elevation_deg = 30;
     sc->fov_x_deg = 60;
     for (int i = 0; i < SYNTH_MAX_CAMS; i++) {
@@ -452,6 +452,33 @@ static float value_noise(float x, float y, float z, uint32_t seed)
     return y0 + (y1 - y0) * w;
 }
 
+/* Bilinear value noise in [0, 1] (planes: half the hashes of the 3D version). */
+static float value_noise2(float x, float y, uint32_t seed)
+{
+    float fx = floorf(x), fy = floorf(y);
+    int ix = (int)fx, iy = (int)fy;
+    float u = x - fx, v = y - fy;
+    u = u * u * (3 - 2 * u); v = v * v * (3 - 2 * v);
+    float c00 = hashf(ix, iy, 0, seed), c10 = hashf(ix + 1, iy, 0, seed);
+    float c01 = hashf(ix, iy + 1, 0, seed), c11 = hashf(ix + 1, iy + 1, 0, seed);
+    float a = c00 + (c10 - c00) * u, b = c01 + (c11 - c01) * u;
+    return a + (b - a) * v;
+}
+
+static float fbm2(float x, float y, uint32_t seed)
+{
+    return 0.57f * value_noise2(x, y, seed) + 0.29f * value_noise2(2.03f * x, 2.03f * y, seed + 1) +
+           0.14f * value_noise2(4.1f * x, 4.1f * y, seed + 2);
+}
+
+/* Fine detail noise (2 octaves), roughly in [0, 1]. */
+static float detail_noise(const float q[3], const float off[3], int planar, uint32_t seed)
+{
+    float x = q[0] * 40 + off[0], y = q[1] * 40 + off[1], z = q[2] * 40 + off[2];
+    if (planar) return 0.67f * value_noise2(x, y, seed) + 0.33f * value_noise2(2.03f * x, 2.03f * y, seed + 1);
+    return 0.67f * value_noise(x, y, z, seed) + 0.33f * value_noise(2.03f * x, 2.03f * y, 2.03f * z, seed + 1);
+}
+
 /* Fractal noise (3 octaves), roughly in [0, 1]. */
 static float fbm(float x, float y, float z, uint32_t seed)
 {
@@ -477,7 +504,7 @@ static void texture_eval(const synth_object *ob, uint32_t seed, const float q[3]
     const float s = ob->tex_scale;
     const float *off = ob->tex_offset;
     float x = q[0] / s, y = q[1] / s, z = q[2] / s;
-    float detail = fbm(q[0] * 40 + off[0], q[1] * 40 + off[1], q[2] * 40 + off[2], seed + 17);
+    float detail = detail_noise(q, off, ob->shape == SYNTH_SHAPE_PLANE, seed + 17);
     float t = 0;
     switch (ob->texture) {
     case SYNTH_TEX_WOOD: {
@@ -486,8 +513,8 @@ static void texture_eval(const synth_object *ob, uint32_t seed, const float q[3]
         int along_x = ((ti + tj) & 1) == 0;
         float ga = along_x ? q[0] : q[1], gb = along_x ? q[1] : q[0];
         float tile_tone = hashf(ti, tj, 0, seed + 5);
-        float grain = fbm(ga * 3 + off[0] + tile_tone * 10, gb * 45 + off[1], 0.5f, seed + 3);
-        t = 0.55f * tile_tone + 0.45f * smooth_step(0.3f, 0.7f, grain);
+        float grain = fbm2(ga * 4 + off[0] + tile_tone * 10, gb * 70 + off[1], seed + 3);
+        t = 0.45f * tile_tone + 0.55f * smooth_step(0.35f, 0.65f, grain);
         mix3(out, ob->color_a, ob->color_b, t);
         float fx = x - floorf(x), fy = y * 2.5f - floorf(y * 2.5f);
         float seam = fminf(fminf(fx, 1 - fx) * s, fminf(fy, 1 - fy) * s / 2.5f);
@@ -506,7 +533,7 @@ static void texture_eval(const synth_object *ob, uint32_t seed, const float q[3]
         } else {
             float tone = hashf((int)col, (int)row, 1, seed + 9);
             for (int i = 0; i < 3; i++) out[i] = ob->color_a[i] * (0.7f + 0.6f * tone);
-            float stain = fbm(q[0] * 6 + off[0], q[1] * 6 + off[1], 0.3f, seed + 11);
+            float stain = fbm2(q[0] * 6 + off[0], q[1] * 6 + off[1], seed + 11);
             for (int i = 0; i < 3; i++) out[i] *= 0.75f + 0.5f * stain;
         }
         break;
