@@ -257,6 +257,41 @@ static void test_dynerf_files(const char *dir)
         CHECK(rmin > 1.1f && rmax < 1.45f, "mono/gt ratio range [%g, %g]", rmin, rmax);
         CHECK(rmax / rmin - 1 > 0.03f && rmax / rmin - 1 < 0.3f, "mono drift %.3f", rmax / rmin - 1);
     }
+    /* covis_cam00/cam03.npy agrees with reprojecting cam03's depth_gt into cam00's depth_gt */
+    pg_array d3 = { 0 }, cv = { 0 };
+    snprintf(path, sizeof path, "%s/depth_gt/cam03.npy", dir);
+    CHECK_OK(io_npy_load(path, &d3));
+    snprintf(path, sizeof path, "%s/covis_cam00/cam03.npy", dir);
+    CHECK_OK(io_npy_load(path, &cv));
+    if (shapes_ok && d3.count == dg.count && cv.count == dg.count) {
+        pg_camera c0, c3;
+        synth_camera(&sc, 0, W, H, &c0);
+        synth_camera(&sc, 3, W, H, &c3);
+        int n1 = 0, ok1 = 0, n0 = 0, ok0 = 0;
+        for (int f = 0; f < F; f++)
+            for (int y = 0; y < H; y++)
+                for (int x = 0; x < W; x++) {
+                    size_t i = ((size_t)f * H + y) * W + x;
+                    if (!(d3.data[i] > 0)) continue;
+                    float X[3], uv[2];
+                    pg_camera_unproject(&c3, x + 0.5f, y + 0.5f, d3.data[i], X);
+                    float z0 = pg_camera_project(&c0, X, uv);
+                    int inside = z0 > 0 && uv[0] >= 0 && uv[1] >= 0 && uv[0] < W && uv[1] < H;
+                    float g0 = inside ? dg.data[((size_t)f * H + (int)uv[1]) * W + (int)uv[0]] : 0;
+                    if (cv.data[i] > 0.5f) {
+                        n1++;
+                        ok1 += inside && fabsf(g0 - z0) < 0.02f * z0;
+                    } else if (inside) {
+                        n0++;
+                        ok0 += g0 < z0 * 0.98f;
+                    }
+                }
+        printf("covis cam03: %d covisible px (%d agree with depth_gt), %d occluded px (%d agree)\n", n1, ok1, n0, ok0);
+        CHECK(n1 > 1000 && ok1 > n1 * 0.95, "covisible pixels: %d of %d agree", ok1, n1);
+        CHECK(n0 > 20 && ok0 > n0 * 0.8, "occluded pixels: %d of %d agree", ok0, n0);
+    }
+    pg_array_destroy(&d3);
+    pg_array_destroy(&cv);
     pg_array_destroy(&dg);
     pg_array_destroy(&mk);
     pg_array_destroy(&dm);

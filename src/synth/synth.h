@@ -104,6 +104,11 @@ int synth_point_is_dynamic(const synth_scene *scene, const float Xw[3], float s,
  * lies in front, and nothing is hit before it along the ray (relative tolerance rel_tol on the
  * distance, e.g. 1e-3). */
 int synth_point_visible(const synth_scene *scene, const pg_camera *cam, const float Xw[3], float s, float rel_tol);
+/* Ground-truth co-visibility: mask (H, W) of cam is 1 where the pixel-centre ray of cam hits a
+ * surface point that ref also sees at time s (inside ref's image, unoccluded; rel_tol as above).
+ * With ref = cam00 this is the region a proxy view warped from cam00 can get right. */
+pg_status synth_render_covisibility(const synth_scene *scene, const pg_camera *cam, const pg_camera *ref, float s,
+                                    float rel_tol, unsigned char *mask);
 /* Pose of object k at time s in the WORLD frame: X_world = R X_local + p. */
 void synth_object_pose(const synth_scene *scene, int k, float s, float R[9], float p[3]);
 /* Scene frame <-> world frame. */
@@ -149,7 +154,9 @@ typedef struct {
 void synth_options_default(synth_options *o);
 /* Renders and writes the dataset into out_dir (created). DyNeRF layout:
  *   poses_bounds.npy (N, 17), camXX/images/0000.png, depth_gt/camXX.npy (F, H, W) float32,
- *   masks_dynamic/cam00.npy (F, H, W) uint8, depth_mono/cam00.npy (F, H, W) float32, scene.json
+ *   masks_dynamic/cam00.npy (F, H, W) uint8, depth_mono/cam00.npy (F, H, W) float32, scene.json,
+ *   covis_cam00/camXX.npy (F, H, W) uint8 for XX >= 1 (synth_render_covisibility with ref = cam00,
+ *   written with all_depth)
  * Panoptic layout: train_meta.json, test_meta.json (test = cams 5 and 6 when present),
  *   ims/<c>/<ffffff>.jpg, plus depth_gt/, masks_dynamic/, depth_mono/ and scene.json as above.
  * Reports progress as stage "synth". */

@@ -284,6 +284,8 @@ static pg_status write_scene_json(const char *path, const synth_scene *sc, const
     cJSON *files = cJSON_AddObjectToObject(root, "files");
     cJSON_AddStringToObject(files, "depth_gt", "depth_gt/camXX.npy float32 (F,H,W) z-depth, 0 = no hit");
     cJSON_AddStringToObject(files, "masks_dynamic", "masks_dynamic/cam00.npy uint8 (F,H,W) 1 = moving object");
+    cJSON_AddStringToObject(files, "covis_cam00",
+                            "covis_cam00/camXX.npy uint8 (F,H,W) 1 = camXX pixel's surface point is also seen by cam00");
     return write_json(path, root);
 }
 
@@ -462,6 +464,10 @@ static pg_status write_dataset_impl(const char *out, const synth_options *o, wri
     PG_TRY(pg_mkdir_p(path));
     PG_TRY(join_fmt(path, sizeof path, "%s/depth_mono", out));
     PG_TRY(pg_mkdir_p(path));
+    if (o->all_depth && N > 1) {
+        PG_TRY(join_fmt(path, sizeof path, "%s/covis_cam00", out));
+        PG_TRY(pg_mkdir_p(path));
+    }
 
     pg_camera cams[SYNTH_MAX_CAMS];
     float near_far[2 * SYNTH_MAX_CAMS];
@@ -493,6 +499,12 @@ static pg_status write_dataset_impl(const char *out, const synth_options *o, wri
         if (c == 0 || o->all_depth) {
             st = join_fmt(path, sizeof path, "%s/depth_gt/cam%02d.npy", out, c);
             if (!st) st = io_npy_save(path, b->depth, 3, shape3);
+        }
+        if (!st && c > 0 && o->all_depth) {
+            for (int f = 0; f < F && !st; f++)
+                st = synth_render_covisibility(&sc, &cams[c], &cams[0], synth_frame_time(f, F), 1e-3f, b->mask + f * plane);
+            if (!st) st = join_fmt(path, sizeof path, "%s/covis_cam00/cam%02d.npy", out, c);
+            if (!st) st = io_npy_save_u8(path, b->mask, 3, shape3);
         }
         if (!st && c == 0) {
             st = join_fmt(path, sizeof path, "%s/masks_dynamic/cam00.npy", out);

@@ -719,18 +719,54 @@ int synth_point_is_dynamic(const synth_scene *sc, const float Xw[3], float s, fl
     return 0;
 }
 
-int synth_point_visible(const synth_scene *sc, const pg_camera *cam, const float Xw[3], float s, float rel_tol)
+/* Visibility of scene-frame point Xs (world Xw) from a camera with scene-frame centre C. */
+static int visible_from(const frame_state *fs, const pg_camera *cam, const float C[3], const float Xw[3],
+                        const float Xs[3], float rel_tol)
 {
     float uv[2];
     float z = pg_camera_project(cam, Xw, uv);
     if (z <= 0 || uv[0] < 0 || uv[1] < 0 || uv[0] >= cam->width || uv[1] >= cam->height) return 0;
-    frame_state fs;
-    frame_state_init(&fs, sc, s);
-    float Rs[9], C[3], Xs[3], d[3];
-    camera_in_scene(sc, cam, Rs, C);
-    synth_world_to_scene(sc, Xw, Xs);
+    float d[3];
     vec3_sub(d, Xs, C); /* the point sits at t = 1 */
     hit_info hit;
-    if (!trace_scene(&fs, C, d, 0, 1e30f, 0, &hit)) return 1; /* nothing in the way (point off-surface) */
+    if (!trace_scene(fs, C, d, 0, 1e30f, 0, &hit)) return 1; /* nothing in the way (point off-surface) */
     return hit.t >= 1.0f - rel_tol;
+}
+
+int synth_point_visible(const synth_scene *sc, const pg_camera *cam, const float Xw[3], float s, float rel_tol)
+{
+    frame_state fs;
+    frame_state_init(&fs, sc, s);
+    float Rs[9], C[3], Xs[3];
+    camera_in_scene(sc, cam, Rs, C);
+    synth_world_to_scene(sc, Xw, Xs);
+    return visible_from(&fs, cam, C, Xw, Xs, rel_tol);
+}
+
+pg_status synth_render_covisibility(const synth_scene *sc, const pg_camera *cam, const pg_camera *ref, float s,
+                                    float rel_tol, unsigned char *mask)
+{
+    const int W = cam->width, H = cam->height;
+    if (W < 1 || H < 1 || W > PG_MAX_IMAGE_SIDE || H > PG_MAX_IMAGE_SIDE)
+        return pg_fail(PG_ERR_ARG, "synth: bad camera size %d x %d", W, H);
+    frame_state fs;
+    frame_state_init(&fs, sc, s);
+    float Rs[9], C[3], Rr[9], Cr[3];
+    camera_in_scene(sc, cam, Rs, C);
+    camera_in_scene(sc, ref, Rr, Cr);
+#pragma omp parallel for schedule(dynamic, 4)
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            float d[3], Xs[3], Xw[3];
+            pixel_ray(cam, Rs, x + 0.5f, y + 0.5f, d);
+            hit_info hit;
+            unsigned char v = 0;
+            if (trace_scene(&fs, C, d, 0, 1e30f, 0, &hit)) {
+                for (int i = 0; i < 3; i++) Xs[i] = C[i] + hit.t * d[i];
+                synth_scene_to_world(sc, Xs, Xw);
+                v = (unsigned char)visible_from(&fs, ref, Cr, Xw, Xs, rel_tol);
+            }
+            mask[(size_t)y * W + x] = v;
+        }
+    return PG_OK;
 }
