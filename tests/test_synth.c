@@ -347,6 +347,50 @@ static void test_visibility(void)
     CHECK(vis5 > n / 2 && vis5 < n, "cam05 should see most but not all of cam00's points (%d of %d)", vis5, n);
 }
 
+/* Ground-truth flow: zero on static surfaces, nonzero on moving objects, and warping frame s1's
+ * image by the flow reproduces frame s0 on valid pixels. */
+static void test_flow(void)
+{
+    synth_scene sc;
+    synth_scene_default(&sc, 1);
+    pg_camera cam;
+    synth_camera(&sc, 0, W, H, &cam);
+    float *flow = malloc(sizeof(float) * W * H * 2);
+    unsigned char *valid = malloc(W * H), *mask = malloc(W * H);
+    pg_image a = { 0 }, b = { 0 };
+    const float s0 = 0.4f, s1 = 0.5f;
+    CHECK_OK(synth_render_flow(&sc, &cam, s0, s1, flow, valid));
+    CHECK_OK(synth_render_frame(&sc, &cam, s0, &a, NULL, mask));
+    CHECK_OK(synth_render_frame(&sc, &cam, s1, &b, NULL, NULL));
+    int moving = 0, static_nonzero = 0, nvalid = 0;
+    double err = 0, err_zero = 0;
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            size_t i = (size_t)y * W + x;
+            float fx = flow[2 * i], fy = flow[2 * i + 1], m = hypotf(fx, fy);
+            if (mask[i]) moving += m > 0.3f;
+            else static_nonzero += m > 1e-4f;
+            if (!mask[i] || !valid[i]) continue;
+            /* nearest-neighbour warp of frame s1 back to s0 vs. no warp */
+            int u = clampi((int)floorf(x + 0.5f + fx), 0, W - 1), v = clampi((int)floorf(y + 0.5f + fy), 0, H - 1);
+            for (int k = 0; k < 3; k++) {
+                err += fabsf(pg_image_at(&b, u, v)[k] - pg_image_at(&a, x, y)[k]);
+                err_zero += fabsf(pg_image_at(&b, x, y)[k] - pg_image_at(&a, x, y)[k]);
+            }
+            nvalid++;
+        }
+    printf("flow: %d moving px with |flow| > 0.3, warp error %.4f vs %.4f unwarped (%d px)\n", moving,
+           err / (3.0 * nvalid), err_zero / (3.0 * nvalid), nvalid);
+    CHECK(static_nonzero == 0, "%d static pixels have flow", static_nonzero);
+    CHECK(moving > 50, "only %d moving pixels with flow", moving);
+    CHECK(nvalid > 50 && err < 0.6 * err_zero, "flow warp does not explain the motion: %g vs %g", err, err_zero);
+    pg_image_destroy(&a);
+    pg_image_destroy(&b);
+    free(flow);
+    free(valid);
+    free(mask);
+}
+
 /* Panoptic layout: meta files hold k / w2c equal to synth's cameras. */
 static void test_panoptic(const char *dir)
 {
@@ -398,6 +442,7 @@ int main(void)
 {
     test_determinism();
     test_visibility();
+    test_flow();
 
     char dir[2048], dir2[2048], pan[2048], args[8192], err[1024];
     test_tmpdir("synth_a", dir, sizeof dir);

@@ -109,6 +109,11 @@ int synth_point_visible(const synth_scene *scene, const pg_camera *cam, const fl
  * With ref = cam00 this is the region a proxy view warped from cam00 can get right. */
 pg_status synth_render_covisibility(const synth_scene *scene, const pg_camera *cam, const pg_camera *ref, float s,
                                     float rel_tol, unsigned char *mask);
+/* Ground-truth optical flow of cam from time s0 to s1: flow (H, W, 2) = where the surface point
+ * under each pixel centre at s0 projects at s1, minus the pixel centre (0 on static surfaces).
+ * valid (H, W) (may be NULL): 1 where that point is inside the image and unoccluded at s1. */
+pg_status synth_render_flow(const synth_scene *scene, const pg_camera *cam, float s0, float s1, float *flow,
+                            unsigned char *valid);
 /* Pose of object k at time s in the WORLD frame: X_world = R X_local + p. */
 void synth_object_pose(const synth_scene *scene, int k, float s, float R[9], float p[3]);
 /* Scene frame <-> world frame. */

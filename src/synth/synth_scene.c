@@ -770,3 +770,49 @@ pg_status synth_render_covisibility(const synth_scene *sc, const pg_camera *cam,
         }
     return PG_OK;
 }
+
+pg_status synth_render_flow(const synth_scene *sc, const pg_camera *cam, float s0, float s1, float *flow,
+                            unsigned char *valid)
+{
+    const int W = cam->width, H = cam->height;
+    if (W < 1 || H < 1 || W > PG_MAX_IMAGE_SIDE || H > PG_MAX_IMAGE_SIDE)
+        return pg_fail(PG_ERR_ARG, "synth: bad camera size %d x %d", W, H);
+    frame_state fs0, fs1;
+    frame_state_init(&fs0, sc, s0);
+    frame_state_init(&fs1, sc, s1);
+    float Rs[9], C[3];
+    camera_in_scene(sc, cam, Rs, C);
+#pragma omp parallel for schedule(dynamic, 4)
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            size_t idx = (size_t)y * W + x;
+            float d[3], X0[3], rel[3], q[3], X1[3], Xw[3], uv[2];
+            pixel_ray(cam, Rs, x + 0.5f, y + 0.5f, d);
+            hit_info hit;
+            flow[2 * idx] = flow[2 * idx + 1] = 0;
+            unsigned char ok = 0;
+            if (trace_scene(&fs0, C, d, 0, 1e30f, 0, &hit)) {
+                const pose_cache *p0 = &fs0.pose[hit.object], *p1 = &fs1.pose[hit.object];
+                for (int i = 0; i < 3; i++) X0[i] = C[i] + hit.t * d[i];
+                vec3_sub(rel, X0, p0->p);
+                mat3_tmul_vec(q, p0->R, rel);   /* local point: moves rigidly with its object */
+                mat3_mul_vec(X1, p1->R, q);
+                vec3_add(X1, X1, p1->p);
+                synth_scene_to_world(sc, X1, Xw);
+                float z = pg_camera_project(cam, Xw, uv);
+                if (z > 0) {
+                    flow[2 * idx] = uv[0] - (x + 0.5f);
+                    flow[2 * idx + 1] = uv[1] - (y + 0.5f);
+                    if (valid) {
+                        float dd[3];
+                        vec3_sub(dd, X1, C);
+                        hit_info h1;
+                        ok = uv[0] >= 0 && uv[1] >= 0 && uv[0] < W && uv[1] < H &&
+                             (!trace_scene(&fs1, C, dd, 0, 1e30f, 0, &h1) || h1.t >= 1.0f - 1e-3f);
+                    }
+                }
+            }
+            if (valid) valid[idx] = ok;
+        }
+    return PG_OK;
+}
