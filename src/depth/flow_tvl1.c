@@ -11,6 +11,8 @@
 #include "depth/flow.h"
 #include "depth/plane.h"
 
+#define PAR_OK ((size_t)w * h >= PLANE_PAR_MIN_PIXELS)
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -46,7 +48,7 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
     const float lt = prm->lambda * prm->theta, taut = prm->tau / prm->theta, theta = prm->theta;
 
     /* Central-difference gradient of I1, warped together with I1 below. */
-    #pragma omp parallel for schedule(static)
+    #pragma omp parallel for schedule(static) if (PAR_OK)
     for (int y = 0; y < h; y++) {
         for (int x = 0; x < w; x++) {
             int xl = x > 0 ? x - 1 : 0, xr = x < w - 1 ? x + 1 : w - 1;
@@ -57,7 +59,7 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
     }
 
     for (int warp = 0; warp < prm->warps; warp++) {
-        #pragma omp parallel for schedule(static)
+        #pragma omp parallel for schedule(static) if (PAR_OK)
         for (int y = 0; y < h; y++) {
             for (int x = 0; x < w; x++) {
                 size_t k = (size_t)y * w + x;
@@ -78,7 +80,7 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
         }
         for (int it = 0; it < prm->iterations; it++) {
             /* Divergence of the dual fields (adjoint of the forward-difference gradient). */
-            #pragma omp parallel for schedule(static)
+            #pragma omp parallel for schedule(static) if (PAR_OK)
             for (int y = 0; y < h; y++) {
                 for (int x = 0; x < w; x++) {
                     size_t k = (size_t)y * w + x;
@@ -91,7 +93,7 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
                 }
             }
             /* Data step (point-wise thresholding) then the primal update. */
-            #pragma omp parallel for schedule(static)
+            #pragma omp parallel for schedule(static) if (PAR_OK)
             for (int y = 0; y < h; y++) {
                 for (int x = 0; x < w; x++) {
                     size_t k = (size_t)y * w + x;
@@ -113,7 +115,7 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
                 }
             }
             /* Dual update: Chambolle's projection with forward differences. */
-            #pragma omp parallel for schedule(static)
+            #pragma omp parallel for schedule(static) if (PAR_OK)
             for (int y = 0; y < h; y++) {
                 for (int x = 0; x < w; x++) {
                     size_t k = (size_t)y * w + x;
@@ -225,7 +227,7 @@ pg_status depth_flow_compute(const depth_flow_backend *be, const pg_image *img0,
 
 void depth_flow_consistency(const float *f01, const float *f10, int width, int height, float *conf)
 {
-    #pragma omp parallel for schedule(static)
+    #pragma omp parallel for schedule(static) if ((size_t)width * height >= PLANE_PAR_MIN_PIXELS)
     for (int y = 0; y < height; y++) {
         for (int x = 0; x < width; x++) {
             size_t k = (size_t)y * width + x;

@@ -1,6 +1,8 @@
 /* plane.c - single-channel float plane helpers for the depth stage (see plane.h). */
 #include "depth/plane.h"
 
+#define PAR_OK ((size_t)w * h >= PLANE_PAR_MIN_PIXELS)
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -28,7 +30,7 @@ void plane_gaussian_blur(const float *src, int w, int h, float sigma, float *tmp
     float k[65], sum = 0.0f;
     for (int i = -r; i <= r; i++) sum += (k[i + r] = expf(-0.5f * i * i / (sigma * sigma)));
     for (int i = 0; i <= 2 * r; i++) k[i] /= sum;
-    #pragma omp parallel for schedule(static)
+    #pragma omp parallel for schedule(static) if (PAR_OK)
     for (int y = 0; y < h; y++) {
         const float *row = src + (size_t)y * w;
         float *out = tmp + (size_t)y * w;
@@ -38,7 +40,7 @@ void plane_gaussian_blur(const float *src, int w, int h, float sigma, float *tmp
             out[x] = acc;
         }
     }
-    #pragma omp parallel for schedule(static)
+    #pragma omp parallel for schedule(static) if (PAR_OK)
     for (int y = 0; y < h; y++) {
         float *out = dst + (size_t)y * w;
         for (int x = 0; x < w; x++) out[x] = 0.0f;
@@ -103,7 +105,7 @@ float plane_sample_bicubic(const float *p, int w, int h, float x, float y)
 void plane_resize(const float *src, int w, int h, float *dst, int w2, int h2)
 {
     const float sx = (float)w / w2, sy = (float)h / h2;
-    #pragma omp parallel for schedule(static)
+    #pragma omp parallel for schedule(static) if (PAR_OK)
     for (int y = 0; y < h2; y++)
         for (int x = 0; x < w2; x++)
             dst[(size_t)y * w2 + x] = plane_sample_bilinear(src, w, h, (x + 0.5f) * sx - 0.5f, (y + 0.5f) * sy - 0.5f);
@@ -121,7 +123,7 @@ static inline void sort9(float *v)
 
 void plane_median3(const float *src, int w, int h, float *dst)
 {
-    #pragma omp parallel for schedule(static)
+    #pragma omp parallel for schedule(static) if (PAR_OK)
     for (int y = 0; y < h; y++) {
         for (int x = 0; x < w; x++) {
             float v[9];
@@ -138,7 +140,7 @@ void plane_median3(const float *src, int w, int h, float *dst)
 /* Disc-shaped min/max filter; out-of-image pixels are ignored. */
 static void mask_morph(const unsigned char *src, int w, int h, int r, unsigned char *dst, int dilate)
 {
-    #pragma omp parallel for schedule(static)
+    #pragma omp parallel for schedule(static) if (PAR_OK)
     for (int y = 0; y < h; y++) {
         for (int x = 0; x < w; x++) {
             int v = dilate ? 0 : 1;

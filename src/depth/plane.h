@@ -6,6 +6,11 @@
 #include <stddef.h>
 #include "core/image.h"
 
+/* Loops on planes smaller than this run on one thread: at 320x240 the per-iteration fork/join
+ * barriers of an iterative solver cost more than they save on a shared 2-core machine, and the
+ * depth stage parallelises across frames instead. */
+#define PLANE_PAR_MIN_PIXELS 200000
+
 /* Luma (Rec. 601) of an RGB or 1-channel image into gray (H,W), scaled by `scale`. */
 void plane_from_image(const pg_image *img, float scale, float *gray);
 /* Separable Gaussian blur (sigma in pixels, radius ceil(3 sigma)); tmp is (H,W) scratch. */
