@@ -350,6 +350,9 @@ static void test_bad(const char *dir)
     }
     CHECK(io_png16_load(path, &arr) == PG_ERR_FORMAT, "huge png: %s", pg_last_error());
     CHECK(strstr(pg_last_error(), "huge.png") != NULL, "names file: %s", pg_last_error());
+    snprintf(args, sizeof args, "info '%s'", path);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "huge.png"), "info huge png rc %d: %s", rc, err);
 
     /* Truncated npy / pfm, garbled npy. */
     pg_path_join(path, sizeof path, dir, "trunc.npy");
