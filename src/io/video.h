@@ -44,7 +44,7 @@ typedef struct {
     int is_folder;
     int width, height;   /* source size */
     int frames;          /* frame count (exact for folders; header or duration estimate for video) */
-    int frames_exact;    /* 1 when `frames` was counted, not estimated */
+    int frames_exact;    /* 1 when `frames` was counted or read from the container index, 0 if estimated */
     double fps;
     double duration;     /* seconds, 0 if unknown */
     char codec[32];      /* "h264", "png", ... */
@@ -60,7 +60,7 @@ typedef struct {
 } io_frames;
 
 /* Cheap look at a video or folder: size, fps, frame count, codec. Counts folder images exactly;
- * for video uses the container's frame count or duration x fps (frames_exact = 0). */
+ * for video uses the container's frame count, else duration x fps (then frames_exact = 0). */
 pg_status io_video_probe(const char *path, io_video_info *info);
 /* Counts a video's frames exactly by demuxing every packet (no decoding). */
 pg_status io_video_count_frames(const char *path, int *frames);

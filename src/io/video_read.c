@@ -329,7 +329,8 @@ pg_status io_video_probe(const char *path, io_video_info *info)
     info->fps = stream_fps(s);
     if (in.fmt->duration > 0) info->duration = in.fmt->duration / (double)AV_TIME_BASE;
     if (s->nb_frames > 0 && s->nb_frames < IO_MAX_FRAMES) {
-        info->frames = (int)s->nb_frames;
+        info->frames = (int)s->nb_frames; /* from the container's index (mp4/mov): trusted */
+        info->frames_exact = 1;
     } else if (info->duration > 0) {
         info->frames = (int)lround(info->duration * info->fps);
     }
