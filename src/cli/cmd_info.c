@@ -45,15 +45,20 @@ static int info_dataset(const char *path, int json, pg_status *st_out)
     if (st) return -1;
     int n = io_dataset_num_cameras(ds);
     io_dataset_kind kind = io_dataset_get_kind(ds);
-    /* Decode the first frame of the first camera so a broken source is reported here. */
-    pg_image img;
-    st = io_dataset_frame(ds, 0, 0, &img);
+    /* Decode the first frame of the first camera so a broken source is reported here (through
+     * a one-frame selection: the dataset caches whole cameras). */
+    pg_dataset *one = NULL;
+    o.count = 1;
+    st = io_dataset_open(path, &o, &one);
+    pg_image img = { 0 };
+    if (st == PG_OK) st = io_dataset_frame(one, 0, 0, &img);
+    pg_image_destroy(&img);
+    io_dataset_close(one);
     if (st) {
         io_dataset_close(ds);
         *st_out = st;
         return -1;
     }
-    pg_image_destroy(&img);
     if (json) {
         cJSON *root = cJSON_CreateObject();
         cJSON_AddStringToObject(root, "path", path);
