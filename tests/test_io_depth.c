@@ -88,6 +88,9 @@ static void test_npy(const char *dir)
     if (d.data) CHECK(fabsf(d.data[9] - (1000 + 10 + 100) * 0.001f) < 1e-6f, "u16 scaled %g", d.data[9]);
     io_depth_destroy(&d);
 
+    io_depth_kind kind = IO_DEPTH_KIND_DEPTH;
+    CHECK_OK(io_depth_kind_parse("disparity", &kind));
+    CHECK(kind == IO_DEPTH_KIND_DISPARITY && io_depth_kind_parse("inverse", &kind) == PG_ERR_ARG, "kind parse");
     /* Disparity: depth = 1 / (value * scale). */
     o = io_depth_defaults();
     o.kind = IO_DEPTH_KIND_DISPARITY;

@@ -2,7 +2,8 @@
  *
  * Reading decodes any container/codec Debian's FFmpeg libraries handle (libavformat +
  * libavcodec, converted to RGB24 with libswscale), or a folder of PNG/JPEG frames sorted
- * by name (natural order: "f2" < "f10"). Frames are kept as uint8 RGB to save memory and
+ * by name (natural order: "f2" < "f10"). A rotation tag (display matrix, as phones write) is
+ * applied, so frames come out upright as players show them. Frames are kept as uint8 RGB to save memory and
  * converted to float pg_image on demand:
  *
  *   io_video_options opt = io_video_defaults();
@@ -42,7 +43,8 @@ io_video_options io_video_defaults(void);
 
 typedef struct {
     int is_folder;
-    int width, height;   /* source size */
+    int width, height;   /* source size as displayed (after the rotation tag) */
+    int rotation;        /* clockwise degrees from the display matrix, applied when reading */
     int frames;          /* frame count (exact for folders; header or duration estimate for video) */
     int frames_exact;    /* 1 when `frames` was counted or read from the container index, 0 if estimated */
     double fps;
