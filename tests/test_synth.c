@@ -448,9 +448,9 @@ int main(void)
     test_tmpdir("synth_a", dir, sizeof dir);
     test_tmpdir("synth_b", dir2, sizeof dir2);
     test_tmpdir("synth_pan", pan, sizeof pan);
-    snprintf(args, sizeof args, "synth '%s' --cams %d --frames %d --size %dx%d --seed 3", dir, NC, F, W, H);
+    snprintf(args, sizeof args, "synth '%s' --cams %d --frames %d --size %dx%d --seed 3 --spp 1", dir, NC, F, W, H);
     CHECK(test_run_cli(args, err, sizeof err) == 0, "synth failed: %s", err);
-    snprintf(args, sizeof args, "synth '%s' --cams %d --frames %d --size %dx%d --seed 3 --threads 1", dir2, NC, F, W, H);
+    snprintf(args, sizeof args, "synth '%s' --cams %d --frames %d --size %dx%d --seed 3 --spp 1 --threads 1", dir2, NC, F, W, H);
     CHECK(test_run_cli(args, err, sizeof err) == 0, "synth failed: %s", err);
     const char *files[] = { "poses_bounds.npy", "depth_gt/cam00.npy", "depth_gt/cam03.npy", "masks_dynamic/cam00.npy",
                             "depth_mono/cam00.npy", "cam02/images/0003.png", "scene.json" };
