@@ -283,7 +283,7 @@ static pg_status write_scene_json(const char *path, const synth_scene *sc, const
     cJSON_AddItemToObject(dm, "frame_scale", jarray(mono->frame_scale, mono->frames));
     cJSON *files = cJSON_AddObjectToObject(root, "files");
     cJSON_AddStringToObject(files, "depth_gt", "depth_gt/camXX.npy float32 (F,H,W) z-depth, 0 = no hit");
-    cJSON_AddStringToObject(files, "masks_dynamic", "masks_dynamic/cam00.npy uint8 (F,H,W) 1 = moving object");
+    cJSON_AddStringToObject(files, "masks_dynamic", "masks_dynamic/camXX.npy uint8 (F,H,W) 1 = moving object");
     cJSON_AddStringToObject(files, "covis_cam00",
                             "covis_cam00/camXX.npy uint8 (F,H,W) 1 = camXX pixel's surface point is also seen by cam00");
     return write_json(path, root);
@@ -489,7 +489,7 @@ static pg_status write_dataset_impl(const char *out, const synth_options *o, wri
             for (int i = 0; i < n && !st; i++) {
                 int f = f0 + i;
                 st = synth_render_frame(&sc, &cams[c], synth_frame_time(f, F), &b->rgb[i], b->depth + f * plane,
-                                        c == 0 ? b->mask + f * plane : NULL);
+                                        b->mask + f * plane);
             }
             if (!st) st = save_chunk(b, dir, f0, n, o->layout == SYNTH_LAYOUT_PANOPTIC);
         }
@@ -499,6 +499,8 @@ static pg_status write_dataset_impl(const char *out, const synth_options *o, wri
         if (c == 0 || o->all_depth) {
             st = join_fmt(path, sizeof path, "%s/depth_gt/cam%02d.npy", out, c);
             if (!st) st = io_npy_save(path, b->depth, 3, shape3);
+            if (!st) st = join_fmt(path, sizeof path, "%s/masks_dynamic/cam%02d.npy", out, c);
+            if (!st) st = io_npy_save_u8(path, b->mask, 3, shape3);
         }
         if (!st && c > 0 && o->all_depth) {
             for (int f = 0; f < F && !st; f++)
@@ -507,9 +509,7 @@ static pg_status write_dataset_impl(const char *out, const synth_options *o, wri
             if (!st) st = io_npy_save_u8(path, b->mask, 3, shape3);
         }
         if (!st && c == 0) {
-            st = join_fmt(path, sizeof path, "%s/masks_dynamic/cam00.npy", out);
-            if (!st) st = io_npy_save_u8(path, b->mask, 3, shape3);
-            if (!st) st = synth_depth_mono(b->depth, F, H, W, o->seed, b->mono, &b->mono_info);
+            st = synth_depth_mono(b->depth, F, H, W, o->seed, b->mono, &b->mono_info);
             if (!st) st = join_fmt(path, sizeof path, "%s/depth_mono/cam00.npy", out);
             if (!st) st = io_npy_save(path, b->mono, 3, shape3);
         }
