@@ -1,0 +1,177 @@
+/* adam.c - Adam over strided parameter groups with row remapping. */
+#include "optim/adam.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct {
+    optim_group_desc d;
+    float *m, *v;  /* (rows, cols) */
+    int step;
+} adam_group;
+
+struct optim_adam {
+    int ngroups, rows, cap_rows;
+    float beta1, beta2, eps;
+    adam_group *g;
+};
+
+float optim_lr_expon(const optim_lr_schedule *s, int step)
+{
+    if (step < 0 || (s->lr_init == 0 && s->lr_final == 0)) return 0.0f;
+    double delay = 1.0;
+    if (s->delay_steps > 0) {
+        double u = (double)step / s->delay_steps;
+        u = u < 0 ? 0 : (u > 1 ? 1 : u);
+        delay = s->delay_mult + (1.0 - s->delay_mult) * sin(0.5 * 3.14159265358979323846 * u);
+    }
+    double t = s->max_steps > 0 ? (double)step / s->max_steps : 1.0;
+    t = t < 0 ? 0 : (t > 1 ? 1 : t);
+    double lr = exp(log(s->lr_init) * (1 - t) + log(s->lr_final) * t);
+    return (float)(delay * lr);
+}
+
+void optim_adam_destroy(optim_adam *opt)
+{
+    if (!opt) return;
+    for (int i = 0; i < opt->ngroups; i++) { free(opt->g[i].m); free(opt->g[i].v); }
+    free(opt->g);
+    free(opt);
+}
+
+/* (Re)allocates every group's moments for cap rows, zeroed. */
+static pg_status alloc_moments(optim_adam *opt, int cap)
+{
+    for (int i = 0; i < opt->ngroups; i++) {
+        size_t n;
+        if (pg_size_mul((size_t)(cap > 0 ? cap : 1), (size_t)opt->g[i].d.cols * sizeof(float), &n))
+            return pg_fail(PG_ERR_SIZE, "adam: %d rows overflow", cap);
+        float *m = calloc(1, n), *v = calloc(1, n);
+        if (!m || !v) { free(m); free(v); return pg_fail(PG_ERR_NOMEM, "adam: out of memory for %d rows", cap); }
+        free(opt->g[i].m); free(opt->g[i].v);
+        opt->g[i].m = m; opt->g[i].v = v;
+    }
+    opt->cap_rows = cap;
+    return PG_OK;
+}
+
+pg_status optim_adam_create(optim_adam **out, const optim_group_desc *groups, int ngroups, int rows, float eps)
+{
+    *out = NULL;
+    if (ngroups <= 0 || rows < 0) return pg_fail(PG_ERR_ARG, "adam: %d groups, %d rows", ngroups, rows);
+    for (int i = 0; i < ngroups; i++)
+        if (groups[i].cols <= 0 || groups[i].col0 < 0 || groups[i].col0 + groups[i].cols > groups[i].row_stride)
+            return pg_fail(PG_ERR_ARG, "adam: group %s has columns [%d, %d) outside its row of %d",
+                           groups[i].name ? groups[i].name : "?", groups[i].col0, groups[i].col0 + groups[i].cols,
+                           groups[i].row_stride);
+    optim_adam *opt = pg_calloc(1, sizeof(*opt), "adam");
+    if (!opt) return PG_ERR_NOMEM;
+    opt->g = pg_calloc((size_t)ngroups, sizeof(adam_group), "adam groups");
+    if (!opt->g) { free(opt); return PG_ERR_NOMEM; }
+    opt->ngroups = ngroups;
+    opt->rows = rows;
+    opt->beta1 = 0.9f; opt->beta2 = 0.999f; opt->eps = eps;
+    for (int i = 0; i < ngroups; i++) opt->g[i].d = groups[i];
+    pg_status st = alloc_moments(opt, rows);
+    if (st) { optim_adam_destroy(opt); return st; }
+    *out = opt;
+    return PG_OK;
+}
+
+pg_status optim_adam_create_gaussians(optim_adam **opt, int rows, float eps)
+{
+    static const optim_group_desc groups[OPTIM_GAUSS_GROUPS] = {
+        { "means", 3, 0, 3 }, { "log_scales", 3, 0, 3 }, { "quats", 4, 0, 4 },
+        { "opacity", 1, 0, 1 }, { "sh_dc", 48, 0, 3 }, { "sh_rest", 48, 3, 45 },
+    };
+    return optim_adam_create(opt, groups, OPTIM_GAUSS_GROUPS, rows, eps);
+}
+
+pg_status optim_adam_create_flat(optim_adam **opt, int n, float eps)
+{
+    optim_group_desc d = { "flat", 1, 0, 1 };
+    return optim_adam_create(opt, &d, 1, n, eps);
+}
+
+void optim_adam_set_betas(optim_adam *opt, float beta1, float beta2) { opt->beta1 = beta1; opt->beta2 = beta2; }
+int optim_adam_rows(const optim_adam *opt) { return opt->rows; }
+
+pg_status optim_adam_step_group(optim_adam *opt, int gi, float *param, const float *grad, float lr)
+{
+    if (gi < 0 || gi >= opt->ngroups) return pg_fail(PG_ERR_ARG, "adam: no group %d", gi);
+    adam_group *g = &opt->g[gi];
+    g->step++;
+    float b1 = opt->beta1, b2 = opt->beta2, eps = opt->eps;
+    /* Bias corrections folded into the step size and eps, in double for long runs. */
+    double c1 = 1.0 - pow(b1, g->step), c2 = 1.0 - pow(b2, g->step);
+    float step_size = (float)(lr / c1), inv_sqrt_c2 = (float)(1.0 / sqrt(c2));
+    int rows = opt->rows, stride = g->d.row_stride, col0 = g->d.col0, cols = g->d.cols;
+    #pragma omp parallel for schedule(static) if ((long)rows * cols > 65536)
+    for (int r = 0; r < rows; r++) {
+        float *p = param + (size_t)r * stride + col0;
+        const float *gr = grad + (size_t)r * stride + col0;
+        float *m = g->m + (size_t)r * cols, *v = g->v + (size_t)r * cols;
+        for (int c = 0; c < cols; c++) {
+            float gv = gr[c];
+            m[c] = b1 * m[c] + (1.0f - b1) * gv;
+            v[c] = b2 * v[c] + (1.0f - b2) * gv * gv;
+            p[c] -= step_size * m[c] / (sqrtf(v[c]) * inv_sqrt_c2 + eps);
+        }
+    }
+    return PG_OK;
+}
+
+pg_status optim_adam_step_gaussians(optim_adam *opt, pg_gaussians *g, const pg_gaussians *grad,
+                                    const float lr[OPTIM_GAUSS_GROUPS])
+{
+    if (opt->ngroups != OPTIM_GAUSS_GROUPS || g->count != opt->rows || grad->count != opt->rows)
+        return pg_fail(PG_ERR_ARG, "adam: Gaussian step with %d rows (params) / %d (grads), optimiser has %d",
+                       g->count, grad->count, opt->rows);
+    float *P[OPTIM_GAUSS_GROUPS] = { g->means, g->log_scales, g->quats, g->opacity, g->sh, g->sh };
+    const float *G[OPTIM_GAUSS_GROUPS] = { grad->means, grad->log_scales, grad->quats, grad->opacity, grad->sh, grad->sh };
+    for (int i = 0; i < OPTIM_GAUSS_GROUPS; i++)
+        if (lr[i] > 0) PG_TRY(optim_adam_step_group(opt, i, P[i], G[i], lr[i]));
+    return PG_OK;
+}
+
+pg_status optim_adam_remap_rows(optim_adam *opt, const int *src, int new_rows)
+{
+    if (new_rows < 0) return pg_fail(PG_ERR_ARG, "adam: remap to %d rows", new_rows);
+    for (int i = 0; i < new_rows; i++)
+        if (src[i] >= opt->rows) return pg_fail(PG_ERR_ARG, "adam: remap row %d from %d, only %d rows", i, src[i], opt->rows);
+    for (int gi = 0; gi < opt->ngroups; gi++) {
+        adam_group *g = &opt->g[gi];
+        int cols = g->d.cols;
+        size_t n = (size_t)(new_rows > 0 ? new_rows : 1) * cols;
+        float *m = calloc(n, sizeof(float)), *v = calloc(n, sizeof(float));
+        if (!m || !v) { free(m); free(v); return pg_fail(PG_ERR_NOMEM, "adam: out of memory remapping %d rows", new_rows); }
+        for (int i = 0; i < new_rows; i++)
+            if (src[i] >= 0) {
+                memcpy(m + (size_t)i * cols, g->m + (size_t)src[i] * cols, cols * sizeof(float));
+                memcpy(v + (size_t)i * cols, g->v + (size_t)src[i] * cols, cols * sizeof(float));
+            }
+        free(g->m); free(g->v);
+        g->m = m; g->v = v;
+    }
+    opt->rows = new_rows;
+    opt->cap_rows = new_rows;
+    return PG_OK;
+}
+
+void optim_adam_reset_group(optim_adam *opt, int gi)
+{
+    if (gi < 0 || gi >= opt->ngroups) return;
+    size_t n = (size_t)opt->rows * opt->g[gi].d.cols;
+    memset(opt->g[gi].m, 0, n * sizeof(float));
+    memset(opt->g[gi].v, 0, n * sizeof(float));
+}
+
+float *optim_adam_moment(optim_adam *opt, int gi, int which)
+{
+    if (gi < 0 || gi >= opt->ngroups) return NULL;
+    return which ? opt->g[gi].v : opt->g[gi].m;
+}
+
+int optim_adam_group_step(const optim_adam *opt, int gi) { return gi >= 0 && gi < opt->ngroups ? opt->g[gi].step : 0; }
+void optim_adam_set_group_step(optim_adam *opt, int gi, int step) { if (gi >= 0 && gi < opt->ngroups) opt->g[gi].step = step; }

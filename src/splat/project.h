@@ -1,0 +1,32 @@
+/* project.h - EWA projection of one 3D Gaussian to a 2D screen-space Gaussian.
+ *
+ * t = R mean + T (camera space); mean2D = (fx t.x/t.z + cx, fy t.y/t.z + cy);
+ * J = [[fx/z, 0, -fx u], [0, fy/z, -fy w]] / with u = clamp(t.x/z) / z etc. (the clamp to 1.3x
+ * the frustum keeps J bounded for Gaussians far outside the view; the clamped coordinate passes
+ * no gradient); Sigma2D = J R Sigma R^T J^T + 0.3 I; conic = Sigma2D^-1 stored (a, b, c) with
+ * sigma(dx, dy) = 0.5 (a dx^2 + c dy^2) + b dx dy.
+ */
+#ifndef PG_PROJECT_H
+#define PG_PROJECT_H
+
+#include "core/camera.h"
+
+#define SPLAT_LOWPASS 0.3f
+
+typedef struct {
+    float xy[2];    /* pixel coordinates of the projected mean */
+    float z;        /* camera-space depth */
+    float cov2d[3]; /* Sigma2D (xx, xy, yy) including the low-pass */
+    float conic[3]; /* inverse of Sigma2D (a, b, c) */
+} splat_proj;
+
+/* Returns 1 and fills p when the Gaussian is in front of near_clip, else 0. */
+int splat_project_forward(const float mean[3], const float log_scale[3], const float quat[4],
+                          const pg_camera *cam, float near_clip, splat_proj *p);
+/* Adds d(loss)/d(mean, log_scale, quat) given d(loss)/d(xy, conic, z). The quaternion gradient
+ * has the normalisation projected out. Only valid for Gaussians the forward kept. */
+void splat_project_backward(const float mean[3], const float log_scale[3], const float quat[4],
+                            const pg_camera *cam, const float d_xy[2], const float d_conic[3], float d_z,
+                            float d_mean[3], float d_log_scale[3], float d_quat[4]);
+
+#endif

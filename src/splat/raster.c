@@ -1,0 +1,361 @@
+/* raster.c - the rasterizer pipeline: preprocess (project + SH + box), depth sort, tile binning,
+ * per-tile forward, per-tile backward into per-(Gaussian, tile) gradient slots, and a fixed-order
+ * per-Gaussian reduction chained back through SH and the projection.
+ *
+ * Determinism: every tile writes only its own pixels and its own gradient slots, and each
+ * Gaussian sums its slots in tile order, so results do not depend on the thread count or the
+ * OpenMP schedule (no float atomics anywhere).
+ */
+#include "splat/raster.h"
+#include "splat/project.h"
+#include "splat/raster_kernels.h"
+#include "splat/sh.h"
+#include "core/mathx.h"
+#include "core/parallel.h"
+
+#include <limits.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct splat_raster {
+    int use_simd;               /* 1: SIMD tile kernels (when compiled in), 0: scalar reference */
+    /* Per-Gaussian workspace, capacity cap_g. */
+    int cap_g;
+    splat_rec *rec;             /* (N) */
+    int *ntiles;                /* (N) tiles touched, 0 when culled */
+    unsigned char *clamp;       /* (N) bit c set: colour channel c clamped at 0 */
+    uint32_t *keys, *keys_tmp;  /* (N) depth sort keys */
+    int *order, *order_tmp;     /* (N) visible Gaussians sorted by depth */
+    /* Per-tile workspace. */
+    int cap_tiles;
+    int *tile_start;            /* (tiles + 1) offsets into isect */
+    int *tile_cursor;           /* (tiles) */
+    /* Per-intersection workspace, capacity cap_m. */
+    size_t cap_m, cap_slots;
+    int *isect;                 /* (M) Gaussian ids, grouped by tile, front to back in a tile */
+    float *slots;               /* (M, SPLAT_GRAD_STRIDE) gradient slots, Gaussian-major */
+    /* Image buffers, capacity cap_px pixels. */
+    size_t cap_px;
+    float *rgb, *depth, *alpha, *tfinal; /* (H,W,3) (H,W) (H,W) (H,W) */
+    int *last;                  /* (H,W) */
+    /* State of the latest forward. */
+    int valid, n, width, height, tiles_x, tiles_y, sh_degree, visible;
+    size_t m;
+    float bg[3];
+};
+
+pg_render_settings splat_default_settings(void)
+{
+    pg_render_settings s;
+    s.background[0] = s.background[1] = s.background[2] = 0.0f;
+    s.near_clip = 0.01f;
+    s.sh_degree = -1;
+    return s;
+}
+
+pg_status splat_raster_create(splat_raster **out)
+{
+    *out = NULL;
+    splat_raster *r = pg_calloc(1, sizeof(*r), "rasterizer");
+    if (!r) return PG_ERR_NOMEM;
+    const char *env = getenv("PG_RASTER_SCALAR");
+    r->use_simd = splat_simd_available() && !(env && env[0] && env[0] != '0');
+    *out = r;
+    return PG_OK;
+}
+
+void splat_raster_destroy(splat_raster *r)
+{
+    if (!r) return;
+    free(r->rec); free(r->ntiles); free(r->clamp); free(r->keys); free(r->keys_tmp);
+    free(r->order); free(r->order_tmp); free(r->tile_start); free(r->tile_cursor);
+    free(r->isect); free(r->slots);
+    free(r->rgb); free(r->depth); free(r->alpha); free(r->tfinal); free(r->last);
+    free(r);
+}
+
+void splat_raster_set_simd(splat_raster *r, int enable) { r->use_simd = enable && splat_simd_available(); }
+int splat_raster_simd(const splat_raster *r) { return r->use_simd; }
+const char *splat_raster_simd_name(const splat_raster *r) { return r->use_simd ? splat_simd_name() : "scalar"; }
+
+/* Grows *p to hold need elements of elem bytes (contents not kept); 64-byte aligned. */
+static pg_status grow(void **p, size_t *cap, size_t need, size_t elem, const char *what)
+{
+    if (need <= *cap && *p) return PG_OK;
+    size_t n = need + need / 4 + 64, bytes;
+    if (pg_size_mul(n, elem, &bytes)) return pg_fail(PG_ERR_SIZE, "rasterizer: %s size overflows", what);
+    bytes = (bytes + 63) & ~(size_t)63;
+    void *q = aligned_alloc(64, bytes);
+    if (!q) return pg_fail(PG_ERR_NOMEM, "rasterizer: out of memory for %s (%zu bytes)", what, bytes);
+    free(*p);
+    *p = q;
+    *cap = n;
+    return PG_OK;
+}
+
+static pg_status ensure_gaussians(splat_raster *r, int n)
+{
+    if (n <= r->cap_g && r->rec) return PG_OK;
+    size_t cap = 0, c2;
+    PG_TRY(grow((void **)&r->rec, &cap, (size_t)n, sizeof(splat_rec), "Gaussian records"));
+    c2 = 0; PG_TRY(grow((void **)&r->ntiles, &c2, (size_t)n, sizeof(int), "tile counts"));
+    c2 = 0; PG_TRY(grow((void **)&r->clamp, &c2, (size_t)n, 1, "clamp flags"));
+    c2 = 0; PG_TRY(grow((void **)&r->keys, &c2, (size_t)n, sizeof(uint32_t), "sort keys"));
+    c2 = 0; PG_TRY(grow((void **)&r->keys_tmp, &c2, (size_t)n, sizeof(uint32_t), "sort keys"));
+    c2 = 0; PG_TRY(grow((void **)&r->order, &c2, (size_t)n, sizeof(int), "sort order"));
+    c2 = 0; PG_TRY(grow((void **)&r->order_tmp, &c2, (size_t)n, sizeof(int), "sort order"));
+    r->cap_g = cap > INT_MAX ? INT_MAX : (int)cap;
+    return PG_OK;
+}
+
+static pg_status ensure_pixels(splat_raster *r, size_t px)
+{
+    if (px <= r->cap_px && r->rgb) return PG_OK;
+    size_t cap = 0, c2;
+    PG_TRY(grow((void **)&r->rgb, &cap, px, 3 * sizeof(float), "rgb image"));
+    c2 = 0; PG_TRY(grow((void **)&r->depth, &c2, px, sizeof(float), "depth image"));
+    c2 = 0; PG_TRY(grow((void **)&r->alpha, &c2, px, sizeof(float), "alpha image"));
+    c2 = 0; PG_TRY(grow((void **)&r->tfinal, &c2, px, sizeof(float), "transmittance image"));
+    c2 = 0; PG_TRY(grow((void **)&r->last, &c2, px, sizeof(int), "last-contributor image"));
+    r->cap_px = cap;
+    return PG_OK;
+}
+
+static pg_status ensure_tiles(splat_raster *r, int tiles)
+{
+    if (tiles <= r->cap_tiles && r->tile_start) return PG_OK;
+    size_t cap = 0, c2 = 0;
+    PG_TRY(grow((void **)&r->tile_start, &cap, (size_t)tiles + 1, sizeof(int), "tile ranges"));
+    PG_TRY(grow((void **)&r->tile_cursor, &c2, (size_t)tiles + 1, sizeof(int), "tile cursors"));
+    r->cap_tiles = (int)(cap - 1);
+    return PG_OK;
+}
+
+static float sigmoidf(float x) { return 1.0f / (1.0f + expf(-x)); }
+
+/* Projects Gaussian i, evaluates its colour and opacity-aware box; fills r->rec[i] and
+ * r->ntiles[i] (0 when culled). */
+static void preprocess_one(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
+                           const pg_render_settings *s, int deg, int i)
+{
+    r->ntiles[i] = 0;
+    splat_proj p;
+    if (!splat_project_forward(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, s->near_clip, &p))
+        return;
+    float o = sigmoidf(g->opacity[i]);
+    if (!(o >= SPLAT_ALPHA_MIN)) return;
+    /* alpha = o exp(-sigma) >= 1/255 inside sigma <= ln(255 o); along x that reaches
+     * sqrt(2 ln(255 o) Sigma_xx). */
+    float lim = logf(255.0f * o);
+    float e = fminf(3.33f, sqrtf(2.0f * fmaxf(lim, 0.0f)));
+    float rx = ceilf(e * sqrtf(p.cov2d[0])), ry = ceilf(e * sqrtf(p.cov2d[2]));
+    /* Pixel i is covered when |i + 0.5 - x| <= rx. Compare in float before any int cast. */
+    float fxmin = ceilf(p.xy[0] - rx - 0.5f), fxmax = floorf(p.xy[0] + rx - 0.5f);
+    float fymin = ceilf(p.xy[1] - ry - 0.5f), fymax = floorf(p.xy[1] + ry - 0.5f);
+    if (!(fxmax >= 0 && fymax >= 0 && fxmin <= cam->width - 1 && fymin <= cam->height - 1)) return;
+    int xmin = fxmin < 0 ? 0 : (int)fxmin, xmax = fxmax > cam->width - 1 ? cam->width - 1 : (int)fxmax;
+    int ymin = fymin < 0 ? 0 : (int)fymin, ymax = fymax > cam->height - 1 ? cam->height - 1 : (int)fymax;
+    if (xmin > xmax || ymin > ymax) return;
+    splat_rec *rc = &r->rec[i];
+    rc->x = p.xy[0]; rc->y = p.xy[1];
+    rc->ca = p.conic[0]; rc->cb = p.conic[1]; rc->cc = p.conic[2];
+    rc->o = o; rc->z = p.z;
+    rc->thr = lim + 1e-3f;
+    rc->ymin = ymin; rc->ymax = ymax;
+    rc->tx0 = xmin / SPLAT_TILE;
+    rc->tw = xmax / SPLAT_TILE - rc->tx0 + 1;
+    float C[3], dir[3];
+    pg_camera_center(cam, C);
+    vec3_sub(dir, g->means + 3*i, C);
+    int cl[3];
+    splat_sh_forward(deg, g->sh + (size_t)48 * i, dir, rc->col, cl);
+    r->clamp[i] = (unsigned char)(cl[0] | cl[1] << 1 | cl[2] << 2);
+    r->ntiles[i] = rc->tw * (ymax / SPLAT_TILE - ymin / SPLAT_TILE + 1);
+}
+
+/* Stable LSD radix sort of (key, value) pairs by 32-bit key, 8 bits per pass. */
+static void radix_sort(uint32_t *keys, int *vals, uint32_t *ktmp, int *vtmp, int n)
+{
+    for (int shift = 0; shift < 32; shift += 8) {
+        int count[257] = { 0 };
+        for (int i = 0; i < n; i++) count[((keys[i] >> shift) & 255) + 1]++;
+        if (count[1 + ((keys[0] >> shift) & 255)] == n) continue; /* all equal in this byte */
+        for (int b = 0; b < 256; b++) count[b + 1] += count[b];
+        for (int i = 0; i < n; i++) {
+            int d = count[(keys[i] >> shift) & 255]++;
+            ktmp[d] = keys[i];
+            vtmp[d] = vals[i];
+        }
+        memcpy(keys, ktmp, (size_t)n * sizeof(uint32_t));
+        memcpy(vals, vtmp, (size_t)n * sizeof(int));
+    }
+}
+
+static void make_job(const splat_raster *r, int tile, splat_tile_job *j)
+{
+    j->tx = tile % r->tiles_x;
+    j->ty = tile / r->tiles_x;
+    j->x0 = j->tx * SPLAT_TILE;
+    j->y0 = j->ty * SPLAT_TILE;
+    j->w = r->width - j->x0 < SPLAT_TILE ? r->width - j->x0 : SPLAT_TILE;
+    j->h = r->height - j->y0 < SPLAT_TILE ? r->height - j->y0 : SPLAT_TILE;
+    j->width = r->width;
+    j->list = r->isect + r->tile_start[tile];
+    j->n = r->tile_start[tile + 1] - r->tile_start[tile];
+    j->rec = r->rec;
+    for (int c = 0; c < 3; c++) j->bg[c] = r->bg[c];
+    j->rgb = r->rgb; j->depth = r->depth; j->alpha = r->alpha; j->tfinal = r->tfinal; j->last = r->last;
+    j->d_rgb = j->d_depth = j->d_alpha = NULL;
+    j->grad_slots = r->slots;
+}
+
+static pg_status check_inputs(const pg_gaussians *g, const pg_camera *cam, const pg_render_settings *s)
+{
+    if (!g || !cam || !s) return pg_fail(PG_ERR_ARG, "rasterizer: NULL argument");
+    if (cam->width <= 0 || cam->height <= 0 || cam->width > 16384 || cam->height > 16384)
+        return pg_fail(PG_ERR_SIZE, "rasterizer: bad image size %d x %d", cam->width, cam->height);
+    if (!(cam->fx > 0) || !(cam->fy > 0))
+        return pg_fail(PG_ERR_ARG, "rasterizer: bad focal length %g %g", cam->fx, cam->fy);
+    if (g->count < 0 || (g->count > 0 && !g->means))
+        return pg_fail(PG_ERR_ARG, "rasterizer: Gaussian set has %d rows but no storage", g->count);
+    if (s->sh_degree > 3) return pg_fail(PG_ERR_ARG, "rasterizer: SH degree %d > 3", s->sh_degree);
+    return PG_OK;
+}
+
+pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
+                               const pg_render_settings *s, pg_render_output *out)
+{
+    PG_TRY(check_inputs(g, cam, s));
+    double t0 = pg_time_seconds();
+    r->valid = 0;
+    int n = g->count, W = cam->width, H = cam->height;
+    int deg = s->sh_degree >= 0 ? s->sh_degree : g->sh_degree;
+    deg = deg < 0 ? 0 : (deg > 3 ? 3 : deg);
+    int tx = (W + SPLAT_TILE - 1) / SPLAT_TILE, ty = (H + SPLAT_TILE - 1) / SPLAT_TILE;
+    PG_TRY(ensure_gaussians(r, n > 0 ? n : 1));
+    PG_TRY(ensure_pixels(r, (size_t)W * H));
+    PG_TRY(ensure_tiles(r, tx * ty));
+    r->n = n; r->width = W; r->height = H; r->tiles_x = tx; r->tiles_y = ty; r->sh_degree = deg;
+    for (int c = 0; c < 3; c++) r->bg[c] = s->background[c];
+
+    #pragma omp parallel for schedule(static, 1024)
+    for (int i = 0; i < n; i++) preprocess_one(r, g, cam, s, deg, i);
+
+    /* Gradient slot offsets (Gaussian-major) and the visible list in index order. */
+    size_t m = 0;
+    int vis = 0;
+    for (int i = 0; i < n; i++) {
+        r->rec[i].slot_base = (int)m;
+        if (r->ntiles[i] > 0) {
+            m += (size_t)r->ntiles[i];
+            union { float f; uint32_t u; } z = { r->rec[i].z };
+            r->keys[vis] = z.u; /* positive floats order like their bit patterns */
+            r->order[vis++] = i;
+        }
+        if (m > INT_MAX) return pg_fail(PG_ERR_SIZE, "rasterizer: more than %d tile intersections", INT_MAX);
+    }
+    r->m = m;
+    r->visible = vis;
+    if (vis > 0) radix_sort(r->keys, r->order, r->keys_tmp, r->order_tmp, vis);
+
+    /* Bin: counting sort by tile of the depth-sorted list keeps depth order inside each tile. */
+    size_t capm = r->cap_m;
+    PG_TRY(grow((void **)&r->isect, &capm, m > 0 ? m : 1, sizeof(int), "tile lists"));
+    r->cap_m = capm;
+    int ntile = tx * ty;
+    memset(r->tile_start, 0, (size_t)(ntile + 1) * sizeof(int));
+    for (int v = 0; v < vis; v++) {
+        const splat_rec *rc = &r->rec[r->order[v]];
+        int y0 = rc->ymin / SPLAT_TILE, y1 = rc->ymax / SPLAT_TILE;
+        for (int yy = y0; yy <= y1; yy++)
+            for (int xx = rc->tx0; xx < rc->tx0 + rc->tw; xx++) r->tile_start[yy * tx + xx + 1]++;
+    }
+    for (int t = 0; t < ntile; t++) r->tile_start[t + 1] += r->tile_start[t];
+    memcpy(r->tile_cursor, r->tile_start, (size_t)ntile * sizeof(int));
+    for (int v = 0; v < vis; v++) {
+        int id = r->order[v];
+        const splat_rec *rc = &r->rec[id];
+        int y0 = rc->ymin / SPLAT_TILE, y1 = rc->ymax / SPLAT_TILE;
+        for (int yy = y0; yy <= y1; yy++)
+            for (int xx = rc->tx0; xx < rc->tx0 + rc->tw; xx++) r->isect[r->tile_cursor[yy * tx + xx]++] = id;
+    }
+    double t1 = pg_time_seconds();
+
+    int simd = r->use_simd;
+    #pragma omp parallel for schedule(dynamic, 1)
+    for (int t = 0; t < ntile; t++) {
+        splat_tile_job j;
+        make_job(r, t, &j);
+        if (simd) splat_tile_forward_simd(&j);
+        else splat_tile_forward_scalar(&j);
+    }
+    double t2 = pg_time_seconds();
+
+    r->valid = 1;
+    out->width = W; out->height = H;
+    out->rgb = r->rgb; out->depth = r->depth; out->alpha = r->alpha;
+    out->intersections = (long)m;
+    out->preprocess_ms = (t1 - t0) * 1e3;
+    out->forward_ms = (t2 - t0) * 1e3;
+    return PG_OK;
+}
+
+pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
+                                const pg_render_settings *s, const float *d_rgb, const float *d_depth,
+                                const float *d_alpha, pg_gaussians *grad, float *viewspace_grad_norm)
+{
+    PG_TRY(check_inputs(g, cam, s));
+    if (!r->valid || r->n != g->count || r->width != cam->width || r->height != cam->height)
+        return pg_fail(PG_ERR_ARG, "rasterizer: backward without a matching forward (%d Gaussians, %d x %d)",
+                       g->count, cam->width, cam->height);
+    if (!grad || grad->count != g->count || (g->count > 0 && !grad->means))
+        return pg_fail(PG_ERR_ARG, "rasterizer: gradient set has %d rows, expected %d",
+                       grad ? grad->count : -1, g->count);
+    size_t caps = r->cap_slots;
+    PG_TRY(grow((void **)&r->slots, &caps, (r->m > 0 ? r->m : 1) * SPLAT_GRAD_STRIDE, sizeof(float), "gradient slots"));
+    r->cap_slots = caps;
+    int ntile = r->tiles_x * r->tiles_y, simd = r->use_simd;
+    #pragma omp parallel for schedule(dynamic, 1)
+    for (int t = 0; t < ntile; t++) {
+        splat_tile_job j;
+        make_job(r, t, &j);
+        j.d_rgb = d_rgb; j.d_depth = d_depth; j.d_alpha = d_alpha;
+        if (simd) splat_tile_backward_simd(&j);
+        else splat_tile_backward_scalar(&j);
+    }
+
+    /* Per-Gaussian fixed-order reduction of the slots, then the chain through SH and projection. */
+    float C[3];
+    pg_camera_center(cam, C);
+    int deg = r->sh_degree, n = g->count;
+    float half_w = 0.5f * cam->width, half_h = 0.5f * cam->height;
+    #pragma omp parallel for schedule(static, 256)
+    for (int i = 0; i < n; i++) {
+        if (r->ntiles[i] == 0) continue;
+        const splat_rec *rc = &r->rec[i];
+        double acc[SPLAT_GRAD_STRIDE] = { 0 };
+        const float *sl = r->slots + (size_t)SPLAT_GRAD_STRIDE * rc->slot_base;
+        for (int k = 0; k < r->ntiles[i]; k++)
+            for (int c = 0; c < SPLAT_GRAD_STRIDE; c++) acc[c] += sl[SPLAT_GRAD_STRIDE * k + c];
+        float d_xy[2] = { (float)acc[0], (float)acc[1] };
+        float d_conic[3] = { (float)acc[2], (float)acc[3], (float)acc[4] };
+        float d_rgb3[3] = { (float)acc[6], (float)acc[7], (float)acc[8] };
+        float d_z = (float)acc[9];
+        /* opacity = sigmoid(logit) */
+        grad->opacity[i] += (float)acc[5] * rc->o * (1.0f - rc->o);
+        float dir[3], d_dir[3] = { 0, 0, 0 };
+        vec3_sub(dir, g->means + 3*i, C);
+        int cl[3] = { r->clamp[i] & 1, (r->clamp[i] >> 1) & 1, (r->clamp[i] >> 2) & 1 };
+        splat_sh_backward(deg, g->sh + (size_t)48 * i, dir, cl, d_rgb3, grad->sh + (size_t)48 * i, d_dir);
+        vec3_add(grad->means + 3*i, grad->means + 3*i, d_dir);
+        splat_project_backward(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, d_xy, d_conic, d_z,
+                               grad->means + 3*i, grad->log_scales + 3*i, grad->quats + 4*i);
+        if (viewspace_grad_norm) {
+            /* In NDC units (x pixels * 2/W) like 3DGS, so its 2e-4 densification threshold applies. */
+            float gx = d_xy[0] * half_w, gy = d_xy[1] * half_h;
+            viewspace_grad_norm[i] += sqrtf(gx * gx + gy * gy);
+        }
+    }
+    return PG_OK;
+}

@@ -1,0 +1,253 @@
+/* test_splat_grad.c - finite-difference checks of every rasterizer backward.
+ *
+ * The float backward is compared with central differences (h = 1e-6) of a double-precision
+ * reference forward (tests/splat_ref.h). Error measure: |a - b| / max(|a|, |b|, floor) with
+ * floor = 1e-2 x the largest |gradient| of the same parameter kind, so parameters whose
+ * gradient is ~0 compared with their siblings are not judged on float round-off alone.
+ * Tolerance 1e-3 as required for smooth functions (test data avoids the 0.99 alpha clamp,
+ * the early-stop threshold and the 1/255 cut by construction or by being far from them).
+ */
+#include "testlib.h"
+#include "splat_ref.h"
+#include "splat/project.h"
+#include "splat/raster.h"
+#include "splat/sh.h"
+#include "core/rng.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+static double rel(double a, double b, double floor)
+{
+    double m = fmax(fmax(fabs(a), fabs(b)), floor);
+    return fabs(a - b) / m;
+}
+
+static void camera_for_test(pg_camera *cam, int w, int h, int rotated)
+{
+    pg_camera_from_fov(cam, w, h, 60);
+    if (rotated) {
+        float eye[3] = { 0.3f, -0.2f, -0.5f }, target[3] = { 0, 0, 4 }, up[3] = { 0, -1, 0 };
+        pg_camera_look_at(cam, eye, target, up);
+    }
+}
+
+/* Projection: loss = sum of random weights * (xy, conic, z). */
+static void test_projection(void)
+{
+    pg_rng rng;
+    pg_rng_seed(&rng, 11);
+    pg_camera cam;
+    camera_for_test(&cam, 64, 48, 1);
+    double worst[3] = { 0, 0, 0 };
+    for (int trial = 0; trial < 40; trial++) {
+        float mean[3], ls[3], q[4];
+        /* a few trials put the mean outside the 1.3x frustum so the clamp path is covered */
+        float spread = trial % 5 == 4 ? 8.0f : 1.0f;
+        mean[0] = (float)pg_rng_range(&rng, -spread, spread);
+        mean[1] = (float)pg_rng_range(&rng, -spread, spread);
+        mean[2] = (float)pg_rng_range(&rng, 2, 6);
+        for (int k = 0; k < 3; k++) ls[k] = (float)pg_rng_range(&rng, -3, -1);
+        for (int k = 0; k < 4; k++) q[k] = (float)pg_rng_normal(&rng);
+        double wxy[2], wc[3], wz = pg_rng_normal(&rng);
+        for (int k = 0; k < 2; k++) wxy[k] = pg_rng_normal(&rng) * 0.1;
+        for (int k = 0; k < 3; k++) wc[k] = pg_rng_normal(&rng);
+        splat_proj pr;
+        if (!splat_project_forward(mean, ls, q, &cam, 0.01f, &pr)) continue;
+        /* the conic is tiny for large Gaussians: weight it so every output matters */
+        for (int k = 0; k < 3; k++) wc[k] /= fabs(pr.conic[0]) + fabs(pr.conic[2]);
+        float dxy[2] = { (float)wxy[0], (float)wxy[1] }, dc[3] = { (float)wc[0], (float)wc[1], (float)wc[2] };
+        float gm[3] = { 0 }, gs[3] = { 0 }, gq[4] = { 0 };
+        splat_project_backward(mean, ls, q, &cam, dxy, dc, (float)wz, gm, gs, gq);
+        double p[REF_NP] = { 0 };
+        for (int k = 0; k < 3; k++) { p[REF_MEAN + k] = mean[k]; p[REF_SCALE + k] = ls[k]; }
+        for (int k = 0; k < 4; k++) p[REF_QUAT + k] = q[k];
+        double fd[10], maxg[3] = { 0, 0, 0 };
+        for (int k = 0; k < 10; k++) {
+            double h = 1e-6, lp[2];
+            for (int sgn = 0; sgn < 2; sgn++) {
+                double pp[REF_NP];
+                memcpy(pp, p, sizeof(pp));
+                pp[k] += sgn ? -h : h;
+                double xy[2], con[3], z;
+                ref_project(pp, &cam, xy, con, &z, NULL);
+                lp[sgn] = wxy[0]*xy[0] + wxy[1]*xy[1] + wc[0]*con[0] + wc[1]*con[1] + wc[2]*con[2] + wz*z;
+            }
+            fd[k] = (lp[0] - lp[1]) / (2 * h);
+            int kind = k < 3 ? 0 : (k < 6 ? 1 : 2);
+            maxg[kind] = fmax(maxg[kind], fabs(fd[k]));
+        }
+        float an[10] = { gm[0], gm[1], gm[2], gs[0], gs[1], gs[2], gq[0], gq[1], gq[2], gq[3] };
+        for (int k = 0; k < 10; k++) {
+            int kind = k < 3 ? 0 : (k < 6 ? 1 : 2);
+            double e = rel(an[k], fd[k], 1e-2 * maxg[kind]);
+            if (e > worst[kind]) worst[kind] = e;
+            if (e > 1e-3) fprintf(stderr, "projection trial %d param %d: analytic %.8g fd %.8g\n", trial, k, an[k], fd[k]);
+        }
+    }
+    printf("projection FD: worst rel err mean %.2e log_scale %.2e quat %.2e\n", worst[0], worst[1], worst[2]);
+    CHECK(worst[0] < 1e-3, "mean gradient rel err %g", worst[0]);
+    CHECK(worst[1] < 1e-3, "log_scale gradient rel err %g", worst[1]);
+    CHECK(worst[2] < 1e-3, "quaternion gradient rel err %g", worst[2]);
+}
+
+/* SH: every degree, loss = w . rgb, gradient to the coefficients and the view direction. */
+static void test_sh(void)
+{
+    pg_rng rng;
+    pg_rng_seed(&rng, 5);
+    for (int deg = 0; deg <= 3; deg++) {
+        double worst_sh = 0, worst_dir = 0;
+        for (int trial = 0; trial < 20; trial++) {
+            float sh[48], dir[3];
+            for (int k = 0; k < 48; k++) sh[k] = (float)(pg_rng_normal(&rng) * (k < 3 ? 0.5 : 0.2));
+            for (int k = 0; k < 3; k++) dir[k] = (float)pg_rng_normal(&rng);
+            double w[3];
+            for (int k = 0; k < 3; k++) w[k] = pg_rng_normal(&rng);
+            float rgb[3], dw[3] = { (float)w[0], (float)w[1], (float)w[2] }, dsh[48] = { 0 }, ddir[3] = { 0 };
+            int cl[3];
+            splat_sh_forward(deg, sh, dir, rgb, cl);
+            splat_sh_backward(deg, sh, dir, cl, dw, dsh, ddir);
+            double shd[48], dird[3];
+            for (int k = 0; k < 48; k++) shd[k] = sh[k];
+            for (int k = 0; k < 3; k++) dird[k] = dir[k];
+            double fd[51], maxsh = 0, maxdir = 0;
+            for (int k = 0; k < 51; k++) {
+                double h = 1e-6, lp[2];
+                for (int sgn = 0; sgn < 2; sgn++) {
+                    double s2[48], d2[3], out[3];
+                    memcpy(s2, shd, sizeof(s2));
+                    memcpy(d2, dird, sizeof(d2));
+                    if (k < 48) s2[k] += sgn ? -h : h;
+                    else d2[k - 48] += sgn ? -h : h;
+                    ref_sh(deg, s2, d2, out);
+                    lp[sgn] = w[0]*out[0] + w[1]*out[1] + w[2]*out[2];
+                }
+                fd[k] = (lp[0] - lp[1]) / (2 * h);
+                if (k < 48) maxsh = fmax(maxsh, fabs(fd[k])); else maxdir = fmax(maxdir, fabs(fd[k]));
+            }
+            for (int k = 0; k < 48; k++) worst_sh = fmax(worst_sh, rel(dsh[k], fd[k], 1e-2 * maxsh));
+            /* the direction gradient is exactly 0 at degree 0: compare absolutely there */
+            for (int k = 0; k < 3; k++)
+                worst_dir = fmax(worst_dir, rel(ddir[k], fd[48 + k], fmax(1e-2 * maxdir, 1e-6)));
+        }
+        printf("SH degree %d FD: worst rel err coeffs %.2e view dir %.2e\n", deg, worst_sh, worst_dir);
+        CHECK(worst_sh < 1e-3, "SH degree %d coefficient gradient rel err %g", deg, worst_sh);
+        CHECK(worst_dir < 1e-3, "SH degree %d direction gradient rel err %g", deg, worst_dir);
+    }
+}
+
+/* A few overlapping Gaussians in front of a rotated camera, SH degree 3. */
+static void make_scene(pg_gaussians *g, int n, pg_rng *rng)
+{
+    splat_gaussians_create(g, n);
+    splat_gaussians_resize(g, n);
+    for (int i = 0; i < n; i++) {
+        g->means[3*i] = (float)pg_rng_range(rng, -1.2, 1.2);
+        g->means[3*i+1] = (float)pg_rng_range(rng, -1.0, 1.0);
+        g->means[3*i+2] = (float)pg_rng_range(rng, 3.5, 4.5);
+        for (int k = 0; k < 3; k++) g->log_scales[3*i+k] = (float)pg_rng_range(rng, -1.0, -0.4);
+        for (int k = 0; k < 4; k++) g->quats[4*i+k] = (float)pg_rng_normal(rng);
+        g->opacity[i] = (float)pg_rng_range(rng, -1.0, 1.2); /* o in (0.27, 0.77) */
+        for (int k = 0; k < 48; k++) g->sh[48*i+k] = (float)(pg_rng_normal(rng) * (k < 3 ? 0.6 : 0.15));
+    }
+    g->sh_degree = 3;
+}
+
+static void test_raster(int simd)
+{
+    pg_rng rng;
+    pg_rng_seed(&rng, 3);
+    const int n = 8, W = 40, H = 36; /* 3 x 3 tiles, partial edge tiles */
+    pg_gaussians g, grad;
+    make_scene(&g, n, &rng);
+    splat_gaussians_create(&grad, n);
+    splat_gaussians_resize(&grad, n);
+    pg_camera cam;
+    camera_for_test(&cam, W, H, 1);
+    pg_render_settings s = splat_default_settings();
+    s.background[0] = 0.2f; s.background[1] = 0.5f; s.background[2] = 0.9f;
+    size_t P = (size_t)W * H;
+    float *wr = malloc(P * 3 * sizeof(float)), *wd = malloc(P * sizeof(float)), *wa = malloc(P * sizeof(float));
+    for (size_t i = 0; i < 3 * P; i++) wr[i] = (float)pg_rng_normal(&rng);
+    for (size_t i = 0; i < P; i++) { wd[i] = (float)(0.2 * pg_rng_normal(&rng)); wa[i] = (float)pg_rng_normal(&rng); }
+
+    splat_raster *r;
+    CHECK_OK(splat_raster_create(&r));
+    splat_raster_set_simd(r, simd);
+    pg_render_output out;
+    CHECK_OK(splat_render_forward(r, &g, &cam, &s, &out));
+    float *vs = calloc(n, sizeof(float));
+    CHECK_OK(splat_render_backward(r, &g, &cam, &s, wr, wd, wa, &grad, vs));
+
+    double *params = malloc(sizeof(double) * REF_NP * n);
+    for (int i = 0; i < n; i++) ref_pack(&g, i, params + REF_NP * i);
+    double *rgb = malloc(sizeof(double) * 3 * P), *dep = malloc(sizeof(double) * P), *alp = malloc(sizeof(double) * P);
+    double bg[3] = { s.background[0], s.background[1], s.background[2] };
+    /* forward agreement */
+    ref_render(params, n, 3, &cam, bg, rgb, dep, alp);
+    double fwd_err = 0;
+    for (size_t i = 0; i < P; i++) {
+        for (int c = 0; c < 3; c++) fwd_err = fmax(fwd_err, fabs(rgb[3*i+c] - out.rgb[3*i+c]));
+        fwd_err = fmax(fwd_err, fabs(dep[i] - out.depth[i]) / 5);
+        fwd_err = fmax(fwd_err, fabs(alp[i] - out.alpha[i]));
+    }
+    double cover = 0;
+    for (size_t i = 0; i < P; i++) cover += out.alpha[i];
+    printf("raster (%s) forward vs double reference: max abs err %.2e, mean alpha %.3f\n",
+           simd ? "simd" : "scalar", fwd_err, cover / P);
+    CHECK(fwd_err < 1e-4, "forward differs from the double reference by %g", fwd_err);
+    CHECK(cover / P > 0.15, "test scene covers too little (mean alpha %g)", cover / P);
+
+    /* kinds: 0 mean, 1 log_scale, 2 quat, 3 opacity, 4 SH */
+    static const char *names[5] = { "mean", "log_scale", "quat", "opacity", "sh" };
+    double *fd = malloc(sizeof(double) * REF_NP * n), maxg[5] = { 0 }, worst[5] = { 0 };
+    for (int i = 0; i < n; i++)
+        for (int k = 0; k < REF_NP; k++) {
+            double h = 1e-6, lp[2];
+            for (int sgn = 0; sgn < 2; sgn++) {
+                double keep = params[REF_NP * i + k];
+                params[REF_NP * i + k] = keep + (sgn ? -h : h);
+                ref_render(params, n, 3, &cam, bg, rgb, dep, alp);
+                params[REF_NP * i + k] = keep;
+                double L = 0;
+                for (size_t q = 0; q < P; q++) {
+                    L += (double)wr[3*q]*rgb[3*q] + (double)wr[3*q+1]*rgb[3*q+1] + (double)wr[3*q+2]*rgb[3*q+2];
+                    L += (double)wd[q]*dep[q] + (double)wa[q]*alp[q];
+                }
+                lp[sgn] = L;
+            }
+            fd[REF_NP * i + k] = (lp[0] - lp[1]) / (2 * h);
+            int kind = k < 3 ? 0 : k < 6 ? 1 : k < 10 ? 2 : k < 11 ? 3 : 4;
+            maxg[kind] = fmax(maxg[kind], fabs(fd[REF_NP * i + k]));
+        }
+    for (int i = 0; i < n; i++)
+        for (int k = 0; k < REF_NP; k++) {
+            int kind = k < 3 ? 0 : k < 6 ? 1 : k < 10 ? 2 : k < 11 ? 3 : 4;
+            double a = ref_grad_of(&grad, i, k), b = fd[REF_NP * i + k];
+            double e = rel(a, b, 1e-2 * maxg[kind]);
+            if (e > 1e-3) fprintf(stderr, "raster gaussian %d param %d (%s): analytic %.8g fd %.8g\n", i, k, names[kind], a, b);
+            worst[kind] = fmax(worst[kind], e);
+        }
+    printf("raster (%s) FD: worst rel err mean %.2e log_scale %.2e quat %.2e opacity %.2e sh %.2e\n",
+           simd ? "simd" : "scalar", worst[0], worst[1], worst[2], worst[3], worst[4]);
+    for (int k = 0; k < 5; k++) CHECK(worst[k] < 1e-3, "raster %s gradient rel err %g", names[k], worst[k]);
+    double vs_sum = 0;
+    for (int i = 0; i < n; i++) vs_sum += vs[i];
+    CHECK(vs_sum > 0, "view-space gradient norm not accumulated");
+
+    free(fd); free(params); free(rgb); free(dep); free(alp); free(vs); free(wr); free(wd); free(wa);
+    splat_raster_destroy(r);
+    splat_gaussians_destroy(&g);
+    splat_gaussians_destroy(&grad);
+}
+
+int main(void)
+{
+    test_projection();
+    test_sh();
+    test_raster(0);
+    test_raster(1);
+    return test_summary("test_splat_grad");
+}
