@@ -131,6 +131,12 @@ static void test_npy(const char *dir)
     CHECK_OK(io_depth_load(path, NULL, &d));
     CHECK(d.frames == 1 && d.invalid == 0, "single frame %d %zu", d.frames, d.invalid);
     io_depth_destroy(&d);
+    size_t s4t[4] = { F, 1, H, W };
+    pg_path_join(path, sizeof path, dir, "torch.npy");
+    CHECK_OK(io_npy_save(path, f32, 4, s4t));
+    CHECK_OK(io_depth_load(path, NULL, &d));
+    CHECK(d.frames == F && d.height == H && d.width == W, "(F,1,H,W) %d %d %d", d.frames, d.height, d.width);
+    io_depth_destroy(&d);
     size_t s4[4] = { 1, 2, H, W / 2 };
     pg_path_join(path, sizeof path, dir, "bad4.npy");
     CHECK_OK(io_npy_save(path, f32, 4, s4));
