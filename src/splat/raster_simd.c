@@ -45,84 +45,116 @@ static inline __m512 lane_centres(int x0)
     return _mm512_add_ps(gx, _mm512_set1_ps(0.5f));
 }
 
+/* Hides a vector's origin from the compiler so a blend followed by a full store is not turned
+ * into a masked store (masked stores block store-to-load forwarding for the next load). */
+#define OPAQUE(v) __asm__("" : "+v"(v))
+
+#define CHUNK 256 /* Gaussians copied into the tile-local buffer at a time */
+
+/* Row-major: the tile's Gaussians are copied, CHUNK at a time, into a local buffer (one
+ * cache line each, contiguous); each tile row then keeps transmittance, colour, depth and last
+ * contributor in registers while it walks the Gaussians whose box covers the row (found with a
+ * vector compress over the local row ranges), and stops once all 16 pixels are saturated. */
 void splat_tile_forward_simd(const splat_tile_job *j)
 {
-    float T[SPLAT_TILE_PIX] __attribute__((aligned(64)));
-    float Cr[SPLAT_TILE_PIX] __attribute__((aligned(64))), Cg[SPLAT_TILE_PIX] __attribute__((aligned(64)));
-    float Cb[SPLAT_TILE_PIX] __attribute__((aligned(64))), D[SPLAT_TILE_PIX] __attribute__((aligned(64)));
-    int last[SPLAT_TILE_PIX] __attribute__((aligned(64)));
+    splat_rec loc[CHUNK] __attribute__((aligned(64)));
+    int ylo[CHUNK] __attribute__((aligned(64))), yhi[CHUNK] __attribute__((aligned(64)));
+    int idx[CHUNK + 16];
+    float sT[SPLAT_TILE][16] __attribute__((aligned(64))), sR[SPLAT_TILE][16] __attribute__((aligned(64)));
+    float sG[SPLAT_TILE][16] __attribute__((aligned(64))), sB[SPLAT_TILE][16] __attribute__((aligned(64)));
+    float sD[SPLAT_TILE][16] __attribute__((aligned(64)));
+    int sL[SPLAT_TILE][16] __attribute__((aligned(64)));
     __mmask16 active[SPLAT_TILE];
-    __mmask16 lanes = (__mmask16)((1u << j->w) - 1u);
-    for (int row = 0; row < SPLAT_TILE; row++) active[row] = row < j->h ? lanes : 0;
-    for (int i = 0; i < SPLAT_TILE_PIX; i += 16) {
-        _mm512_store_ps(T + i, _mm512_set1_ps(1.0f));
-        _mm512_store_ps(Cr + i, _mm512_setzero_ps());
-        _mm512_store_ps(Cg + i, _mm512_setzero_ps());
-        _mm512_store_ps(Cb + i, _mm512_setzero_ps());
-        _mm512_store_ps(D + i, _mm512_setzero_ps());
-        _mm512_store_si512((void *)(last + i), _mm512_set1_epi32(-1));
-    }
-    int alive = j->h;
     const __m512 px = lane_centres(j->x0);
     const __m512 one = _mm512_set1_ps(1.0f), amax = _mm512_set1_ps(SPLAT_ALPHA_MAX);
     const __m512 amin = _mm512_set1_ps(SPLAT_ALPHA_MIN), teps = _mm512_set1_ps(SPLAT_T_EPS);
-    for (int k = 0; k < j->n && alive > 0; k++) {
-        /* records are scattered in memory: fetch a few ahead */
-        if (k + SPLAT_PREFETCH < j->n) _mm_prefetch((const char *)&j->rec[j->list[k + SPLAT_PREFETCH]], _MM_HINT_T0);
-        const splat_rec *r = &j->rec[j->list[k]];
-        int r0 = r->ymin - j->y0, r1 = r->ymax - j->y0;
-        if (r0 < 0) r0 = 0;
-        if (r1 > j->h - 1) r1 = j->h - 1;
-        if (r0 > r1) continue;
-        const __m512 dx = _mm512_sub_ps(px, _mm512_set1_ps(r->x));
-        const __m512 thr = _mm512_set1_ps(r->thr), op = _mm512_set1_ps(r->o);
-        const __m512 cr = _mm512_set1_ps(r->col[0]), cg = _mm512_set1_ps(r->col[1]), cb = _mm512_set1_ps(r->col[2]);
-        const __m512 cz = _mm512_set1_ps(r->z), kv = _mm512_castsi512_ps(_mm512_set1_epi32(k));
-        for (int row = r0; row <= r1; row++) {
-            __mmask16 m = active[row];
-            if (!m) continue;
-            float dy = (j->y0 + row + 0.5f) - r->y;
-            float bdy = r->cb * dy, cdy = 0.5f * r->cc * dy * dy;
-            /* sigma = fmaf(dx, fmaf(ha, dx, bdy), cdy) as in the scalar kernel */
-            __m512 inner = _mm512_fmadd_ps(_mm512_set1_ps(0.5f * r->ca), dx, _mm512_set1_ps(bdy));
-            __m512 sig = _mm512_fmadd_ps(dx, inner, _mm512_set1_ps(cdy));
-            m = _mm512_mask_cmp_ps_mask(m, sig, thr, _CMP_LE_OQ);
-            if (!m) continue;
-            __m512 G = exp_poly16(_mm512_sub_ps(_mm512_setzero_ps(), sig));
-            __m512 oG = _mm512_mul_ps(op, G);
-            __m512 a = _mm512_min_ps(oG, amax);
-            m = _mm512_mask_cmp_ps_mask(m, a, amin, _CMP_GE_OQ);
-            if (!m) continue;
-            float *Tp = T + row * 16;
-            __m512 Tv = _mm512_load_ps(Tp);
-            __m512 tT = _mm512_mul_ps(Tv, _mm512_sub_ps(one, a));
-            __mmask16 fin = _mm512_mask_cmp_ps_mask(m, tT, teps, _CMP_LT_OQ);
-            if (fin) {
-                active[row] &= (__mmask16)~fin;
-                m &= (__mmask16)~fin;
-                if (!active[row]) alive--;
+    const __mmask16 lanes = (__mmask16)((1u << j->w) - 1u);
+    for (int row = 0; row < j->h; row++) {
+        active[row] = lanes;
+        _mm512_store_ps(sT[row], one);
+        _mm512_store_ps(sR[row], _mm512_setzero_ps());
+        _mm512_store_ps(sG[row], _mm512_setzero_ps());
+        _mm512_store_ps(sB[row], _mm512_setzero_ps());
+        _mm512_store_ps(sD[row], _mm512_setzero_ps());
+        _mm512_store_si512((void *)sL[row], _mm512_set1_epi32(-1));
+    }
+    int alive = j->h;
+    for (int k0 = 0; k0 < j->n && alive; k0 += CHUNK) {
+        int cn = j->n - k0 < CHUNK ? j->n - k0 : CHUNK;
+        for (int i = 0; i < cn; i++) {
+            if (i + 8 < cn) _mm_prefetch((const char *)&j->rec[j->list[k0 + i + 8]], _MM_HINT_T0);
+            const splat_rec *r = &j->rec[j->list[k0 + i]];
+            _mm512_store_si512((void *)&loc[i], _mm512_loadu_si512((const void *)r));
+            ylo[i] = r->ymin;
+            yhi[i] = r->ymax;
+        }
+        int cpad = (cn + 15) & ~15;
+        for (int i = cn; i < cpad; i++) { ylo[i] = 1 << 30; yhi[i] = -1; }
+        for (int row = 0; row < j->h; row++) {
+            __mmask16 act = active[row];
+            if (!act) continue;
+            int gy = j->y0 + row;
+            float fy = gy + 0.5f;
+            /* indices of the chunk's Gaussians whose box covers this row, in depth order */
+            int cnt = 0;
+            const __m512i gyv = _mm512_set1_epi32(gy);
+            for (int i = 0; i < cpad; i += 16) {
+                __mmask16 cov = _mm512_cmp_epi32_mask(_mm512_load_si512((const void *)(ylo + i)), gyv, _MM_CMPINT_LE) &
+                                _mm512_cmp_epi32_mask(_mm512_load_si512((const void *)(yhi + i)), gyv, _MM_CMPINT_NLT);
+                __m512i iv = _mm512_add_epi32(_mm512_set1_epi32(i),
+                                              _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0));
+                _mm512_mask_compressstoreu_epi32(idx + cnt, cov, iv);
+                cnt += __builtin_popcount(cov);
             }
-            __m512 w = _mm512_mul_ps(a, Tv);
-            _mm512_store_ps(Cr + row * 16, _mm512_mask3_fmadd_ps(cr, w, _mm512_load_ps(Cr + row * 16), m));
-            _mm512_store_ps(Cg + row * 16, _mm512_mask3_fmadd_ps(cg, w, _mm512_load_ps(Cg + row * 16), m));
-            _mm512_store_ps(Cb + row * 16, _mm512_mask3_fmadd_ps(cb, w, _mm512_load_ps(Cb + row * 16), m));
-            _mm512_store_ps(D + row * 16, _mm512_mask3_fmadd_ps(cz, w, _mm512_load_ps(D + row * 16), m));
-            _mm512_mask_store_ps(Tp, m, tT);
-            _mm512_mask_store_ps((float *)(last + row * 16), m, kv);
+            __m512 T = _mm512_load_ps(sT[row]), Cr = _mm512_load_ps(sR[row]), Cg = _mm512_load_ps(sG[row]);
+            __m512 Cb = _mm512_load_ps(sB[row]), D = _mm512_load_ps(sD[row]);
+            __m512i last = _mm512_load_si512((const void *)sL[row]);
+            for (int c = 0; c < cnt; c++) {
+                const splat_rec *r = &loc[idx[c]];
+                float dy = fy - r->y;
+                float bdy = r->cb * dy, cdy = 0.5f * r->cc * dy * dy;
+                /* sigma = fmaf(dx, fmaf(ha, dx, bdy), cdy) as in the scalar kernel */
+                __m512 dx = _mm512_sub_ps(px, _mm512_set1_ps(r->x));
+                __m512 sig = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(_mm512_set1_ps(0.5f * r->ca), dx, _mm512_set1_ps(bdy)),
+                                             _mm512_set1_ps(cdy));
+                __mmask16 m = _mm512_mask_cmp_ps_mask(act, sig, _mm512_set1_ps(r->thr), _CMP_LE_OQ);
+                if (!m) continue;
+                __m512 G = exp_poly16(_mm512_sub_ps(_mm512_setzero_ps(), sig));
+                __m512 a = _mm512_min_ps(_mm512_mul_ps(_mm512_set1_ps(r->o), G), amax);
+                m = _mm512_mask_cmp_ps_mask(m, a, amin, _CMP_GE_OQ);
+                __m512 tT = _mm512_mul_ps(T, _mm512_sub_ps(one, a));
+                __mmask16 fin = _mm512_mask_cmp_ps_mask(m, tT, teps, _CMP_LT_OQ);
+                act &= (__mmask16)~fin;
+                m &= (__mmask16)~fin;
+                __m512 w = _mm512_mul_ps(a, T);
+                Cr = _mm512_mask3_fmadd_ps(_mm512_set1_ps(r->col[0]), w, Cr, m);
+                Cg = _mm512_mask3_fmadd_ps(_mm512_set1_ps(r->col[1]), w, Cg, m);
+                Cb = _mm512_mask3_fmadd_ps(_mm512_set1_ps(r->col[2]), w, Cb, m);
+                D = _mm512_mask3_fmadd_ps(_mm512_set1_ps(r->z), w, D, m);
+                T = _mm512_mask_blend_ps(m, T, tT);
+                last = _mm512_mask_blend_epi32(m, last, _mm512_set1_epi32(k0 + idx[c]));
+                if (!act) break;
+            }
+            _mm512_store_ps(sT[row], T);
+            _mm512_store_ps(sR[row], Cr); _mm512_store_ps(sG[row], Cg); _mm512_store_ps(sB[row], Cb);
+            _mm512_store_ps(sD[row], D);
+            _mm512_store_si512((void *)sL[row], last);
+            active[row] = act;
+            if (!act) alive--;
         }
     }
     for (int row = 0; row < j->h; row++) {
         size_t p0 = (size_t)(j->y0 + row) * j->width + j->x0;
+        __m512 T = _mm512_load_ps(sT[row]);
+        _mm512_mask_storeu_ps(j->depth + p0, lanes, _mm512_load_ps(sD[row]));
+        _mm512_mask_storeu_ps(j->alpha + p0, lanes, _mm512_sub_ps(one, T));
+        _mm512_mask_storeu_ps(j->tfinal + p0, lanes, T);
+        _mm512_mask_storeu_epi32(j->last + p0, lanes, _mm512_load_si512((const void *)sL[row]));
         for (int i = 0; i < j->w; i++) {
-            int t = row * 16 + i;
             size_t p = p0 + i;
-            j->rgb[3*p] = fmaf(T[t], j->bg[0], Cr[t]);
-            j->rgb[3*p+1] = fmaf(T[t], j->bg[1], Cg[t]);
-            j->rgb[3*p+2] = fmaf(T[t], j->bg[2], Cb[t]);
-            j->depth[p] = D[t];
-            j->alpha[p] = 1.0f - T[t];
-            j->tfinal[p] = T[t];
-            j->last[p] = last[t];
+            j->rgb[3*p] = fmaf(sT[row][i], j->bg[0], sR[row][i]);
+            j->rgb[3*p+1] = fmaf(sT[row][i], j->bg[1], sG[row][i]);
+            j->rgb[3*p+2] = fmaf(sT[row][i], j->bg[2], sB[row][i]);
         }
     }
 }
@@ -189,16 +221,24 @@ void splat_tile_backward_simd(const splat_tile_job *j)
             __m512 a = _mm512_min_ps(oG, amax);
             m = _mm512_mask_cmp_ps_mask(m, a, amin, _CMP_GE_OQ);
             if (!m) continue;
-            __m512 inv = _mm512_div_ps(one, _mm512_sub_ps(one, a));
-            __m512 Ti = _mm512_mul_ps(_mm512_load_ps(T + row * 16), inv);
+            /* 1 / (1 - a) by rcp14 + one Newton step (rel. error ~1e-8; 1 - a >= 0.01) */
+            __m512 oma = _mm512_sub_ps(one, a);
+            __m512 inv = _mm512_rcp14_ps(oma);
+            inv = _mm512_mul_ps(inv, _mm512_fnmadd_ps(oma, inv, _mm512_set1_ps(2.0f)));
+            __m512 Tv = _mm512_load_ps(T + row * 16);
+            __m512 Ti = _mm512_mul_ps(Tv, inv);
             __m512 dr = _mm512_load_ps(Dr + row * 16), dg = _mm512_load_ps(Dg + row * 16);
             __m512 db = _mm512_load_ps(Db + row * 16), dd = _mm512_load_ps(Dd + row * 16);
             __m512 q = _mm512_fmadd_ps(dd, cz, _mm512_fmadd_ps(db, cb, _mm512_fmadd_ps(dg, cg, _mm512_mul_ps(dr, cr))));
             __m512 w = _mm512_mul_ps(a, Ti);
             __m512 Qv = _mm512_load_ps(Q + row * 16);
             __m512 dLda = _mm512_fmsub_ps(Ti, q, _mm512_mul_ps(Qv, inv));
-            _mm512_mask_store_ps(Q + row * 16, m, _mm512_fmadd_ps(w, q, Qv));
-            _mm512_mask_store_ps(T + row * 16, m, Ti);
+            __m512 Qn = _mm512_mask_blend_ps(m, Qv, _mm512_fmadd_ps(w, q, Qv));
+            __m512 Tn = _mm512_mask_blend_ps(m, Tv, Ti);
+            OPAQUE(Qn);
+            OPAQUE(Tn);
+            _mm512_store_ps(Q + row * 16, Qn);
+            _mm512_store_ps(T + row * 16, Tn);
             a_r = _mm512_mask3_fmadd_ps(w, dr, a_r, m);
             a_g = _mm512_mask3_fmadd_ps(w, dg, a_g, m);
             a_b = _mm512_mask3_fmadd_ps(w, db, a_b, m);
