@@ -159,14 +159,22 @@ void splat_tile_forward_simd(const splat_tile_job *j)
     }
 }
 
+/* Gaussian-major, back to front: each Gaussian walks the tile rows its box covers (skipping
+ * rows whose pixels all stopped before it) with its ten gradient sums in registers, reduced
+ * across lanes once per (Gaussian, tile). Pixel state (T, suffix term Q, loss gradients) lives
+ * in tile-local arrays. The conic/mean gradients are accumulated as moments of dL/dsigma
+ * (sum g dx, g dy, g dx^2, g dx dy, g dy^2) and combined with the conic at the end. */
 void splat_tile_backward_simd(const splat_tile_job *j)
 {
     float T[SPLAT_TILE_PIX] __attribute__((aligned(64))), Q[SPLAT_TILE_PIX] __attribute__((aligned(64)));
     float Dr[SPLAT_TILE_PIX] __attribute__((aligned(64))), Dg[SPLAT_TILE_PIX] __attribute__((aligned(64)));
     float Db[SPLAT_TILE_PIX] __attribute__((aligned(64))), Dd[SPLAT_TILE_PIX] __attribute__((aligned(64)));
     int last[SPLAT_TILE_PIX] __attribute__((aligned(64)));
+    splat_rec loc[CHUNK] __attribute__((aligned(64)));
+    int rowmax[SPLAT_TILE];
     int kmax = -1;
-    for (int row = 0; row < SPLAT_TILE; row++)
+    for (int row = 0; row < SPLAT_TILE; row++) {
+        rowmax[row] = -1;
         for (int i = 0; i < SPLAT_TILE; i++) {
             int t = row * 16 + i;
             if (row >= j->h || i >= j->w) {
@@ -183,88 +191,96 @@ void splat_tile_backward_simd(const splat_tile_job *j)
             Q[t] = -(T[t] * (da - bgdot));
             Dr[t] = dl[0]; Dg[t] = dl[1]; Db[t] = dl[2]; Dd[t] = dd;
             last[t] = j->last[p];
-            if (last[t] > kmax) kmax = last[t];
+            if (last[t] > rowmax[row]) rowmax[row] = last[t];
         }
+        if (rowmax[row] > kmax) kmax = rowmax[row];
+    }
     for (int k = kmax + 1; k < j->n; k++)
         memset(j->grad_slots + (size_t)SPLAT_GRAD_STRIDE * splat_slot(&j->rec[j->list[k]], j->tx, j->ty), 0,
                SPLAT_GRAD_STRIDE * sizeof(float));
     const __m512 px = lane_centres(j->x0);
     const __m512 one = _mm512_set1_ps(1.0f), amax = _mm512_set1_ps(SPLAT_ALPHA_MAX);
     const __m512 amin = _mm512_set1_ps(SPLAT_ALPHA_MIN), zero = _mm512_setzero_ps();
-    for (int k = kmax; k >= 0; k--) {
-        if (k >= SPLAT_PREFETCH) _mm_prefetch((const char *)&j->rec[j->list[k - SPLAT_PREFETCH]], _MM_HINT_T0);
-        const splat_rec *r = &j->rec[j->list[k]];
-        float *slot = j->grad_slots + (size_t)SPLAT_GRAD_STRIDE * splat_slot(r, j->tx, j->ty);
-        __m512 a_x = zero, a_y = zero, a_ca = zero, a_cb = zero, a_cc = zero, a_o = zero;
-        __m512 a_r = zero, a_g = zero, a_b = zero, a_z = zero;
-        int r0 = r->ymin - j->y0, r1 = r->ymax - j->y0;
-        if (r0 < 0) r0 = 0;
-        if (r1 > j->h - 1) r1 = j->h - 1;
-        const __m512 dx = _mm512_sub_ps(px, _mm512_set1_ps(r->x));
-        const __m512 ha = _mm512_set1_ps(0.5f * r->ca), ca = _mm512_set1_ps(r->ca), cbv = _mm512_set1_ps(r->cb);
-        const __m512 thr = _mm512_set1_ps(r->thr), op = _mm512_set1_ps(r->o);
-        const __m512 cr = _mm512_set1_ps(r->col[0]), cg = _mm512_set1_ps(r->col[1]), cb = _mm512_set1_ps(r->col[2]);
-        const __m512 cz = _mm512_set1_ps(r->z);
-        const __m512i kv = _mm512_set1_epi32(k);
-        const __m512 hdx2 = _mm512_mul_ps(_mm512_mul_ps(_mm512_set1_ps(0.5f), dx), dx);
-        for (int row = r0; row <= r1; row++) {
-            __mmask16 m = _mm512_cmp_epi32_mask(kv, _mm512_load_si512((const void *)(last + row * 16)), _MM_CMPINT_LE);
-            if (!m) continue;
-            float dy = (j->y0 + row + 0.5f) - r->y;
-            float bdy = r->cb * dy, cdy = 0.5f * r->cc * dy * dy;
-            __m512 bdyv = _mm512_set1_ps(bdy);
-            __m512 sig = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(ha, dx, bdyv), _mm512_set1_ps(cdy));
-            m = _mm512_mask_cmp_ps_mask(m, sig, thr, _CMP_LE_OQ);
-            if (!m) continue;
-            __m512 G = exp_poly16(_mm512_sub_ps(zero, sig));
-            __m512 oG = _mm512_mul_ps(op, G);
-            __m512 a = _mm512_min_ps(oG, amax);
-            m = _mm512_mask_cmp_ps_mask(m, a, amin, _CMP_GE_OQ);
-            if (!m) continue;
-            /* 1 / (1 - a) by rcp14 + one Newton step (rel. error ~1e-8; 1 - a >= 0.01) */
-            __m512 oma = _mm512_sub_ps(one, a);
-            __m512 inv = _mm512_rcp14_ps(oma);
-            inv = _mm512_mul_ps(inv, _mm512_fnmadd_ps(oma, inv, _mm512_set1_ps(2.0f)));
-            __m512 Tv = _mm512_load_ps(T + row * 16);
-            __m512 Ti = _mm512_mul_ps(Tv, inv);
-            __m512 dr = _mm512_load_ps(Dr + row * 16), dg = _mm512_load_ps(Dg + row * 16);
-            __m512 db = _mm512_load_ps(Db + row * 16), dd = _mm512_load_ps(Dd + row * 16);
-            __m512 q = _mm512_fmadd_ps(dd, cz, _mm512_fmadd_ps(db, cb, _mm512_fmadd_ps(dg, cg, _mm512_mul_ps(dr, cr))));
-            __m512 w = _mm512_mul_ps(a, Ti);
-            __m512 Qv = _mm512_load_ps(Q + row * 16);
-            __m512 dLda = _mm512_fmsub_ps(Ti, q, _mm512_mul_ps(Qv, inv));
-            __m512 Qn = _mm512_mask_blend_ps(m, Qv, _mm512_fmadd_ps(w, q, Qv));
-            __m512 Tn = _mm512_mask_blend_ps(m, Tv, Ti);
-            OPAQUE(Qn);
-            OPAQUE(Tn);
-            _mm512_store_ps(Q + row * 16, Qn);
-            _mm512_store_ps(T + row * 16, Tn);
-            a_r = _mm512_mask3_fmadd_ps(w, dr, a_r, m);
-            a_g = _mm512_mask3_fmadd_ps(w, dg, a_g, m);
-            a_b = _mm512_mask3_fmadd_ps(w, db, a_b, m);
-            a_z = _mm512_mask3_fmadd_ps(w, dd, a_z, m);
-            __mmask16 mu = _mm512_mask_cmp_ps_mask(m, oG, amax, _CMP_LT_OQ);
-            if (!mu) continue;
-            __m512 dLds = _mm512_sub_ps(zero, _mm512_mul_ps(dLda, a));
-            a_o = _mm512_mask3_fmadd_ps(dLda, G, a_o, mu);
-            __m512 gu = _mm512_sub_ps(zero, _mm512_fmadd_ps(ca, dx, bdyv));
-            __m512 gv = _mm512_sub_ps(zero, _mm512_fmadd_ps(cbv, dx, _mm512_set1_ps(r->cc * dy)));
-            a_x = _mm512_mask3_fmadd_ps(dLds, gu, a_x, mu);
-            a_y = _mm512_mask3_fmadd_ps(dLds, gv, a_y, mu);
-            a_ca = _mm512_mask3_fmadd_ps(dLds, hdx2, a_ca, mu);
-            a_cb = _mm512_mask3_fmadd_ps(dLds, _mm512_mul_ps(dx, _mm512_set1_ps(dy)), a_cb, mu);
-            a_cc = _mm512_mask3_fmadd_ps(dLds, _mm512_set1_ps(0.5f * dy * dy), a_cc, mu);
+    for (int kc = (kmax / CHUNK) * CHUNK; kc >= 0 && kmax >= 0; kc -= CHUNK) {
+        int kend = kc + CHUNK - 1 < kmax ? kc + CHUNK - 1 : kmax;
+        for (int k = kend; k >= kc; k--) {
+            if (k - 8 >= kc) _mm_prefetch((const char *)&j->rec[j->list[k - 8]], _MM_HINT_T0);
+            _mm512_store_si512((void *)&loc[k - kc], _mm512_loadu_si512((const void *)&j->rec[j->list[k]]));
         }
-        slot[0] = _mm512_reduce_add_ps(a_x);
-        slot[1] = _mm512_reduce_add_ps(a_y);
-        slot[2] = _mm512_reduce_add_ps(a_ca);
-        slot[3] = _mm512_reduce_add_ps(a_cb);
-        slot[4] = _mm512_reduce_add_ps(a_cc);
-        slot[5] = _mm512_reduce_add_ps(a_o);
-        slot[6] = _mm512_reduce_add_ps(a_r);
-        slot[7] = _mm512_reduce_add_ps(a_g);
-        slot[8] = _mm512_reduce_add_ps(a_b);
-        slot[9] = _mm512_reduce_add_ps(a_z);
+        for (int k = kend; k >= kc; k--) {
+            const splat_rec *r = &loc[k - kc];
+            __m512 a_m1 = zero, a_m2 = zero, a_xx = zero, a_xy = zero, a_yy = zero, a_o = zero;
+            __m512 a_r = zero, a_g = zero, a_b = zero, a_z = zero;
+            int r0 = r->ymin - j->y0, r1 = r->ymax - j->y0;
+            if (r0 < 0) r0 = 0;
+            if (r1 > j->h - 1) r1 = j->h - 1;
+            const __m512 dx = _mm512_sub_ps(px, _mm512_set1_ps(r->x));
+            const __m512 ha = _mm512_set1_ps(0.5f * r->ca);
+            const __m512 thr = _mm512_set1_ps(r->thr), op = _mm512_set1_ps(r->o);
+            const __m512 cr = _mm512_set1_ps(r->col[0]), cg = _mm512_set1_ps(r->col[1]), cb = _mm512_set1_ps(r->col[2]);
+            const __m512 cz = _mm512_set1_ps(r->z);
+            const __m512i kv = _mm512_set1_epi32(k);
+            const __m512 dx2 = _mm512_mul_ps(dx, dx);
+            for (int row = r0; row <= r1; row++) {
+                if (rowmax[row] < k) continue;
+                __mmask16 m = _mm512_cmp_epi32_mask(kv, _mm512_load_si512((const void *)(last + row * 16)), _MM_CMPINT_LE);
+                float dy = (j->y0 + row + 0.5f) - r->y;
+                float bdy = r->cb * dy, cdy = 0.5f * r->cc * dy * dy;
+                __m512 sig = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(ha, dx, _mm512_set1_ps(bdy)), _mm512_set1_ps(cdy));
+                m = _mm512_mask_cmp_ps_mask(m, sig, thr, _CMP_LE_OQ);
+                if (!m) continue;
+                __m512 G = exp_poly16(_mm512_sub_ps(zero, sig));
+                __m512 oG = _mm512_mul_ps(op, G);
+                __m512 a = _mm512_min_ps(oG, amax);
+                m = _mm512_mask_cmp_ps_mask(m, a, amin, _CMP_GE_OQ);
+                /* 1 / (1 - a) by rcp14 + one Newton step (rel. error ~1e-8; 1 - a >= 0.01) */
+                __m512 oma = _mm512_sub_ps(one, a);
+                __m512 inv = _mm512_rcp14_ps(oma);
+                inv = _mm512_mul_ps(inv, _mm512_fnmadd_ps(oma, inv, _mm512_set1_ps(2.0f)));
+                float *Tp = T + row * 16, *Qp = Q + row * 16;
+                __m512 Tv = _mm512_load_ps(Tp);
+                __m512 Ti = _mm512_mul_ps(Tv, inv);
+                __m512 dr = _mm512_load_ps(Dr + row * 16), dg = _mm512_load_ps(Dg + row * 16);
+                __m512 db = _mm512_load_ps(Db + row * 16), dd = _mm512_load_ps(Dd + row * 16);
+                __m512 q = _mm512_fmadd_ps(dd, cz, _mm512_fmadd_ps(db, cb, _mm512_fmadd_ps(dg, cg, _mm512_mul_ps(dr, cr))));
+                __m512 w = _mm512_mul_ps(a, Ti);
+                __m512 Qv = _mm512_load_ps(Qp);
+                __m512 dLda = _mm512_fmsub_ps(Ti, q, _mm512_mul_ps(Qv, inv));
+                __m512 Qn = _mm512_mask_blend_ps(m, Qv, _mm512_fmadd_ps(w, q, Qv));
+                __m512 Tn = _mm512_mask_blend_ps(m, Tv, Ti);
+                OPAQUE(Qn);
+                OPAQUE(Tn);
+                _mm512_store_ps(Qp, Qn);
+                _mm512_store_ps(Tp, Tn);
+                a_r = _mm512_mask3_fmadd_ps(w, dr, a_r, m);
+                a_g = _mm512_mask3_fmadd_ps(w, dg, a_g, m);
+                a_b = _mm512_mask3_fmadd_ps(w, db, a_b, m);
+                a_z = _mm512_mask3_fmadd_ps(w, dd, a_z, m);
+                m = _mm512_mask_cmp_ps_mask(m, oG, amax, _CMP_LT_OQ); /* clamped alpha: no gradient */
+                __m512 gs = _mm512_maskz_mul_ps(m, dLda, a);           /* -dL/dsigma */
+                __m512 dyv = _mm512_set1_ps(dy);
+                a_o = _mm512_mask3_fmadd_ps(dLda, G, a_o, m);
+                __m512 gdx = _mm512_mul_ps(gs, dx);
+                a_m1 = _mm512_add_ps(a_m1, gdx);
+                a_m2 = _mm512_fmadd_ps(gs, dyv, a_m2);
+                a_xx = _mm512_fmadd_ps(gs, dx2, a_xx);
+                a_xy = _mm512_fmadd_ps(gdx, dyv, a_xy);
+                a_yy = _mm512_fmadd_ps(gs, _mm512_set1_ps(dy * dy), a_yy);
+            }
+            /* dsigma/dx_mean = -(ca dx + cb dy), dsigma/dy_mean = -(cb dx + cc dy); gs = -dL/dsigma */
+            float s1 = _mm512_reduce_add_ps(a_m1), s2 = _mm512_reduce_add_ps(a_m2);
+            float *slot = j->grad_slots + (size_t)SPLAT_GRAD_STRIDE * splat_slot(r, j->tx, j->ty);
+            slot[0] = r->ca * s1 + r->cb * s2;
+            slot[1] = r->cb * s1 + r->cc * s2;
+            slot[2] = -0.5f * _mm512_reduce_add_ps(a_xx);
+            slot[3] = -_mm512_reduce_add_ps(a_xy);
+            slot[4] = -0.5f * _mm512_reduce_add_ps(a_yy);
+            slot[5] = _mm512_reduce_add_ps(a_o);
+            slot[6] = _mm512_reduce_add_ps(a_r);
+            slot[7] = _mm512_reduce_add_ps(a_g);
+            slot[8] = _mm512_reduce_add_ps(a_b);
+            slot[9] = _mm512_reduce_add_ps(a_z);
+        }
     }
 }
 
