@@ -182,6 +182,7 @@ struct deform_ws {
     long n;
     float t;
     long *order;          /* (order_cap) processing order: row j of the chunks is point order[j] */
+    long *keys;           /* (order_cap) Morton keys of the points */
     long order_cap;
     long *bins;           /* (SORT_BINS + 1) counting-sort histogram */
     /* bf16 AMX path */
@@ -316,6 +317,7 @@ void deform_ws_destroy(deform_ws *ws)
     free(ws->scratch);
     free(ws->tgrads);
     free(ws->order);
+    free(ws->keys);
     free(ws->bins);
     free(ws->packs);
     free(ws);
@@ -340,15 +342,21 @@ static inline long point_row(const deform_ws *ws, long j)
 static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
 {
     if (n > ws->order_cap) {
-        long *o = malloc((size_t)n * sizeof(long));
-        if (!o) return pg_fail(PG_ERR_NOMEM, "deform: no memory to order %ld points", n);
+        long *o = malloc((size_t)n * sizeof(long)), *k = malloc((size_t)n * sizeof(long));
+        if (!o || !k) {
+            free(o);
+            free(k);
+            return pg_fail(PG_ERR_NOMEM, "deform: no memory to order %ld points", n);
+        }
         free(ws->order);
+        free(ws->keys);
         ws->order = o;
+        ws->keys = k;
         ws->order_cap = n;
     }
     if (!ws->bins && !(ws->bins = malloc((SORT_BINS + 1) * sizeof(long))))
         return pg_fail(PG_ERR_NOMEM, "deform: no memory for the point sort");
-    /* key of point i is stored temporarily in order[i] */
+    long *keys = ws->keys;
     for (long i = 0; i < n; i++) {
         const float *p = ws->means + 3 * (ws->idx ? (long)ws->idx[i] : i);
         long key = 0;
@@ -358,17 +366,12 @@ static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
             if (c > (1 << SORT_BITS) - 1) c = (1 << SORT_BITS) - 1;
             for (int b = 0; b < SORT_BITS; b++) key |= (long)((c >> b) & 1) << (3 * b + d);
         }
-        ws->order[i] = key;
+        keys[i] = key;
     }
     memset(ws->bins, 0, (SORT_BINS + 1) * sizeof(long));
-    for (long i = 0; i < n; i++) ws->bins[ws->order[i] + 1]++;
+    for (long i = 0; i < n; i++) ws->bins[keys[i] + 1]++;
     for (long b = 0; b < SORT_BINS; b++) ws->bins[b + 1] += ws->bins[b];
-    /* second array: reuse the tail trick - place indices via a temporary copy of keys */
-    long *keys = malloc((size_t)n * sizeof(long));
-    if (!keys) return pg_fail(PG_ERR_NOMEM, "deform: no memory to order %ld points", n);
-    memcpy(keys, ws->order, (size_t)n * sizeof(long));
     for (long i = 0; i < n; i++) ws->order[ws->bins[keys[i]]++] = i;
-    free(keys);
     return PG_OK;
 }
 
