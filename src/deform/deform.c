@@ -191,6 +191,8 @@ struct deform_ws {
     size_t dwt_off;               /* per-thread transposed weight gradients (in, out) of every layer */
     uint16_t *wt_pack[DEFORM_MAX_FEATURE_LAYERS + 1]; /* per layer: w as B of x w^T  */
     uint16_t *w_pack[DEFORM_MAX_FEATURE_LAYERS + 1];  /* per layer: w as B of d_y w  */
+    uint16_t *head_wt_pack[DEFORM_HEADS]; /* heads' last layers, for forward */
+    uint16_t *head_w_pack[DEFORM_HEADS];  /* heads' last layers, for d a = d_y w */
     uint16_t *packs;              /* storage of all packed weights */
 };
 
@@ -268,6 +270,9 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
         for (int l = 0; l < net->num_layers; l++)
             total += gemm_amx_b_size(net->layers[l].in, net->layers[l].out) +
                      gemm_amx_b_size(net->layers[l].out, net->layers[l].in);
+        for (int h = 0; h < DEFORM_HEADS; h++)
+            total += gemm_amx_b_size(net->heads[h].in, net->heads[h].out) +
+                     gemm_amx_b_size(net->heads[h].out, net->heads[h].in);
         ws->packs = pg_malloc(total * sizeof(uint16_t), "deform packed weights");
         if (!ws->packs) {
             free(ws);
@@ -279,6 +284,12 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
             p += gemm_amx_b_size(net->layers[l].in, net->layers[l].out);
             ws->w_pack[l] = p;
             p += gemm_amx_b_size(net->layers[l].out, net->layers[l].in);
+        }
+        for (int h = 0; h < DEFORM_HEADS; h++) {
+            ws->head_wt_pack[h] = p;
+            p += gemm_amx_b_size(net->heads[h].in, net->heads[h].out);
+            ws->head_w_pack[h] = p;
+            p += gemm_amx_b_size(net->heads[h].out, net->heads[h].in);
         }
     }
     ws->store_points = (max_points + chunk - 1) / chunk * (long)chunk;
@@ -425,6 +436,11 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
             const deform_layer *L = &net->layers[l];
             gemm_amx_pack_b(ws->wt_pack[l], net->params + L->w_off, 1, L->in, L->in, L->out);
         }
+    if (ws->amx)
+        for (int h = 0; h < DEFORM_HEADS; h++) {
+            const deform_layer *L = &net->heads[h];
+            gemm_amx_pack_b(ws->head_wt_pack[h], net->params + L->w_off, 1, L->in, L->in, L->out);
+        }
     const int W5 = DEFORM_HEADS * ws->W;
     long nchunks = (n + ws->chunk - 1) / ws->chunk;
     #pragma omp parallel for schedule(static)
@@ -436,10 +452,15 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
         chunk_forward_hidden(net, ws, acts, start, m, tid);
         const float *a = layer_out(ws, acts, net->num_layers - 1, m);
         float *y = ws->scratch + (size_t)tid * ws->scratch_floats + (size_t)ws->chunk * ws->act_pp; /* (m, 59) */
+        uint16_t *apack = (uint16_t *)(ws->scratch + (size_t)tid * ws->scratch_floats + ws->apack_off);
         for (int h = 0; h < DEFORM_HEADS; h++) {
             const deform_layer *L = &net->heads[h];
-            mlp_linear_forward(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, W5,
-                               net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 0);
+            if (ws->amx)
+                mlp_linear_forward_amx(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, W5,
+                                       ws->head_wt_pack[h], net->params + L->b_off, m, L->in, L->out, 0, apack);
+            else
+                mlp_linear_forward(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, W5,
+                                   net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 0);
         }
         for (int i = 0; i < m; i++)
             memcpy(out + (size_t)ws->order[start + i] * DEFORM_OUT_DIM, y + (size_t)i * DEFORM_OUT_DIM,
@@ -461,6 +482,11 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
         for (int l = 0; l < net->num_layers; l++) {
             const deform_layer *L = &net->layers[l];
             gemm_amx_pack_b(ws->w_pack[l], net->params + L->w_off, L->in, 1, L->out, L->in);
+        }
+    if (ws->amx)
+        for (int h = 0; h < DEFORM_HEADS; h++) {
+            const deform_layer *L = &net->heads[h];
+            gemm_amx_pack_b(ws->head_w_pack[h], net->params + L->w_off, L->in, 1, L->out, L->in);
         }
     #pragma omp parallel
     {
@@ -500,9 +526,16 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
             const float *a = layer_out(ws, acts, net->num_layers - 1, m);
             for (int h = 0; h < DEFORM_HEADS; h++) {
                 const deform_layer *L = &net->heads[h];
-                mlp_linear_backward(dA + (size_t)h * W, W5, grads + L->w_off, grads + L->b_off,
+                /* weight/bias gradients of the small last layers stay f32 (a strided bf16 pack of a^T
+                 * would cost more than it saves); d a = d_y w goes on AMX when enabled */
+                mlp_linear_backward(ws->amx ? NULL : dA + (size_t)h * W, W5, grads + L->w_off, grads + L->b_off,
                                     dy + deform_head_offset[h], DEFORM_OUT_DIM, NULL, 0, a + (size_t)h * W, W5,
                                     net->params + L->w_off, m, L->in, L->out, 0);
+                if (ws->amx) {
+                    uint16_t *apack = (uint16_t *)(scr + ws->apack_off);
+                    gemm_amx_pack_a(apack, dy + deform_head_offset[h], DEFORM_OUT_DIM, 1, m, L->out);
+                    gemm_amx_run(dA + (size_t)h * W, W5, apack, ws->head_w_pack[h], m, W, L->out, 0);
+                }
             }
             float *dcur = dA, *dnext = dB;
             for (int l = net->num_layers - 1; l >= 0; l--) {
