@@ -478,6 +478,27 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
     if (nt > ws->nthreads) return pg_fail(PG_ERR_ARG, "deform_network_backward: thread count changed since forward");
     size_t mx = (size_t)(W > F ? W : F);
     int used_threads = 1;
+    /* Parameter ranges a backward can write: spatial planes, the two time rows at t of each time
+     * plane (60% of the parameters are time planes; this skips zeroing/reducing the rest of them
+     * in the per-thread buffers), and the MLP. */
+    size_t ranges[HEX_MAX_SCALES * HEX_PLANES + 1][2];
+    int nranges = 0;
+    const int trow = hex_time_row(&net->grid, ws->t);
+    for (int s = 0; s < net->cfg.num_scales; s++)
+        for (int p = 0; p < HEX_PLANES; p++) {
+            size_t off = net->plane_off[s][p], len = hex_plane_size(&net->grid, s, p);
+            if (hex_plane_axes[p][1] == 3) {
+                size_t row = len / (size_t)net->cfg.res_time;
+                off += (size_t)trow * row;
+                len = 2 * row;
+            }
+            ranges[nranges][0] = off;
+            ranges[nranges][1] = len;
+            nranges++;
+        }
+    ranges[nranges][0] = net->num_plane_params;
+    ranges[nranges][1] = net->num_params - net->num_plane_params;
+    nranges++;
     if (ws->amx)
         for (int l = 0; l < net->num_layers; l++) {
             const deform_layer *L = &net->layers[l];
@@ -494,7 +515,8 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
         #pragma omp single
         used_threads = omp_get_num_threads();
         float *grads = tid == 0 ? net->grads : ws->tgrads + (size_t)(tid - 1) * ws->num_params;
-        if (tid > 0) memset(grads, 0, ws->num_params * sizeof(float));
+        if (tid > 0)
+            for (int r = 0; r < nranges; r++) memset(grads + ranges[r][0], 0, ranges[r][1] * sizeof(float));
         float *dplanes[HEX_MAX_SCALES][HEX_PLANES];
         for (int s = 0; s < net->cfg.num_scales; s++)
             for (int p = 0; p < HEX_PLANES; p++) dplanes[s][p] = grads + net->plane_off[s][p];
@@ -567,14 +589,18 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
                     for (int i = 0; i < L->in; i++) gw[(size_t)o * L->in + i] += dwt[l][(size_t)i * L->out + o];
             }
     }
-    /* Fixed-order reduction of the other threads' buffers (parallel over parameters). */
+    /* Fixed-order reduction of the other threads' buffers over the written ranges (parallel over
+     * parameters inside each range). */
     if (used_threads > 1) {
         const size_t P = ws->num_params;
-        #pragma omp parallel for schedule(static)
-        for (size_t i = 0; i < P; i++) {
-            float s = net->grads[i];
-            for (int th = 1; th < used_threads; th++) s += ws->tgrads[(size_t)(th - 1) * P + i];
-            net->grads[i] = s;
+        for (int r = 0; r < nranges; r++) {
+            size_t lo = ranges[r][0], hi = lo + ranges[r][1];
+            #pragma omp parallel for schedule(static)
+            for (size_t i = lo; i < hi; i++) {
+                float s = net->grads[i];
+                for (int th = 1; th < used_threads; th++) s += ws->tgrads[(size_t)(th - 1) * P + i];
+                net->grads[i] = s;
+            }
         }
     }
     return PG_OK;
