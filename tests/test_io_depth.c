@@ -88,6 +88,9 @@ static void test_npy(const char *dir)
     if (d.data) CHECK(fabsf(d.data[9] - (1000 + 10 + 100) * 0.001f) < 1e-6f, "u16 scaled %g", d.data[9]);
     io_depth_destroy(&d);
 
+    io_depth_kind kind = IO_DEPTH_KIND_DEPTH;
+    CHECK_OK(io_depth_kind_parse("disparity", &kind));
+    CHECK(kind == IO_DEPTH_KIND_DISPARITY && io_depth_kind_parse("inverse", &kind) == PG_ERR_ARG, "kind parse");
     /* Disparity: depth = 1 / (value * scale). */
     o = io_depth_defaults();
     o.kind = IO_DEPTH_KIND_DISPARITY;
@@ -350,6 +353,9 @@ static void test_bad(const char *dir)
     }
     CHECK(io_png16_load(path, &arr) == PG_ERR_FORMAT, "huge png: %s", pg_last_error());
     CHECK(strstr(pg_last_error(), "huge.png") != NULL, "names file: %s", pg_last_error());
+    snprintf(args, sizeof args, "info '%s'", path);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "huge.png"), "info huge png rc %d: %s", rc, err);
 
     /* Truncated npy / pfm, garbled npy. */
     pg_path_join(path, sizeof path, dir, "trunc.npy");

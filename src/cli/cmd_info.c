@@ -5,6 +5,7 @@
 #include "core/fileutil.h"
 #include "io/dataset.h"
 #include "io/depth_io.h"
+#include "io/image_io.h"
 #include "io/json.h"
 #include "io/ply.h"
 #include "io/video.h"
@@ -44,15 +45,20 @@ static int info_dataset(const char *path, int json, pg_status *st_out)
     if (st) return -1;
     int n = io_dataset_num_cameras(ds);
     io_dataset_kind kind = io_dataset_get_kind(ds);
-    /* Decode the first frame of the first camera so a broken source is reported here. */
-    pg_image img;
-    st = io_dataset_frame(ds, 0, 0, &img);
+    /* Decode the first frame of the first camera so a broken source is reported here (through
+     * a one-frame selection: the dataset caches whole cameras). */
+    pg_dataset *one = NULL;
+    o.count = 1;
+    st = io_dataset_open(path, &o, &one);
+    pg_image img = { 0 };
+    if (st == PG_OK) st = io_dataset_frame(one, 0, 0, &img);
+    pg_image_destroy(&img);
+    io_dataset_close(one);
     if (st) {
         io_dataset_close(ds);
         *st_out = st;
         return -1;
     }
-    pg_image_destroy(&img);
     if (json) {
         cJSON *root = cJSON_CreateObject();
         cJSON_AddStringToObject(root, "path", path);
@@ -161,6 +167,31 @@ static int info_ply(const char *path, int json, pg_status *st_out)
     return 0;
 }
 
+static int info_image(const char *path, int json, pg_status *st_out)
+{
+    pg_image img;
+    pg_status st = io_image_load(path, &img);
+    *st_out = st;
+    if (st) return -1;
+    double mean = 0;
+    size_t n = (size_t)img.width * img.height * img.channels;
+    for (size_t i = 0; i < n; i++) mean += img.data[i];
+    mean /= (double)n;
+    int w = img.width, h = img.height;
+    pg_image_destroy(&img);
+    if (json) {
+        cJSON *root = cJSON_CreateObject();
+        cJSON_AddStringToObject(root, "path", path);
+        cJSON_AddStringToObject(root, "type", "image");
+        cJSON_AddNumberToObject(root, "width", w);
+        cJSON_AddNumberToObject(root, "height", h);
+        cJSON_AddNumberToObject(root, "mean", mean);
+        return print_json(root);
+    }
+    printf("%s: image, %d x %d, mean value %.4f\n", path, w, h, mean);
+    return 0;
+}
+
 /* A folder with depth files but no images is a depth folder. */
 static int is_depth_folder(const char *path)
 {
@@ -202,6 +233,8 @@ int cmd_info(int argc, char **argv)
                                  (pg_path_join(probe, sizeof probe, path, "test_meta.json") == PG_OK && pg_path_exists(probe)));
     if (!dataset_dir && is_dir && is_depth_folder(path)) rc = info_depth(path, json, &st);
     else if (!is_dir && (!strcasecmp(x, ".npy") || !strcasecmp(x, ".pfm") || !strcasecmp(x, ".exr"))) rc = info_depth(path, json, &st);
+    else if (!is_dir && (!strcasecmp(x, ".png") || !strcasecmp(x, ".jpg") || !strcasecmp(x, ".jpeg")))
+        rc = info_image(path, json, &st);
     else if (!is_dir && !strcasecmp(x, ".ply")) rc = info_ply(path, json, &st);
     else rc = info_dataset(path, json, &st);
     if (rc < 0) return cli_fail(st);

@@ -4,6 +4,7 @@
 
 #include "core/fileutil.h"
 #include "core/rng.h"
+#include "deform/gemm_amx.h"
 #include "deform/mlp.h"
 #include "optim/loss_reg.h"
 
@@ -183,15 +184,40 @@ struct deform_ws {
     long *order;          /* (order_cap) processing order: row j of the chunks is point order[j] */
     long order_cap;
     long *bins;           /* (SORT_BINS + 1) counting-sort histogram */
+    /* bf16 AMX path */
+    int amx;
+    size_t apack_off, bpack_off;  /* offsets (floats) of the packing scratch inside a thread's scratch */
+    size_t dwt_off;               /* per-thread transposed weight gradients (in, out) of every layer */
+    uint16_t *wt_pack[DEFORM_MAX_FEATURE_LAYERS + 1]; /* per layer: w as B of x w^T  */
+    uint16_t *w_pack[DEFORM_MAX_FEATURE_LAYERS + 1];  /* per layer: w as B of d_y w  */
+    uint16_t *packs;              /* storage of all packed weights */
 };
+
+int deform_ws_uses_amx(const deform_ws *ws) { return ws->amx; }
 
 static size_t ws_scratch_floats(const deform_ws *ws)
 {
     size_t c = (size_t)ws->chunk;
     size_t big = (size_t)DEFORM_HEADS * ws->W;
     size_t mx = (size_t)(ws->W > ws->F ? ws->W : ws->F);
-    /* acts + d_out copy + dA (c, 5W) + two ping-pong (c, max(W, F)) */
-    return c * ws->act_pp + c * DEFORM_OUT_DIM + c * big + 2 * c * mx;
+    /* acts + d_out copy + dA (c, 5W) + two ping-pong (c, max(W, F)) [+ bf16 packing scratch] */
+    size_t n = c * ws->act_pp + c * DEFORM_OUT_DIM + c * big + 2 * c * mx;
+    return (n + 15) & ~(size_t)15;
+}
+
+/* Packing scratch (in uint16) of the AMX path for layers of sizes in -> out. */
+static void ws_amx_scratch(const deform_network *net, int chunk, size_t *a, size_t *b)
+{
+    *a = *b = 0;
+    for (int l = 0; l < net->num_layers; l++) {
+        int in = net->layers[l].in, out = net->layers[l].out;
+        size_t s1 = gemm_amx_a_size(chunk, in), s2 = gemm_amx_a_size(in, chunk), s3 = gemm_amx_a_size(chunk, out);
+        size_t m = s1 > s2 ? s1 : s2;
+        if (s3 > m) m = s3;
+        if (m > *a) *a = m;
+        size_t sb = gemm_amx_b_size(chunk, out);
+        if (sb > *b) *b = sb;
+    }
 }
 
 /* Grows the per-thread buffers to the current OpenMP thread count. */
@@ -228,6 +254,32 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
     ws->act_pp = (size_t)ws->F + (size_t)(ws->L - 1) * ws->W + (size_t)DEFORM_HEADS * ws->W;
     ws->num_params = net->num_params;
     ws->scratch_floats = ws_scratch_floats(ws);
+    ws->amx = net->cfg.bf16 && gemm_amx_available();
+    if (ws->amx) {
+        size_t a, b, total = 0;
+        ws_amx_scratch(net, chunk, &a, &b);
+        ws->apack_off = ws->scratch_floats;
+        ws->bpack_off = ws->apack_off + ((a / 2 + 16) & ~(size_t)15);
+        ws->dwt_off = ws->bpack_off + ((b / 2 + 16) & ~(size_t)15);
+        size_t dwt = 0;
+        for (int l = 0; l < net->num_layers; l++) dwt += (size_t)net->layers[l].in * net->layers[l].out;
+        ws->scratch_floats = ws->dwt_off + ((dwt + 15) & ~(size_t)15);
+        for (int l = 0; l < net->num_layers; l++)
+            total += gemm_amx_b_size(net->layers[l].in, net->layers[l].out) +
+                     gemm_amx_b_size(net->layers[l].out, net->layers[l].in);
+        ws->packs = pg_malloc(total * sizeof(uint16_t), "deform packed weights");
+        if (!ws->packs) {
+            free(ws);
+            return PG_ERR_NOMEM;
+        }
+        uint16_t *p = ws->packs;
+        for (int l = 0; l < net->num_layers; l++) {
+            ws->wt_pack[l] = p;
+            p += gemm_amx_b_size(net->layers[l].in, net->layers[l].out);
+            ws->w_pack[l] = p;
+            p += gemm_amx_b_size(net->layers[l].out, net->layers[l].in);
+        }
+    }
     ws->store_points = (max_points + chunk - 1) / chunk * (long)chunk;
     size_t store_floats;
     if (pg_size_mul((size_t)ws->store_points, ws->act_pp, &store_floats)) {
@@ -265,6 +317,7 @@ void deform_ws_destroy(deform_ws *ws)
     free(ws->tgrads);
     free(ws->order);
     free(ws->bins);
+    free(ws->packs);
     free(ws);
 }
 
@@ -337,15 +390,20 @@ static float *layer_out(const deform_ws *ws, float *acts, int l, int m)
 }
 
 /* Hexplane + hidden layers of one chunk (everything except the heads' last layers). */
-static void chunk_forward_hidden(const deform_network *net, deform_ws *ws, float *acts, long start, int m)
+static void chunk_forward_hidden(const deform_network *net, deform_ws *ws, float *acts, long start, int m, int tid)
 {
     const int F = ws->F;
     for (int i = 0; i < m; i++)
         hex_sample_forward(acts + (size_t)i * F, &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
+    uint16_t *apack = (uint16_t *)(ws->scratch + (size_t)tid * ws->scratch_floats + ws->apack_off);
     for (int l = 0; l < net->num_layers; l++) {
         const deform_layer *L = &net->layers[l];
-        mlp_linear_forward(layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
-                           net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 1);
+        if (ws->amx)
+            mlp_linear_forward_amx(layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
+                                   ws->wt_pack[l], net->params + L->b_off, m, L->in, L->out, 1, apack);
+        else
+            mlp_linear_forward(layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
+                               net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 1);
     }
 }
 
@@ -359,6 +417,11 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
     ws->n = n;
     ws->t = t;
     PG_TRY(ws_sort_points(ws, &net->grid, n));
+    if (ws->amx) /* weights as B of x w^T, once per call (they change every optimiser step) */
+        for (int l = 0; l < net->num_layers; l++) {
+            const deform_layer *L = &net->layers[l];
+            gemm_amx_pack_b(ws->wt_pack[l], net->params + L->w_off, 1, L->in, L->in, L->out);
+        }
     const int W5 = DEFORM_HEADS * ws->W;
     long nchunks = (n + ws->chunk - 1) / ws->chunk;
     #pragma omp parallel for schedule(static)
@@ -367,7 +430,7 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
         long start = k * ws->chunk;
         int m = (int)(n - start < ws->chunk ? n - start : ws->chunk);
         float *acts = chunk_acts(ws, k, tid, &stored);
-        chunk_forward_hidden(net, ws, acts, start, m);
+        chunk_forward_hidden(net, ws, acts, start, m, tid);
         const float *a = layer_out(ws, acts, net->num_layers - 1, m);
         float *y = ws->scratch + (size_t)tid * ws->scratch_floats + (size_t)ws->chunk * ws->act_pp; /* (m, 59) */
         for (int h = 0; h < DEFORM_HEADS; h++) {
@@ -391,6 +454,11 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
     if (nt > ws->nthreads) return pg_fail(PG_ERR_ARG, "deform_network_backward: thread count changed since forward");
     size_t mx = (size_t)(W > F ? W : F);
     int used_threads = 1;
+    if (ws->amx)
+        for (int l = 0; l < net->num_layers; l++) {
+            const deform_layer *L = &net->layers[l];
+            gemm_amx_pack_b(ws->w_pack[l], net->params + L->w_off, L->in, 1, L->out, L->in);
+        }
     #pragma omp parallel
     {
         int tid = omp_get_thread_num();
@@ -407,13 +475,22 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
         float *dA = dy + c * DEFORM_OUT_DIM;   /* (c, 5W) */
         float *dB = dA + c * W5;               /* (c, max(W, F)) */
         float *dC = dB + c * mx;               /* (c, max(W, F)) */
+        float *dwt[DEFORM_MAX_FEATURE_LAYERS + 1]; /* AMX path: (in, out) per layer */
+        if (ws->amx) {
+            float *q = scr + ws->dwt_off;
+            for (int l = 0; l < net->num_layers; l++) {
+                dwt[l] = q;
+                q += (size_t)net->layers[l].in * net->layers[l].out;
+            }
+            memset(scr + ws->dwt_off, 0, (size_t)(q - (scr + ws->dwt_off)) * sizeof(float));
+        }
         #pragma omp for schedule(static)
         for (long k = 0; k < nchunks; k++) {
             int stored;
             long start = k * ws->chunk;
             int m = (int)(n - start < ws->chunk ? n - start : ws->chunk);
             float *acts = chunk_acts(ws, k, tid, &stored);
-            if (!stored) chunk_forward_hidden(net, ws, acts, start, m);
+            if (!stored) chunk_forward_hidden(net, ws, acts, start, m, tid);
             for (int i = 0; i < m; i++)
                 memcpy(dy + (size_t)i * DEFORM_OUT_DIM, d_out + (size_t)ws->order[start + i] * DEFORM_OUT_DIM,
                        DEFORM_OUT_DIM * sizeof(float));
@@ -427,9 +504,15 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
             float *dcur = dA, *dnext = dB;
             for (int l = net->num_layers - 1; l >= 0; l--) {
                 const deform_layer *L = &net->layers[l];
-                mlp_linear_backward(dnext, L->in, grads + L->w_off, grads + L->b_off, dcur, L->out,
-                                    layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
-                                    net->params + L->w_off, m, L->in, L->out, 1);
+                if (ws->amx)
+                    mlp_linear_backward_amx(dnext, L->in, dwt[l], grads + L->b_off, dcur, L->out,
+                                            layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
+                                            ws->w_pack[l], m, L->in, L->out, 1, (uint16_t *)(scr + ws->apack_off),
+                                            (uint16_t *)(scr + ws->bpack_off));
+                else
+                    mlp_linear_backward(dnext, L->in, grads + L->w_off, grads + L->b_off, dcur, L->out,
+                                        layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
+                                        net->params + L->w_off, m, L->in, L->out, 1);
                 dcur = dnext;
                 dnext = dnext == dB ? dC : dB;
             }
@@ -440,6 +523,13 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
                                     ws->means + 3 * gi, ws->t);
             }
         }
+        if (ws->amx) /* this thread's transposed weight gradients -> its (out, in) gradient buffer */
+            for (int l = 0; l < net->num_layers; l++) {
+                const deform_layer *L = &net->layers[l];
+                float *gw = grads + L->w_off;
+                for (int o = 0; o < L->out; o++)
+                    for (int i = 0; i < L->in; i++) gw[(size_t)o * L->in + i] += dwt[l][(size_t)i * L->out + o];
+            }
     }
     /* Fixed-order reduction of the other threads' buffers (parallel over parameters). */
     if (used_threads > 1) {

@@ -28,6 +28,14 @@ io_depth_options io_depth_defaults(void)
     return o;
 }
 
+pg_status io_depth_kind_parse(const char *text, io_depth_kind *kind)
+{
+    if (text && !strcmp(text, "depth")) *kind = IO_DEPTH_KIND_DEPTH;
+    else if (text && !strcmp(text, "disparity")) *kind = IO_DEPTH_KIND_DISPARITY;
+    else return pg_fail(PG_ERR_ARG, "--depth-kind must be 'depth' or 'disparity', got '%s'", text ? text : "");
+    return PG_OK;
+}
+
 void io_depth_destroy(io_depth *d)
 {
     if (!d) return;

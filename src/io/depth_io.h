@@ -33,6 +33,8 @@ typedef struct {
 } io_depth_options;
 
 io_depth_options io_depth_defaults(void);
+/* Parses "depth" / "disparity" (the --depth-kind flag); fails naming the bad value. */
+pg_status io_depth_kind_parse(const char *text, io_depth_kind *kind);
 
 typedef struct {
     int frames, width, height;  /* after selection and resize */
