@@ -431,7 +431,7 @@ static pg_status check_options(const synth_options *o)
     if (o->frames < 1 || o->frames > 10000) return pg_fail(PG_ERR_ARG, "synth: --frames must be 1..10000 (got %d)", o->frames);
     if (o->width < 8 || o->height < 8 || o->width > 4096 || o->height > 4096)
         return pg_fail(PG_ERR_ARG, "synth: --size must be between 8x8 and 4096x4096 (got %dx%d)", o->width, o->height);
-    if (o->spp < 1 || o->spp > 8) return pg_fail(PG_ERR_ARG, "synth: spp side must be 1..8 (got %d)", o->spp);
+    if (o->spp < 1 || o->spp > 8) return pg_fail(PG_ERR_ARG, "synth: --spp must be 1..8 (got %d)", o->spp);
     if (o->layout < 0 || o->layout >= SYNTH_LAYOUT_COUNT) return pg_fail(PG_ERR_ARG, "synth: unknown layout %d", (int)o->layout);
     if (!(o->fps > 0)) return pg_fail(PG_ERR_ARG, "synth: fps must be > 0");
     return PG_OK;
