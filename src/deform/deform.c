@@ -609,32 +609,41 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
 /* ---------------------------------------------------------------------------------------------- */
 /* regularisers                                                                                    */
 
+/* One parallel region over the planes (each plane's regularisers then run serially inside it):
+ * the per-function row parallelism would fork/join ~50 times per call, which is slow on busy
+ * cores. Per-plane totals are summed in plane order, so the result is thread-count independent. */
 float deform_network_regularize(deform_network *net, float w_tv, float w_time, float w_l1)
 {
-    double total = 0;
-    for (int s = 0; s < net->cfg.num_scales; s++)
-        for (int p = 0; p < HEX_PLANES; p++) {
-            int Wp = hex_axis_res(&net->grid, s, hex_plane_axes[p][0]);
-            int Hp = hex_axis_res(&net->grid, s, hex_plane_axes[p][1]);
-            int C = net->cfg.channels;
-            const float *pl = net->grid.planes[s][p];
-            float *g = net->grads + net->plane_off[s][p];
-            if (hex_plane_axes[p][1] != 3) {
-                if (w_tv != 0) {
-                    total += (double)w_tv * optim_plane_tv_forward(pl, Hp, Wp, C);
-                    optim_plane_tv_backward(g, w_tv, pl, Hp, Wp, C);
-                }
-            } else {
-                if (w_time != 0) {
-                    total += (double)w_time * optim_plane_time_smooth_forward(pl, Hp, Wp, C);
-                    optim_plane_time_smooth_backward(g, w_time, pl, Hp, Wp, C);
-                }
-                if (w_l1 != 0) {
-                    total += (double)w_l1 * optim_plane_l1_one_forward(pl, Hp, Wp, C);
-                    optim_plane_l1_one_backward(g, w_l1, pl, Hp, Wp, C);
-                }
+    const int np = net->cfg.num_scales * HEX_PLANES;
+    double part[HEX_MAX_SCALES * HEX_PLANES];
+    #pragma omp parallel for schedule(dynamic, 1)
+    for (int q = np - 1; q >= 0; q--) { /* finest scale first: the biggest planes start early */
+        int s = q / HEX_PLANES, p = q % HEX_PLANES;
+        int Wp = hex_axis_res(&net->grid, s, hex_plane_axes[p][0]);
+        int Hp = hex_axis_res(&net->grid, s, hex_plane_axes[p][1]);
+        int C = net->cfg.channels;
+        const float *pl = net->grid.planes[s][p];
+        float *g = net->grads + net->plane_off[s][p];
+        double t = 0;
+        if (hex_plane_axes[p][1] != 3) {
+            if (w_tv != 0) {
+                t += (double)w_tv * optim_plane_tv_forward(pl, Hp, Wp, C);
+                optim_plane_tv_backward(g, w_tv, pl, Hp, Wp, C);
+            }
+        } else {
+            if (w_time != 0) {
+                t += (double)w_time * optim_plane_time_smooth_forward(pl, Hp, Wp, C);
+                optim_plane_time_smooth_backward(g, w_time, pl, Hp, Wp, C);
+            }
+            if (w_l1 != 0) {
+                t += (double)w_l1 * optim_plane_l1_one_forward(pl, Hp, Wp, C);
+                optim_plane_l1_one_backward(g, w_l1, pl, Hp, Wp, C);
             }
         }
+        part[q] = t;
+    }
+    double total = 0;
+    for (int q = 0; q < np; q++) total += part[q];
     return (float)total;
 }
 
