@@ -588,18 +588,19 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
                 for (int o = 0; o < L->out; o++)
                     for (int i = 0; i < L->in; i++) gw[(size_t)o * L->in + i] += dwt[l][(size_t)i * L->out + o];
             }
-    }
-    /* Fixed-order reduction of the other threads' buffers over the written ranges (parallel over
-     * parameters inside each range). */
-    if (used_threads > 1) {
-        const size_t P = ws->num_params;
-        for (int r = 0; r < nranges; r++) {
-            size_t lo = ranges[r][0], hi = lo + ranges[r][1];
-            #pragma omp parallel for schedule(static)
-            for (size_t i = lo; i < hi; i++) {
-                float s = net->grads[i];
-                for (int th = 1; th < used_threads; th++) s += ws->tgrads[(size_t)(th - 1) * P + i];
-                net->grads[i] = s;
+        /* Fixed-order reduction of the other threads' buffers over the written ranges, inside the
+         * same parallel region (a fork/join per range is slow when the cores are busy). */
+        if (used_threads > 1) {
+            #pragma omp barrier
+            const size_t P = ws->num_params;
+            for (int r = 0; r < nranges; r++) {
+                size_t lo = ranges[r][0], hi = lo + ranges[r][1];
+                #pragma omp for schedule(static) nowait
+                for (size_t i = lo; i < hi; i++) {
+                    float sum = net->grads[i];
+                    for (int th = 1; th < used_threads; th++) sum += ws->tgrads[(size_t)(th - 1) * P + i];
+                    net->grads[i] = sum;
+                }
             }
         }
     }
