@@ -182,6 +182,7 @@ struct deform_ws {
     long n;
     float t;
     long *order;          /* (order_cap) processing order: row j of the chunks is point order[j] */
+    long *keys;           /* (order_cap) Morton keys of the points */
     long order_cap;
     long *bins;           /* (SORT_BINS + 1) counting-sort histogram */
     /* bf16 AMX path */
@@ -190,6 +191,8 @@ struct deform_ws {
     size_t dwt_off;               /* per-thread transposed weight gradients (in, out) of every layer */
     uint16_t *wt_pack[DEFORM_MAX_FEATURE_LAYERS + 1]; /* per layer: w as B of x w^T  */
     uint16_t *w_pack[DEFORM_MAX_FEATURE_LAYERS + 1];  /* per layer: w as B of d_y w  */
+    uint16_t *head_wt_pack[DEFORM_HEADS]; /* heads' last layers, for forward */
+    uint16_t *head_w_pack[DEFORM_HEADS];  /* heads' last layers, for d a = d_y w */
     uint16_t *packs;              /* storage of all packed weights */
 };
 
@@ -267,6 +270,9 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
         for (int l = 0; l < net->num_layers; l++)
             total += gemm_amx_b_size(net->layers[l].in, net->layers[l].out) +
                      gemm_amx_b_size(net->layers[l].out, net->layers[l].in);
+        for (int h = 0; h < DEFORM_HEADS; h++)
+            total += gemm_amx_b_size(net->heads[h].in, net->heads[h].out) +
+                     gemm_amx_b_size(net->heads[h].out, net->heads[h].in);
         ws->packs = pg_malloc(total * sizeof(uint16_t), "deform packed weights");
         if (!ws->packs) {
             free(ws);
@@ -278,6 +284,12 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
             p += gemm_amx_b_size(net->layers[l].in, net->layers[l].out);
             ws->w_pack[l] = p;
             p += gemm_amx_b_size(net->layers[l].out, net->layers[l].in);
+        }
+        for (int h = 0; h < DEFORM_HEADS; h++) {
+            ws->head_wt_pack[h] = p;
+            p += gemm_amx_b_size(net->heads[h].in, net->heads[h].out);
+            ws->head_w_pack[h] = p;
+            p += gemm_amx_b_size(net->heads[h].out, net->heads[h].in);
         }
     }
     ws->store_points = (max_points + chunk - 1) / chunk * (long)chunk;
@@ -316,6 +328,7 @@ void deform_ws_destroy(deform_ws *ws)
     free(ws->scratch);
     free(ws->tgrads);
     free(ws->order);
+    free(ws->keys);
     free(ws->bins);
     free(ws->packs);
     free(ws);
@@ -340,15 +353,21 @@ static inline long point_row(const deform_ws *ws, long j)
 static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
 {
     if (n > ws->order_cap) {
-        long *o = malloc((size_t)n * sizeof(long));
-        if (!o) return pg_fail(PG_ERR_NOMEM, "deform: no memory to order %ld points", n);
+        long *o = malloc((size_t)n * sizeof(long)), *k = malloc((size_t)n * sizeof(long));
+        if (!o || !k) {
+            free(o);
+            free(k);
+            return pg_fail(PG_ERR_NOMEM, "deform: no memory to order %ld points", n);
+        }
         free(ws->order);
+        free(ws->keys);
         ws->order = o;
+        ws->keys = k;
         ws->order_cap = n;
     }
     if (!ws->bins && !(ws->bins = malloc((SORT_BINS + 1) * sizeof(long))))
         return pg_fail(PG_ERR_NOMEM, "deform: no memory for the point sort");
-    /* key of point i is stored temporarily in order[i] */
+    long *keys = ws->keys;
     for (long i = 0; i < n; i++) {
         const float *p = ws->means + 3 * (ws->idx ? (long)ws->idx[i] : i);
         long key = 0;
@@ -358,17 +377,12 @@ static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
             if (c > (1 << SORT_BITS) - 1) c = (1 << SORT_BITS) - 1;
             for (int b = 0; b < SORT_BITS; b++) key |= (long)((c >> b) & 1) << (3 * b + d);
         }
-        ws->order[i] = key;
+        keys[i] = key;
     }
     memset(ws->bins, 0, (SORT_BINS + 1) * sizeof(long));
-    for (long i = 0; i < n; i++) ws->bins[ws->order[i] + 1]++;
+    for (long i = 0; i < n; i++) ws->bins[keys[i] + 1]++;
     for (long b = 0; b < SORT_BINS; b++) ws->bins[b + 1] += ws->bins[b];
-    /* second array: reuse the tail trick - place indices via a temporary copy of keys */
-    long *keys = malloc((size_t)n * sizeof(long));
-    if (!keys) return pg_fail(PG_ERR_NOMEM, "deform: no memory to order %ld points", n);
-    memcpy(keys, ws->order, (size_t)n * sizeof(long));
     for (long i = 0; i < n; i++) ws->order[ws->bins[keys[i]]++] = i;
-    free(keys);
     return PG_OK;
 }
 
@@ -422,6 +436,11 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
             const deform_layer *L = &net->layers[l];
             gemm_amx_pack_b(ws->wt_pack[l], net->params + L->w_off, 1, L->in, L->in, L->out);
         }
+    if (ws->amx)
+        for (int h = 0; h < DEFORM_HEADS; h++) {
+            const deform_layer *L = &net->heads[h];
+            gemm_amx_pack_b(ws->head_wt_pack[h], net->params + L->w_off, 1, L->in, L->in, L->out);
+        }
     const int W5 = DEFORM_HEADS * ws->W;
     long nchunks = (n + ws->chunk - 1) / ws->chunk;
     #pragma omp parallel for schedule(static)
@@ -433,10 +452,15 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
         chunk_forward_hidden(net, ws, acts, start, m, tid);
         const float *a = layer_out(ws, acts, net->num_layers - 1, m);
         float *y = ws->scratch + (size_t)tid * ws->scratch_floats + (size_t)ws->chunk * ws->act_pp; /* (m, 59) */
+        uint16_t *apack = (uint16_t *)(ws->scratch + (size_t)tid * ws->scratch_floats + ws->apack_off);
         for (int h = 0; h < DEFORM_HEADS; h++) {
             const deform_layer *L = &net->heads[h];
-            mlp_linear_forward(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, W5,
-                               net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 0);
+            if (ws->amx)
+                mlp_linear_forward_amx(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, W5,
+                                       ws->head_wt_pack[h], net->params + L->b_off, m, L->in, L->out, 0, apack);
+            else
+                mlp_linear_forward(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, W5,
+                                   net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 0);
         }
         for (int i = 0; i < m; i++)
             memcpy(out + (size_t)ws->order[start + i] * DEFORM_OUT_DIM, y + (size_t)i * DEFORM_OUT_DIM,
@@ -454,10 +478,36 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
     if (nt > ws->nthreads) return pg_fail(PG_ERR_ARG, "deform_network_backward: thread count changed since forward");
     size_t mx = (size_t)(W > F ? W : F);
     int used_threads = 1;
+    /* Parameter ranges a backward can write: spatial planes, the two time rows at t of each time
+     * plane (60% of the parameters are time planes; this skips zeroing/reducing the rest of them
+     * in the per-thread buffers), and the MLP. */
+    size_t ranges[HEX_MAX_SCALES * HEX_PLANES + 1][2];
+    int nranges = 0;
+    const int trow = hex_time_row(&net->grid, ws->t);
+    for (int s = 0; s < net->cfg.num_scales; s++)
+        for (int p = 0; p < HEX_PLANES; p++) {
+            size_t off = net->plane_off[s][p], len = hex_plane_size(&net->grid, s, p);
+            if (hex_plane_axes[p][1] == 3) {
+                size_t row = len / (size_t)net->cfg.res_time;
+                off += (size_t)trow * row;
+                len = 2 * row;
+            }
+            ranges[nranges][0] = off;
+            ranges[nranges][1] = len;
+            nranges++;
+        }
+    ranges[nranges][0] = net->num_plane_params;
+    ranges[nranges][1] = net->num_params - net->num_plane_params;
+    nranges++;
     if (ws->amx)
         for (int l = 0; l < net->num_layers; l++) {
             const deform_layer *L = &net->layers[l];
             gemm_amx_pack_b(ws->w_pack[l], net->params + L->w_off, L->in, 1, L->out, L->in);
+        }
+    if (ws->amx)
+        for (int h = 0; h < DEFORM_HEADS; h++) {
+            const deform_layer *L = &net->heads[h];
+            gemm_amx_pack_b(ws->head_w_pack[h], net->params + L->w_off, L->in, 1, L->out, L->in);
         }
     #pragma omp parallel
     {
@@ -465,7 +515,8 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
         #pragma omp single
         used_threads = omp_get_num_threads();
         float *grads = tid == 0 ? net->grads : ws->tgrads + (size_t)(tid - 1) * ws->num_params;
-        if (tid > 0) memset(grads, 0, ws->num_params * sizeof(float));
+        if (tid > 0)
+            for (int r = 0; r < nranges; r++) memset(grads + ranges[r][0], 0, ranges[r][1] * sizeof(float));
         float *dplanes[HEX_MAX_SCALES][HEX_PLANES];
         for (int s = 0; s < net->cfg.num_scales; s++)
             for (int p = 0; p < HEX_PLANES; p++) dplanes[s][p] = grads + net->plane_off[s][p];
@@ -497,9 +548,16 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
             const float *a = layer_out(ws, acts, net->num_layers - 1, m);
             for (int h = 0; h < DEFORM_HEADS; h++) {
                 const deform_layer *L = &net->heads[h];
-                mlp_linear_backward(dA + (size_t)h * W, W5, grads + L->w_off, grads + L->b_off,
+                /* weight/bias gradients of the small last layers stay f32 (a strided bf16 pack of a^T
+                 * would cost more than it saves); d a = d_y w goes on AMX when enabled */
+                mlp_linear_backward(ws->amx ? NULL : dA + (size_t)h * W, W5, grads + L->w_off, grads + L->b_off,
                                     dy + deform_head_offset[h], DEFORM_OUT_DIM, NULL, 0, a + (size_t)h * W, W5,
                                     net->params + L->w_off, m, L->in, L->out, 0);
+                if (ws->amx) {
+                    uint16_t *apack = (uint16_t *)(scr + ws->apack_off);
+                    gemm_amx_pack_a(apack, dy + deform_head_offset[h], DEFORM_OUT_DIM, 1, m, L->out);
+                    gemm_amx_run(dA + (size_t)h * W, W5, apack, ws->head_w_pack[h], m, W, L->out, 0);
+                }
             }
             float *dcur = dA, *dnext = dB;
             for (int l = net->num_layers - 1; l >= 0; l--) {
@@ -531,14 +589,18 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
                     for (int i = 0; i < L->in; i++) gw[(size_t)o * L->in + i] += dwt[l][(size_t)i * L->out + o];
             }
     }
-    /* Fixed-order reduction of the other threads' buffers (parallel over parameters). */
+    /* Fixed-order reduction of the other threads' buffers over the written ranges (parallel over
+     * parameters inside each range). */
     if (used_threads > 1) {
         const size_t P = ws->num_params;
-        #pragma omp parallel for schedule(static)
-        for (size_t i = 0; i < P; i++) {
-            float s = net->grads[i];
-            for (int th = 1; th < used_threads; th++) s += ws->tgrads[(size_t)(th - 1) * P + i];
-            net->grads[i] = s;
+        for (int r = 0; r < nranges; r++) {
+            size_t lo = ranges[r][0], hi = lo + ranges[r][1];
+            #pragma omp parallel for schedule(static)
+            for (size_t i = lo; i < hi; i++) {
+                float s = net->grads[i];
+                for (int th = 1; th < used_threads; th++) s += ws->tgrads[(size_t)(th - 1) * P + i];
+                net->grads[i] = s;
+            }
         }
     }
     return PG_OK;

@@ -25,6 +25,7 @@ struct splat_raster {
     splat_rec *rec;             /* (N) */
     int *ntiles;                /* (N) tiles touched, 0 when culled */
     unsigned char *clamp;       /* (N) bit c set: colour channel c clamped at 0 */
+    uint16_t *rect;             /* (N, 4) tile box tx0 ty0 tx1 ty1 (compact copy for binning) */
     uint32_t *keys, *keys_tmp;  /* (N) depth sort keys */
     int *order, *order_tmp;     /* (N) visible Gaussians sorted by depth */
     /* Per-tile workspace. */
@@ -68,7 +69,7 @@ pg_status splat_raster_create(splat_raster **out)
 void splat_raster_destroy(splat_raster *r)
 {
     if (!r) return;
-    free(r->rec); free(r->ntiles); free(r->clamp); free(r->keys); free(r->keys_tmp);
+    free(r->rec); free(r->ntiles); free(r->clamp); free(r->rect); free(r->keys); free(r->keys_tmp);
     free(r->order); free(r->order_tmp); free(r->tile_start); free(r->tile_cursor);
     free(r->isect); free(r->slots);
     free(r->rgb); free(r->depth); free(r->alpha); free(r->tfinal); free(r->last);
@@ -101,6 +102,7 @@ static pg_status ensure_gaussians(splat_raster *r, int n)
     PG_TRY(grow((void **)&r->rec, &cap, (size_t)n, sizeof(splat_rec), "Gaussian records"));
     c2 = 0; PG_TRY(grow((void **)&r->ntiles, &c2, (size_t)n, sizeof(int), "tile counts"));
     c2 = 0; PG_TRY(grow((void **)&r->clamp, &c2, (size_t)n, 1, "clamp flags"));
+    c2 = 0; PG_TRY(grow((void **)&r->rect, &c2, (size_t)n, 4 * sizeof(uint16_t), "tile boxes"));
     c2 = 0; PG_TRY(grow((void **)&r->keys, &c2, (size_t)n, sizeof(uint32_t), "sort keys"));
     c2 = 0; PG_TRY(grow((void **)&r->keys_tmp, &c2, (size_t)n, sizeof(uint32_t), "sort keys"));
     c2 = 0; PG_TRY(grow((void **)&r->order, &c2, (size_t)n, sizeof(int), "sort order"));
@@ -172,6 +174,9 @@ static void preprocess_one(splat_raster *r, const pg_gaussians *g, const pg_came
     splat_sh_forward(deg, g->sh + (size_t)48 * i, dir, rc->col, cl);
     r->clamp[i] = (unsigned char)(cl[0] | cl[1] << 1 | cl[2] << 2);
     r->ntiles[i] = rc->tw * (ymax / SPLAT_TILE - ymin / SPLAT_TILE + 1);
+    uint16_t *bx = r->rect + 4 * (size_t)i;
+    bx[0] = (uint16_t)rc->tx0; bx[1] = (uint16_t)(ymin / SPLAT_TILE);
+    bx[2] = (uint16_t)(xmax / SPLAT_TILE); bx[3] = (uint16_t)(ymax / SPLAT_TILE);
 }
 
 /* Stable LSD radix sort of (key, value) pairs by 32-bit key, 8 bits per pass. */
@@ -266,19 +271,17 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     int ntile = tx * ty;
     memset(r->tile_start, 0, (size_t)(ntile + 1) * sizeof(int));
     for (int v = 0; v < vis; v++) {
-        const splat_rec *rc = &r->rec[r->order[v]];
-        int y0 = rc->ymin / SPLAT_TILE, y1 = rc->ymax / SPLAT_TILE;
-        for (int yy = y0; yy <= y1; yy++)
-            for (int xx = rc->tx0; xx < rc->tx0 + rc->tw; xx++) r->tile_start[yy * tx + xx + 1]++;
+        const uint16_t *bx = r->rect + 4 * (size_t)r->order[v];
+        for (int yy = bx[1]; yy <= bx[3]; yy++)
+            for (int xx = bx[0]; xx <= bx[2]; xx++) r->tile_start[yy * tx + xx + 1]++;
     }
     for (int t = 0; t < ntile; t++) r->tile_start[t + 1] += r->tile_start[t];
     memcpy(r->tile_cursor, r->tile_start, (size_t)ntile * sizeof(int));
     for (int v = 0; v < vis; v++) {
         int id = r->order[v];
-        const splat_rec *rc = &r->rec[id];
-        int y0 = rc->ymin / SPLAT_TILE, y1 = rc->ymax / SPLAT_TILE;
-        for (int yy = y0; yy <= y1; yy++)
-            for (int xx = rc->tx0; xx < rc->tx0 + rc->tw; xx++) r->isect[r->tile_cursor[yy * tx + xx]++] = id;
+        const uint16_t *bx = r->rect + 4 * (size_t)id;
+        for (int yy = bx[1]; yy <= bx[3]; yy++)
+            for (int xx = bx[0]; xx <= bx[2]; xx++) r->isect[r->tile_cursor[yy * tx + xx]++] = id;
     }
     double t1 = pg_time_seconds();
 
