@@ -14,6 +14,7 @@
 #include "deform/gemm_amx.h"
 #include "deform/hexplane.h"
 #include "deform/mlp.h"
+#include "optim/loss_reg.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -434,6 +435,30 @@ static void test_identity_blob_reg(void)
     float r0 = deform_network_regularize(net, 0, 1, 1);
     float r1 = deform_network_regularize(net, 1, 0, 0);
     CHECK(r0 == 0.0f && r1 > 0.0f, "regularisers at init: time %g, tv %g", r0, r1);
+    /* random planes: the network-level sum equals the per-plane functions, for 1 and 2 threads */
+    for (size_t i = 0; i < net->num_plane_params; i++) net->params[i] = (float)pg_rng_range(&rng, 0.5, 1.5);
+    double expect = 0;
+    for (int s = 0; s < cfg.num_scales; s++)
+        for (int p = 0; p < HEX_PLANES; p++) {
+            int Wp = hex_axis_res(&net->grid, s, hex_plane_axes[p][0]), Hp = hex_axis_res(&net->grid, s, hex_plane_axes[p][1]);
+            const float *pl = net->grid.planes[s][p];
+            if (hex_plane_axes[p][1] != 3) expect += 2e-4 * optim_plane_tv_forward(pl, Hp, Wp, cfg.channels);
+            else expect += 1e-3 * optim_plane_time_smooth_forward(pl, Hp, Wp, cfg.channels) +
+                           1e-4 * optim_plane_l1_one_forward(pl, Hp, Wp, cfg.channels);
+        }
+    float *gr1 = malloc(net->num_params * sizeof(float));
+    float tot[2];
+    for (int th = 1; th <= 2; th++) {
+        pg_set_threads(th);
+        deform_network_zero_grad(net);
+        tot[th - 1] = deform_network_regularize(net, 2e-4f, 1e-3f, 1e-4f);
+        if (th == 1) memcpy(gr1, net->grads, net->num_params * sizeof(float));
+    }
+    pg_set_threads(1);
+    CHECK(fabs(tot[0] - expect) < 1e-6 * fabs(expect) && tot[0] == tot[1] &&
+              memcmp(gr1, net->grads, net->num_params * sizeof(float)) == 0,
+          "regularize total %.9g vs %.9g (2 threads %.9g)", tot[0], expect, tot[1]);
+    free(gr1);
 
     /* blob round trip + corrupt blob */
     char dir[512], path[600];

@@ -53,6 +53,20 @@ pg_status deform_config_validate(const deform_config *c)
 /* ---------------------------------------------------------------------------------------------- */
 /* network                                                                                         */
 
+/* 64-byte aligned allocation (freed with free): with C = 16 one texel is exactly one cache line, so
+ * aligned planes halve the lines a bilinear gather/scatter touches. */
+static float *alloc_floats(size_t n, int zero, const char *what)
+{
+    size_t bytes = (n * sizeof(float) + 63) & ~(size_t)63;
+    float *p = aligned_alloc(64, bytes ? bytes : 64);
+    if (!p) {
+        pg_fail(PG_ERR_NOMEM, "out of memory allocating %s (%zu bytes)", what, bytes);
+        return NULL;
+    }
+    if (zero) memset(p, 0, bytes);
+    return p;
+}
+
 /* Plans the parameter layout (planes, then layers, then heads) and returns the total count. */
 static size_t plan_layout(deform_network *net)
 {
@@ -61,7 +75,7 @@ static size_t plan_layout(deform_network *net)
     for (int s = 0; s < c->num_scales; s++)
         for (int p = 0; p < HEX_PLANES; p++) {
             net->plane_off[s][p] = off;
-            off += hex_plane_size(&net->grid, s, p);
+            off += (hex_plane_size(&net->grid, s, p) + 15) & ~(size_t)15; /* keep planes 64-byte aligned */
         }
     net->num_plane_params = off;
     int W = c->width, in = c->channels * c->num_scales;
@@ -84,7 +98,7 @@ static size_t plan_layout(deform_network *net)
         L->b_off = off;
         off += (size_t)L->out;
     }
-    return off;
+    return (off + 15) & ~(size_t)15; /* so per-thread gradient copies stay 64-byte aligned too */
 }
 
 static void bind_planes(deform_network *net)
@@ -110,8 +124,8 @@ static pg_status network_alloc(deform_network **out, const deform_config *cfg, c
     net->grid.T = cfg->res_time;
     memcpy(net->grid.aabb, aabb, 6 * sizeof(float));
     net->num_params = plan_layout(net);
-    net->params = pg_malloc(net->num_params * sizeof(float), "deform parameters");
-    net->grads = pg_calloc(net->num_params, sizeof(float), "deform gradients");
+    net->params = alloc_floats(net->num_params, 1, "deform parameters");
+    net->grads = alloc_floats(net->num_params, 1, "deform gradients");
     if (!net->params || !net->grads) {
         deform_network_destroy(net);
         return PG_ERR_NOMEM;
@@ -228,8 +242,8 @@ static pg_status ws_ensure_threads(deform_ws *ws)
 {
     int nt = omp_get_max_threads();
     if (nt <= ws->nthreads) return PG_OK;
-    float *s = pg_malloc((size_t)nt * ws->scratch_floats * sizeof(float), "deform thread scratch");
-    float *g = nt > 1 ? pg_malloc((size_t)(nt - 1) * ws->num_params * sizeof(float), "deform thread gradients") : NULL;
+    float *s = alloc_floats((size_t)nt * ws->scratch_floats, 0, "deform thread scratch");
+    float *g = nt > 1 ? alloc_floats((size_t)(nt - 1) * ws->num_params, 0, "deform thread gradients") : NULL;
     if (!s || (nt > 1 && !g)) {
         free(s);
         free(g);
@@ -299,7 +313,7 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
         return pg_fail(PG_ERR_SIZE, "deform_ws_create: %ld points overflow", max_points);
     }
     if (store_floats) {
-        ws->store = pg_malloc(store_floats * sizeof(float), "deform stored activations");
+        ws->store = alloc_floats(store_floats, 0, "deform stored activations");
         if (!ws->store) {
             free(ws);
             return PG_ERR_NOMEM;
@@ -588,18 +602,19 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
                 for (int o = 0; o < L->out; o++)
                     for (int i = 0; i < L->in; i++) gw[(size_t)o * L->in + i] += dwt[l][(size_t)i * L->out + o];
             }
-    }
-    /* Fixed-order reduction of the other threads' buffers over the written ranges (parallel over
-     * parameters inside each range). */
-    if (used_threads > 1) {
-        const size_t P = ws->num_params;
-        for (int r = 0; r < nranges; r++) {
-            size_t lo = ranges[r][0], hi = lo + ranges[r][1];
-            #pragma omp parallel for schedule(static)
-            for (size_t i = lo; i < hi; i++) {
-                float s = net->grads[i];
-                for (int th = 1; th < used_threads; th++) s += ws->tgrads[(size_t)(th - 1) * P + i];
-                net->grads[i] = s;
+        /* Fixed-order reduction of the other threads' buffers over the written ranges, inside the
+         * same parallel region (a fork/join per range is slow when the cores are busy). */
+        if (used_threads > 1) {
+            #pragma omp barrier
+            const size_t P = ws->num_params;
+            for (int r = 0; r < nranges; r++) {
+                size_t lo = ranges[r][0], hi = lo + ranges[r][1];
+                #pragma omp for schedule(static) nowait
+                for (size_t i = lo; i < hi; i++) {
+                    float sum = net->grads[i];
+                    for (int th = 1; th < used_threads; th++) sum += ws->tgrads[(size_t)(th - 1) * P + i];
+                    net->grads[i] = sum;
+                }
             }
         }
     }
@@ -609,32 +624,41 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
 /* ---------------------------------------------------------------------------------------------- */
 /* regularisers                                                                                    */
 
+/* One parallel region over the planes (each plane's regularisers then run serially inside it):
+ * the per-function row parallelism would fork/join ~50 times per call, which is slow on busy
+ * cores. Per-plane totals are summed in plane order, so the result is thread-count independent. */
 float deform_network_regularize(deform_network *net, float w_tv, float w_time, float w_l1)
 {
-    double total = 0;
-    for (int s = 0; s < net->cfg.num_scales; s++)
-        for (int p = 0; p < HEX_PLANES; p++) {
-            int Wp = hex_axis_res(&net->grid, s, hex_plane_axes[p][0]);
-            int Hp = hex_axis_res(&net->grid, s, hex_plane_axes[p][1]);
-            int C = net->cfg.channels;
-            const float *pl = net->grid.planes[s][p];
-            float *g = net->grads + net->plane_off[s][p];
-            if (hex_plane_axes[p][1] != 3) {
-                if (w_tv != 0) {
-                    total += (double)w_tv * optim_plane_tv_forward(pl, Hp, Wp, C);
-                    optim_plane_tv_backward(g, w_tv, pl, Hp, Wp, C);
-                }
-            } else {
-                if (w_time != 0) {
-                    total += (double)w_time * optim_plane_time_smooth_forward(pl, Hp, Wp, C);
-                    optim_plane_time_smooth_backward(g, w_time, pl, Hp, Wp, C);
-                }
-                if (w_l1 != 0) {
-                    total += (double)w_l1 * optim_plane_l1_one_forward(pl, Hp, Wp, C);
-                    optim_plane_l1_one_backward(g, w_l1, pl, Hp, Wp, C);
-                }
+    const int np = net->cfg.num_scales * HEX_PLANES;
+    double part[HEX_MAX_SCALES * HEX_PLANES];
+    #pragma omp parallel for schedule(dynamic, 1)
+    for (int q = np - 1; q >= 0; q--) { /* finest scale first: the biggest planes start early */
+        int s = q / HEX_PLANES, p = q % HEX_PLANES;
+        int Wp = hex_axis_res(&net->grid, s, hex_plane_axes[p][0]);
+        int Hp = hex_axis_res(&net->grid, s, hex_plane_axes[p][1]);
+        int C = net->cfg.channels;
+        const float *pl = net->grid.planes[s][p];
+        float *g = net->grads + net->plane_off[s][p];
+        double t = 0;
+        if (hex_plane_axes[p][1] != 3) {
+            if (w_tv != 0) {
+                t += (double)w_tv * optim_plane_tv_forward(pl, Hp, Wp, C);
+                optim_plane_tv_backward(g, w_tv, pl, Hp, Wp, C);
+            }
+        } else {
+            if (w_time != 0) {
+                t += (double)w_time * optim_plane_time_smooth_forward(pl, Hp, Wp, C);
+                optim_plane_time_smooth_backward(g, w_time, pl, Hp, Wp, C);
+            }
+            if (w_l1 != 0) {
+                t += (double)w_l1 * optim_plane_l1_one_forward(pl, Hp, Wp, C);
+                optim_plane_l1_one_backward(g, w_l1, pl, Hp, Wp, C);
             }
         }
+        part[q] = t;
+    }
+    double total = 0;
+    for (int q = 0; q < np; q++) total += part[q];
     return (float)total;
 }
 

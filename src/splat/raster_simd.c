@@ -21,7 +21,7 @@ const char *splat_simd_name(void) { return "avx512"; }
 /* Vector twin of splat_exp_poly. */
 static inline __m512 exp_poly16(__m512 x)
 {
-    x = _mm512_max_ps(x, _mm512_set1_ps(-87.0f));
+    /* no clamp at -87 as in the scalar twin: only lanes with x >= -ln(255) - 1e-3 are used */
     __m512 n = _mm512_roundscale_ps(_mm512_mul_ps(x, _mm512_set1_ps(1.44269504088896341f)),
                                     _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
     __m512 f = _mm512_fmadd_ps(n, _mm512_set1_ps(-0.693359375f), x);
@@ -33,8 +33,7 @@ static inline __m512 exp_poly16(__m512 x)
     p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(0.5f));
     p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f));
     p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f));
-    __m512i e = _mm512_slli_epi32(_mm512_add_epi32(_mm512_cvtps_epi32(n), _mm512_set1_epi32(127)), 23);
-    return _mm512_mul_ps(p, _mm512_castsi512_ps(e));
+    return _mm512_scalef_ps(p, n); /* exact p * 2^n, like the scalar exponent-bits product */
 }
 
 static inline __m512 lane_centres(int x0)
@@ -51,10 +50,11 @@ static inline __m512 lane_centres(int x0)
 
 #define CHUNK 256 /* Gaussians copied into the tile-local buffer at a time */
 
-/* Row-major: the tile's Gaussians are copied, CHUNK at a time, into a local buffer (one
- * cache line each, contiguous); each tile row then keeps transmittance, colour, depth and last
- * contributor in registers while it walks the Gaussians whose box covers the row (found with a
- * vector compress over the local row ranges), and stops once all 16 pixels are saturated. */
+/* Row-major, two rows at a time: the tile's Gaussians are copied, CHUNK at a time, into a local
+ * buffer (one cache line each, contiguous); each pair of tile rows keeps transmittance, colour,
+ * depth and last contributor in registers while it walks the Gaussians whose box covers either
+ * row (found with a vector compress over the local row ranges), and stops once all its pixels
+ * are saturated. Two rows share the per-Gaussian broadcasts and give two independent chains. */
 void splat_tile_forward_simd(const splat_tile_job *j)
 {
     splat_rec loc[CHUNK] __attribute__((aligned(64)));
@@ -68,14 +68,15 @@ void splat_tile_forward_simd(const splat_tile_job *j)
     const __m512 px = lane_centres(j->x0);
     const __m512 one = _mm512_set1_ps(1.0f), amax = _mm512_set1_ps(SPLAT_ALPHA_MAX);
     const __m512 amin = _mm512_set1_ps(SPLAT_ALPHA_MIN), teps = _mm512_set1_ps(SPLAT_T_EPS);
+    const __m512 zero = _mm512_setzero_ps();
     const __mmask16 lanes = (__mmask16)((1u << j->w) - 1u);
-    for (int row = 0; row < j->h; row++) {
-        active[row] = lanes;
+    for (int row = 0; row < SPLAT_TILE; row++) {
+        active[row] = row < j->h ? lanes : 0;
         _mm512_store_ps(sT[row], one);
-        _mm512_store_ps(sR[row], _mm512_setzero_ps());
-        _mm512_store_ps(sG[row], _mm512_setzero_ps());
-        _mm512_store_ps(sB[row], _mm512_setzero_ps());
-        _mm512_store_ps(sD[row], _mm512_setzero_ps());
+        _mm512_store_ps(sR[row], zero);
+        _mm512_store_ps(sG[row], zero);
+        _mm512_store_ps(sB[row], zero);
+        _mm512_store_ps(sD[row], zero);
         _mm512_store_si512((void *)sL[row], _mm512_set1_epi32(-1));
     }
     int alive = j->h;
@@ -90,57 +91,79 @@ void splat_tile_forward_simd(const splat_tile_job *j)
         }
         int cpad = (cn + 15) & ~15;
         for (int i = cn; i < cpad; i++) { ylo[i] = 1 << 30; yhi[i] = -1; }
-        for (int row = 0; row < j->h; row++) {
-            __mmask16 act = active[row];
-            if (!act) continue;
+        for (int row = 0; row < j->h; row += 2) {
+            __mmask16 act0 = active[row], act1 = active[row + 1];
+            if (!(act0 | act1)) continue;
             int gy = j->y0 + row;
-            float fy = gy + 0.5f;
-            /* indices of the chunk's Gaussians whose box covers this row, in depth order */
+            float fy0 = gy + 0.5f, fy1 = (gy + 1) + 0.5f;
+            /* indices of the chunk's Gaussians whose box covers either row, in depth order */
             int cnt = 0;
-            const __m512i gyv = _mm512_set1_epi32(gy);
+            const __m512i gy0v = _mm512_set1_epi32(gy), gy1v = _mm512_set1_epi32(gy + 1);
             for (int i = 0; i < cpad; i += 16) {
-                __mmask16 cov = _mm512_cmp_epi32_mask(_mm512_load_si512((const void *)(ylo + i)), gyv, _MM_CMPINT_LE) &
-                                _mm512_cmp_epi32_mask(_mm512_load_si512((const void *)(yhi + i)), gyv, _MM_CMPINT_NLT);
+                __mmask16 cov = _mm512_cmp_epi32_mask(_mm512_load_si512((const void *)(ylo + i)), gy1v, _MM_CMPINT_LE) &
+                                _mm512_cmp_epi32_mask(_mm512_load_si512((const void *)(yhi + i)), gy0v, _MM_CMPINT_NLT);
                 __m512i iv = _mm512_add_epi32(_mm512_set1_epi32(i),
                                               _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0));
                 _mm512_mask_compressstoreu_epi32(idx + cnt, cov, iv);
                 cnt += __builtin_popcount(cov);
             }
-            __m512 T = _mm512_load_ps(sT[row]), Cr = _mm512_load_ps(sR[row]), Cg = _mm512_load_ps(sG[row]);
-            __m512 Cb = _mm512_load_ps(sB[row]), D = _mm512_load_ps(sD[row]);
-            __m512i last = _mm512_load_si512((const void *)sL[row]);
+            __m512 T0 = _mm512_load_ps(sT[row]), R0 = _mm512_load_ps(sR[row]), G0 = _mm512_load_ps(sG[row]);
+            __m512 B0 = _mm512_load_ps(sB[row]), D0 = _mm512_load_ps(sD[row]);
+            __m512i L0 = _mm512_load_si512((const void *)sL[row]);
+            __m512 T1 = _mm512_load_ps(sT[row + 1]), R1 = _mm512_load_ps(sR[row + 1]), G1 = _mm512_load_ps(sG[row + 1]);
+            __m512 B1 = _mm512_load_ps(sB[row + 1]), D1 = _mm512_load_ps(sD[row + 1]);
+            __m512i L1 = _mm512_load_si512((const void *)sL[row + 1]);
             for (int c = 0; c < cnt; c++) {
                 const splat_rec *r = &loc[idx[c]];
-                float dy = fy - r->y;
-                float bdy = r->cb * dy, cdy = 0.5f * r->cc * dy * dy;
-                /* sigma = fmaf(dx, fmaf(ha, dx, bdy), cdy) as in the scalar kernel */
+                /* rows outside the box are skipped exactly as in the scalar kernel */
+                __mmask16 in0 = (gy >= r->ymin && gy <= r->ymax) ? lanes : 0;
+                __mmask16 in1 = (gy + 1 <= r->ymax && gy + 1 >= r->ymin) ? lanes : 0;
+                float dy0 = fy0 - r->y, dy1 = fy1 - r->y;
+                /* sigma = fmaf(dx, fmaf(ha, dx, b dy), 0.5 c dy dy) as in the scalar kernel */
                 __m512 dx = _mm512_sub_ps(px, _mm512_set1_ps(r->x));
-                __m512 sig = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(_mm512_set1_ps(0.5f * r->ca), dx, _mm512_set1_ps(bdy)),
-                                             _mm512_set1_ps(cdy));
-                __mmask16 m = _mm512_mask_cmp_ps_mask(act, sig, _mm512_set1_ps(r->thr), _CMP_LE_OQ);
-                if (!m) continue;
-                __m512 G = exp_poly16(_mm512_sub_ps(_mm512_setzero_ps(), sig));
-                __m512 a = _mm512_min_ps(_mm512_mul_ps(_mm512_set1_ps(r->o), G), amax);
-                m = _mm512_mask_cmp_ps_mask(m, a, amin, _CMP_GE_OQ);
-                __m512 tT = _mm512_mul_ps(T, _mm512_sub_ps(one, a));
-                __mmask16 fin = _mm512_mask_cmp_ps_mask(m, tT, teps, _CMP_LT_OQ);
-                act &= (__mmask16)~fin;
-                m &= (__mmask16)~fin;
-                __m512 w = _mm512_mul_ps(a, T);
-                Cr = _mm512_mask3_fmadd_ps(_mm512_set1_ps(r->col[0]), w, Cr, m);
-                Cg = _mm512_mask3_fmadd_ps(_mm512_set1_ps(r->col[1]), w, Cg, m);
-                Cb = _mm512_mask3_fmadd_ps(_mm512_set1_ps(r->col[2]), w, Cb, m);
-                D = _mm512_mask3_fmadd_ps(_mm512_set1_ps(r->z), w, D, m);
-                T = _mm512_mask_blend_ps(m, T, tT);
-                last = _mm512_mask_blend_epi32(m, last, _mm512_set1_epi32(k0 + idx[c]));
-                if (!act) break;
+                __m512 ha = _mm512_set1_ps(0.5f * r->ca), thr = _mm512_set1_ps(r->thr);
+                __m512 s0 = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(ha, dx, _mm512_set1_ps(r->cb * dy0)),
+                                            _mm512_set1_ps(0.5f * r->cc * dy0 * dy0));
+                __m512 s1 = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(ha, dx, _mm512_set1_ps(r->cb * dy1)),
+                                            _mm512_set1_ps(0.5f * r->cc * dy1 * dy1));
+                /* branch on the box test alone: it resolves early, unlike one that waits on the
+                 * previous Gaussian's transmittance through the active masks */
+                __mmask16 m0 = _mm512_mask_cmp_ps_mask(in0, s0, thr, _CMP_LE_OQ);
+                __mmask16 m1 = _mm512_mask_cmp_ps_mask(in1, s1, thr, _CMP_LE_OQ);
+                if (!(m0 | m1)) continue;
+                __m512 op = _mm512_set1_ps(r->o);
+                __m512 a0 = _mm512_min_ps(_mm512_mul_ps(op, exp_poly16(_mm512_sub_ps(zero, s0))), amax);
+                __m512 a1 = _mm512_min_ps(_mm512_mul_ps(op, exp_poly16(_mm512_sub_ps(zero, s1))), amax);
+                m0 = _mm512_mask_cmp_ps_mask(m0 & act0, a0, amin, _CMP_GE_OQ);
+                m1 = _mm512_mask_cmp_ps_mask(m1 & act1, a1, amin, _CMP_GE_OQ);
+                __m512 t0 = _mm512_mul_ps(T0, _mm512_sub_ps(one, a0));
+                __m512 t1 = _mm512_mul_ps(T1, _mm512_sub_ps(one, a1));
+                __mmask16 f0 = _mm512_mask_cmp_ps_mask(m0, t0, teps, _CMP_LT_OQ);
+                __mmask16 f1 = _mm512_mask_cmp_ps_mask(m1, t1, teps, _CMP_LT_OQ);
+                act0 &= (__mmask16)~f0; m0 &= (__mmask16)~f0;
+                act1 &= (__mmask16)~f1; m1 &= (__mmask16)~f1;
+                __m512 w0 = _mm512_mul_ps(a0, T0), w1 = _mm512_mul_ps(a1, T1);
+                __m512 cr = _mm512_set1_ps(r->col[0]), cg = _mm512_set1_ps(r->col[1]);
+                __m512 cb = _mm512_set1_ps(r->col[2]), cz = _mm512_set1_ps(r->z);
+                __m512i kv = _mm512_set1_epi32(k0 + idx[c]);
+                R0 = _mm512_mask3_fmadd_ps(cr, w0, R0, m0); R1 = _mm512_mask3_fmadd_ps(cr, w1, R1, m1);
+                G0 = _mm512_mask3_fmadd_ps(cg, w0, G0, m0); G1 = _mm512_mask3_fmadd_ps(cg, w1, G1, m1);
+                B0 = _mm512_mask3_fmadd_ps(cb, w0, B0, m0); B1 = _mm512_mask3_fmadd_ps(cb, w1, B1, m1);
+                D0 = _mm512_mask3_fmadd_ps(cz, w0, D0, m0); D1 = _mm512_mask3_fmadd_ps(cz, w1, D1, m1);
+                T0 = _mm512_mask_blend_ps(m0, T0, t0); T1 = _mm512_mask_blend_ps(m1, T1, t1);
+                L0 = _mm512_mask_blend_epi32(m0, L0, kv); L1 = _mm512_mask_blend_epi32(m1, L1, kv);
+                if (!(act0 | act1)) break;
             }
-            _mm512_store_ps(sT[row], T);
-            _mm512_store_ps(sR[row], Cr); _mm512_store_ps(sG[row], Cg); _mm512_store_ps(sB[row], Cb);
-            _mm512_store_ps(sD[row], D);
-            _mm512_store_si512((void *)sL[row], last);
-            active[row] = act;
-            if (!act) alive--;
+            _mm512_store_ps(sT[row], T0); _mm512_store_ps(sT[row + 1], T1);
+            _mm512_store_ps(sR[row], R0); _mm512_store_ps(sR[row + 1], R1);
+            _mm512_store_ps(sG[row], G0); _mm512_store_ps(sG[row + 1], G1);
+            _mm512_store_ps(sB[row], B0); _mm512_store_ps(sB[row + 1], B1);
+            _mm512_store_ps(sD[row], D0); _mm512_store_ps(sD[row + 1], D1);
+            _mm512_store_si512((void *)sL[row], L0); _mm512_store_si512((void *)sL[row + 1], L1);
+            if (active[row] && !act0) alive--;
+            if (active[row + 1] && !act1) alive--;
+            active[row] = act0;
+            active[row + 1] = act1;
         }
     }
     for (int row = 0; row < j->h; row++) {
