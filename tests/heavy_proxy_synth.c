@@ -204,6 +204,11 @@ int main(void)
     if (getenv("PG_PROXY_LR_OPACITY")) o.lr_opacity = (float)atof(getenv("PG_PROXY_LR_OPACITY"));
     if (getenv("PG_PROXY_SSIM")) o.ssim_weight = (float)atof(getenv("PG_PROXY_SSIM"));
     if (getenv("PG_PROXY_OPACITY")) o.init_opacity = (float)atof(getenv("PG_PROXY_OPACITY"));
+    if (getenv("PG_PROXY_DEPTH_TOL")) o.mask.depth_tol = (float)atof(getenv("PG_PROXY_DEPTH_TOL"));
+    if (getenv("PG_PROXY_EDGE_REL")) o.mask.edge_rel = (float)atof(getenv("PG_PROXY_EDGE_REL"));
+    if (getenv("PG_PROXY_STRETCH")) o.mask.stretch_max = (float)atof(getenv("PG_PROXY_STRETCH"));
+    if (getenv("PG_PROXY_SURFELS")) o.surfels = atoi(getenv("PG_PROXY_SURFELS"));
+    if (getenv("PG_PROXY_THICK")) o.surfel_thickness = (float)atof(getenv("PG_PROXY_THICK"));
     int with_mono = getenv("PG_PROXY_NO_MONO") == NULL;
     proxy_frame_model *m = NULL;
     CHECK_OK(proxy_model_create(&m, W, H, &o));
