@@ -49,7 +49,7 @@ void pipeline_paths(const pipeline_options *o, char *prepare_dir, char *proxies_
 typedef struct {
     char *argv[MAX_ARGS];
     int argc;
-    char storage[MAX_ARGS][512];
+    char storage[MAX_ARGS][4200];
 } arg_list;
 
 static void args_add(arg_list *a, const char *s)
@@ -64,7 +64,7 @@ static void args_add(arg_list *a, const char *s)
 static void args_addf(arg_list *a, const char *flag, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 static void args_addf(arg_list *a, const char *flag, const char *fmt, ...)
 {
-    char buf[512];
+    char buf[4200];
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(buf, sizeof buf, fmt, ap);

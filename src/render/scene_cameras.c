@@ -29,7 +29,7 @@ pg_status scene_cameras_load(const char *path, scene_cameras *sc)
             goto done;
         }
         int k = sc->count;
-        char what[64];
+        char what[4200];
         snprintf(what, sizeof what, "%s: camera %d", file, k);
         st = io_json_to_camera(c, what, &sc->cams[k], sc->names[k], sizeof sc->names[k]);
         if (st != PG_OK) goto done;
