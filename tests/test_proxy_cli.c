@@ -92,6 +92,18 @@ int main(void)
     CHECK(a.ndim == 3 && a.shape[0] == 1 && a.shape[1] == 60 && a.shape[2] == 80, "proxy depth shape");
     pg_array_destroy(&a);
 
+    /* Dataset poses limited to the 2 cameras closest to the real one, real camera given by name. */
+    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s/two' --steps 1 --num 2 "
+             "--train-cam cam00 --pose-scale 1", data, data, dir);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 0, "--num 2 failed (%d): %s", rc, err);
+    snprintf(path, sizeof path, "%s/two/trainset.json", dir);
+    j = load_json(path);
+    if (j) {
+        CHECK(count_role(j, "proxy") == 2 && count_role(j, "test") == 2, "--num 2: %d proxies", count_role(j, "proxy"));
+        cJSON_Delete(j);
+    }
+
     /* Errors: exit 2 with one line naming the problem. */
     snprintf(args, sizeof args, "proxies '%s' --depth '%s/nope.npy' --out '%s'", data, data, out);
     rc = test_run_cli(args, err, sizeof err);

@@ -85,18 +85,18 @@ static pg_status fit_scale(pg_dataset *ds, int real_idx, const pg_camera *real, 
 
 int cmd_proxies(int argc, char **argv)
 {
-    const char *depth_path = NULL, *out = NULL, *poses = NULL, *test_list = NULL, *size = NULL;
-    int num = 18, steps = 100, block = 1, train_cam = 0, frames = 0, threads = 2, force = 0;
+    const char *depth_path = NULL, *out = NULL, *poses = NULL, *test_list = NULL, *size = NULL, *train_text = NULL;
+    int num = -1, steps = 100, block = 1, train_cam = 0, frames = 0, threads = 2, force = 0;
     float max_angle = 20, pose_scale = 0, fov = 60;
     cli_option opts[] = {
         { "--depth", CLI_STR, &depth_path, "aligned depth (depth_aligned.npy from `prodygs prepare`) or raw depth" },
         { "--out", CLI_STR, &out, "output training-set directory" },
         { "--poses", CLI_STR, &poses, "hemisphere | dataset (default: dataset for multi-camera inputs)" },
-        { "--num", CLI_INT, &num, "hemisphere: number of proxy cameras M (18)" },
+        { "--num", CLI_INT, &num, "proxy cameras M (hemisphere 18; dataset: all others, or the M closest in angle)" },
         { "--max-angle", CLI_FLOAT, &max_angle, "hemisphere: max angle from the real camera in degrees (20)" },
         { "--steps", CLI_INT, &steps, "Adam steps per frame (100)" },
         { "--block", CLI_INT, &block, "one Gaussian per k x k pixel block (1)" },
-        { "--train-cam", CLI_INT, &train_cam, "index of the real (training) camera (0)" },
+        { "--train-cam", CLI_STR, &train_text, "the real (training) camera: index or name (0)" },
         { "--test-cams", CLI_STR, &test_list, "test camera indices, never used (dataset default 5,6)" },
         { "--pose-scale", CLI_FLOAT, &pose_scale, "pose units per depth unit (dataset: fitted if absent)" },
         { "--frames", CLI_INT, &frames, "use the first N frames (all)" },
@@ -113,7 +113,7 @@ int cmd_proxies(int argc, char **argv)
     if (rc) return rc < 0 ? 0 : rc;
     if (!depth_path) return cli_usage_error("proxies: --depth PATH is required");
     if (!out) return cli_usage_error("proxies: --out DIR is required");
-    if (num < 1 || num > MAX_CAMS) return cli_usage_error("proxies: --num %d not in 1..%d", num, MAX_CAMS);
+    if (num < -1 || num > MAX_CAMS) return cli_usage_error("proxies: --num %d not in 0..%d", num, MAX_CAMS);
     if (!(max_angle > 0 && max_angle < 90)) return cli_usage_error("proxies: --max-angle %g not in (0, 90)", max_angle);
     if (steps < 0 || steps > 100000) return cli_usage_error("proxies: --steps %d out of range", steps);
     if (block < 1 || block > 64) return cli_usage_error("proxies: --block %d not in 1..64", block);
@@ -145,9 +145,15 @@ int cmd_proxies(int argc, char **argv)
     if (st) return cli_fail(st);
     int ncam = io_dataset_num_cameras(ds), F = io_dataset_num_frames(ds);
     int W = io_dataset_width(ds), H = io_dataset_height(ds);
-    if (train_cam < 0 || train_cam >= ncam) {
-        io_dataset_close(ds);
-        return cli_usage_error("proxies: --train-cam %d but %s has %d camera(s)", train_cam, input, ncam);
+    if (train_text) {
+        char *end;
+        long v = strtol(train_text, &end, 10);
+        train_cam = (*end || end == train_text) ? io_dataset_find_camera(ds, train_text) : (int)v;
+        if (train_cam < 0 || train_cam >= ncam) {
+            io_dataset_close(ds);
+            return cli_usage_error("proxies: --train-cam '%s' is not a camera of %s (%d camera(s))", train_text, input,
+                                   ncam);
+        }
     }
     int tests[MAX_CAMS], ntest = 0;
     if (test_list) {
@@ -180,11 +186,11 @@ int cmd_proxies(int argc, char **argv)
 
     pg_camera real;
     io_dataset_camera(ds, train_cam, &real);
-    int M = use_dataset_poses ? ncam - 1 - ntest : num;
-    cams = calloc((size_t)M, sizeof *cams);
+    int M = use_dataset_poses ? ncam - 1 - ntest : (num < 0 ? 18 : num);
+    cams = calloc((size_t)M + 1, sizeof *cams);
     names = calloc((size_t)M + MAX_CAMS, sizeof *names);
-    hnames = calloc((size_t)M, sizeof *hnames);
-    idx = calloc((size_t)M, sizeof *idx);
+    hnames = calloc((size_t)M + 1, sizeof *hnames);
+    idx = calloc((size_t)M + 1, sizeof *idx);
     pg_camera *tcams = calloc((size_t)ntest + 1, sizeof *tcams);
     const char **tnames = names + M;
     if (!cams || !names || !hnames || !idx || !tcams) {
@@ -216,13 +222,22 @@ int cmd_proxies(int argc, char **argv)
             if (st) { free(tcams); goto done; }
             fitted = 1;
         }
+        if (num >= 0 && num < M) {
+            /* keep the num cameras closest in viewing direction to the real one (stable order) */
+            for (int a = 1; a < M; a++)
+                for (int b = a; b > 0 && proxy_camera_angle_deg(&real, &cams[b]) < proxy_camera_angle_deg(&real, &cams[b - 1]); b--) {
+                    pg_camera tc = cams[b]; cams[b] = cams[b - 1]; cams[b - 1] = tc;
+                    const char *tn = names[b]; names[b] = names[b - 1]; names[b - 1] = tn;
+                }
+            M = num;
+        }
     } else {
         if (pose_scale == 0) pose_scale = 1;
     }
     proxy_job job = { 0 };
     st = proxy_scene_center(&real, depth.data, pose_scale, job.center, &job.radius);
     if (!st && !use_dataset_poses) {
-        st = proxy_poses_hemisphere(&real, job.center, M, max_angle, cams);
+        if (M > 0) st = proxy_poses_hemisphere(&real, job.center, M, max_angle, cams);
         for (int k = 0; k < M; k++) {
             snprintf(hnames[k], sizeof hnames[k], "proxy%02d", k);
             names[k] = hnames[k];
