@@ -164,9 +164,9 @@ static void preprocess_one(splat_raster *r, const pg_gaussians *g, const pg_came
     if (xmin > xmax || ymin > ymax) return;
     splat_rec *rc = &r->rec[i];
     rc->x = p.xy[0]; rc->y = p.xy[1];
-    rc->ca = p.conic[0]; rc->cb = p.conic[1]; rc->cc = p.conic[2];
+    rc->ha = 0.5f * p.conic[0]; rc->cb = p.conic[1]; rc->hc = 0.5f * p.conic[2];
     rc->o = o; rc->z = p.z;
-    rc->thr = lim + 1e-3f;
+    rc->thr = lim; /* sigma <= ln(255 o) is exactly o exp(-sigma) >= 1/255, without rounding doubts */
     rc->ymin = ymin; rc->ymax = ymax;
     rc->tx0 = xmin / SPLAT_TILE;
     rc->tw = xmax / SPLAT_TILE - rc->tx0 + 1;

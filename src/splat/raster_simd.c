@@ -93,7 +93,7 @@ void splat_tile_forward_simd(const splat_tile_job *j)
     __mmask16 active[SPLAT_TILE];
     const __m512 px = lane_centres(j->x0);
     const __m512 one = _mm512_set1_ps(1.0f), amax = _mm512_set1_ps(SPLAT_ALPHA_MAX);
-    const __m512 amin = _mm512_set1_ps(SPLAT_ALPHA_MIN), teps = _mm512_set1_ps(SPLAT_T_EPS);
+    const __m512 teps = _mm512_set1_ps(SPLAT_T_EPS);
     const __m512 zero = _mm512_setzero_ps();
     const __mmask16 lanes = (__mmask16)((1u << j->w) - 1u);
     for (int row = 0; row < SPLAT_TILE; row++) {
@@ -121,7 +121,7 @@ void splat_tile_forward_simd(const splat_tile_job *j)
             __mmask16 act0 = active[row], act1 = active[row + 1];
             if (!(act0 | act1)) continue;
             int gy = j->y0 + row;
-            float fy0 = gy + 0.5f, fy1 = (gy + 1) + 0.5f;
+            const __m512 fy0 = _mm512_set1_ps(gy + 0.5f), fy1 = _mm512_set1_ps((gy + 1) + 0.5f);
             /* indices of the chunk's Gaussians whose box covers either row, in depth order */
             int cnt = 0;
             const __m512i gy0v = _mm512_set1_epi32(gy), gy1v = _mm512_set1_epi32(gy + 1);
@@ -144,24 +144,26 @@ void splat_tile_forward_simd(const splat_tile_job *j)
                 /* rows outside the box are skipped exactly as in the scalar kernel */
                 __mmask16 in0 = (gy >= r->ymin && gy <= r->ymax) ? lanes : 0;
                 __mmask16 in1 = (gy + 1 <= r->ymax && gy + 1 >= r->ymin) ? lanes : 0;
-                float dy0 = fy0 - r->y, dy1 = fy1 - r->y;
-                /* sigma = fmaf(dx, fmaf(ha, dx, b dy), 0.5 c dy dy) as in the scalar kernel */
+                /* sigma = fmaf(dx, fmaf(ha, dx, b dy), (hc dy) dy) as in the scalar kernel, with
+                 * memory-broadcast operands (no scalar work or register broadcasts per row) */
                 __m512 dx = _mm512_sub_ps(px, _mm512_set1_ps(r->x));
-                __m512 ha = _mm512_set1_ps(0.5f * r->ca), thr = _mm512_set1_ps(r->thr);
-                __m512 s0 = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(ha, dx, _mm512_set1_ps(r->cb * dy0)),
-                                            _mm512_set1_ps(0.5f * r->cc * dy0 * dy0));
-                __m512 s1 = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(ha, dx, _mm512_set1_ps(r->cb * dy1)),
-                                            _mm512_set1_ps(0.5f * r->cc * dy1 * dy1));
-                /* branch on the box test alone: it resolves early, unlike one that waits on the
-                 * previous Gaussian's transmittance through the active masks */
+                __m512 yb = _mm512_set1_ps(r->y), cbv = _mm512_set1_ps(r->cb), hcv = _mm512_set1_ps(r->hc);
+                __m512 ha = _mm512_set1_ps(r->ha), thr = _mm512_set1_ps(r->thr);
+                __m512 dy0 = _mm512_sub_ps(fy0, yb), dy1 = _mm512_sub_ps(fy1, yb);
+                __m512 hdx = _mm512_fmadd_ps(ha, dx, _mm512_mul_ps(cbv, dy0));
+                __m512 s0 = _mm512_fmadd_ps(dx, hdx, _mm512_mul_ps(_mm512_mul_ps(hcv, dy0), dy0));
+                hdx = _mm512_fmadd_ps(ha, dx, _mm512_mul_ps(cbv, dy1));
+                __m512 s1 = _mm512_fmadd_ps(dx, hdx, _mm512_mul_ps(_mm512_mul_ps(hcv, dy1), dy1));
+                /* sigma <= ln(255 o) is the alpha >= 1/255 test. Branch on it alone: it resolves
+                 * early, unlike one that waits on the previous Gaussian through the active masks */
                 __mmask16 m0 = _mm512_mask_cmp_ps_mask(in0, s0, thr, _CMP_LE_OQ);
                 __mmask16 m1 = _mm512_mask_cmp_ps_mask(in1, s1, thr, _CMP_LE_OQ);
                 if (!(m0 | m1)) continue;
                 __m512 op = _mm512_set1_ps(r->o);
                 __m512 a0 = _mm512_min_ps(_mm512_mul_ps(op, exp_poly16(_mm512_sub_ps(zero, s0))), amax);
                 __m512 a1 = _mm512_min_ps(_mm512_mul_ps(op, exp_poly16(_mm512_sub_ps(zero, s1))), amax);
-                m0 = _mm512_mask_cmp_ps_mask(m0 & act0, a0, amin, _CMP_GE_OQ);
-                m1 = _mm512_mask_cmp_ps_mask(m1 & act1, a1, amin, _CMP_GE_OQ);
+                m0 &= act0;
+                m1 &= act1;
                 __m512 t0 = _mm512_mul_ps(T0, _mm512_sub_ps(one, a0));
                 __m512 t1 = _mm512_mul_ps(T1, _mm512_sub_ps(one, a1));
                 __mmask16 f0 = _mm512_mask_cmp_ps_mask(m0, t0, teps, _CMP_LT_OQ);
@@ -262,7 +264,7 @@ void splat_tile_backward_simd(const splat_tile_job *j)
                SPLAT_GRAD_STRIDE * sizeof(float));
     const __m512 px = lane_centres(j->x0);
     const __m512 one = _mm512_set1_ps(1.0f), amax = _mm512_set1_ps(SPLAT_ALPHA_MAX);
-    const __m512 amin = _mm512_set1_ps(SPLAT_ALPHA_MIN), zero = _mm512_setzero_ps();
+    const __m512 zero = _mm512_setzero_ps();
     for (int kc = (kmax / CHUNK) * CHUNK; kc >= 0 && kmax >= 0; kc -= CHUNK) {
         int kend = kc + CHUNK - 1 < kmax ? kc + CHUNK - 1 : kmax;
         for (int k = kend; k >= kc; k--) {
@@ -277,24 +279,25 @@ void splat_tile_backward_simd(const splat_tile_job *j)
             if (r0 < 0) r0 = 0;
             if (r1 > j->h - 1) r1 = j->h - 1;
             const __m512 dx = _mm512_sub_ps(px, _mm512_set1_ps(r->x));
-            const __m512 ha = _mm512_set1_ps(0.5f * r->ca);
+            const __m512 ha = _mm512_set1_ps(r->ha), cbv = _mm512_set1_ps(r->cb), hcv = _mm512_set1_ps(r->hc);
+            const __m512 yb = _mm512_set1_ps(r->y);
             const __m512 thr = _mm512_set1_ps(r->thr), op = _mm512_set1_ps(r->o);
             const __m512 cr = _mm512_set1_ps(r->col[0]), cg = _mm512_set1_ps(r->col[1]), cb = _mm512_set1_ps(r->col[2]);
             const __m512 cz = _mm512_set1_ps(r->z);
             const __m512i kv = _mm512_set1_epi32(k);
             const __m512 dx2 = _mm512_mul_ps(dx, dx);
-            for (int row = r0; row <= r1; row++) {
+            __m512 fy = _mm512_set1_ps((j->y0 + r0) + 0.5f); /* exact: small integers + 0.5 */
+            for (int row = r0; row <= r1; row++, fy = _mm512_add_ps(fy, one)) {
                 if (rowmax[row] < k) continue;
                 __mmask16 m = _mm512_cmp_epi32_mask(kv, _mm512_load_si512((const void *)(last + row * 16)), _MM_CMPINT_LE);
-                float dy = (j->y0 + row + 0.5f) - r->y;
-                float bdy = r->cb * dy, cdy = 0.5f * r->cc * dy * dy;
-                __m512 sig = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(ha, dx, _mm512_set1_ps(bdy)), _mm512_set1_ps(cdy));
-                m = _mm512_mask_cmp_ps_mask(m, sig, thr, _CMP_LE_OQ);
+                __m512 dyv = _mm512_sub_ps(fy, yb);
+                __m512 bdyv = _mm512_mul_ps(cbv, dyv);
+                __m512 sig = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(ha, dx, bdyv), _mm512_mul_ps(_mm512_mul_ps(hcv, dyv), dyv));
+                m = _mm512_mask_cmp_ps_mask(m, sig, thr, _CMP_LE_OQ); /* alpha >= 1/255 */
                 if (!m) continue;
                 __m512 G = exp_poly16(_mm512_sub_ps(zero, sig));
                 __m512 oG = _mm512_mul_ps(op, G);
                 __m512 a = _mm512_min_ps(oG, amax);
-                m = _mm512_mask_cmp_ps_mask(m, a, amin, _CMP_GE_OQ);
                 /* 1 / (1 - a) by rcp14 + one Newton step (rel. error ~1e-8; 1 - a >= 0.01) */
                 __m512 oma = _mm512_sub_ps(one, a);
                 __m512 inv = _mm512_rcp14_ps(oma);
@@ -320,22 +323,21 @@ void splat_tile_backward_simd(const splat_tile_job *j)
                 a_z = _mm512_mask3_fmadd_ps(w, dd, a_z, m);
                 m = _mm512_mask_cmp_ps_mask(m, oG, amax, _CMP_LT_OQ); /* clamped alpha: no gradient */
                 __m512 gs = _mm512_maskz_mul_ps(m, dLda, a);           /* -dL/dsigma */
-                __m512 dyv = _mm512_set1_ps(dy);
                 a_o = _mm512_mask3_fmadd_ps(dLda, G, a_o, m);
                 __m512 gdx = _mm512_mul_ps(gs, dx);
                 a_m1 = _mm512_add_ps(a_m1, gdx);
                 a_m2 = _mm512_fmadd_ps(gs, dyv, a_m2);
                 a_xx = _mm512_fmadd_ps(gs, dx2, a_xx);
                 a_xy = _mm512_fmadd_ps(gdx, dyv, a_xy);
-                a_yy = _mm512_fmadd_ps(gs, _mm512_set1_ps(dy * dy), a_yy);
+                a_yy = _mm512_fmadd_ps(gs, _mm512_mul_ps(dyv, dyv), a_yy);
             }
             /* dsigma/dx_mean = -(ca dx + cb dy), dsigma/dy_mean = -(cb dx + cc dy); gs = -dL/dsigma */
             __m512 acc[10] = { a_m1, a_m2, a_xx, a_xy, a_yy, a_o, a_r, a_g, a_b, a_z };
             float sum[10];
             hsum10(acc, sum);
             float *slot = j->grad_slots + (size_t)SPLAT_GRAD_STRIDE * splat_slot(r, j->tx, j->ty);
-            slot[0] = r->ca * sum[0] + r->cb * sum[1];
-            slot[1] = r->cb * sum[0] + r->cc * sum[1];
+            slot[0] = (2.0f * r->ha) * sum[0] + r->cb * sum[1];
+            slot[1] = r->cb * sum[0] + (2.0f * r->hc) * sum[1];
             slot[2] = -0.5f * sum[2];
             slot[3] = -sum[3];
             slot[4] = -0.5f * sum[4];
