@@ -34,7 +34,7 @@ struct splat_raster {
     /* Per-tile workspace. */
     int cap_tiles;
     int *tile_start;            /* (tiles + 1) offsets into isect */
-    int *tcount;                /* (threads, tiles) per-thread tile counts, then cursors */
+    int *tcount;                /* (2, threads, tiles) per-thread tile counts, then write cursors */
     size_t cap_tcount;
     /* Per-intersection workspace, capacity cap_m. */
     size_t cap_m, cap_slots;
@@ -247,11 +247,9 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     r->n = n; r->width = W; r->height = H; r->tiles_x = tx; r->tiles_y = ty; r->sh_degree = deg;
     for (int c = 0; c < 3; c++) r->bg[c] = s->background[c];
 
-    #pragma omp parallel for schedule(static, 1024)
-    for (int i = 0; i < n; i++) preprocess_one(r, g, cam, s, deg, i);
-
-    /* Gradient slot offsets (Gaussian-major) and the visible list in index order: per-thread
-     * chunk sums, then each chunk fills its part (same result for any thread count). */
+    /* Preprocess, then gradient slot offsets (Gaussian-major) and the visible list in index
+     * order: each thread takes a contiguous chunk, chunk sums are prefixed, then each chunk
+     * fills its part (same result for any thread count; one parallel region, one barrier). */
     int nth = pg_get_threads();
     if (nth < 1) nth = 1;
     if (nth > SPLAT_MAX_THREADS) nth = SPLAT_MAX_THREADS;
@@ -263,15 +261,22 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
         int i0 = (int)((long)n * t / T), i1 = (int)((long)n * (t + 1) / T);
         size_t mm = 0;
         int vv = 0;
-        for (int i = i0; i < i1; i++) { mm += (size_t)r->ntiles[i]; vv += r->ntiles[i] > 0; }
+        for (int i = i0; i < i1; i++) {
+            preprocess_one(r, g, cam, s, deg, i);
+            mm += (size_t)r->ntiles[i];
+            vv += r->ntiles[i] > 0;
+        }
         part_m[t + 1] = mm;
         part_v[t + 1] = vv;
         #pragma omp barrier
-        #pragma omp single
-        for (int q = 0; q < T; q++) { part_m[q + 1] += part_m[q]; part_v[q + 1] += part_v[q]; }
-        mm = part_m[t];
-        vv = part_v[t];
-        if (part_m[T] <= INT_MAX)
+        /* every thread prefixes the chunk sums itself: no second barrier */
+        mm = 0;
+        vv = 0;
+        for (int q = 0; q < t; q++) { mm += part_m[q + 1]; vv += part_v[q + 1]; }
+        size_t total = 0;
+        int total_v = 0;
+        for (int q = 0; q < T; q++) { total += part_m[q + 1]; total_v += part_v[q + 1]; }
+        if (total <= INT_MAX)
             for (int i = i0; i < i1; i++) {
                 r->rec[i].slot_base = (int)mm;
                 if (r->ntiles[i] > 0) {
@@ -281,10 +286,10 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
                     r->order[vv++] = i;
                 }
             }
-        if (t == 0) { part_m[SPLAT_MAX_THREADS] = part_m[T]; part_v[SPLAT_MAX_THREADS] = part_v[T]; }
+        if (t == T - 1) { part_m[0] = total; part_v[0] = total_v; } /* slot 0 is read by nobody else */
     }
-    size_t m = part_m[SPLAT_MAX_THREADS];
-    int vis = part_v[SPLAT_MAX_THREADS];
+    size_t m = part_m[0];
+    int vis = part_v[0];
     if (m > INT_MAX) return pg_fail(PG_ERR_SIZE, "rasterizer: %zu tile intersections (limit %d)", m, INT_MAX);
     r->m = m;
     r->visible = vis;
@@ -298,7 +303,7 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     r->cap_m = capm;
     int ntile = tx * ty;
     size_t capc = r->cap_tcount;
-    PG_TRY(grow((void **)&r->tcount, &capc, (size_t)nth * ntile, sizeof(int), "tile counts"));
+    PG_TRY(grow((void **)&r->tcount, &capc, (size_t)2 * nth * ntile, sizeof(int), "tile counts"));
     r->cap_tcount = capc;
     #pragma omp parallel num_threads(nth)
     {
@@ -312,24 +317,23 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
                 for (int xx = bx[0]; xx <= bx[2]; xx++) cnt[yy * tx + xx]++;
         }
         #pragma omp barrier
-        #pragma omp single
-        {
-            int run = 0;
-            for (int tile = 0; tile < ntile; tile++) {
-                r->tile_start[tile] = run;
-                for (int q = 0; q < T; q++) {
-                    int c = r->tcount[(size_t)q * ntile + tile];
-                    r->tcount[(size_t)q * ntile + tile] = run;
-                    run += c;
-                }
+        /* each thread derives its own write cursors from all counts (thread 0 also publishes
+         * the tile ranges): no second barrier */
+        int *cur = r->tcount + (size_t)(T + t) * ntile;
+        int run = 0;
+        for (int tile = 0; tile < ntile; tile++) {
+            if (t == 0) r->tile_start[tile] = run;
+            for (int q = 0; q < T; q++) {
+                if (q == t) cur[tile] = run;
+                run += r->tcount[(size_t)q * ntile + tile];
             }
-            r->tile_start[ntile] = run;
         }
+        if (t == 0) r->tile_start[ntile] = run;
         for (int v = v0; v < v1; v++) {
             int id = r->order[v];
             const uint16_t *bx = r->rect + 4 * (size_t)id;
             for (int yy = bx[1]; yy <= bx[3]; yy++)
-                for (int xx = bx[0]; xx <= bx[2]; xx++) r->isect[cnt[yy * tx + xx]++] = id;
+                for (int xx = bx[0]; xx <= bx[2]; xx++) r->isect[cur[yy * tx + xx]++] = id;
         }
     }
     double t1 = pg_time_seconds();
