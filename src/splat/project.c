@@ -6,7 +6,7 @@
 
 /* Frustum limits of x/z (y/z) widened by 15% of the view width on each side: 1.3x the half-width
  * for a centred principal point. */
-static void frustum_limits(const pg_camera *cam, float lim[4])
+void splat_project_limits(const pg_camera *cam, float lim[4])
 {
     float x0 = -cam->cx / cam->fx, x1 = (cam->width - cam->cx) / cam->fx;
     float y0 = -cam->cy / cam->fy, y1 = (cam->height - cam->cy) / cam->fy;
@@ -30,21 +30,27 @@ static void cov3d_forward(const float log_scale[3], const float quat[4], float R
 }
 
 /* J (2x3, row-major) for camera point t; clamp flags say which of x/z, y/z hit the limits. */
-static void jacobian(const pg_camera *cam, const float t[3], float J[6], int clampflag[2], float uv_c[2])
+static void jacobian(const pg_camera *cam, const float lim[4], const float t[3], float J[6], int clampflag[2], float uv_c[2])
 {
-    float lim[4];
-    frustum_limits(cam, lim);
-    float z = t[2], u = t[0] / z, w = t[1] / z;
+    float z = t[2], iz = 1.0f / z, u = t[0] * iz, w = t[1] * iz;
     float uc = clampf(u, lim[0], lim[1]), wc = clampf(w, lim[2], lim[3]);
     clampflag[0] = uc != u;
     clampflag[1] = wc != w;
     uv_c[0] = uc; uv_c[1] = wc;
-    J[0] = cam->fx / z; J[1] = 0; J[2] = -cam->fx * uc / z;
-    J[3] = 0; J[4] = cam->fy / z; J[5] = -cam->fy * wc / z;
+    J[0] = cam->fx * iz; J[1] = 0; J[2] = -cam->fx * uc * iz;
+    J[3] = 0; J[4] = cam->fy * iz; J[5] = -cam->fy * wc * iz;
 }
 
 int splat_project_forward(const float mean[3], const float log_scale[3], const float quat[4],
                           const pg_camera *cam, float near_clip, splat_proj *p)
+{
+    float lim[4];
+    splat_project_limits(cam, lim);
+    return splat_project_forward_lim(mean, log_scale, quat, cam, lim, near_clip, p);
+}
+
+int splat_project_forward_lim(const float mean[3], const float log_scale[3], const float quat[4],
+                              const pg_camera *cam, const float lim[4], float near_clip, splat_proj *p)
 {
     float t[3];
     mat3_mul_vec(t, cam->R, mean);
@@ -53,7 +59,7 @@ int splat_project_forward(const float mean[3], const float log_scale[3], const f
     float Rq[9], s[3], M[9], cov[9], J[6], uvc[2];
     int cf[2];
     cov3d_forward(log_scale, quat, Rq, s, M, cov);
-    jacobian(cam, t, J, cf, uvc);
+    jacobian(cam, lim, t, J, cf, uvc);
     /* T = J W (2x3), Sigma2D = T cov T^T. */
     float Tm[6];
     for (int r = 0; r < 2; r++)
@@ -81,13 +87,23 @@ void splat_project_backward(const float mean[3], const float log_scale[3], const
                             const pg_camera *cam, const float d_xy[2], const float d_conic[3], float d_z,
                             float d_mean[3], float d_log_scale[3], float d_quat[4])
 {
+    float lim[4];
+    splat_project_limits(cam, lim);
+    splat_project_backward_lim(mean, log_scale, quat, cam, lim, d_xy, d_conic, d_z, d_mean, d_log_scale, d_quat);
+}
+
+void splat_project_backward_lim(const float mean[3], const float log_scale[3], const float quat[4],
+                                const pg_camera *cam, const float lim[4], const float d_xy[2],
+                                const float d_conic[3], float d_z, float d_mean[3], float d_log_scale[3],
+                                float d_quat[4])
+{
     float t[3];
     mat3_mul_vec(t, cam->R, mean);
     vec3_add(t, t, cam->t);
     float Rq[9], s[3], M[9], cov[9], J[6], uvc[2];
     int cf[2];
     cov3d_forward(log_scale, quat, Rq, s, M, cov);
-    jacobian(cam, t, J, cf, uvc);
+    jacobian(cam, lim, t, J, cf, uvc);
     float Tm[6];
     for (int r = 0; r < 2; r++)
         for (int j = 0; j < 3; j++)
@@ -113,18 +129,16 @@ void splat_project_backward(const float mean[3], const float log_scale[3], const
     for (int r = 0; r < 2; r++)
         for (int j = 0; j < 3; j++)
             dT[3*r+j] = 2 * (Gs[2*r] * TC[j] + Gs[2*r+1] * TC[3+j]);
+    /* dcov = T^T Gs T is symmetric, so d(M M^T)/dM gives dM = 2 dcov M. */
+    float u0[3], u1[3];
+    for (int j = 0; j < 3; j++) { u0[j] = Gs[0]*Tm[j] + Gs[1]*Tm[3+j]; u1[j] = Gs[2]*Tm[j] + Gs[3]*Tm[3+j]; }
     float dcov[9];
     for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            dcov[3*i+j] = Tm[i] * (Gs[0]*Tm[j] + Gs[1]*Tm[3+j]) + Tm[3+i] * (Gs[2]*Tm[j] + Gs[3]*Tm[3+j]);
-    /* cov = M M^T: dL/dM = (dcov + dcov^T) M. */
+        for (int j = i; j < 3; j++) dcov[3*i+j] = dcov[3*j+i] = Tm[i] * u0[j] + Tm[3+i] * u1[j];
     float dM[9];
     for (int i = 0; i < 3; i++)
-        for (int k = 0; k < 3; k++) {
-            float a = 0;
-            for (int j = 0; j < 3; j++) a += (dcov[3*i+j] + dcov[3*j+i]) * M[3*j+k];
-            dM[3*i+k] = a;
-        }
+        for (int k = 0; k < 3; k++)
+            dM[3*i+k] = 2 * (dcov[3*i]*M[k] + dcov[3*i+1]*M[3+k] + dcov[3*i+2]*M[6+k]);
     /* M = Rq diag(s). */
     float dR[9];
     for (int k = 0; k < 3; k++) {
@@ -135,7 +149,8 @@ void splat_project_backward(const float mean[3], const float log_scale[3], const
     /* R(q) for unit q = (w, x, y, z), then project out the normalisation. */
     float qn = sqrtf(quat[0]*quat[0] + quat[1]*quat[1] + quat[2]*quat[2] + quat[3]*quat[3]);
     if (qn > 0) {
-        float q[4] = { quat[0]/qn, quat[1]/qn, quat[2]/qn, quat[3]/qn };
+        float iq = 1.0f / qn;
+        float q[4] = { quat[0]*iq, quat[1]*iq, quat[2]*iq, quat[3]*iq };
         float w = q[0], x = q[1], y = q[2], z = q[3];
         float dq[4];
         dq[0] = 2 * (-z*dR[1] + y*dR[2] + z*dR[3] - x*dR[5] - y*dR[6] + x*dR[7]);
@@ -143,7 +158,7 @@ void splat_project_backward(const float mean[3], const float log_scale[3], const
         dq[2] = 2 * (-2*y*dR[0] + x*dR[1] + w*dR[2] + x*dR[3] + z*dR[5] - w*dR[6] + z*dR[7] - 2*y*dR[8]);
         dq[3] = 2 * (-2*z*dR[0] - w*dR[1] + x*dR[2] + w*dR[3] - 2*z*dR[4] + y*dR[5] + x*dR[6] + y*dR[7]);
         float dot = dq[0]*q[0] + dq[1]*q[1] + dq[2]*q[2] + dq[3]*q[3];
-        for (int i = 0; i < 4; i++) d_quat[i] += (dq[i] - dot * q[i]) / qn;
+        for (int i = 0; i < 4; i++) d_quat[i] += (dq[i] - dot * q[i]) * iq;
     }
     /* T = J W: dL/dJ = dT W^T. */
     const float *W = cam->R;

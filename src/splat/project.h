@@ -29,4 +29,13 @@ void splat_project_backward(const float mean[3], const float log_scale[3], const
                             const pg_camera *cam, const float d_xy[2], const float d_conic[3], float d_z,
                             float d_mean[3], float d_log_scale[3], float d_quat[4]);
 
+/* The same with the frustum-clamp limits precomputed by splat_project_limits (hot loops). */
+void splat_project_limits(const pg_camera *cam, float lim[4]);
+int splat_project_forward_lim(const float mean[3], const float log_scale[3], const float quat[4],
+                              const pg_camera *cam, const float lim[4], float near_clip, splat_proj *p);
+void splat_project_backward_lim(const float mean[3], const float log_scale[3], const float quat[4],
+                                const pg_camera *cam, const float lim[4], const float d_xy[2],
+                                const float d_conic[3], float d_z, float d_mean[3], float d_log_scale[3],
+                                float d_quat[4]);
+
 #endif

@@ -48,6 +48,8 @@ struct splat_raster {
     int valid, n, width, height, tiles_x, tiles_y, sh_degree, visible;
     size_t m;
     float bg[3];
+    float lim[4];               /* frustum clamp limits of the camera */
+    float cam_center[3];
 };
 
 pg_render_settings splat_default_settings(void)
@@ -146,7 +148,7 @@ static void preprocess_one(splat_raster *r, const pg_gaussians *g, const pg_came
 {
     r->ntiles[i] = 0;
     splat_proj p;
-    if (!splat_project_forward(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, s->near_clip, &p))
+    if (!splat_project_forward_lim(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, r->lim, s->near_clip, &p))
         return;
     float o = sigmoidf(g->opacity[i]);
     if (!(o >= SPLAT_ALPHA_MIN)) return;
@@ -170,9 +172,8 @@ static void preprocess_one(splat_raster *r, const pg_gaussians *g, const pg_came
     rc->ymin = ymin; rc->ymax = ymax;
     rc->tx0 = xmin / SPLAT_TILE;
     rc->tw = xmax / SPLAT_TILE - rc->tx0 + 1;
-    float C[3], dir[3];
-    pg_camera_center(cam, C);
-    vec3_sub(dir, g->means + 3*i, C);
+    float dir[3];
+    vec3_sub(dir, g->means + 3*i, r->cam_center);
     int cl[3];
     splat_sh_forward(deg, g->sh + (size_t)48 * i, dir, rc->col, cl);
     r->clamp[i] = (unsigned char)(cl[0] | cl[1] << 1 | cl[2] << 2);
@@ -246,6 +247,8 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     PG_TRY(ensure_tiles(r, tx * ty));
     r->n = n; r->width = W; r->height = H; r->tiles_x = tx; r->tiles_y = ty; r->sh_degree = deg;
     for (int c = 0; c < 3; c++) r->bg[c] = s->background[c];
+    splat_project_limits(cam, r->lim);
+    pg_camera_center(cam, r->cam_center);
 
     /* Preprocess, then gradient slot offsets (Gaussian-major) and the visible list in index
      * order: each thread takes a contiguous chunk, chunk sums are prefixed, then each chunk
@@ -382,8 +385,9 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
     }
 
     /* Per-Gaussian fixed-order reduction of the slots, then the chain through SH and projection. */
-    float C[3];
+    float C[3], lim[4];
     pg_camera_center(cam, C);
+    splat_project_limits(cam, lim);
     int deg = r->sh_degree, n = g->count;
     float half_w = 0.5f * cam->width, half_h = 0.5f * cam->height;
     #pragma omp parallel for schedule(static, 256)
@@ -405,8 +409,8 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
         int cl[3] = { r->clamp[i] & 1, (r->clamp[i] >> 1) & 1, (r->clamp[i] >> 2) & 1 };
         splat_sh_backward(deg, g->sh + (size_t)48 * i, dir, cl, d_rgb3, grad->sh + (size_t)48 * i, d_dir);
         vec3_add(grad->means + 3*i, grad->means + 3*i, d_dir);
-        splat_project_backward(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, d_xy, d_conic, d_z,
-                               grad->means + 3*i, grad->log_scales + 3*i, grad->quats + 4*i);
+        splat_project_backward_lim(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, lim, d_xy, d_conic, d_z,
+                                   grad->means + 3*i, grad->log_scales + 3*i, grad->quats + 4*i);
         if (viewspace_grad_norm) {
             /* In NDC units (x pixels * 2/W) like 3DGS, so its 2e-4 densification threshold applies. */
             float gx = d_xy[0] * half_w, gy = d_xy[1] * half_h;
