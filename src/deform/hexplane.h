@@ -1,0 +1,56 @@
+/* hexplane.h - multi-scale HexPlane feature field: sampling forward and backward.
+ *
+ * Six planes per scale over the 4D coordinates (x, y, z, t):
+ *     plane 0 (x,y)  1 (x,z)  2 (y,z)  3 (x,t)  4 (y,t)  5 (z,t)
+ * Plane (a,b) is stored (res_b, res_a, C): rows along its second axis b (time for planes 3-5),
+ * columns along a, C channels contiguous per texel. Scale s has spatial resolution R << s; the time
+ * resolution T is the same at every scale. Positions are normalised by the AABB to u in [0,1]^3 and
+ * clamped (border clamp, zero position gradient outside); t in [0,1] covers the whole time axis.
+ * Grid coordinates use the align-corners convention: g = u * (res - 1).
+ *
+ * The feature of a point is, per scale, the channel-wise product of the six bilinear samples,
+ * concatenated over scales: feat (S*C) with feat[s*C + c] = prod_P sample_{s,P}(u, t)[c].
+ *
+ * The planes are views into one flat parameter array (see deform_network); this module only does
+ * the per-point maths, so it is shared by the network and the tests.
+ */
+#ifndef PG_DEFORM_HEXPLANE_H
+#define PG_DEFORM_HEXPLANE_H
+
+#include <stddef.h>
+
+#define HEX_PLANES 6
+#define HEX_MAX_SCALES 4
+
+/* Which of the 4 coordinates (0 x, 1 y, 2 z, 3 t) each plane uses: {a (columns), b (rows)}. */
+extern const int hex_plane_axes[HEX_PLANES][2];
+
+typedef struct {
+    int C;                  /* channels per plane */
+    int S;                  /* number of scales */
+    int R;                  /* spatial resolution of scale 0 (scale s: R << s) */
+    int T;                  /* time resolution */
+    float aabb[6];          /* min xyz, max xyz */
+    float *planes[HEX_MAX_SCALES][HEX_PLANES];  /* (res_b, res_a, C) views into the parameters */
+} hex_grid;
+
+/* Resolution of coordinate axis d (0..3) at scale s. */
+static inline int hex_axis_res(const hex_grid *g, int s, int d) { return d == 3 ? g->T : g->R << s; }
+/* Number of floats of plane p at scale s. */
+size_t hex_plane_size(const hex_grid *g, int s, int p);
+/* Total floats of all planes. */
+size_t hex_total_size(const hex_grid *g);
+
+/* First of the two time rows (of T) that a sample at t reads; the backward writes only rows
+ * hex_time_row(g, t) and +1 of the time planes. */
+int hex_time_row(const hex_grid *g, float t);
+
+/* Samples one point: feat (S*C). pos (3) in world units, t in [0,1]. */
+void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float t);
+
+/* Backward of one point: d_planes (same layout as the planes, offsets given by d_planes[s][p])
+ * += dL/dplanes; d_pos (3) += dL/dpos (may be NULL). d_feat (S*C). Recomputes the samples. */
+void hex_sample_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], float *d_pos, const float *d_feat,
+                         const hex_grid *g, const float *pos, float t);
+
+#endif

@@ -1,0 +1,164 @@
+/* plane.c - single-channel float plane helpers for the depth stage (see plane.h). */
+#include "depth/plane.h"
+
+#define PAR_OK ((size_t)w * h >= PLANE_PAR_MIN_PIXELS)
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static inline int clampi(int v, int lo, int hi) { return v < lo ? lo : (v > hi ? hi : v); }
+
+void plane_from_image(const pg_image *img, float scale, float *gray)
+{
+    const size_t n = (size_t)img->width * img->height;
+    const int C = img->channels;
+    for (size_t i = 0; i < n; i++) {
+        const float *px = img->data + i * C;
+        gray[i] = scale * (C >= 3 ? 0.299f * px[0] + 0.587f * px[1] + 0.114f * px[2] : px[0]);
+    }
+}
+
+void plane_gaussian_blur(const float *src, int w, int h, float sigma, float *tmp, float *dst)
+{
+    if (sigma <= 0.0f) {
+        if (dst != src) memcpy(dst, src, sizeof(float) * (size_t)w * h);
+        return;
+    }
+    int r = (int)ceilf(3.0f * sigma);
+    if (r > 32) r = 32;
+    float k[65], sum = 0.0f;
+    for (int i = -r; i <= r; i++) sum += (k[i + r] = expf(-0.5f * i * i / (sigma * sigma)));
+    for (int i = 0; i <= 2 * r; i++) k[i] /= sum;
+    #pragma omp parallel for schedule(static) if (PAR_OK)
+    for (int y = 0; y < h; y++) {
+        const float *row = src + (size_t)y * w;
+        float *out = tmp + (size_t)y * w;
+        for (int x = 0; x < w; x++) {
+            float acc = 0.0f;
+            for (int i = -r; i <= r; i++) acc += k[i + r] * row[clampi(x + i, 0, w - 1)];
+            out[x] = acc;
+        }
+    }
+    #pragma omp parallel for schedule(static) if (PAR_OK)
+    for (int y = 0; y < h; y++) {
+        float *out = dst + (size_t)y * w;
+        for (int x = 0; x < w; x++) out[x] = 0.0f;
+        for (int i = -r; i <= r; i++) {
+            const float *row = tmp + (size_t)clampi(y + i, 0, h - 1) * w;
+            const float ki = k[i + r];
+            for (int x = 0; x < w; x++) out[x] += ki * row[x];
+        }
+    }
+}
+
+float plane_sample_bilinear(const float *p, int w, int h, float x, float y)
+{
+    if (x < 0.0f) x = 0.0f;
+    if (y < 0.0f) y = 0.0f;
+    if (x > w - 1) x = (float)(w - 1);
+    if (y > h - 1) y = (float)(h - 1);
+    int ix = (int)x, iy = (int)y;
+    if (ix > w - 2) ix = w > 1 ? w - 2 : 0;
+    if (iy > h - 2) iy = h > 1 ? h - 2 : 0;
+    float ax = x - ix, ay = y - iy;
+    int ix1 = w > 1 ? ix + 1 : ix, iy1 = h > 1 ? iy + 1 : iy;
+    const float *r0 = p + (size_t)iy * w, *r1 = p + (size_t)iy1 * w;
+    float top = r0[ix] + ax * (r0[ix1] - r0[ix]);
+    float bot = r1[ix] + ax * (r1[ix1] - r1[ix]);
+    return top + ay * (bot - top);
+}
+
+static inline void keys_weights(float t, float wt[4])
+{
+    /* Keys cubic convolution kernel with a = -0.5 at offsets -1, 0, 1, 2. */
+    float t2 = t * t, t3 = t2 * t;
+    wt[0] = -0.5f * t3 + t2 - 0.5f * t;
+    wt[1] = 1.5f * t3 - 2.5f * t2 + 1.0f;
+    wt[2] = -1.5f * t3 + 2.0f * t2 + 0.5f * t;
+    wt[3] = 0.5f * t3 - 0.5f * t2;
+}
+
+float plane_sample_bicubic(const float *p, int w, int h, float x, float y)
+{
+    if (x < 0.0f) x = 0.0f;
+    if (y < 0.0f) y = 0.0f;
+    if (x > w - 1) x = (float)(w - 1);
+    if (y > h - 1) y = (float)(h - 1);
+    int ix = (int)floorf(x), iy = (int)floorf(y);
+    float wx[4], wy[4];
+    keys_weights(x - ix, wx);
+    keys_weights(y - iy, wy);
+    int xs[4], ys[4];
+    for (int i = 0; i < 4; i++) {
+        xs[i] = clampi(ix - 1 + i, 0, w - 1);
+        ys[i] = clampi(iy - 1 + i, 0, h - 1);
+    }
+    float acc = 0.0f;
+    for (int j = 0; j < 4; j++) {
+        const float *row = p + (size_t)ys[j] * w;
+        acc += wy[j] * (wx[0] * row[xs[0]] + wx[1] * row[xs[1]] + wx[2] * row[xs[2]] + wx[3] * row[xs[3]]);
+    }
+    return acc;
+}
+
+void plane_resize(const float *src, int w, int h, float *dst, int w2, int h2)
+{
+    const float sx = (float)w / w2, sy = (float)h / h2;
+    #pragma omp parallel for schedule(static) if (PAR_OK)
+    for (int y = 0; y < h2; y++)
+        for (int x = 0; x < w2; x++)
+            dst[(size_t)y * w2 + x] = plane_sample_bilinear(src, w, h, (x + 0.5f) * sx - 0.5f, (y + 0.5f) * sy - 0.5f);
+}
+
+static inline void sort9(float *v)
+{
+    for (int i = 1; i < 9; i++) {
+        float t = v[i];
+        int j = i - 1;
+        while (j >= 0 && v[j] > t) { v[j + 1] = v[j]; j--; }
+        v[j + 1] = t;
+    }
+}
+
+void plane_median3(const float *src, int w, int h, float *dst)
+{
+    #pragma omp parallel for schedule(static) if (PAR_OK)
+    for (int y = 0; y < h; y++) {
+        for (int x = 0; x < w; x++) {
+            float v[9];
+            int k = 0;
+            for (int dy = -1; dy <= 1; dy++)
+                for (int dx = -1; dx <= 1; dx++)
+                    v[k++] = src[(size_t)clampi(y + dy, 0, h - 1) * w + clampi(x + dx, 0, w - 1)];
+            sort9(v);
+            dst[(size_t)y * w + x] = v[4];
+        }
+    }
+}
+
+/* Disc-shaped min/max filter; out-of-image pixels are ignored. */
+static void mask_morph(const unsigned char *src, int w, int h, int r, unsigned char *dst, int dilate)
+{
+    #pragma omp parallel for schedule(static) if (PAR_OK)
+    for (int y = 0; y < h; y++) {
+        for (int x = 0; x < w; x++) {
+            int v = dilate ? 0 : 1;
+            for (int dy = -r; dy <= r && v == (dilate ? 0 : 1); dy++) {
+                int yy = y + dy;
+                if (yy < 0 || yy >= h) continue;
+                for (int dx = -r; dx <= r; dx++) {
+                    int xx = x + dx;
+                    if (xx < 0 || xx >= w || dx * dx + dy * dy > r * r + r) continue;
+                    int s = src[(size_t)yy * w + xx] != 0;
+                    if (dilate && s) { v = 1; break; }
+                    if (!dilate && !s) { v = 0; break; }
+                }
+            }
+            dst[(size_t)y * w + x] = (unsigned char)v;
+        }
+    }
+}
+
+void mask_erode(const unsigned char *src, int w, int h, int r, unsigned char *dst) { mask_morph(src, w, h, r, dst, 0); }
+void mask_dilate(const unsigned char *src, int w, int h, int r, unsigned char *dst) { mask_morph(src, w, h, r, dst, 1); }

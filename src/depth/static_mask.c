@@ -1,0 +1,95 @@
+/* static_mask.c - static masks and dynamic probability from flow, colour and occlusion cues. */
+#include "depth/static_mask.h"
+#include "depth/plane.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+void depth_static_defaults(depth_static_params *p)
+{
+    p->flow_thresh = 0.6f;
+    p->color_thresh = 0.05f;
+    p->color_blur = 1.0f;
+    p->open_radius = 1;
+    p->close_radius = 2;
+    p->dilate_radius = 0;
+}
+
+/* Smooth 0 -> 1 ramp with value 0.5 at t, 0 below t/2 and 1 above 3t/2. */
+static inline float soft_step(float v, float t)
+{
+    float s = (v - 0.5f * t) / t;
+    if (s <= 0.0f) return 0.0f;
+    if (s >= 1.0f) return 1.0f;
+    return s * s * (3.0f - 2.0f * s);
+}
+
+pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i, const pg_image *img_ref,
+                            const float *flow_i, const float *conf_i, float *prob, unsigned char *mask)
+{
+    const int W = img_i->width, H = img_i->height;
+    if (img_ref->width != W || img_ref->height != H)
+        return pg_fail(PG_ERR_SIZE, "static mask: frames differ in size (%d x %d vs %d x %d)", W, H,
+                       img_ref->width, img_ref->height);
+    const size_t n = (size_t)W * H;
+    const int C = img_i->channels < img_ref->channels ? img_i->channels : img_ref->channels;
+    float *buf = pg_malloc(sizeof(float) * n * 4, "static mask buffers");
+    unsigned char *m8 = pg_malloc(n * 2, "static mask buffers");
+    if (!buf || !m8) {
+        free(buf);
+        free(m8);
+        return PG_ERR_NOMEM;
+    }
+    float *diff = buf, *tmp = buf + n, *a = buf + 2 * n, *b = buf + 3 * n;
+    memset(diff, 0, sizeof(float) * n);
+    /* Mean absolute colour difference of the blurred frames (blur tames noise and compression). */
+    for (int c = 0; c < (C >= 3 ? 3 : 1); c++) {
+        for (size_t k = 0; k < n; k++) {
+            a[k] = img_i->data[k * img_i->channels + c];
+            b[k] = img_ref->data[k * img_ref->channels + c];
+        }
+        plane_gaussian_blur(a, W, H, p->color_blur, tmp, a);
+        plane_gaussian_blur(b, W, H, p->color_blur, tmp, b);
+        for (size_t k = 0; k < n; k++) diff[k] += fabsf(a[k] - b[k]) / (C >= 3 ? 3.0f : 1.0f);
+    }
+    unsigned char *dyn = m8, *tmp8 = m8 + n;
+    for (size_t k = 0; k < n; k++) {
+        float mag = hypotf(flow_i[2 * k], flow_i[2 * k + 1]);
+        float pf = soft_step(mag, p->flow_thresh);
+        float pc = soft_step(diff[k], p->color_thresh);
+        float po = conf_i ? 1.0f - conf_i[k] : 0.0f;
+        float pd = 1.0f - (1.0f - pf) * (1.0f - pc) * (1.0f - po);
+        if (!(pd >= 0.0f)) pd = 1.0f; /* NaN flow from a plugged-in backend counts as dynamic */
+        if (prob) prob[k] = pd;
+        dyn[k] = pd >= 0.5f;
+    }
+    /* Opening removes isolated dynamic specks, closing fills holes inside moving objects. */
+    if (p->open_radius > 0) {
+        mask_erode(dyn, W, H, p->open_radius, tmp8);
+        mask_dilate(tmp8, W, H, p->open_radius, dyn);
+    }
+    if (p->close_radius > 0) {
+        mask_dilate(dyn, W, H, p->close_radius, tmp8);
+        mask_erode(tmp8, W, H, p->close_radius, dyn);
+    }
+    if (p->dilate_radius > 0) {
+        mask_dilate(dyn, W, H, p->dilate_radius, tmp8);
+        memcpy(dyn, tmp8, n);
+    }
+    for (size_t k = 0; k < n; k++) mask[k] = !dyn[k];
+    free(buf);
+    free(m8);
+    return PG_OK;
+}
+
+double depth_mask_iou(const unsigned char *a, const unsigned char *b, size_t n)
+{
+    size_t inter = 0, uni = 0;
+    for (size_t k = 0; k < n; k++) {
+        int x = a[k] != 0, y = b[k] != 0;
+        inter += x && y;
+        uni += x || y;
+    }
+    return uni ? (double)inter / uni : 1.0;
+}

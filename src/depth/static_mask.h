@@ -1,0 +1,34 @@
+/* static_mask.h - which pixels of frame i show the same static surface as the reference frame.
+ *
+ * The camera does not move, so a pixel is static when the flow between frame i and the
+ * reference is small, the colours agree, and the flow passes the forward-backward check.
+ * Each cue gives a soft "dynamic" probability; they combine as independent evidence
+ * p = 1 - (1 - p_flow)(1 - p_colour)(1 - p_occlusion). The binary mask (1 = static) is
+ * p < 0.5 cleaned with a morphological opening and closing of the dynamic region.
+ */
+#ifndef PG_DEPTH_STATIC_MASK_H
+#define PG_DEPTH_STATIC_MASK_H
+
+#include "core/image.h"
+
+typedef struct {
+    float flow_thresh;   /* px: |flow| at which p_flow = 0.5 (default 0.6) */
+    float color_thresh;  /* mean absolute RGB difference at which p_colour = 0.5 (default 0.05) */
+    float color_blur;    /* Gaussian sigma applied to both frames before differencing (default 1) */
+    int open_radius;     /* removes dynamic specks smaller than this (default 1) */
+    int close_radius;    /* fills holes in dynamic regions (default 2) */
+    int dilate_radius;   /* extra safety margin around dynamic regions (default 0) */
+} depth_static_params;
+
+void depth_static_defaults(depth_static_params *p);
+
+/* img_i, img_ref: frames (same size, RGB or gray in [0,1]); flow_i: (H,W,2) from frame i to the
+ * reference; conf_i: (H,W) forward-backward confidence of flow_i (NULL: not used).
+ * Outputs prob (H,W) dynamic probability (may be NULL) and mask (H,W) 1 = static, 0 = dynamic. */
+pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i, const pg_image *img_ref,
+                            const float *flow_i, const float *conf_i, float *prob, unsigned char *mask);
+
+/* Intersection over union of the 1-pixels of two (n) masks (1 when both are empty). */
+double depth_mask_iou(const unsigned char *a, const unsigned char *b, size_t n);
+
+#endif

@@ -1,0 +1,162 @@
+/* dataset_panoptic.c - Dynamic3DGaussians / CMU Panoptic layout.
+ *
+ * DIR/train_meta.json and/or DIR/test_meta.json hold w, h and per frame t and camera c:
+ * k[t][c] (3x3 intrinsics), w2c[t][c] (4x4 world-to-camera, OpenCV axes), fn[t][c] (image
+ * path relative to DIR/ims/) and cam_id[t][c]. Cameras of train_meta come first (role "train"),
+ * then those of test_meta (role "test"); the camera name is its cam_id. K is used as given
+ * (its principal point is taken in our continuous-pixel convention; sub-pixel offset at most).
+ */
+#include "io/dataset_internal.h"
+#include "core/fileutil.h"
+#include "io/json.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct {
+    cJSON *root;
+    char path[4200];
+    const char *role;
+    int T, C, w, h;
+    const cJSON *k, *w2c, *fn, *cam_id;
+} meta_file;
+
+static const cJSON *frame_list(const cJSON *a, int t) { return cJSON_GetArrayItem(a, t); }
+
+static pg_status check_meta(meta_file *m)
+{
+    PG_TRY(io_json_get_int(m->root, "w", m->path, 1, PG_MAX_IMAGE_SIDE, &m->w));
+    PG_TRY(io_json_get_int(m->root, "h", m->path, 1, PG_MAX_IMAGE_SIDE, &m->h));
+    const char *keys[4] = { "k", "w2c", "fn", "cam_id" };
+    const cJSON *arrs[4];
+    for (int i = 0; i < 4; i++) {
+        arrs[i] = cJSON_GetObjectItemCaseSensitive(m->root, keys[i]);
+        if (!cJSON_IsArray(arrs[i])) return pg_fail(PG_ERR_FORMAT, "%s: missing array '%s'", m->path, keys[i]);
+    }
+    m->k = arrs[0];
+    m->w2c = arrs[1];
+    m->fn = arrs[2];
+    m->cam_id = arrs[3];
+    m->T = cJSON_GetArraySize(m->fn);
+    if (m->T <= 0) return pg_fail(PG_ERR_FORMAT, "%s: 'fn' has no frames", m->path);
+    for (int i = 0; i < 4; i++)
+        if (cJSON_GetArraySize(arrs[i]) != m->T)
+            return pg_fail(PG_ERR_FORMAT, "%s: '%s' has %d frames, 'fn' has %d", m->path, keys[i],
+                           cJSON_GetArraySize(arrs[i]), m->T);
+    m->C = cJSON_GetArraySize(frame_list(m->fn, 0));
+    if (m->C <= 0 || m->C > 1000) return pg_fail(PG_ERR_FORMAT, "%s: frame 0 lists %d cameras", m->path, m->C);
+    for (int t = 0; t < m->T; t++)
+        for (int i = 0; i < 4; i++) {
+            const cJSON *l = frame_list(arrs[i], t);
+            if (!cJSON_IsArray(l) || cJSON_GetArraySize(l) != m->C)
+                return pg_fail(PG_ERR_FORMAT, "%s: %s[%d] must list %d cameras", m->path, keys[i], t, m->C);
+        }
+    return PG_OK;
+}
+
+static pg_status camera_from_meta(const meta_file *m, int t, int c, pg_camera *cam)
+{
+    char what[4300];
+    snprintf(what, sizeof what, "%s: frame %d camera %d", m->path, t, c);
+    float K[9], M[16];
+    PG_TRY(io_json_get_floats(cJSON_GetArrayItem(frame_list(m->k, t), c), NULL, what, K, 9));
+    PG_TRY(io_json_get_floats(cJSON_GetArrayItem(frame_list(m->w2c, t), c), NULL, what, M, 16));
+    memset(cam, 0, sizeof *cam);
+    cam->width = m->w;
+    cam->height = m->h;
+    cam->fx = K[0];
+    cam->fy = K[4];
+    cam->cx = K[2];
+    cam->cy = K[5];
+    if (!(cam->fx > 0 && cam->fy > 0)) return pg_fail(PG_ERR_FORMAT, "%s: focal lengths must be positive", what);
+    for (int r = 0; r < 3; r++) {
+        for (int k = 0; k < 3; k++) cam->R[r * 3 + k] = M[r * 4 + k];
+        cam->t[r] = M[r * 4 + 3];
+    }
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++) {
+            double d = 0;
+            for (int k = 0; k < 3; k++) d += (double)cam->R[a * 3 + k] * cam->R[b * 3 + k];
+            if (fabs(d - (a == b)) > 1e-2) return pg_fail(PG_ERR_FORMAT, "%s: w2c rotation is not orthonormal", what);
+        }
+    return PG_OK;
+}
+
+static int id_at(const meta_file *m, int t, int c, int *id)
+{
+    const cJSON *v = cJSON_GetArrayItem(frame_list(m->cam_id, t), c);
+    if (!cJSON_IsNumber(v)) return -1;
+    *id = v->valueint;
+    return 0;
+}
+
+pg_status ds_open_panoptic(pg_dataset *ds)
+{
+    meta_file meta[2];
+    memset(meta, 0, sizeof meta);
+    const char *files[2] = { "train_meta.json", "test_meta.json" }, *roles[2] = { "train", "test" };
+    pg_status st = PG_OK;
+    int nmeta = 0, total_cams = 0, T = 0, w = 0, h = 0;
+    for (int i = 0; i < 2 && st == PG_OK; i++) {
+        meta_file *m = &meta[nmeta];
+        if (pg_path_join(m->path, sizeof m->path, ds->path, files[i]) || !pg_path_exists(m->path)) continue;
+        m->role = roles[i];
+        st = io_json_load(m->path, &m->root);
+        if (st == PG_OK) st = check_meta(m);
+        if (st == PG_OK && nmeta > 0 && (m->w != w || m->h != h))
+            st = pg_fail(PG_ERR_FORMAT, "%s: size %d x %d differs from %s (%d x %d)", m->path, m->w, m->h, meta[0].path, w, h);
+        if (st == PG_OK) {
+            if (nmeta == 0 || m->T < T) T = m->T;
+            w = m->w;
+            h = m->h;
+            total_cams += m->C;
+        }
+        nmeta++;
+    }
+    if (st == PG_OK) st = ds_select_frames(ds, ds->path, T);
+    if (st == PG_OK) st = ds_alloc_cameras(ds, total_cams);
+    ds->fps = ds->opt.fps;
+    int ci = 0;
+    for (int i = 0; i < nmeta && st == PG_OK; i++) {
+        meta_file *m = &meta[i];
+        for (int c = 0; c < m->C && st == PG_OK; c++, ci++) {
+            ds_camera *cam = &ds->cams[ci];
+            int id0;
+            if (id_at(m, 0, c, &id0)) { st = pg_fail(PG_ERR_FORMAT, "%s: cam_id[0][%d] is not a number", m->path, c); break; }
+            snprintf(cam->name, sizeof cam->name, "%d", id0);
+            snprintf(cam->role, sizeof cam->role, "%s", m->role);
+            pg_path_join(cam->source, sizeof cam->source, ds->path, "ims");
+            cam->cams = pg_calloc((size_t)ds->frames, sizeof *cam->cams, "cameras");
+            cam->frame_paths = pg_calloc((size_t)ds->frames, sizeof *cam->frame_paths, "frame paths");
+            if (!cam->cams || !cam->frame_paths) { st = PG_ERR_NOMEM; break; }
+            cam->num_cams = ds->frames;
+            for (int k = 0; k < ds->frames && st == PG_OK; k++) {
+                int t = ds->first + k * ds->stride, id;
+                if (id_at(m, t, c, &id) || id != id0) {
+                    st = pg_fail(PG_ERR_FORMAT, "%s: cam_id[%d][%d] differs from cam_id[0][%d] (cameras must keep their order)",
+                                 m->path, t, c, c);
+                    break;
+                }
+                st = camera_from_meta(m, t, c, &cam->cams[k]);
+                if (st) break;
+                const cJSON *f = cJSON_GetArrayItem(frame_list(m->fn, t), c);
+                if (!cJSON_IsString(f) || !f->valuestring[0] || strlen(f->valuestring) > 1000) {
+                    st = pg_fail(PG_ERR_FORMAT, "%s: fn[%d][%d] is not a file name", m->path, t, c);
+                    break;
+                }
+                size_t len = strlen(ds->path) + strlen(f->valuestring) + 8;
+                cam->frame_paths[k] = pg_malloc(len, "frame path");
+                if (!cam->frame_paths[k]) { st = PG_ERR_NOMEM; break; }
+                snprintf(cam->frame_paths[k], len, "%s/ims/%s", ds->path, f->valuestring);
+            }
+        }
+    }
+    /* Check the first image of the first camera exists now, so a broken layout fails at open. */
+    if (st == PG_OK && !pg_path_exists(ds->cams[0].frame_paths[0]))
+        st = pg_fail(PG_ERR_IO, "%s: missing (listed in the meta file)", ds->cams[0].frame_paths[0]);
+    for (int i = 0; i < 2; i++) cJSON_Delete(meta[i].root);
+    if (st) return st;
+    ds_set_sizes(ds, w, h);
+    return PG_OK;
+}

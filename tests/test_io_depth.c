@@ -1,0 +1,416 @@
+/* test_io_depth.c - depth inputs: npy dtypes, PFM round trip, 16-bit PNG, OpenEXR (files made by
+ * libavcodec's independent EXR encoder), disparity, resize, invalid counting, bad files. */
+#include "testlib.h"
+#include "core/fileutil.h"
+#include "io/depth_io.h"
+#include "io/npy.h"
+
+#include <libavcodec/avcodec.h>
+#include <libavutil/opt.h>
+#include <png.h>
+#include <zlib.h>
+
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* Writes a .npy with any descr from raw little-endian bytes (test-only: the library only writes f4/u1). */
+static void write_npy_raw(const char *path, const char *descr, const char *shape, const void *data, size_t bytes)
+{
+    char dict[256];
+    int n = snprintf(dict, sizeof dict, "{'descr': '%s', 'fortran_order': False, 'shape': %s, }", descr, shape);
+    size_t pad = (64 - (10 + (size_t)n + 1) % 64) % 64;
+    size_t hlen = (size_t)n + pad + 1;
+    FILE *fp = fopen(path, "wb");
+    uint8_t pre[10] = { 0x93, 'N', 'U', 'M', 'P', 'Y', 1, 0, (uint8_t)(hlen & 0xff), (uint8_t)(hlen >> 8) };
+    fwrite(pre, 1, 10, fp);
+    fwrite(dict, 1, (size_t)n, fp);
+    for (size_t i = 0; i < pad; i++) fputc(' ', fp);
+    fputc('\n', fp);
+    if (bytes) fwrite(data, 1, bytes, fp);
+    fclose(fp);
+}
+
+static float ref_depth(int t, int x, int y) { return 1.0f + 0.01f * x + 0.02f * y + 0.1f * t; }
+
+static void test_npy(const char *dir)
+{
+    char path[4096];
+    enum { F = 3, H = 6, W = 8 };
+    float f32[F * H * W];
+    double f64[F * H * W];
+    uint16_t u16[F * H * W];
+    for (int t = 0; t < F; t++)
+        for (int y = 0; y < H; y++)
+            for (int x = 0; x < W; x++) {
+                int i = (t * H + y) * W + x;
+                f32[i] = ref_depth(t, x, y);
+                f64[i] = ref_depth(t, x, y);
+                u16[i] = (uint16_t)(1000 + x * 10 + y * 100 + t);
+            }
+    f32[0] = NAN;
+    f32[1] = INFINITY;
+    f32[2] = -1.0f;
+    f32[3] = 0.0f;
+    size_t shape[3] = { F, H, W };
+    pg_path_join(path, sizeof path, dir, "d32.npy");
+    CHECK_OK(io_npy_save(path, f32, 3, shape));
+    io_depth d;
+    io_depth_options o = io_depth_defaults();
+    CHECK_OK(io_depth_load(path, &o, &d));
+    CHECK(d.frames == F && d.width == W && d.height == H, "shape %d %d %d", d.frames, d.height, d.width);
+    CHECK(d.invalid == 4, "invalid count %zu", d.invalid);
+    CHECK(d.total == (size_t)F * H * W, "total %zu", d.total);
+    CHECK(d.data[0] == 0 && d.data[1] == 0 && d.data[2] == 0 && d.data[4] == f32[4], "invalid -> 0");
+    CHECK(fabsf(d.max - ref_depth(2, W - 1, H - 1)) < 1e-6f, "max %g", d.max);
+    io_depth_destroy(&d);
+
+    /* float64 and uint16 with scale; frame selection. */
+    pg_path_join(path, sizeof path, dir, "d64.npy");
+    write_npy_raw(path, "<f8", "(3, 6, 8)", f64, sizeof f64);
+    o.first = 1;
+    o.count = 2;
+    o.expect_frames = 2;
+    CHECK_OK(io_depth_load(path, &o, &d));
+    CHECK(d.frames == 2 && d.src_frames == 3, "selected %d of %d", d.frames, d.src_frames);
+    if (d.data) CHECK(fabsf(d.data[W * H + 5] - ref_depth(2, 5, 0)) < 1e-6f, "f64 value %g", d.data[W * H + 5]);
+    io_depth_destroy(&d);
+    o.expect_frames = 3;
+    CHECK(io_depth_load(path, &o, &d) == PG_ERR_SIZE, "frame count mismatch: %s", pg_last_error());
+    CHECK(strstr(pg_last_error(), "d64.npy") != NULL, "names file");
+
+    pg_path_join(path, sizeof path, dir, "d16.npy");
+    write_npy_raw(path, "<u2", "(3, 6, 8)", u16, sizeof u16);
+    o = io_depth_defaults();
+    o.scale = 0.001f;
+    CHECK_OK(io_depth_load(path, &o, &d));
+    if (d.data) CHECK(fabsf(d.data[9] - (1000 + 10 + 100) * 0.001f) < 1e-6f, "u16 scaled %g", d.data[9]);
+    io_depth_destroy(&d);
+
+    io_depth_kind kind = IO_DEPTH_KIND_DEPTH;
+    CHECK_OK(io_depth_kind_parse("disparity", &kind));
+    CHECK(kind == IO_DEPTH_KIND_DISPARITY && io_depth_kind_parse("inverse", &kind) == PG_ERR_ARG, "kind parse");
+    /* Disparity: depth = 1 / (value * scale). */
+    o = io_depth_defaults();
+    o.kind = IO_DEPTH_KIND_DISPARITY;
+    o.scale = 2.0f;
+    pg_path_join(path, sizeof path, dir, "d64.npy");
+    CHECK_OK(io_depth_load(path, &o, &d));
+    if (d.data) CHECK(fabsf(d.data[7] - 1.0f / (2.0f * ref_depth(0, 7, 0))) < 1e-6f, "disparity %g", d.data[7]);
+    io_depth_destroy(&d);
+
+    /* Resize to 2x: nearest keeps values; bilinear stays between neighbours and skips invalid. */
+    o = io_depth_defaults();
+    o.width = 2 * W;
+    o.height = 2 * H;
+    pg_path_join(path, sizeof path, dir, "d32.npy");
+    CHECK_OK(io_depth_load(path, &o, &d));
+    if (d.data) {
+        CHECK(d.width == 2 * W && d.height == 2 * H, "resized %d x %d", d.width, d.height);
+        CHECK(d.data[(size_t)(2 * 3) * 2 * W + 2 * 5 + 1] == f32[3 * W + 5], "nearest upsample");
+    }
+    io_depth_destroy(&d);
+    o.bilinear = 1;
+    CHECK_OK(io_depth_load(path, &o, &d));
+    if (d.data) {
+        float v = d.data[(size_t)(2 * 3 + 1) * 2 * W + 2 * 5 + 1]; /* between source (5,3) and (6,4) */
+        CHECK(v > f32[3 * W + 5] && v < f32[4 * W + 6], "bilinear %g", v);
+        CHECK(d.data[0] == 0 || d.data[0] > 0.5f, "bilinear near invalid stays valid-only %g", d.data[0]);
+    }
+    io_depth_destroy(&d);
+    o = io_depth_defaults();
+    o.width = H;
+    o.height = W; /* transposed: aspect mismatch */
+    CHECK(io_depth_load(path, &o, &d) == PG_ERR_SIZE, "aspect mismatch must fail: %s", pg_last_error());
+
+    /* (H, W) single frame and a 4-D array. */
+    pg_path_join(path, sizeof path, dir, "one.npy");
+    size_t s2[2] = { H, W };
+    CHECK_OK(io_npy_save(path, f32 + H * W, 2, s2));
+    CHECK_OK(io_depth_load(path, NULL, &d));
+    CHECK(d.frames == 1 && d.invalid == 0, "single frame %d %zu", d.frames, d.invalid);
+    io_depth_destroy(&d);
+    size_t s4t[4] = { F, 1, H, W };
+    pg_path_join(path, sizeof path, dir, "torch.npy");
+    CHECK_OK(io_npy_save(path, f32, 4, s4t));
+    CHECK_OK(io_depth_load(path, NULL, &d));
+    CHECK(d.frames == F && d.height == H && d.width == W, "(F,1,H,W) %d %d %d", d.frames, d.height, d.width);
+    io_depth_destroy(&d);
+    size_t s4[4] = { 1, 2, H, W / 2 };
+    pg_path_join(path, sizeof path, dir, "bad4.npy");
+    CHECK_OK(io_npy_save(path, f32, 4, s4));
+    CHECK(io_depth_load(path, NULL, &d) == PG_ERR_SIZE, "4-D must fail: %s", pg_last_error());
+}
+
+static void test_pfm(const char *dir)
+{
+    char path[4096];
+    enum { H = 5, W = 7 };
+    float img[H * W], rgb[H * W * 3];
+    for (int i = 0; i < H * W; i++) img[i] = 0.5f + i * 0.25f;
+    for (int i = 0; i < H * W * 3; i++) rgb[i] = (float)i;
+    pg_path_join(path, sizeof path, dir, "a.pfm");
+    CHECK_OK(io_pfm_save(path, img, W, H, 1));
+    pg_array arr;
+    CHECK_OK(io_pfm_load(path, &arr));
+    CHECK(arr.shape[0] == H && arr.shape[1] == W, "pfm shape");
+    int same = arr.data && memcmp(arr.data, img, sizeof img) == 0;
+    CHECK(same, "pfm round trip exact");
+    pg_array_destroy(&arr);
+    pg_path_join(path, sizeof path, dir, "c.pfm");
+    CHECK_OK(io_pfm_save(path, rgb, W, H, 3));
+    CHECK_OK(io_pfm_load(path, &arr));
+    CHECK(arr.data && arr.data[W + 2] == rgb[(W + 2) * 3], "colour PFM keeps channel 0");
+    pg_array_destroy(&arr);
+    /* Big-endian PFM written by hand (positive scale), top row is stored last. */
+    pg_path_join(path, sizeof path, dir, "be.pfm");
+    FILE *fp = fopen(path, "wb");
+    fprintf(fp, "Pf\n2 2\n1.0\n");
+    float vals[4] = { 3, 4, 1, 2 }; /* bottom row (3,4), then top (1,2) */
+    for (int i = 0; i < 4; i++) {
+        uint8_t b[4];
+        memcpy(b, &vals[i], 4);
+        uint8_t r[4] = { b[3], b[2], b[1], b[0] };
+        fwrite(r, 1, 4, fp);
+    }
+    fclose(fp);
+    CHECK_OK(io_pfm_load(path, &arr));
+    CHECK(arr.data && arr.data[0] == 1 && arr.data[1] == 2 && arr.data[2] == 3, "big-endian PFM");
+    pg_array_destroy(&arr);
+    /* Per-frame folder of PFMs (natural order) through io_depth_load. */
+    char sub[4096], p[4200];
+    pg_path_join(sub, sizeof sub, dir, "pfms");
+    pg_mkdir_p(sub);
+    for (int t = 0; t < 3; t++) {
+        for (int i = 0; i < H * W; i++) img[i] = 1.0f + t;
+        snprintf(p, sizeof p, "%s/%d.pfm", sub, t * 5);
+        CHECK_OK(io_pfm_save(p, img, W, H, 1));
+    }
+    io_depth d;
+    CHECK_OK(io_depth_load(sub, NULL, &d));
+    CHECK(d.frames == 3 && d.data && d.data[H * W] == 2.0f && d.data[2 * H * W] == 3.0f, "pfm folder order");
+    io_depth_destroy(&d);
+}
+
+static void write_png16_il(const char *path, int w, int h, const uint16_t *v, int interlace)
+{
+    FILE *fp = fopen(path, "wb");
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
+    png_infop info = png_create_info_struct(png);
+    png_init_io(png, fp);
+    png_set_IHDR(png, info, (png_uint_32)w, (png_uint_32)h, 16, PNG_COLOR_TYPE_GRAY,
+                 interlace ? PNG_INTERLACE_ADAM7 : PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_write_info(png, info);
+    int passes = png_set_interlace_handling(png);
+    uint8_t *row = malloc((size_t)w * 2);
+    for (int pass = 0; pass < passes; pass++)
+        for (int y = 0; y < h; y++) {
+            for (int x = 0; x < w; x++) {
+                row[2 * x] = (uint8_t)(v[y * w + x] >> 8);
+                row[2 * x + 1] = (uint8_t)(v[y * w + x] & 0xff);
+            }
+            png_write_row(png, row);
+        }
+    png_write_end(png, NULL);
+    png_destroy_write_struct(&png, &info);
+    free(row);
+    fclose(fp);
+}
+
+static void write_png16(const char *path, int w, int h, const uint16_t *v) { write_png16_il(path, w, h, v, 0); }
+
+static void test_png16(const char *dir)
+{
+    char sub[4096], p[4200];
+    pg_path_join(sub, sizeof sub, dir, "png16");
+    pg_mkdir_p(sub);
+    uint16_t v[4 * 6];
+    for (int t = 0; t < 2; t++) {
+        for (int i = 0; i < 24; i++) v[i] = (uint16_t)(i == 0 ? 0 : 60000 + i + t);
+        snprintf(p, sizeof p, "%s/frame_%02d.png", sub, t);
+        write_png16(p, 6, 4, v);
+    }
+    io_depth_options o = io_depth_defaults();
+    o.scale = 1.0f / 1000;
+    io_depth d;
+    CHECK_OK(io_depth_load(sub, &o, &d));
+    CHECK(d.frames == 2 && d.width == 6 && d.height == 4, "png16 folder %d %d %d", d.frames, d.width, d.height);
+    CHECK(d.invalid == 2, "png16 zeros counted %zu", d.invalid);
+    if (d.data) CHECK(fabsf(d.data[24 + 5] - 60.006f) < 1e-4f, "png16 value %g", d.data[24 + 5]);
+    io_depth_destroy(&d);
+    /* Interlaced (Adam7) 16-bit PNG. */
+    char p2[4200];
+    uint16_t big[13 * 11];
+    for (int i = 0; i < 13 * 11; i++) big[i] = (uint16_t)(i * 397 + 11);
+    snprintf(p2, sizeof p2, "%s/../adam7.png", sub);
+    write_png16_il(p2, 13, 11, big, 1);
+    pg_array arr;
+    CHECK_OK(io_png16_load(p2, &arr));
+    int okv = arr.data != NULL;
+    for (int i = 0; okv && i < 13 * 11; i++) okv = arr.data[i] == big[i];
+    CHECK(okv, "interlaced 16-bit PNG values");
+    pg_array_destroy(&arr);
+}
+
+/* Encodes a grayf32 frame with libavcodec's EXR encoder (an independent writer; channel "Y"). */
+static int write_exr_ffmpeg(const char *path, int w, int h, const float *v, const char *compression, const char *format)
+{
+    const AVCodec *codec = avcodec_find_encoder_by_name("exr");
+    if (!codec) return -1;
+    AVCodecContext *c = avcodec_alloc_context3(codec);
+    c->width = w;
+    c->height = h;
+    c->pix_fmt = AV_PIX_FMT_GRAYF32LE;
+    c->time_base = (AVRational){ 1, 25 };
+    av_opt_set(c->priv_data, "compression", compression, 0);
+    av_opt_set(c->priv_data, "format", format, 0);
+    int rc = -1;
+    if (avcodec_open2(c, codec, NULL) >= 0) {
+        AVFrame *f = av_frame_alloc();
+        f->format = c->pix_fmt;
+        f->width = w;
+        f->height = h;
+        av_frame_get_buffer(f, 0);
+        for (int y = 0; y < h; y++) memcpy(f->data[0] + (size_t)y * f->linesize[0], v + (size_t)y * w, sizeof(float) * w);
+        AVPacket *pkt = av_packet_alloc();
+        if (avcodec_send_frame(c, f) >= 0 && avcodec_receive_packet(c, pkt) >= 0) {
+            FILE *fp = fopen(path, "wb");
+            fwrite(pkt->data, 1, (size_t)pkt->size, fp);
+            fclose(fp);
+            rc = 0;
+        }
+        av_packet_free(&pkt);
+        av_frame_free(&f);
+    }
+    avcodec_free_context(&c);
+    return rc;
+}
+
+static void test_exr(const char *dir)
+{
+    enum { H = 37, W = 29 }; /* 37 rows: a partial last ZIP block of 16 lines */
+    float v[H * W];
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) v[y * W + x] = 0.5f + 0.125f * x + 0.25f * y; /* exact in half */
+    const char *comp[] = { "none", "rle", "zip1", "zip16" };
+    const char *fmt[] = { "float", "half" };
+    int tried = 0;
+    for (int c = 0; c < 4; c++)
+        for (int f = 0; f < 2; f++) {
+            char name[64], path[4096];
+            snprintf(name, sizeof name, "d_%s_%s.exr", comp[c], fmt[f]);
+            pg_path_join(path, sizeof path, dir, name);
+            if (write_exr_ffmpeg(path, W, H, v, comp[c], fmt[f])) continue;
+            tried++;
+            pg_array arr;
+            pg_status st = io_exr_load(path, &arr);
+            CHECK(st == PG_OK, "%s: %s", name, pg_last_error());
+            if (st == PG_OK) {
+                double worst = 0;
+                for (int i = 0; i < H * W; i++) worst = fmax(worst, fabs(arr.data[i] - v[i]));
+                CHECK(arr.shape[0] == H && arr.shape[1] == W && worst == 0, "%s: max error %g", name, worst);
+                pg_array_destroy(&arr);
+            }
+        }
+    CHECK(tried == 8, "libavcodec EXR encoder produced %d of 8 files", tried);
+    /* Truncated EXR. */
+    char path[4096], tpath[4096];
+    pg_path_join(path, sizeof path, dir, "d_zip16_float.exr");
+    pg_path_join(tpath, sizeof tpath, dir, "trunc.exr");
+    char *data;
+    size_t size;
+    if (pg_read_file(path, 1 << 24, &data, &size) == PG_OK) {
+        pg_write_file_atomic(tpath, data, size - 40);
+        pg_array arr;
+        CHECK(io_exr_load(tpath, &arr) == PG_ERR_FORMAT, "truncated exr: %s", pg_last_error());
+        CHECK(strstr(pg_last_error(), "trunc.exr") != NULL, "names file");
+        free(data);
+    }
+}
+
+static void test_bad(const char *dir)
+{
+    char path[4096], err[1024], args[8300];
+    io_depth d;
+    pg_array arr;
+    /* Absurd header sizes. */
+    pg_path_join(path, sizeof path, dir, "huge.npy");
+    write_npy_raw(path, "<f4", "(1000000000, 1000000000)", NULL, 0);
+    CHECK(io_depth_load(path, NULL, &d) == PG_ERR_SIZE, "huge npy: %s", pg_last_error());
+    snprintf(args, sizeof args, "info '%s'", path);
+    int rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "huge.npy"), "info huge npy rc %d: %s", rc, err);
+
+    pg_path_join(path, sizeof path, dir, "huge.pfm");
+    pg_write_file_atomic(path, "Pf\n1000000000 1000000000\n-1.0\n", 30);
+    CHECK(io_pfm_load(path, &arr) == PG_ERR_SIZE, "huge pfm: %s", pg_last_error());
+    snprintf(args, sizeof args, "info '%s'", path);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "huge.pfm"), "info huge pfm rc %d: %s", rc, err);
+
+    /* A PNG header claiming 10^9 x 10^9 (valid IHDR CRC not needed for the limit check to trip). */
+    pg_path_join(path, sizeof path, dir, "huge.png");
+    {
+        uint16_t v[4] = { 1, 2, 3, 4 };
+        write_png16(path, 2, 2, v);
+        char *data;
+        size_t size;
+        pg_read_file(path, 1 << 20, &data, &size);
+        /* IHDR width/height at bytes 16..23; patch and fix the CRC. */
+        uint32_t big = 1000000000u;
+        for (int k = 0; k < 2; k++) {
+            data[16 + 4 * k] = (char)(big >> 24);
+            data[17 + 4 * k] = (char)(big >> 16);
+            data[18 + 4 * k] = (char)(big >> 8);
+            data[19 + 4 * k] = (char)big;
+        }
+        uint32_t crc = (uint32_t)crc32(0, (const unsigned char *)data + 12, 17);
+        data[29] = (char)(crc >> 24);
+        data[30] = (char)(crc >> 16);
+        data[31] = (char)(crc >> 8);
+        data[32] = (char)crc;
+        pg_write_file_atomic(path, data, size);
+        free(data);
+    }
+    CHECK(io_png16_load(path, &arr) == PG_ERR_FORMAT, "huge png: %s", pg_last_error());
+    CHECK(strstr(pg_last_error(), "huge.png") != NULL, "names file: %s", pg_last_error());
+    snprintf(args, sizeof args, "info '%s'", path);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "huge.png"), "info huge png rc %d: %s", rc, err);
+
+    /* Truncated npy / pfm, garbled npy. */
+    pg_path_join(path, sizeof path, dir, "trunc.npy");
+    float z[100] = { 0 };
+    write_npy_raw(path, "<f4", "(10, 20)", z, sizeof z);
+    CHECK(io_depth_load(path, NULL, &d) == PG_ERR_FORMAT, "truncated npy: %s", pg_last_error());
+    snprintf(args, sizeof args, "info '%s'", path);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "trunc.npy"), "info trunc npy rc %d: %s", rc, err);
+    pg_path_join(path, sizeof path, dir, "garbled.npy");
+    pg_write_file_atomic(path, "\x93NUMPY\x01\x00\x10\x00{'descr': 'zz'}", 26);
+    CHECK(io_depth_load(path, NULL, &d) == PG_ERR_FORMAT, "garbled npy: %s", pg_last_error());
+    pg_path_join(path, sizeof path, dir, "trunc.pfm");
+    pg_write_file_atomic(path, "Pf\n4 4\n-1.0\n\0\0\0\0", 16);
+    CHECK(io_pfm_load(path, &arr) == PG_ERR_FORMAT, "truncated pfm: %s", pg_last_error());
+    snprintf(args, sizeof args, "info '%s'", path);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "trunc.pfm"), "info trunc pfm rc %d: %s", rc, err);
+    pg_path_join(path, sizeof path, dir, "garbled.pfm");
+    pg_write_file_atomic(path, "Pf\nabc 4\n-1.0\n", 14);
+    CHECK(io_pfm_load(path, &arr) == PG_ERR_FORMAT, "garbled pfm: %s", pg_last_error());
+    pg_path_join(path, sizeof path, dir, "nothere.npy");
+    CHECK(io_depth_load(path, NULL, &d) == PG_ERR_IO, "missing");
+}
+
+int main(void)
+{
+    char dir[4096];
+    test_tmpdir("test_io_depth", dir, sizeof dir);
+    test_npy(dir);
+    test_pfm(dir);
+    test_png16(dir);
+    test_exr(dir);
+    test_bad(dir);
+    return test_summary("test_io_depth");
+}

@@ -1,0 +1,283 @@
+/* test_io_video.c - video encode -> decode round trip, frame folders, selection, resize, bad files. */
+#include "testlib.h"
+#include "core/fileutil.h"
+#include "io/image_io.h"
+#include "io/video.h"
+
+#include <libavformat/avformat.h>
+#include <libavutil/display.h>
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define W 96
+#define H 64
+#define F 12
+
+/* Smooth moving pattern: low frequencies only, so a good encoder reproduces it closely. */
+static void pattern(pg_image *img, int w, int h, int t)
+{
+    pg_image_create(img, w, h, 3);
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            float *p = pg_image_at(img, x, y);
+            p[0] = 0.5f + 0.35f * sinf(0.07f * x + 0.2f * t);
+            p[1] = 0.5f + 0.35f * cosf(0.09f * y - 0.1f * t);
+            p[2] = 0.3f + 0.4f * (float)(x + y) / (w + h);
+        }
+}
+
+static void test_roundtrip(const char *dir)
+{
+    char path[4096];
+    pg_path_join(path, sizeof path, dir, "rt.mp4");
+    pg_image frames[F];
+    for (int t = 0; t < F; t++) pattern(&frames[t], W, H, t);
+    io_video_write_options wo = io_video_write_defaults();
+    wo.fps = 24;
+    wo.crf = 12;
+    io_video_backend be = IO_VIDEO_PNG_SEQUENCE;
+    CHECK_OK(io_video_write(path, frames, F, &wo, &be));
+    CHECK(be == IO_VIDEO_H264, "backend %d (libx264 expected)", (int)be);
+    io_video_info info;
+    CHECK_OK(io_video_probe(path, &info));
+    CHECK(info.width == W && info.height == H, "probe size %d x %d", info.width, info.height);
+    CHECK(fabs(info.fps - 24) < 1e-6, "probe fps %g", info.fps);
+    CHECK(info.frames == F, "probe frames %d", info.frames);
+    int counted = 0;
+    CHECK_OK(io_video_count_frames(path, &counted));
+    CHECK(counted == F, "counted %d", counted);
+
+    io_frames fr;
+    io_video_options opt = io_video_defaults();
+    CHECK_OK(io_frames_read(path, &opt, &fr));
+    CHECK(fr.count == F && fr.width == W && fr.height == H, "read %d frames %d x %d", fr.count, fr.width, fr.height);
+    double worst = 1e9;
+    for (int t = 0; t < fr.count && t < F; t++) {
+        pg_image img;
+        CHECK_OK(io_frames_image(&fr, t, &img));
+        double p = pg_image_psnr(&img, &frames[t], NULL);
+        if (p < worst) worst = p;
+        pg_image_destroy(&img);
+    }
+    printf("video round trip: worst frame PSNR %.2f dB (crf 12, %dx%d)\n", worst, W, H);
+    CHECK(worst > 40.0, "encode->decode PSNR %.2f dB", worst);
+    io_frames_destroy(&fr);
+
+    /* Range + stride + resize: frames 3, 5, 7 at half size. */
+    opt.first = 3;
+    opt.stride = 2;
+    opt.count = 3;
+    opt.width = W / 2;
+    CHECK_OK(io_frames_read(path, &opt, &fr));
+    CHECK(fr.count == 3 && fr.width == W / 2 && fr.height == H / 2, "selection %d frames %d x %d", fr.count, fr.width,
+          fr.height);
+    if (fr.count == 3) {
+        pg_image img, ref;
+        CHECK_OK(io_frames_image(&fr, 1, &img));
+        pg_image_resize(&ref, &frames[5], W / 2, H / 2);
+        double p = pg_image_psnr(&img, &ref, NULL);
+        CHECK(p > 35.0, "strided resized frame 5 PSNR %.2f", p);
+        pg_image_destroy(&img);
+        pg_image_destroy(&ref);
+    }
+    io_frames_destroy(&fr);
+    opt = io_video_defaults();
+    opt.count = F + 1;
+    CHECK(io_frames_read(path, &opt, &fr) == PG_ERR_ARG, "asking for too many frames must fail");
+    CHECK(strstr(pg_last_error(), "rt.mp4") != NULL, "message names file: %s", pg_last_error());
+
+    /* Odd size is padded to even. */
+    pg_path_join(path, sizeof path, dir, "odd.mp4");
+    pg_image odd;
+    pattern(&odd, 33, 21, 0);
+    CHECK_OK(io_video_write(path, &odd, 1, NULL, NULL));
+    CHECK_OK(io_video_probe(path, &info));
+    CHECK(info.width == 34 && info.height == 22, "odd padded to %d x %d", info.width, info.height);
+    pg_image_destroy(&odd);
+
+    /* Unwritable destination: an error, not a silent fallback. */
+    pg_path_join(path, sizeof path, dir, "no/such/dir/x.mp4");
+    io_video_writer *vw = NULL;
+    CHECK(io_video_writer_open(&vw, path, W, H, NULL) == PG_ERR_IO && !vw, "unwritable: %s", pg_last_error());
+    /* Forced PNG fallback. */
+    pg_path_join(path, sizeof path, dir, "fb.mp4");
+    wo.force_png = 1;
+    CHECK_OK(io_video_write(path, frames, 3, &wo, &be));
+    CHECK(be == IO_VIDEO_PNG_SEQUENCE, "fallback backend %d", (int)be);
+    char folder[4096];
+    pg_path_join(folder, sizeof folder, dir, "fb_frames");
+    CHECK(pg_path_is_dir(folder), "fallback folder %s", folder);
+    opt = io_video_defaults();
+    CHECK_OK(io_frames_read(folder, &opt, &fr));
+    CHECK(fr.count == 3, "fallback frames %d", fr.count);
+    io_frames_destroy(&fr);
+
+    for (int t = 0; t < F; t++) pg_image_destroy(&frames[t]);
+}
+
+/* Copies src into dst (mp4) adding a display matrix: how phones tag portrait video. In FFmpeg 5.1
+ * av_display_rotation_set takes the clockwise angle that players (ffmpeg -autorotate) apply. */
+static int remux_rotated(const char *src, const char *dst, double cw_degrees)
+{
+    AVFormatContext *in = NULL, *out = NULL;
+    if (avformat_open_input(&in, src, NULL, NULL) < 0) return -1;
+    avformat_find_stream_info(in, NULL);
+    avformat_alloc_output_context2(&out, NULL, "mp4", dst);
+    AVStream *os = avformat_new_stream(out, NULL);
+    avcodec_parameters_copy(os->codecpar, in->streams[0]->codecpar);
+    os->codecpar->codec_tag = 0;
+    os->time_base = in->streams[0]->time_base;
+    uint8_t *m = av_stream_new_side_data(os, AV_PKT_DATA_DISPLAYMATRIX, 9 * sizeof(int32_t));
+    av_display_rotation_set((int32_t *)m, cw_degrees);
+    int rc = avio_open(&out->pb, dst, AVIO_FLAG_WRITE) < 0 || avformat_write_header(out, NULL) < 0 ? -1 : 0;
+    AVPacket *pkt = av_packet_alloc();
+    while (rc == 0 && av_read_frame(in, pkt) >= 0) {
+        av_packet_rescale_ts(pkt, in->streams[0]->time_base, os->time_base);
+        pkt->stream_index = 0;
+        av_interleaved_write_frame(out, pkt);
+        av_packet_unref(pkt);
+    }
+    if (rc == 0) av_write_trailer(out);
+    av_packet_free(&pkt);
+    avio_closep(&out->pb);
+    avformat_free_context(out);
+    avformat_close_input(&in);
+    return rc;
+}
+
+static void test_rotation(const char *dir)
+{
+    char src[4096], dst[4096];
+    pg_path_join(src, sizeof src, dir, "rt.mp4");
+    pg_path_join(dst, sizeof dst, dir, "rot.mp4");
+    int angles[3] = { 90, 180, 270 };
+    for (int a = 0; a < 3; a++) {
+        int cw = angles[a];
+        CHECK(remux_rotated(src, dst, cw) == 0, "remux");
+        io_video_info info;
+        CHECK_OK(io_video_probe(dst, &info));
+        int swap = cw != 180;
+        CHECK(info.rotation == cw && info.width == (swap ? H : W), "rotation %d probe %d -> %d x %d", cw, info.rotation,
+              info.width, info.height);
+        io_frames A, B;
+        io_video_options opt = io_video_defaults();
+        opt.count = 2;
+        CHECK_OK(io_frames_read(src, &opt, &A));
+        CHECK_OK(io_frames_read(dst, &opt, &B));
+        if (A.count == 2 && B.count == 2) {
+            CHECK(B.width == (swap ? H : W) && B.height == (swap ? W : H), "rotated size %d x %d", B.width, B.height);
+            int bad = 0;
+            for (int y = 0; y < B.height; y++)
+                for (int x = 0; x < B.width; x++) {
+                    int sx, sy; /* source pixel that lands on (x, y) after a clockwise rotation */
+                    if (cw == 90) { sx = y; sy = H - 1 - x; }
+                    else if (cw == 270) { sx = W - 1 - y; sy = x; }
+                    else { sx = W - 1 - x; sy = H - 1 - y; }
+                    bad += memcmp(B.rgb + ((size_t)y * B.width + x) * 3, A.rgb + ((size_t)sy * W + sx) * 3, 3) != 0;
+                }
+            CHECK(bad == 0, "rotation %d: %d pixels differ", cw, bad);
+        }
+        io_frames_destroy(&A);
+        io_frames_destroy(&B);
+    }
+    /* Resize applies to the upright frame. */
+    io_frames B;
+    io_video_options opt = io_video_defaults();
+    opt.max_side = W / 2;
+    remux_rotated(src, dst, 90);
+    CHECK_OK(io_frames_read(dst, &opt, &B));
+    CHECK(B.width == H / 2 && B.height == W / 2, "rotated+resized %d x %d", B.width, B.height);
+    io_frames_destroy(&B);
+}
+
+static void test_folder(const char *dir)
+{
+    char sub[4096], p[4200];
+    pg_path_join(sub, sizeof sub, dir, "frames");
+    pg_mkdir_p(sub);
+    /* Natural order: f2 before f10. Frame value encodes its index. */
+    int idx[4] = { 1, 2, 10, 11 };
+    for (int i = 0; i < 4; i++) {
+        pg_image img;
+        pg_image_create(&img, 20, 10, 3);
+        for (int k = 0; k < 20 * 10 * 3; k++) img.data[k] = idx[i] / 20.0f;
+        snprintf(p, sizeof p, "%s/f%d.png", sub, idx[i]);
+        CHECK_OK(io_image_save_png(p, &img));
+        pg_image_destroy(&img);
+    }
+    io_frames fr;
+    io_video_options opt = io_video_defaults();
+    opt.first = 1;
+    CHECK_OK(io_frames_read(sub, &opt, &fr));
+    CHECK(fr.count == 3, "folder count %d", fr.count);
+    if (fr.count == 3) {
+        int v = (int)lround(fr.rgb[0] / 255.0 * 20.0);
+        int v2 = (int)lround(fr.rgb[(size_t)20 * 10 * 3] / 255.0 * 20.0);
+        CHECK(v == 2 && v2 == 10, "natural order gave %d, %d", v, v2);
+    }
+    io_frames_destroy(&fr);
+    io_video_info info;
+    CHECK_OK(io_video_probe(sub, &info));
+    CHECK(info.is_folder && info.frames == 4 && info.width == 20, "folder probe %d %d", info.frames, info.width);
+    /* Mismatched sizes in a folder. */
+    pg_image img;
+    pg_image_create(&img, 8, 8, 3);
+    pg_path_join(p, sizeof p, sub, "f12.png");
+    io_image_save_png(p, &img);
+    pg_image_destroy(&img);
+    opt = io_video_defaults();
+    CHECK(io_frames_read(sub, &opt, &fr) == PG_ERR_SIZE, "mixed sizes must fail: %s", pg_last_error());
+}
+
+static void test_bad(const char *dir)
+{
+    char path[4096], good[4096], err[1024], args[8500];
+    io_frames fr;
+    io_video_options opt = io_video_defaults();
+    pg_path_join(path, sizeof path, dir, "missing.mp4");
+    CHECK(io_frames_read(path, &opt, &fr) == PG_ERR_IO, "missing file");
+    CHECK(strstr(pg_last_error(), "missing.mp4") != NULL, "names file: %s", pg_last_error());
+
+    pg_path_join(path, sizeof path, dir, "garbled.mp4");
+    char junk[5000];
+    for (int i = 0; i < (int)sizeof junk; i++) junk[i] = (char)(i * 7919 % 251);
+    pg_write_file_atomic(path, junk, sizeof junk);
+    pg_status st = io_frames_read(path, &opt, &fr);
+    CHECK(st == PG_ERR_FORMAT, "garbled -> %d %s", (int)st, pg_last_error());
+    CHECK(strstr(pg_last_error(), "garbled.mp4") != NULL, "names file: %s", pg_last_error());
+    snprintf(args, sizeof args, "info '%s'", path);
+    int rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "garbled.mp4"), "info garbled rc %d err %s", rc, err);
+
+    /* Truncated: the first half of a valid file. */
+    pg_path_join(good, sizeof good, dir, "rt.mp4");
+    char *data;
+    size_t size;
+    if (pg_read_file(good, 1 << 26, &data, &size) == PG_OK) {
+        pg_path_join(path, sizeof path, dir, "trunc.mp4");
+        pg_write_file_atomic(path, data, size / 2);
+        st = io_frames_read(path, &opt, &fr);
+        CHECK(st != PG_OK, "truncated video must fail");
+        CHECK(strstr(pg_last_error(), "trunc.mp4") != NULL, "names file: %s", pg_last_error());
+        snprintf(args, sizeof args, "info '%s'", path);
+        rc = test_run_cli(args, err, sizeof err);
+        CHECK(rc == 2 && strstr(err, "trunc.mp4"), "info truncated rc %d err %s", rc, err);
+        free(data);
+    }
+    pg_path_join(path, sizeof path, dir, "empty_dir");
+    pg_mkdir_p(path);
+    CHECK(io_frames_read(path, &opt, &fr) == PG_ERR_FORMAT, "empty folder: %s", pg_last_error());
+}
+
+int main(void)
+{
+    char dir[4096];
+    test_tmpdir("test_io_video", dir, sizeof dir);
+    test_roundtrip(dir);
+    test_rotation(dir);
+    test_folder(dir);
+    test_bad(dir);
+    return test_summary("test_io_video");
+}
