@@ -276,7 +276,7 @@ void splat_tile_backward_simd(const splat_tile_job *j)
         }
         for (int k = kend; k >= kc; k--) {
             const splat_rec *r = &loc[k - kc];
-            __m512 a_m1 = zero, a_m2 = zero, a_xx = zero, a_xy = zero, a_yy = zero, a_o = zero;
+            __m512 g0 = zero, g1 = zero, g2 = zero; /* per lane: sum gs, sum gs dy, sum gs dy^2 */
             __m512 a_r = zero, a_g = zero, a_b = zero, a_z = zero;
             int r0 = r->ymin - j->y0, r1 = r->ymax - j->y0;
             if (r0 < 0) r0 = 0;
@@ -326,16 +326,17 @@ void splat_tile_backward_simd(const splat_tile_job *j)
                 a_z = _mm512_mask3_fmadd_ps(w, dd, a_z, m);
                 m = _mm512_mask_cmp_ps_mask(m, oG, amax, _CMP_LT_OQ); /* clamped alpha: no gradient */
                 __m512 gs = _mm512_maskz_mul_ps(m, dLda, a);           /* -dL/dsigma */
-                a_o = _mm512_mask3_fmadd_ps(dLda, G, a_o, m);
-                __m512 gdx = _mm512_mul_ps(gs, dx);
-                a_m1 = _mm512_add_ps(a_m1, gdx);
-                a_m2 = _mm512_fmadd_ps(gs, dyv, a_m2);
-                a_xx = _mm512_fmadd_ps(gs, dx2, a_xx);
-                a_xy = _mm512_fmadd_ps(gdx, dyv, a_xy);
-                a_yy = _mm512_fmadd_ps(gs, _mm512_mul_ps(dyv, dyv), a_yy);
+                __m512 gdy = _mm512_mul_ps(gs, dyv);
+                g0 = _mm512_add_ps(g0, gs);
+                g1 = _mm512_add_ps(g1, gdy);
+                g2 = _mm512_fmadd_ps(gdy, dyv, g2);
             }
-            /* dsigma/dx_mean = -(ca dx + cb dy), dsigma/dy_mean = -(cb dx + cc dy); gs = -dL/dsigma */
-            __m512 acc[10] = { a_m1, a_m2, a_xx, a_xy, a_yy, a_o, a_r, a_g, a_b, a_z };
+            /* dx is fixed per lane, so the dx moments come from g0, g1 after the row loop:
+             * sum gs dx = dx g0, sum gs dx^2 = dx^2 g0, sum gs dx dy = dx g1. With alpha = o G
+             * (unclamped lanes only), sum dL/dalpha G = sum gs / o. dsigma/dx_mean =
+             * -(ca dx + cb dy), dsigma/dy_mean = -(cb dx + cc dy); gs = -dL/dsigma. */
+            __m512 acc[10] = { _mm512_mul_ps(dx, g0), g1, _mm512_mul_ps(dx2, g0), _mm512_mul_ps(dx, g1), g2, g0,
+                               a_r, a_g, a_b, a_z };
             float sum[10];
             hsum10(acc, sum);
             float *slot = j->grad_slots + (size_t)SPLAT_GRAD_STRIDE * splat_slot(r, j->tx, j->ty);
@@ -344,7 +345,8 @@ void splat_tile_backward_simd(const splat_tile_job *j)
             slot[2] = -0.5f * sum[2];
             slot[3] = -sum[3];
             slot[4] = -0.5f * sum[4];
-            for (int c = 5; c < 10; c++) slot[c] = sum[c];
+            slot[5] = sum[5] / r->o;
+            for (int c = 6; c < 10; c++) slot[c] = sum[c];
         }
     }
 }
