@@ -18,16 +18,17 @@
 int splat_simd_available(void) { return 1; }
 const char *splat_simd_name(void) { return "avx512"; }
 
-/* Vector twin of splat_exp_poly. */
-static inline __m512 exp_poly16(__m512 x)
+/* exp(-s): the vector twin of splat_exp_poly(-s), with the negation folded into the range
+ * reduction (bit-identical: every step is the exact negative of the scalar one). Lanes outside
+ * a Gaussian's reach carry huge s; their results are masked off, but denormal intermediates
+ * would still cost microcode assists (several times slower for small Gaussians). Used lanes
+ * have s <= ln(255), so the clamp at 20 never changes them. */
+static inline __m512 exp_neg16(__m512 s)
 {
-    /* Lanes outside a Gaussian's reach carry huge sigma; their results are masked off, but
-     * denormal intermediates would still cost microcode assists (several times slower for
-     * small Gaussians). Used lanes have x >= -ln(255), so the clamp never changes them. */
-    x = _mm512_max_ps(x, _mm512_set1_ps(-20.0f));
-    __m512 n = _mm512_roundscale_ps(_mm512_mul_ps(x, _mm512_set1_ps(1.44269504088896341f)),
+    s = _mm512_min_ps(s, _mm512_set1_ps(20.0f));
+    __m512 n = _mm512_roundscale_ps(_mm512_mul_ps(s, _mm512_set1_ps(-1.44269504088896341f)),
                                     _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-    __m512 f = _mm512_fmadd_ps(n, _mm512_set1_ps(-0.693359375f), x);
+    __m512 f = _mm512_fnmsub_ps(n, _mm512_set1_ps(0.693359375f), s); /* -n ln2_hi - s */
     f = _mm512_fmadd_ps(n, _mm512_set1_ps(2.12194440e-4f), f);
     __m512 p = _mm512_set1_ps(1.0f / 720.0f);
     p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 120.0f));
@@ -163,8 +164,8 @@ void splat_tile_forward_simd(const splat_tile_job *j)
                 __mmask16 m1 = _mm512_mask_cmp_ps_mask(in1, s1, thr, _CMP_LE_OQ);
                 if (!(m0 | m1)) continue;
                 __m512 op = _mm512_set1_ps(r->o);
-                __m512 a0 = _mm512_min_ps(_mm512_mul_ps(op, exp_poly16(_mm512_sub_ps(zero, s0))), amax);
-                __m512 a1 = _mm512_min_ps(_mm512_mul_ps(op, exp_poly16(_mm512_sub_ps(zero, s1))), amax);
+                __m512 a0 = _mm512_min_ps(_mm512_mul_ps(op, exp_neg16(s0)), amax);
+                __m512 a1 = _mm512_min_ps(_mm512_mul_ps(op, exp_neg16(s1)), amax);
                 m0 &= act0;
                 m1 &= act1;
                 __m512 t0 = _mm512_mul_ps(T0, _mm512_sub_ps(one, a0));
@@ -298,7 +299,7 @@ void splat_tile_backward_simd(const splat_tile_job *j)
                 __m512 sig = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(ha, dx, bdyv), _mm512_mul_ps(_mm512_mul_ps(hcv, dyv), dyv));
                 m = _mm512_mask_cmp_ps_mask(m, sig, thr, _CMP_LE_OQ); /* alpha >= 1/255 */
                 if (!m) continue;
-                __m512 G = exp_poly16(_mm512_sub_ps(zero, sig));
+                __m512 G = exp_neg16(sig);
                 __m512 oG = _mm512_mul_ps(op, G);
                 __m512 a = _mm512_min_ps(oG, amax);
                 /* 1 / (1 - a) by rcp14 + one Newton step (rel. error ~1e-8; 1 - a >= 0.01) */
