@@ -1,4 +1,5 @@
-/* raster_simd.c - AVX-512 tile kernels: one 16-pixel tile row per vector, Gaussian-major loops.
+/* raster_simd.c - AVX-512 tile kernels: one 16-pixel tile row per vector (AVX2-only builds use
+ * raster_avx2.c; builds without either fall back to the scalar kernels).
  *
  * Per pixel the kernels do exactly the operations of the scalar reference (raster_tile.c) in
  * the same order, with fused multiply-adds in the same places, so the forward matches it bit for
@@ -352,7 +353,7 @@ void splat_tile_backward_simd(const splat_tile_job *j)
     }
 }
 
-#else /* no AVX-512 at compile time: the scalar kernels stand in */
+#elif !(defined(__AVX2__) && defined(__FMA__)) /* no SIMD at compile time: scalar kernels */
 
 int splat_simd_available(void) { return 0; }
 const char *splat_simd_name(void) { return "scalar"; }
