@@ -183,3 +183,117 @@ void splat_project_backward_lim(const float mean[3], const float log_scale[3], c
     mat3_tmul_vec(dm, cam->R, dt);
     vec3_add(d_mean, d_mean, dm);
 }
+
+#if defined(__AVX512F__)
+#include <immintrin.h>
+
+/* exp(x) for |x| < 87 (2^n times a degree-6 polynomial, rel. error ~2e-7). */
+static inline __m512 exp16(__m512 x)
+{
+    x = _mm512_min_ps(_mm512_max_ps(x, _mm512_set1_ps(-87.0f)), _mm512_set1_ps(87.0f));
+    __m512 n = _mm512_roundscale_ps(_mm512_mul_ps(x, _mm512_set1_ps(1.44269504088896341f)),
+                                    _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+    __m512 f = _mm512_fmadd_ps(n, _mm512_set1_ps(-0.693359375f), x);
+    f = _mm512_fmadd_ps(n, _mm512_set1_ps(2.12194440e-4f), f);
+    __m512 p = _mm512_set1_ps(1.0f / 720.0f);
+    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 120.0f));
+    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 24.0f));
+    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 6.0f));
+    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(0.5f));
+    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f));
+    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f));
+    return _mm512_scalef_ps(p, n);
+}
+
+int splat_project_forward16(const float *means, const float *log_scales, const float *quats, int i0,
+                            const pg_camera *cam, const float lim[4], float near_clip, float out[9][16],
+                            unsigned *valid)
+{
+    const __m512i lane = _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0);
+    const __m512i i3 = _mm512_mullo_epi32(lane, _mm512_set1_epi32(3)), i4 = _mm512_slli_epi32(lane, 2);
+    const float *mb = means + 3 * (size_t)i0, *lb = log_scales + 3 * (size_t)i0, *qb = quats + 4 * (size_t)i0;
+    __m512 m[3], ls[3], q[4];
+    for (int c = 0; c < 3; c++) {
+        m[c] = _mm512_i32gather_ps(i3, mb + c, 4);
+        ls[c] = _mm512_i32gather_ps(i3, lb + c, 4);
+    }
+    for (int c = 0; c < 4; c++) q[c] = _mm512_i32gather_ps(i4, qb + c, 4);
+    const float *W = cam->R;
+    __m512 t[3];
+    for (int r = 0; r < 3; r++)
+        t[r] = _mm512_fmadd_ps(_mm512_set1_ps(W[3*r]), m[0],
+                               _mm512_fmadd_ps(_mm512_set1_ps(W[3*r+1]), m[1],
+                                               _mm512_fmadd_ps(_mm512_set1_ps(W[3*r+2]), m[2], _mm512_set1_ps(cam->t[r]))));
+    __mmask16 ok = _mm512_cmp_ps_mask(t[2], _mm512_set1_ps(near_clip), _CMP_GE_OQ);
+    /* rotation of the normalised quaternion (identity for a zero quaternion) */
+    __m512 qn2 = _mm512_fmadd_ps(q[0], q[0], _mm512_fmadd_ps(q[1], q[1], _mm512_fmadd_ps(q[2], q[2], _mm512_mul_ps(q[3], q[3]))));
+    __mmask16 nz = _mm512_cmp_ps_mask(qn2, _mm512_setzero_ps(), _CMP_GT_OQ);
+    __m512 inv = _mm512_maskz_div_ps(nz, _mm512_set1_ps(1.0f), _mm512_sqrt_ps(qn2));
+    __m512 w = _mm512_mask_blend_ps(nz, _mm512_set1_ps(1.0f), _mm512_mul_ps(q[0], inv));
+    __m512 x = _mm512_mul_ps(q[1], inv), y = _mm512_mul_ps(q[2], inv), z = _mm512_mul_ps(q[3], inv);
+    __m512 one = _mm512_set1_ps(1.0f), two = _mm512_set1_ps(2.0f);
+    __m512 R[9];
+    R[0] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(y, y, _mm512_mul_ps(z, z)), one);
+    R[1] = _mm512_mul_ps(two, _mm512_fmsub_ps(x, y, _mm512_mul_ps(w, z)));
+    R[2] = _mm512_mul_ps(two, _mm512_fmadd_ps(x, z, _mm512_mul_ps(w, y)));
+    R[3] = _mm512_mul_ps(two, _mm512_fmadd_ps(x, y, _mm512_mul_ps(w, z)));
+    R[4] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(x, x, _mm512_mul_ps(z, z)), one);
+    R[5] = _mm512_mul_ps(two, _mm512_fmsub_ps(y, z, _mm512_mul_ps(w, x)));
+    R[6] = _mm512_mul_ps(two, _mm512_fmsub_ps(x, z, _mm512_mul_ps(w, y)));
+    R[7] = _mm512_mul_ps(two, _mm512_fmadd_ps(y, z, _mm512_mul_ps(w, x)));
+    R[8] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(x, x, _mm512_mul_ps(y, y)), one);
+    __m512 s[3] = { exp16(ls[0]), exp16(ls[1]), exp16(ls[2]) };
+    __m512 M[9];
+    for (int i = 0; i < 3; i++)
+        for (int k = 0; k < 3; k++) M[3*i+k] = _mm512_mul_ps(R[3*i+k], s[k]);
+    /* cov = M M^T (symmetric, 6 entries) */
+    __m512 C[9];
+    for (int i = 0; i < 3; i++)
+        for (int j = i; j < 3; j++)
+            C[3*i+j] = C[3*j+i] = _mm512_fmadd_ps(M[3*i], M[3*j], _mm512_fmadd_ps(M[3*i+1], M[3*j+1], _mm512_mul_ps(M[3*i+2], M[3*j+2])));
+    /* Jacobian with the clamped x/z, y/z */
+    __m512 iz = _mm512_div_ps(one, t[2]);
+    __m512 uc = _mm512_min_ps(_mm512_max_ps(_mm512_mul_ps(t[0], iz), _mm512_set1_ps(lim[0])), _mm512_set1_ps(lim[1]));
+    __m512 wc = _mm512_min_ps(_mm512_max_ps(_mm512_mul_ps(t[1], iz), _mm512_set1_ps(lim[2])), _mm512_set1_ps(lim[3]));
+    __m512 fx = _mm512_set1_ps(cam->fx), fy = _mm512_set1_ps(cam->fy);
+    __m512 J00 = _mm512_mul_ps(fx, iz), J02 = _mm512_sub_ps(_mm512_setzero_ps(), _mm512_mul_ps(_mm512_mul_ps(fx, uc), iz));
+    __m512 J11 = _mm512_mul_ps(fy, iz), J12 = _mm512_sub_ps(_mm512_setzero_ps(), _mm512_mul_ps(_mm512_mul_ps(fy, wc), iz));
+    __m512 T0[3], T1[3];
+    for (int j = 0; j < 3; j++) {
+        T0[j] = _mm512_fmadd_ps(J00, _mm512_set1_ps(W[j]), _mm512_mul_ps(J02, _mm512_set1_ps(W[6+j])));
+        T1[j] = _mm512_fmadd_ps(J11, _mm512_set1_ps(W[3+j]), _mm512_mul_ps(J12, _mm512_set1_ps(W[6+j])));
+    }
+    __m512 TC0[3], TC1[3];
+    for (int j = 0; j < 3; j++) {
+        TC0[j] = _mm512_fmadd_ps(T0[0], C[j], _mm512_fmadd_ps(T0[1], C[3+j], _mm512_mul_ps(T0[2], C[6+j])));
+        TC1[j] = _mm512_fmadd_ps(T1[0], C[j], _mm512_fmadd_ps(T1[1], C[3+j], _mm512_mul_ps(T1[2], C[6+j])));
+    }
+    __m512 lp = _mm512_set1_ps(SPLAT_LOWPASS);
+    __m512 sxx = _mm512_add_ps(_mm512_fmadd_ps(TC0[0], T0[0], _mm512_fmadd_ps(TC0[1], T0[1], _mm512_mul_ps(TC0[2], T0[2]))), lp);
+    __m512 sxy = _mm512_fmadd_ps(TC0[0], T1[0], _mm512_fmadd_ps(TC0[1], T1[1], _mm512_mul_ps(TC0[2], T1[2])));
+    __m512 syy = _mm512_add_ps(_mm512_fmadd_ps(TC1[0], T1[0], _mm512_fmadd_ps(TC1[1], T1[1], _mm512_mul_ps(TC1[2], T1[2]))), lp);
+    __m512 det = _mm512_fmsub_ps(sxx, syy, _mm512_mul_ps(sxy, sxy));
+    ok &= _mm512_cmp_ps_mask(det, _mm512_setzero_ps(), _CMP_GT_OQ);
+    __m512 id = _mm512_div_ps(one, det);
+    _mm512_storeu_ps(out[0], _mm512_fmadd_ps(_mm512_mul_ps(fx, t[0]), iz, _mm512_set1_ps(cam->cx)));
+    _mm512_storeu_ps(out[1], _mm512_fmadd_ps(_mm512_mul_ps(fy, t[1]), iz, _mm512_set1_ps(cam->cy)));
+    _mm512_storeu_ps(out[2], t[2]);
+    _mm512_storeu_ps(out[3], sxx);
+    _mm512_storeu_ps(out[4], sxy);
+    _mm512_storeu_ps(out[5], syy);
+    _mm512_storeu_ps(out[6], _mm512_mul_ps(syy, id));
+    _mm512_storeu_ps(out[7], _mm512_sub_ps(_mm512_setzero_ps(), _mm512_mul_ps(sxy, id)));
+    _mm512_storeu_ps(out[8], _mm512_mul_ps(sxx, id));
+    *valid = ok;
+    return 1;
+}
+#else
+int splat_project_forward16(const float *means, const float *log_scales, const float *quats, int i0,
+                            const pg_camera *cam, const float lim[4], float near_clip, float out[9][16],
+                            unsigned *valid)
+{
+    (void)means; (void)log_scales; (void)quats; (void)i0; (void)cam; (void)lim; (void)near_clip; (void)out;
+    *valid = 0;
+    return 0;
+}
+#endif

@@ -37,5 +37,12 @@ void splat_project_backward_lim(const float mean[3], const float log_scale[3], c
                                 const pg_camera *cam, const float lim[4], const float d_xy[2],
                                 const float d_conic[3], float d_z, float d_mean[3], float d_log_scale[3],
                                 float d_quat[4]);
+/* Gaussians i0 .. i0+15 at once (AVX-512 builds; returns 0 and does nothing otherwise).
+ * out rows: x, y, z, Sigma2D xx, xy, yy, conic a, b, c (16 lanes each); valid bit l set when
+ * Gaussian i0+l was kept. Float results differ from the scalar path by rounding only (exp is
+ * a polynomial here). */
+int splat_project_forward16(const float *means, const float *log_scales, const float *quats, int i0,
+                            const pg_camera *cam, const float lim[4], float near_clip, float out[9][16],
+                            unsigned *valid);
 
 #endif

@@ -141,33 +141,30 @@ static pg_status ensure_tiles(splat_raster *r, int tiles)
 
 static float sigmoidf(float x) { return 1.0f / (1.0f + expf(-x)); }
 
-/* Projects Gaussian i, evaluates its colour and opacity-aware box; fills r->rec[i] and
- * r->ntiles[i] (0 when culled). */
-static void preprocess_one(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
-                           const pg_render_settings *s, int deg, int i)
+/* Given the projection of Gaussian i, evaluates its opacity-aware box and colour; fills
+ * r->rec[i], r->rect[i], r->clamp[i] and r->ntiles[i] (0 when culled). */
+static void finish_one(splat_raster *r, const pg_gaussians *g, const pg_camera *cam, int deg, int i,
+                       const splat_proj *p)
 {
     r->ntiles[i] = 0;
-    splat_proj p;
-    if (!splat_project_forward_lim(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, r->lim, s->near_clip, &p))
-        return;
     float o = sigmoidf(g->opacity[i]);
     if (!(o >= SPLAT_ALPHA_MIN)) return;
     /* alpha = o exp(-sigma) >= 1/255 inside sigma <= ln(255 o); along x that reaches
      * sqrt(2 ln(255 o) Sigma_xx). */
     float lim = logf(255.0f * o);
     float e = fminf(3.33f, sqrtf(2.0f * fmaxf(lim, 0.0f)));
-    float rx = ceilf(e * sqrtf(p.cov2d[0])), ry = ceilf(e * sqrtf(p.cov2d[2]));
+    float rx = ceilf(e * sqrtf(p->cov2d[0])), ry = ceilf(e * sqrtf(p->cov2d[2]));
     /* Pixel i is covered when |i + 0.5 - x| <= rx. Compare in float before any int cast. */
-    float fxmin = ceilf(p.xy[0] - rx - 0.5f), fxmax = floorf(p.xy[0] + rx - 0.5f);
-    float fymin = ceilf(p.xy[1] - ry - 0.5f), fymax = floorf(p.xy[1] + ry - 0.5f);
+    float fxmin = ceilf(p->xy[0] - rx - 0.5f), fxmax = floorf(p->xy[0] + rx - 0.5f);
+    float fymin = ceilf(p->xy[1] - ry - 0.5f), fymax = floorf(p->xy[1] + ry - 0.5f);
     if (!(fxmax >= 0 && fymax >= 0 && fxmin <= cam->width - 1 && fymin <= cam->height - 1)) return;
     int xmin = fxmin < 0 ? 0 : (int)fxmin, xmax = fxmax > cam->width - 1 ? cam->width - 1 : (int)fxmax;
     int ymin = fymin < 0 ? 0 : (int)fymin, ymax = fymax > cam->height - 1 ? cam->height - 1 : (int)fymax;
     if (xmin > xmax || ymin > ymax) return;
     splat_rec *rc = &r->rec[i];
-    rc->x = p.xy[0]; rc->y = p.xy[1];
-    rc->ha = 0.5f * p.conic[0]; rc->cb = p.conic[1]; rc->hc = 0.5f * p.conic[2];
-    rc->o = o; rc->z = p.z;
+    rc->x = p->xy[0]; rc->y = p->xy[1];
+    rc->ha = 0.5f * p->conic[0]; rc->cb = p->conic[1]; rc->hc = 0.5f * p->conic[2];
+    rc->o = o; rc->z = p->z;
     rc->thr = lim; /* sigma <= ln(255 o) is exactly o exp(-sigma) >= 1/255, without rounding doubts */
     rc->ymin = ymin; rc->ymax = ymax;
     rc->tx0 = xmin / SPLAT_TILE;
@@ -181,6 +178,32 @@ static void preprocess_one(splat_raster *r, const pg_gaussians *g, const pg_came
     uint16_t *bx = r->rect + 4 * (size_t)i;
     bx[0] = (uint16_t)rc->tx0; bx[1] = (uint16_t)(ymin / SPLAT_TILE);
     bx[2] = (uint16_t)(xmax / SPLAT_TILE); bx[3] = (uint16_t)(ymax / SPLAT_TILE);
+}
+
+/* Preprocesses Gaussians i0 .. i1-1: projection 16 at a time where SIMD is compiled in. */
+static void preprocess_range(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
+                             const pg_render_settings *s, int deg, int i0, int i1)
+{
+    int i = i0;
+    float pr[9][16];
+    unsigned valid;
+    for (; i + 16 <= i1; i += 16) {
+        if (!splat_project_forward16(g->means, g->log_scales, g->quats, i, cam, r->lim, s->near_clip, pr, &valid))
+            break;
+        for (int l = 0; l < 16; l++) {
+            if (!(valid >> l & 1)) { r->ntiles[i + l] = 0; continue; }
+            splat_proj p = { { pr[0][l], pr[1][l] }, pr[2][l], { pr[3][l], pr[4][l], pr[5][l] },
+                             { pr[6][l], pr[7][l], pr[8][l] } };
+            finish_one(r, g, cam, deg, i + l, &p);
+        }
+    }
+    for (; i < i1; i++) {
+        splat_proj p;
+        if (splat_project_forward_lim(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, r->lim, s->near_clip, &p))
+            finish_one(r, g, cam, deg, i, &p);
+        else
+            r->ntiles[i] = 0;
+    }
 }
 
 /* Stable LSD radix sort of (key, value) pairs by 32-bit key, 8 bits per pass. */
@@ -261,11 +284,13 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     #pragma omp parallel num_threads(nth)
     {
         int t = omp_get_thread_num(), T = omp_get_num_threads();
-        int i0 = (int)((long)n * t / T), i1 = (int)((long)n * (t + 1) / T);
+        /* chunk edges on multiples of 16, so every Gaussian takes the same (vector or scalar
+         * tail) projection path whatever the thread count */
+        int i0 = (int)((long)n * t / T) & ~15, i1 = t == T - 1 ? n : (int)((long)n * (t + 1) / T) & ~15;
         size_t mm = 0;
         int vv = 0;
+        preprocess_range(r, g, cam, s, deg, i0, i1);
         for (int i = i0; i < i1; i++) {
-            preprocess_one(r, g, cam, s, deg, i);
             mm += (size_t)r->ntiles[i];
             vv += r->ntiles[i] > 0;
         }
