@@ -93,6 +93,66 @@ static void test_projection(void)
     CHECK(worst[2] < 1e-3, "quaternion gradient rel err %g", worst[2]);
 }
 
+/* The 16-wide projection forward/backward (AVX-512 builds) against the scalar functions,
+ * which the test above checks against finite differences. */
+static void test_projection16(void)
+{
+    pg_rng rng;
+    pg_rng_seed(&rng, 21);
+    pg_camera cam;
+    camera_for_test(&cam, 64, 48, 1);
+    const int n = 64;
+    float means[3 * 64], ls[3 * 64], q[4 * 64];
+    for (int i = 0; i < n; i++) {
+        float spread = i % 5 == 4 ? 8.0f : 1.0f; /* some outside the 1.3x frustum: clamp path */
+        means[3*i] = (float)pg_rng_range(&rng, -spread, spread);
+        means[3*i+1] = (float)pg_rng_range(&rng, -spread, spread);
+        means[3*i+2] = (float)pg_rng_range(&rng, i % 7 == 6 ? -1 : 2, 6); /* some behind the camera */
+        for (int k = 0; k < 3; k++) ls[3*i+k] = (float)pg_rng_range(&rng, -3, -1);
+        for (int k = 0; k < 4; k++) q[4*i+k] = (float)pg_rng_normal(&rng);
+    }
+    float lim[4];
+    splat_project_limits(&cam, lim);
+    float out[9][16], dxy[2][16], dcon[3][16], dz[16];
+    unsigned valid;
+    if (!splat_project_forward16(means, ls, q, 0, &cam, lim, 0.01f, out, &valid)) {
+        printf("projection16: not compiled in (no AVX-512), skipped\n");
+        return;
+    }
+    double ef = 0, eb = 0;
+    float gm[3 * 64] = { 0 }, gs[3 * 64] = { 0 }, gq[4 * 64] = { 0 };
+    float hm[3 * 64] = { 0 }, hs[3 * 64] = { 0 }, hq[4 * 64] = { 0 };
+    int kept = 0;
+    for (int b = 0; b < n; b += 16) {
+        splat_project_forward16(means, ls, q, b, &cam, lim, 0.01f, out, &valid);
+        for (int l = 0; l < 16; l++) {
+            int i = b + l;
+            splat_proj p;
+            int ok = splat_project_forward_lim(means + 3*i, ls + 3*i, q + 4*i, &cam, lim, 0.01f, &p);
+            CHECK(ok == (int)(valid >> l & 1), "Gaussian %d kept by one projection only", i);
+            for (int k = 0; k < 2; k++) dxy[k][l] = (float)pg_rng_normal(&rng);
+            for (int k = 0; k < 3; k++) dcon[k][l] = (float)pg_rng_normal(&rng);
+            dz[l] = (float)pg_rng_normal(&rng);
+            if (!ok) continue;
+            kept++;
+            float v[9] = { p.xy[0], p.xy[1], p.z, p.cov2d[0], p.cov2d[1], p.cov2d[2], p.conic[0], p.conic[1], p.conic[2] };
+            for (int k = 0; k < 9; k++) ef = fmax(ef, rel(v[k], out[k][l], 1e-6));
+            float d1[2] = { dxy[0][l], dxy[1][l] }, d2[3] = { dcon[0][l], dcon[1][l], dcon[2][l] };
+            splat_project_backward_lim(means + 3*i, ls + 3*i, q + 4*i, &cam, lim, d1, d2, dz[l], hm + 3*i, hs + 3*i, hq + 4*i);
+        }
+        splat_project_backward16(means, ls, q, b, &cam, lim, dxy, dcon, dz, valid, gm, gs, gq);
+    }
+    double scale[3] = { 1e-9, 1e-9, 1e-9 };
+    for (int i = 0; i < 3 * n; i++) { scale[0] = fmax(scale[0], fabs(hm[i])); scale[1] = fmax(scale[1], fabs(hs[i])); }
+    for (int i = 0; i < 4 * n; i++) scale[2] = fmax(scale[2], fabs(hq[i]));
+    for (int i = 0; i < 3 * n; i++) { eb = fmax(eb, rel(gm[i], hm[i], 1e-3 * scale[0])); eb = fmax(eb, rel(gs[i], hs[i], 1e-3 * scale[1])); }
+    for (int i = 0; i < 4 * n; i++) eb = fmax(eb, rel(gq[i], hq[i], 1e-3 * scale[2]));
+    printf("projection16 vs scalar (%d of %d kept): forward %.2e, backward %.2e\n", kept, n, ef, eb);
+    CHECK(kept > 20 && kept < n, "test data should keep some and cull some (%d)", kept);
+    CHECK(ef < 1e-4, "16-wide projection differs by %g", ef);
+    CHECK(eb < 1e-3, "16-wide projection backward differs by %g", eb);
+}
+
 /* SH: every degree, loss = w . rgb, gradient to the coefficients and the view direction. */
 static void test_sh(void)
 {
@@ -263,6 +323,7 @@ static void test_raster(int output)
 int main(void)
 {
     test_projection();
+    test_projection16();
     test_sh();
     for (int output = 0; output < 3; output++) test_raster(output);
     return test_summary("test_splat_grad");

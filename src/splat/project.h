@@ -44,5 +44,12 @@ void splat_project_backward_lim(const float mean[3], const float log_scale[3], c
 int splat_project_forward16(const float *means, const float *log_scales, const float *quats, int i0,
                             const pg_camera *cam, const float lim[4], float near_clip, float out[9][16],
                             unsigned *valid);
+/* Adds the gradients of Gaussians i0 .. i0+15 whose bit is set in mask (AVX-512 builds;
+ * returns 0 and does nothing otherwise). Inputs as in splat_project_backward, one row per
+ * quantity with 16 lanes. */
+int splat_project_backward16(const float *means, const float *log_scales, const float *quats, int i0,
+                             const pg_camera *cam, const float lim[4], const float d_xy[2][16],
+                             const float d_conic[3][16], const float d_z[16], unsigned mask,
+                             float *d_means, float *d_log_scales, float *d_quats);
 
 #endif

@@ -415,31 +415,51 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
     splat_project_limits(cam, lim);
     int deg = r->sh_degree, n = g->count;
     float half_w = 0.5f * cam->width, half_h = 0.5f * cam->height;
-    #pragma omp parallel for schedule(static, 256)
-    for (int i = 0; i < n; i++) {
-        if (r->ntiles[i] == 0) continue;
-        const splat_rec *rc = &r->rec[i];
-        double acc[SPLAT_GRAD_STRIDE] = { 0 };
-        const float *sl = r->slots + (size_t)SPLAT_GRAD_STRIDE * rc->slot_base;
-        for (int k = 0; k < r->ntiles[i]; k++)
-            for (int c = 0; c < SPLAT_GRAD_STRIDE; c++) acc[c] += sl[SPLAT_GRAD_STRIDE * k + c];
-        float d_xy[2] = { (float)acc[0], (float)acc[1] };
-        float d_conic[3] = { (float)acc[2], (float)acc[3], (float)acc[4] };
-        float d_rgb3[3] = { (float)acc[6], (float)acc[7], (float)acc[8] };
-        float d_z = (float)acc[9];
-        /* opacity = sigmoid(logit) */
-        grad->opacity[i] += (float)acc[5] * rc->o * (1.0f - rc->o);
-        float dir[3], d_dir[3] = { 0, 0, 0 };
-        vec3_sub(dir, g->means + 3*i, C);
-        int cl[3] = { r->clamp[i] & 1, (r->clamp[i] >> 1) & 1, (r->clamp[i] >> 2) & 1 };
-        splat_sh_backward(deg, g->sh + (size_t)48 * i, dir, cl, d_rgb3, grad->sh + (size_t)48 * i, d_dir);
-        vec3_add(grad->means + 3*i, grad->means + 3*i, d_dir);
-        splat_project_backward_lim(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, lim, d_xy, d_conic, d_z,
-                                   grad->means + 3*i, grad->log_scales + 3*i, grad->quats + 4*i);
-        if (viewspace_grad_norm) {
-            /* In NDC units (x pixels * 2/W) like 3DGS, so its 2e-4 densification threshold applies. */
-            float gx = d_xy[0] * half_w, gy = d_xy[1] * half_h;
-            viewspace_grad_norm[i] += sqrtf(gx * gx + gy * gy);
+    /* Blocks of 16 Gaussians: slot sums, opacity and SH per Gaussian, then the projection
+     * backward 16 at a time (same blocks for any thread count, so results stay identical). */
+    int nblk = (n + 15) / 16;
+    #pragma omp parallel for schedule(static, 16)
+    for (int b = 0; b < nblk; b++) {
+        int i0 = 16 * b, cnt = n - i0 < 16 ? n - i0 : 16;
+        float d_xy[2][16], d_conic[3][16], d_z[16];
+        unsigned mask = 0;
+        for (int l = 0; l < cnt; l++) {
+            int i = i0 + l;
+            d_xy[0][l] = d_xy[1][l] = d_conic[0][l] = d_conic[1][l] = d_conic[2][l] = d_z[l] = 0;
+            if (r->ntiles[i] == 0) continue;
+            mask |= 1u << l;
+            const splat_rec *rc = &r->rec[i];
+            double acc[SPLAT_GRAD_STRIDE] = { 0 };
+            const float *sl = r->slots + (size_t)SPLAT_GRAD_STRIDE * rc->slot_base;
+            for (int k = 0; k < r->ntiles[i]; k++)
+                for (int c = 0; c < SPLAT_GRAD_STRIDE; c++) acc[c] += sl[SPLAT_GRAD_STRIDE * k + c];
+            d_xy[0][l] = (float)acc[0]; d_xy[1][l] = (float)acc[1];
+            d_conic[0][l] = (float)acc[2]; d_conic[1][l] = (float)acc[3]; d_conic[2][l] = (float)acc[4];
+            d_z[l] = (float)acc[9];
+            float d_rgb3[3] = { (float)acc[6], (float)acc[7], (float)acc[8] };
+            /* opacity = sigmoid(logit) */
+            grad->opacity[i] += (float)acc[5] * rc->o * (1.0f - rc->o);
+            float dir[3], d_dir[3] = { 0, 0, 0 };
+            vec3_sub(dir, g->means + 3*i, C);
+            int cl[3] = { r->clamp[i] & 1, (r->clamp[i] >> 1) & 1, (r->clamp[i] >> 2) & 1 };
+            splat_sh_backward(deg, g->sh + (size_t)48 * i, dir, cl, d_rgb3, grad->sh + (size_t)48 * i, d_dir);
+            vec3_add(grad->means + 3*i, grad->means + 3*i, d_dir);
+            if (viewspace_grad_norm) {
+                /* In NDC units (x pixels * 2/W) like 3DGS, so its 2e-4 densification threshold applies. */
+                float gx = d_xy[0][l] * half_w, gy = d_xy[1][l] * half_h;
+                viewspace_grad_norm[i] += sqrtf(gx * gx + gy * gy);
+            }
+        }
+        if (!mask) continue;
+        if (cnt == 16 && splat_project_backward16(g->means, g->log_scales, g->quats, i0, cam, lim, d_xy, d_conic, d_z,
+                                                  mask, grad->means, grad->log_scales, grad->quats))
+            continue;
+        for (int l = 0; l < cnt; l++) {
+            if (!(mask >> l & 1)) continue;
+            int i = i0 + l;
+            float dxy[2] = { d_xy[0][l], d_xy[1][l] }, dcon[3] = { d_conic[0][l], d_conic[1][l], d_conic[2][l] };
+            splat_project_backward_lim(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, lim, dxy, dcon, d_z[l],
+                                       grad->means + 3*i, grad->log_scales + 3*i, grad->quats + 4*i);
         }
     }
     return PG_OK;
