@@ -14,8 +14,6 @@
 #if defined(__AVX512F__)
 #include <immintrin.h>
 
-#define SPLAT_PREFETCH 6
-
 int splat_simd_available(void) { return 1; }
 const char *splat_simd_name(void) { return "avx512"; }
 
