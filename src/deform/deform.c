@@ -19,6 +19,7 @@ const int deform_head_offset[DEFORM_HEADS] = { DEFORM_OUT_POS, DEFORM_OUT_SCALE,
 const int deform_head_dim[DEFORM_HEADS] = { 3, 3, 4, 1, 48 };
 
 #define DEFAULT_CHUNK 256
+#define HEX_PREFETCH_AHEAD 4 /* points */
 
 void deform_config_default(deform_config *c)
 {
@@ -421,8 +422,11 @@ static float *layer_out(const deform_ws *ws, float *acts, int l, int m)
 static void chunk_forward_hidden(const deform_network *net, deform_ws *ws, float *acts, long start, int m, int tid)
 {
     const int F = ws->F;
-    for (int i = 0; i < m; i++)
+    for (int i = 0; i < m; i++) {
+        if (i + HEX_PREFETCH_AHEAD < m)
+            hex_prefetch(&net->grid, NULL, ws->means + 3 * point_row(ws, start + i + HEX_PREFETCH_AHEAD), ws->t);
         hex_sample_forward(acts + (size_t)i * F, &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
+    }
     uint16_t *apack = (uint16_t *)(ws->scratch + (size_t)tid * ws->scratch_floats + ws->apack_off);
     for (int l = 0; l < net->num_layers; l++) {
         const deform_layer *L = &net->layers[l];
@@ -590,6 +594,11 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
             }
             /* dcur = d features (m, F) */
             for (int i = 0; i < m; i++) {
+                if (i + HEX_PREFETCH_AHEAD < m) {
+                    long gn = point_row(ws, start + i + HEX_PREFETCH_AHEAD);
+                    hex_prefetch(&net->grid, dplanes, ws->means + 3 * gn, ws->t);
+                    if (d_means) __builtin_prefetch(d_means + 3 * gn, 1, 3);
+                }
                 long gi = point_row(ws, start + i);
                 hex_sample_backward(dplanes, d_means ? d_means + 3 * gi : NULL, dcur + (size_t)i * F, &net->grid,
                                     ws->means + 3 * gi, ws->t);

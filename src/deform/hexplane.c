@@ -58,6 +58,32 @@ int hex_time_row(const hex_grid *g, float t)
     return ax.i0;
 }
 
+void hex_prefetch(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const float *pos, float t)
+{
+    const int C = g->C;
+    for (int s = 0; s < g->S; s++) {
+        hex_axis ax[4];
+        hex_axes(ax, g, s, pos, t);
+        for (int p = 0; p < HEX_PLANES; p++) {
+            const hex_axis *A = &ax[hex_plane_axes[p][0]], *B = &ax[hex_plane_axes[p][1]];
+            size_t Wp = (size_t)hex_axis_res(g, s, hex_plane_axes[p][0]);
+            size_t off = ((size_t)B->i0 * Wp + A->i0) * C, row = Wp * C;
+            const float *t00 = g->planes[s][p] + off;
+            __builtin_prefetch(t00, 0, 3);
+            __builtin_prefetch(t00 + C, 0, 3);
+            __builtin_prefetch(t00 + row, 0, 3);
+            __builtin_prefetch(t00 + row + C, 0, 3);
+            if (d_planes) {
+                float *d00 = d_planes[s][p] + off;
+                __builtin_prefetch(d00, 1, 3);
+                __builtin_prefetch(d00 + C, 1, 3);
+                __builtin_prefetch(d00 + row, 1, 3);
+                __builtin_prefetch(d00 + row + C, 1, 3);
+            }
+        }
+    }
+}
+
 void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float t)
 {
     const int C = g->C;

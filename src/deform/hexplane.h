@@ -45,6 +45,10 @@ size_t hex_total_size(const hex_grid *g);
  * hex_time_row(g, t) and +1 of the time planes. */
 int hex_time_row(const hex_grid *g, float t);
 
+/* Prefetches the texels (and, if d_planes != NULL, their gradient lines) a sample at pos will
+ * touch; called a few points ahead hides the cache misses of the random plane accesses. */
+void hex_prefetch(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const float *pos, float t);
+
 /* Samples one point: feat (S*C). pos (3) in world units, t in [0,1]. */
 void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float t);
 
