@@ -27,7 +27,7 @@ typedef struct {
     float dgdx; /* 0 where the coordinate was clamped */
 } hex_axis;
 
-static void hex_axis_setup(hex_axis *ax, float u, float du_dx, int res)
+static inline __attribute__((always_inline)) void hex_axis_setup(hex_axis *ax, float u, float du_dx, int res)
 {
     float dg = du_dx * (float)(res - 1);
     if (!(u > 0.0f)) { u = 0.0f; dg = 0.0f; } /* also catches NaN */
@@ -41,7 +41,8 @@ static void hex_axis_setup(hex_axis *ax, float u, float du_dx, int res)
 }
 
 /* Axis setup of all 4 coordinates for scale s. */
-static void hex_axes(hex_axis ax[4], const hex_grid *g, int s, const float *pos, float t)
+static inline __attribute__((always_inline)) void hex_axes(hex_axis ax[4], const hex_grid *g, int s, const float *pos,
+                                                            float t)
 {
     for (int d = 0; d < 3; d++) {
         float ext = g->aabb[3 + d] - g->aabb[d];
