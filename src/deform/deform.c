@@ -493,7 +493,7 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
     const int W = ws->W, W5 = DEFORM_HEADS * W, F = ws->F;
     long nchunks = (n + ws->chunk - 1) / ws->chunk;
     int nt = omp_get_max_threads();
-    if (nt > ws->nthreads) return pg_fail(PG_ERR_ARG, "deform_network_backward: thread count changed since forward");
+    if (nt > ws->nthreads) return pg_fail(PG_ERR_ARG, "deform_network_backward: more threads than the workspace was sized for at the forward");
     size_t mx = (size_t)(W > F ? W : F);
     int used_threads = 1;
     /* Parameter ranges a backward can write: spatial planes, the two time rows at t of each time
