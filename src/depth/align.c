@@ -12,17 +12,38 @@ void depth_align_defaults(depth_align_params *p)
     p->min_pixels = 50;
 }
 
-static int cmp_double(const void *a, const void *b)
+/* k-th smallest of v[0..m) by quickselect (reorders v); O(m) on average. */
+static double select_kth(double *v, size_t m, size_t kk)
 {
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
+    long lo = 0, hi = (long)m - 1, k = (long)kk;
+    while (lo < hi) {
+        double pivot = v[lo + (hi - lo) / 2];
+        long i = lo, j = hi;
+        while (i <= j) {
+            while (v[i] < pivot) i++;
+            while (v[j] > pivot) j--;
+            if (i <= j) {
+                double t = v[i];
+                v[i++] = v[j];
+                v[j--] = t;
+            }
+        }
+        if (k <= j) hi = j;
+        else if (k >= i) lo = i;
+        else break;
+    }
+    return v[k];
 }
 
 /* Median of v[0..m) (reorders v). */
 static double median_inplace(double *v, size_t m)
 {
-    qsort(v, m, sizeof(double), cmp_double);
-    return m % 2 ? v[m / 2] : 0.5 * (v[m / 2 - 1] + v[m / 2]);
+    double hi = select_kth(v, m, m / 2);
+    if (m % 2) return hi;
+    double lo = v[0];
+    for (size_t k = 1; k < m / 2; k++)
+        if (v[k] > lo) lo = v[k];
+    return 0.5 * (lo + hi);
 }
 
 pg_status depth_align_fit(const depth_align_params *p, const float *d_i, const float *d_ref,

@@ -26,8 +26,8 @@ void depth_flow_tvl1_defaults(depth_flow_tvl1_params *p)
     p->theta = 0.3f;
     p->tau = 0.25f;
     p->scales = 5;
-    p->warps = 5;
-    p->iterations = 30;
+    p->warps = 4;
+    p->iterations = 20;
     p->median = 1;
 }
 

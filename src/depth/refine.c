@@ -14,8 +14,9 @@ void depth_refine_defaults(depth_refine_params *p)
     p->radius = 9;
     p->sigma_color = 0.08f;
     p->sigma_space = 4.0f;
-    p->edge_thresh = 0.012f;
-    p->band_radius = 2;
+    p->edge_thresh = 0.025f;
+    p->band_radius = 1;
+    p->depth_weight = 0.15f;
 }
 
 static const char *const refine_names[DEPTH_REFINE_COUNT] = { "none", "edge-snap", "bilateral" };
@@ -206,6 +207,26 @@ static pg_status refine_edge_snap(void *ctx, const pg_image *rgb, const float *d
                     continue;
                 }
                 qsort(pairs, m, sizeof(vw_pair), cmp_vw);
+                /* Depth likelihood: the blurred value itself says which side of the step the pixel
+                 * is on (the true edge is where the blur crosses the midpoint), so candidates close
+                 * to it gain weight. Its width follows the local step height (10th-90th percentile
+                 * of the candidates); near the midpoint both sides tie and colour decides. */
+                float range = pairs[(m * 9) / 10].v - pairs[m / 10].v;
+                float sd = p.depth_weight * range, floor_sd = 0.005f * d;
+                if (sd < floor_sd) sd = floor_sd;
+                if (p.depth_weight > 0.0f && sd > 0.0f) {
+                    const float id = 0.5f / (sd * sd);
+                    total = 0.0f;
+                    for (int j = 0; j < m; j++) {
+                        float dv = pairs[j].v - d;
+                        pairs[j].w *= expf(-id * dv * dv);
+                        total += pairs[j].w;
+                    }
+                }
+                if (total < 1e-20f) {
+                    dout[k] = d;
+                    continue;
+                }
                 float acc = 0.0f, half = 0.5f * total;
                 int j = 0;
                 while (j < m - 1 && acc + pairs[j].w < half) acc += pairs[j++].w;

@@ -36,11 +36,12 @@ typedef struct {
 } depth_refine_backend;
 
 typedef struct {
-    int radius;          /* search window radius in px (default 7) */
+    int radius;          /* search window radius in px (default 9) */
     float sigma_color;   /* RGB distance scale (default 0.08) */
-    float sigma_space;   /* px (default 3.5) */
-    float edge_thresh;   /* log-depth second difference marking a blurred edge (default 0.012) */
-    int band_radius;     /* dilation of the detected edge pixels into the band (default 3) */
+    float sigma_space;   /* px (default 4) */
+    float edge_thresh;   /* log-depth second difference marking a blurred edge (default 0.025) */
+    int band_radius;     /* dilation of the detected edge pixels into the band (default 1) */
+    float depth_weight;  /* width of the depth likelihood as a fraction of the local step (0.15; 0 = off) */
 } depth_refine_params;
 
 void depth_refine_defaults(depth_refine_params *p);
