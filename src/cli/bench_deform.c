@@ -39,7 +39,7 @@ int bench_deform(int argc, char **argv)
         { "--chunk", CLI_INT, &chunk, "points per chunk (default 256)" },
         { "--store", CLI_INT, &store, "1: keep activations for the backward, 0: recompute (default 1)" },
         { "--sorted", CLI_INT, &sorted, "1: points ordered along x (spatially coherent), 0: random (default)" },
-        { "--bf16", CLI_INT, &cfg.bf16, "1: hidden layers in bf16 on AMX (if available), 0: f32 (default)" },
+        { "--bf16", CLI_INT, &cfg.bf16, "1: Linear layers in bf16 on AMX if available (default), 0: f32" },
         { "--channels", CLI_INT, &cfg.channels, "plane channels C (default 16)" },
         { "--res", CLI_INT, &cfg.res_space, "spatial resolution R (default 64)" },
         { "--res-time", CLI_INT, &cfg.res_time, "time resolution T (default 150)" },

@@ -34,6 +34,7 @@ void deform_config_default(deform_config *c)
     c->space_init_hi = 0.5f;
     c->head_init_scale = 0.0f;
     c->seed = 1;
+    c->bf16 = 1; /* used only where AMX exists; same fit quality in test_deform, ~2x faster */
 }
 
 pg_status deform_config_validate(const deform_config *c)

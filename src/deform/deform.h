@@ -65,9 +65,10 @@ typedef struct {
     float space_init_hi;
     float head_init_scale; /* heads' last layers = scale * Xavier-uniform (default 0: identity) */
     uint64_t seed;         /* initialisation seed (default 1) */
-    int bf16;              /* 1: hidden Linear layers as bf16 GEMMs on Intel AMX when the CPU has it
-                            * (~5x faster GEMMs, ~0.4% relative rounding in products, f32 sums);
-                            * 0: f32 OpenBLAS (default). Not stored in blobs (a runtime choice). */
+    int bf16;              /* 1 (default): Linear layers as bf16 GEMMs on Intel AMX when the CPU has
+                            * it (~5x faster GEMMs, ~0.4% relative rounding in products, f32 sums;
+                            * plain f32 elsewhere); 0: f32 OpenBLAS everywhere (what the FD tests
+                            * check). Not stored in blobs (a runtime choice). */
 } deform_config;
 
 typedef struct {
