@@ -13,6 +13,7 @@
  * array (net->grads), so Adam runs over flat arrays. The planes come first:
  *     params[0, num_plane_params)            HexPlane planes (use the grid learning rate)
  *     params[num_plane_params, num_params)   MLP weights and biases (use the network learning rate)
+ * (planes and the total are padded to 16 floats for alignment; padding stays 0 with 0 gradient.)
  *
  *   deform_config cfg;
  *   deform_config_default(&cfg);
@@ -30,7 +31,8 @@
  * Threads: points are split into chunks; each OpenMP thread runs whole chunks (hexplane -> MLP ->
  * heads) with single-threaded BLAS calls (deform_ws_create sets OpenBLAS to 1 thread). Parameter
  * gradients go to per-thread buffers summed in thread order: results are identical for the same
- * inputs and thread count.
+ * inputs and thread count. Points are processed internally in Morton order (plane locality); outputs and gradients come back in the caller's order. By default the Linear
+ * layers run in bf16 on Intel AMX where available (cfg.bf16, see below).
  */
 #ifndef PG_DEFORM_DEFORM_H
 #define PG_DEFORM_DEFORM_H
