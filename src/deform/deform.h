@@ -31,8 +31,9 @@
  * Threads: points are split into chunks; each OpenMP thread runs whole chunks (hexplane -> MLP ->
  * heads) with single-threaded BLAS calls (deform_ws_create sets OpenBLAS to 1 thread). Parameter
  * gradients go to per-thread buffers summed in thread order: results are identical for the same
- * inputs and thread count. Points are processed internally in Morton order (plane locality); outputs and gradients come back in the caller's order. By default the Linear
- * layers run in bf16 on Intel AMX where available (cfg.bf16, see below).
+ * inputs and thread count. Points are processed internally in Morton order (plane locality);
+ * outputs and gradients come back in the caller's order. By default the Linear layers run in bf16
+ * on Intel AMX where available (cfg.bf16, see below).
  */
 #ifndef PG_DEFORM_DEFORM_H
 #define PG_DEFORM_DEFORM_H
