@@ -423,10 +423,17 @@ static float *layer_out(const deform_ws *ws, float *acts, int l, int m)
 static void chunk_forward_hidden(const deform_network *net, deform_ws *ws, float *acts, long start, int m, int tid)
 {
     const int F = ws->F;
+    hex_point ring[HEX_PREFETCH_AHEAD + 1]; /* axes of points i .. i+AHEAD */
+    for (int i = 0; i < m && i < HEX_PREFETCH_AHEAD; i++)
+        hex_point_setup(&ring[i], &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
     for (int i = 0; i < m; i++) {
-        if (i + HEX_PREFETCH_AHEAD < m)
-            hex_prefetch(&net->grid, NULL, ws->means + 3 * point_row(ws, start + i + HEX_PREFETCH_AHEAD), ws->t);
-        hex_sample_forward(acts + (size_t)i * F, &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
+        int ahead = i + HEX_PREFETCH_AHEAD;
+        if (ahead < m) {
+            hex_point *hp = &ring[ahead % (HEX_PREFETCH_AHEAD + 1)];
+            hex_point_setup(hp, &net->grid, ws->means + 3 * point_row(ws, start + ahead), ws->t);
+            hex_prefetch_point(&net->grid, NULL, hp);
+        }
+        hex_sample_forward_point(acts + (size_t)i * F, &net->grid, &ring[i % (HEX_PREFETCH_AHEAD + 1)]);
     }
     uint16_t *apack = (uint16_t *)(ws->scratch + (size_t)tid * ws->scratch_floats + ws->apack_off);
     for (int l = 0; l < net->num_layers; l++) {
@@ -594,15 +601,21 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
                 dnext = dnext == dB ? dC : dB;
             }
             /* dcur = d features (m, F) */
+            hex_point ring[HEX_PREFETCH_AHEAD + 1];
+            for (int i = 0; i < m && i < HEX_PREFETCH_AHEAD; i++)
+                hex_point_setup(&ring[i], &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
             for (int i = 0; i < m; i++) {
-                if (i + HEX_PREFETCH_AHEAD < m) {
-                    long gn = point_row(ws, start + i + HEX_PREFETCH_AHEAD);
-                    hex_prefetch(&net->grid, dplanes, ws->means + 3 * gn, ws->t);
+                int ahead = i + HEX_PREFETCH_AHEAD;
+                if (ahead < m) {
+                    long gn = point_row(ws, start + ahead);
+                    hex_point *hp = &ring[ahead % (HEX_PREFETCH_AHEAD + 1)];
+                    hex_point_setup(hp, &net->grid, ws->means + 3 * gn, ws->t);
+                    hex_prefetch_point(&net->grid, dplanes, hp);
                     if (d_means) __builtin_prefetch(d_means + 3 * gn, 1, 3);
                 }
                 long gi = point_row(ws, start + i);
-                hex_sample_backward(dplanes, d_means ? d_means + 3 * gi : NULL, dcur + (size_t)i * F, &net->grid,
-                                    ws->means + 3 * gi, ws->t);
+                hex_sample_backward_point(dplanes, d_means ? d_means + 3 * gi : NULL, dcur + (size_t)i * F,
+                                          &net->grid, &ring[i % (HEX_PREFETCH_AHEAD + 1)]);
             }
         }
         if (ws->amx) /* this thread's transposed weight gradients -> its (out, in) gradient buffer */

@@ -20,12 +20,6 @@ size_t hex_total_size(const hex_grid *g)
     return n;
 }
 
-/* Cell index, fractional weight and d(grid coord)/d(input) of one axis. */
-typedef struct {
-    int i0;
-    float w;
-    float dgdx; /* 0 where the coordinate was clamped */
-} hex_axis;
 
 static inline __attribute__((always_inline)) void hex_axis_setup(hex_axis *ax, float u, float du_dx, int res)
 {
@@ -59,12 +53,16 @@ int hex_time_row(const hex_grid *g, float t)
     return ax.i0;
 }
 
-void hex_prefetch(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const float *pos, float t)
+void hex_point_setup(hex_point *hp, const hex_grid *g, const float *pos, float t)
+{
+    for (int s = 0; s < g->S; s++) hex_axes(hp->ax[s], g, s, pos, t);
+}
+
+void hex_prefetch_point(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_point *hp)
 {
     const int C = g->C;
     for (int s = 0; s < g->S; s++) {
-        hex_axis ax[4];
-        hex_axes(ax, g, s, pos, t);
+        const hex_axis *ax = hp->ax[s];
         for (int p = 0; p < HEX_PLANES; p++) {
             const hex_axis *A = &ax[hex_plane_axes[p][0]], *B = &ax[hex_plane_axes[p][1]];
             size_t Wp = (size_t)hex_axis_res(g, s, hex_plane_axes[p][0]);
@@ -85,12 +83,11 @@ void hex_prefetch(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_P
     }
 }
 
-void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float t)
+void hex_sample_forward_point(float *feat, const hex_grid *g, const hex_point *hp)
 {
     const int C = g->C;
     for (int s = 0; s < g->S; s++) {
-        hex_axis ax[4];
-        hex_axes(ax, g, s, pos, t);
+        const hex_axis *ax = hp->ax[s];
         float *f = feat + s * C;
         for (int c = 0; c < C; c++) f[c] = 1.0f;
         for (int p = 0; p < HEX_PLANES; p++) {
@@ -106,15 +103,14 @@ void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float 
     }
 }
 
-void hex_sample_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], float *d_pos, const float *d_feat,
-                         const hex_grid *g, const float *pos, float t)
+void hex_sample_backward_point(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], float *d_pos, const float *d_feat,
+                               const hex_grid *g, const hex_point *hp)
 {
     const int C = g->C;
     float v[HEX_PLANES][HEX_MAX_C]; /* per-plane samples */
     float pre[HEX_MAX_C], suf[HEX_PLANES][HEX_MAX_C];
     for (int s = 0; s < g->S; s++) {
-        hex_axis ax[4];
-        hex_axes(ax, g, s, pos, t);
+        const hex_axis *ax = hp->ax[s];
         const float *df = d_feat + s * C;
         const float *base[HEX_PLANES];
         int Wp[HEX_PLANES];
@@ -162,4 +158,26 @@ void hex_sample_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], floa
             }
         }
     }
+}
+
+void hex_prefetch(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const float *pos, float t)
+{
+    hex_point hp;
+    hex_point_setup(&hp, g, pos, t);
+    hex_prefetch_point(g, d_planes, &hp);
+}
+
+void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float t)
+{
+    hex_point hp;
+    hex_point_setup(&hp, g, pos, t);
+    hex_sample_forward_point(feat, g, &hp);
+}
+
+void hex_sample_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], float *d_pos, const float *d_feat,
+                         const hex_grid *g, const float *pos, float t)
+{
+    hex_point hp;
+    hex_point_setup(&hp, g, pos, t);
+    hex_sample_backward_point(d_planes, d_pos, d_feat, g, &hp);
 }
