@@ -596,6 +596,30 @@ static void test_network_bf16(void)
           e[0], e[1], e[2], e[3]);
     printf("network bf16 vs f32 (relative L2): out %.1e, d/dplanes %.1e, d/dmlp %.1e, d/dmeans %.1e\n", e[0], e[1],
            e[2], e[3]);
+    /* bf16 path determinism with 2 threads: two runs give the same bytes */
+    {
+        float *ga = malloc(P * sizeof(float)), *oa = malloc(N * DEFORM_OUT_DIM * sizeof(float));
+        float *ob = malloc(N * DEFORM_OUT_DIM * sizeof(float));
+        pg_set_threads(2);
+        for (int rep = 0; rep < 2; rep++) {
+            deform_ws *ws = NULL;
+            CHECK_OK(deform_ws_create_chunked(&ws, net, N / 2, 32));
+            if (!ws) break;
+            float *g16 = calloc(N * 3, sizeof(float));
+            deform_network_zero_grad(net);
+            CHECK_OK(deform_network_forward(net, ws, means, NULL, N, 0.3f, rep ? ob : oa));
+            CHECK_OK(deform_network_backward(net, ws, dout, g16));
+            if (rep == 0) memcpy(ga, net->grads, P * sizeof(float));
+            else CHECK(memcmp(ga, net->grads, P * sizeof(float)) == 0 && memcmp(oa, ob, N * DEFORM_OUT_DIM * sizeof(float)) == 0,
+                       "bf16 path differs between two 2-thread runs");
+            free(g16);
+            deform_ws_destroy(ws);
+        }
+        pg_set_threads(1);
+        free(ga);
+        free(oa);
+        free(ob);
+    }
     free(means); free(dout); free(o32); free(o16); free(dm32); free(dm16); free(g32);
     deform_network_destroy(net);
 }
