@@ -18,7 +18,8 @@ const int deform_head_offset[DEFORM_HEADS] = { DEFORM_OUT_POS, DEFORM_OUT_SCALE,
                                                DEFORM_OUT_SH };
 const int deform_head_dim[DEFORM_HEADS] = { 3, 3, 4, 1, 48 };
 
-#define DEFAULT_CHUNK 256
+#define DEFAULT_CHUNK 256     /* f32 BLAS path */
+#define DEFAULT_CHUNK_AMX 128 /* bf16 AMX path: measured ~5% faster than 256, 10% faster than 512 */
 #define HEX_PREFETCH_AHEAD 4 /* points */
 
 void deform_config_default(deform_config *c)
@@ -213,6 +214,7 @@ struct deform_ws {
 };
 
 int deform_ws_uses_amx(const deform_ws *ws) { return ws->amx; }
+int deform_ws_chunk(const deform_ws *ws) { return ws->chunk; }
 
 static size_t ws_scratch_floats(const deform_ws *ws)
 {
@@ -263,7 +265,7 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
 {
     *out = NULL;
     if (max_points < 0) return pg_fail(PG_ERR_ARG, "deform_ws_create: max_points %ld < 0", max_points);
-    if (chunk <= 0) chunk = DEFAULT_CHUNK;
+    if (chunk <= 0) chunk = net->cfg.bf16 && gemm_amx_available() ? DEFAULT_CHUNK_AMX : DEFAULT_CHUNK;
     deform_ws *ws = pg_calloc(1, sizeof(*ws), "deform workspace");
     if (!ws) return PG_ERR_NOMEM;
     ws->chunk = chunk;

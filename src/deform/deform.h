@@ -107,12 +107,14 @@ void deform_network_zero_grad(deform_network *net);
 
 /* Workspace: per-thread chunk scratch, per-thread gradient buffers, and stored activations for up
  * to max_points points (forward calls with more points still work: the backward then recomputes
- * the activations of the chunks that were not kept). chunk = points per chunk (0: default 256). */
+ * the activations of the chunks that were not kept). chunk = points per chunk (0: default, 128 on the AMX path, else 256). */
 pg_status deform_ws_create(deform_ws **ws, const deform_network *net, long max_points);
 pg_status deform_ws_create_chunked(deform_ws **ws, const deform_network *net, long max_points, int chunk);
 void deform_ws_destroy(deform_ws *ws);
 /* 1 if this workspace runs the hidden layers in bf16 on AMX (cfg.bf16 and the CPU supports it). */
 int deform_ws_uses_amx(const deform_ws *ws);
+/* Points per chunk of this workspace. */
+int deform_ws_chunk(const deform_ws *ws);
 
 /* Evaluates the network for n points at time t: point i is means[idx[i]] (idx != NULL, e.g. only the
  * Gaussians that can move) or means[i] (idx == NULL). out (n, DEFORM_OUT_DIM), row i for point i.
