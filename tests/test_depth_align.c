@@ -46,7 +46,7 @@ static void test_fit(void)
 static void test_prepare_scene(void)
 {
     test_scene sc;
-    const int W = 160, H = 120, F = 12;
+    const int W = 160, H = 120, F = 8;
     CHECK(test_scene_make(&sc, W, H, F, 9) == 0, "scene");
     const size_t n = (size_t)W * H;
     depth_prepare_options opt;

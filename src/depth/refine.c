@@ -17,6 +17,7 @@ void depth_refine_defaults(depth_refine_params *p)
     p->edge_thresh = 0.025f;
     p->band_radius = 1;
     p->depth_weight = 0.15f;
+    p->guide_blur = 0.0f;
 }
 
 static const char *const refine_names[DEPTH_REFINE_COUNT] = { "none", "edge-snap", "bilateral" };
@@ -136,7 +137,26 @@ static pg_status refine_edge_snap(void *ctx, const pg_image *rgb, const float *d
         return PG_ERR_NOMEM;
     }
     pg_status st = depth_refine_band(&p, din, W, H, band);
+    /* Colour weights on a lightly blurred guide: render noise and video compression otherwise
+     * make single-pixel colour distances unreliable. */
+    pg_image guide = { 0 };
+    const pg_image *gp = rgb;
+    if (!st && p.guide_blur > 0.0f) {
+        st = pg_image_copy(&guide, rgb);
+        gp = &guide;
+    }
+    if (!st && p.guide_blur > 0.0f) {
+        float *plane = pg_malloc(sizeof(float) * n * 2, "refine guide");
+        if (!plane) st = PG_ERR_NOMEM;
+        for (int c = 0; c < guide.channels && !st; c++) {
+            for (size_t k = 0; k < n; k++) plane[k] = rgb->data[k * guide.channels + c];
+            plane_gaussian_blur(plane, W, H, p.guide_blur, plane + n, plane);
+            for (size_t k = 0; k < n; k++) guide.data[k * guide.channels + c] = plane[k];
+        }
+        free(plane);
+    }
     if (st) {
+        pg_image_destroy(&guide);
         free(band);
         free(buf);
         return st;
@@ -195,7 +215,7 @@ static pg_status refine_edge_snap(void *ctx, const pg_image *rgb, const float *d
                         if (band[q] || !depth_valid(din[q])) continue;
                         float v = din[q] - gx[q] * dx - gy[q] * dy;
                         if (!depth_valid(v)) continue;
-                        float w = sw[dx + R] * sw[dy + R] * expf(-ic * color_dist2(rgb, k, q));
+                        float w = sw[dx + R] * sw[dy + R] * expf(-ic * color_dist2(gp, k, q));
                         pairs[m].v = v;
                         pairs[m].w = w;
                         total += w;
@@ -235,6 +255,7 @@ static pg_status refine_edge_snap(void *ctx, const pg_image *rgb, const float *d
         }
         free(pairs);
     }
+    pg_image_destroy(&guide);
     free(band);
     free(buf);
     if (failed) return pg_fail(PG_ERR_NOMEM, "edge-snap refinement: out of memory");
