@@ -157,6 +157,14 @@ static void test_fallbacks(void)
     pg_image_destroy(&small);
     free(d);
     test_scene_destroy(&sc);
+
+    /* A tiny image (below the pyramid's minimum side, fewer pixels than the fit needs). */
+    CHECK(test_scene_make(&sc, 6, 5, 3, 1) == 0, "tiny scene");
+    CHECK_OK(depth_prepare_run(&opt, sc.rgb, 3, sc.depth_mono, &res));
+    if (res.info) CHECK(res.info[1].fallback == DEPTH_FALLBACK_IDENTITY && res.info[1].alpha == 1.0, "tiny: fallback %d",
+                        res.info[1].fallback);
+    depth_prepare_result_destroy(&res);
+    test_scene_destroy(&sc);
 }
 
 /* Same bytes for 1 and 2 threads (frames run in parallel, each single-threaded inside). */

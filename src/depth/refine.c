@@ -14,7 +14,7 @@ void depth_refine_defaults(depth_refine_params *p)
     p->radius = 9;
     p->sigma_color = 0.08f;
     p->sigma_space = 4.0f;
-    p->edge_thresh = 0.025f;
+    p->edge_thresh = 0.03f;
     p->band_radius = 1;
     p->depth_weight = 0.15f;
     p->guide_blur = 0.0f;

@@ -39,7 +39,7 @@ typedef struct {
     int radius;          /* search window radius in px (default 9) */
     float sigma_color;   /* RGB distance scale (default 0.08) */
     float sigma_space;   /* px (default 4) */
-    float edge_thresh;   /* log-depth second difference marking a blurred edge (default 0.025) */
+    float edge_thresh;   /* log-depth second difference marking a blurred edge (default 0.03) */
     int band_radius;     /* dilation of the detected edge pixels into the band (default 1) */
     float guide_blur;    /* Gaussian sigma (px) on the RGB guide before colour weights (default 0) */
     float depth_weight;  /* width of the depth likelihood as a fraction of the local step (0.15; 0 = off) */
