@@ -88,6 +88,9 @@ static void test_npy(const char *dir)
     if (d.data) CHECK(fabsf(d.data[9] - (1000 + 10 + 100) * 0.001f) < 1e-6f, "u16 scaled %g", d.data[9]);
     io_depth_destroy(&d);
 
+    io_depth_kind kind = IO_DEPTH_KIND_DEPTH;
+    CHECK_OK(io_depth_kind_parse("disparity", &kind));
+    CHECK(kind == IO_DEPTH_KIND_DISPARITY && io_depth_kind_parse("inverse", &kind) == PG_ERR_ARG, "kind parse");
     /* Disparity: depth = 1 / (value * scale). */
     o = io_depth_defaults();
     o.kind = IO_DEPTH_KIND_DISPARITY;
@@ -127,6 +130,12 @@ static void test_npy(const char *dir)
     CHECK_OK(io_npy_save(path, f32 + H * W, 2, s2));
     CHECK_OK(io_depth_load(path, NULL, &d));
     CHECK(d.frames == 1 && d.invalid == 0, "single frame %d %zu", d.frames, d.invalid);
+    io_depth_destroy(&d);
+    size_t s4t[4] = { F, 1, H, W };
+    pg_path_join(path, sizeof path, dir, "torch.npy");
+    CHECK_OK(io_npy_save(path, f32, 4, s4t));
+    CHECK_OK(io_depth_load(path, NULL, &d));
+    CHECK(d.frames == F && d.height == H && d.width == W, "(F,1,H,W) %d %d %d", d.frames, d.height, d.width);
     io_depth_destroy(&d);
     size_t s4[4] = { 1, 2, H, W / 2 };
     pg_path_join(path, sizeof path, dir, "bad4.npy");
@@ -184,28 +193,32 @@ static void test_pfm(const char *dir)
     io_depth_destroy(&d);
 }
 
-static void write_png16(const char *path, int w, int h, const uint16_t *v)
+static void write_png16_il(const char *path, int w, int h, const uint16_t *v, int interlace)
 {
     FILE *fp = fopen(path, "wb");
     png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
     png_infop info = png_create_info_struct(png);
     png_init_io(png, fp);
-    png_set_IHDR(png, info, (png_uint_32)w, (png_uint_32)h, 16, PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
-                 PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_set_IHDR(png, info, (png_uint_32)w, (png_uint_32)h, 16, PNG_COLOR_TYPE_GRAY,
+                 interlace ? PNG_INTERLACE_ADAM7 : PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
     png_write_info(png, info);
+    int passes = png_set_interlace_handling(png);
     uint8_t *row = malloc((size_t)w * 2);
-    for (int y = 0; y < h; y++) {
-        for (int x = 0; x < w; x++) {
-            row[2 * x] = (uint8_t)(v[y * w + x] >> 8);
-            row[2 * x + 1] = (uint8_t)(v[y * w + x] & 0xff);
+    for (int pass = 0; pass < passes; pass++)
+        for (int y = 0; y < h; y++) {
+            for (int x = 0; x < w; x++) {
+                row[2 * x] = (uint8_t)(v[y * w + x] >> 8);
+                row[2 * x + 1] = (uint8_t)(v[y * w + x] & 0xff);
+            }
+            png_write_row(png, row);
         }
-        png_write_row(png, row);
-    }
     png_write_end(png, NULL);
     png_destroy_write_struct(&png, &info);
     free(row);
     fclose(fp);
 }
+
+static void write_png16(const char *path, int w, int h, const uint16_t *v) { write_png16_il(path, w, h, v, 0); }
 
 static void test_png16(const char *dir)
 {
@@ -226,6 +239,18 @@ static void test_png16(const char *dir)
     CHECK(d.invalid == 2, "png16 zeros counted %zu", d.invalid);
     if (d.data) CHECK(fabsf(d.data[24 + 5] - 60.006f) < 1e-4f, "png16 value %g", d.data[24 + 5]);
     io_depth_destroy(&d);
+    /* Interlaced (Adam7) 16-bit PNG. */
+    char p2[4200];
+    uint16_t big[13 * 11];
+    for (int i = 0; i < 13 * 11; i++) big[i] = (uint16_t)(i * 397 + 11);
+    snprintf(p2, sizeof p2, "%s/../adam7.png", sub);
+    write_png16_il(p2, 13, 11, big, 1);
+    pg_array arr;
+    CHECK_OK(io_png16_load(p2, &arr));
+    int okv = arr.data != NULL;
+    for (int i = 0; okv && i < 13 * 11; i++) okv = arr.data[i] == big[i];
+    CHECK(okv, "interlaced 16-bit PNG values");
+    pg_array_destroy(&arr);
 }
 
 /* Encodes a grayf32 frame with libavcodec's EXR encoder (an independent writer; channel "Y"). */
@@ -350,6 +375,9 @@ static void test_bad(const char *dir)
     }
     CHECK(io_png16_load(path, &arr) == PG_ERR_FORMAT, "huge png: %s", pg_last_error());
     CHECK(strstr(pg_last_error(), "huge.png") != NULL, "names file: %s", pg_last_error());
+    snprintf(args, sizeof args, "info '%s'", path);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "huge.png"), "info huge png rc %d: %s", rc, err);
 
     /* Truncated npy / pfm, garbled npy. */
     pg_path_join(path, sizeof path, dir, "trunc.npy");

@@ -93,11 +93,41 @@ static void test_npy(const char *dir)
     pg_array_destroy(&arr);
 }
 
+/* `prodygs info` on a training-set directory (docs/FORMATS.md) and on a broken one. */
+static void test_trainset_info(const char *dir)
+{
+    char sub[4096], path[4200], err[1024], args[8400];
+    pg_path_join(sub, sizeof sub, dir, "trainset");
+    pg_mkdir_p(sub);
+    pg_camera cam;
+    pg_camera_from_fov(&cam, 64, 48, 60);
+    cJSON *root = cJSON_CreateObject();
+    cJSON_AddNumberToObject(root, "version", 1);
+    cJSON_AddNumberToObject(root, "frames", 5);
+    cJSON_AddNumberToObject(root, "width", 64);
+    cJSON_AddNumberToObject(root, "height", 48);
+    cJSON_AddNumberToObject(root, "fps", 30);
+    cJSON *cams = cJSON_AddArrayToObject(root, "cameras");
+    cJSON *c = io_json_from_camera(&cam, "cam00");
+    cJSON_AddStringToObject(c, "role", "real");
+    cJSON_AddItemToArray(cams, c);
+    snprintf(path, sizeof path, "%s/trainset.json", sub);
+    CHECK_OK(io_json_write_atomic(path, root));
+    snprintf(args, sizeof args, "info '%s'", sub);
+    CHECK(test_run_cli(args, err, sizeof err) == 0, "info trainset: %s", err);
+    cJSON_ReplaceItemInObject(c, "R", io_json_float_array((float[9]){ 1, 1, 0, 0, 1, 0, 0, 0, 1 }, 9));
+    CHECK_OK(io_json_write_atomic(path, root));
+    int rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "trainset.json") && strstr(err, "rotation"), "info bad trainset rc %d: %s", rc, err);
+    cJSON_Delete(root);
+}
+
 int main(void)
 {
     char dir[4096];
     test_tmpdir("test_io_json", dir, sizeof dir);
     test_camera(dir);
     test_npy(dir);
+    test_trainset_info(dir);
     return test_summary("test_io_json");
 }

@@ -10,38 +10,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Temporary stand-ins for src/splat/gaussians.c (owned by the splat helper, not yet on main when
- * this test was written). Same contract: separate arrays, zeroed, count/capacity. Remove once
- * main provides them. */
-pg_status splat_gaussians_create(pg_gaussians *g, int capacity)
-{
-    memset(g, 0, sizeof *g);
-    g->sh_degree = 3;
-    int n = capacity > 0 ? capacity : 1;
-    g->means = calloc((size_t)n * 3, sizeof(float));
-    g->log_scales = calloc((size_t)n * 3, sizeof(float));
-    g->quats = calloc((size_t)n * 4, sizeof(float));
-    g->opacity = calloc((size_t)n, sizeof(float));
-    g->sh = calloc((size_t)n * PG_SH_COEFFS * 3, sizeof(float));
-    g->capacity = n;
-    if (!g->means || !g->log_scales || !g->quats || !g->opacity || !g->sh) return pg_fail(PG_ERR_NOMEM, "gaussians");
-    return PG_OK;
-}
-
-void splat_gaussians_destroy(pg_gaussians *g)
-{
-    if (!g) return;
-    free(g->means); free(g->log_scales); free(g->quats); free(g->opacity); free(g->sh);
-    memset(g, 0, sizeof *g);
-}
-
-pg_status splat_gaussians_resize(pg_gaussians *g, int count)
-{
-    if (count > g->capacity) return pg_fail(PG_ERR_ARG, "stand-in resize cannot grow");
-    g->count = count;
-    return PG_OK;
-}
-
 static void fill(pg_gaussians *g, int n, unsigned seed)
 {
     pg_rng rng;

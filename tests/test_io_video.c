@@ -4,6 +4,9 @@
 #include "io/image_io.h"
 #include "io/video.h"
 
+#include <libavformat/avformat.h>
+#include <libavutil/display.h>
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -94,6 +97,10 @@ static void test_roundtrip(const char *dir)
     CHECK(info.width == 34 && info.height == 22, "odd padded to %d x %d", info.width, info.height);
     pg_image_destroy(&odd);
 
+    /* Unwritable destination: an error, not a silent fallback. */
+    pg_path_join(path, sizeof path, dir, "no/such/dir/x.mp4");
+    io_video_writer *vw = NULL;
+    CHECK(io_video_writer_open(&vw, path, W, H, NULL) == PG_ERR_IO && !vw, "unwritable: %s", pg_last_error());
     /* Forced PNG fallback. */
     pg_path_join(path, sizeof path, dir, "fb.mp4");
     wo.force_png = 1;
@@ -108,6 +115,81 @@ static void test_roundtrip(const char *dir)
     io_frames_destroy(&fr);
 
     for (int t = 0; t < F; t++) pg_image_destroy(&frames[t]);
+}
+
+/* Copies src into dst (mp4) adding a display matrix: how phones tag portrait video. In FFmpeg 5.1
+ * av_display_rotation_set takes the clockwise angle that players (ffmpeg -autorotate) apply. */
+static int remux_rotated(const char *src, const char *dst, double cw_degrees)
+{
+    AVFormatContext *in = NULL, *out = NULL;
+    if (avformat_open_input(&in, src, NULL, NULL) < 0) return -1;
+    avformat_find_stream_info(in, NULL);
+    avformat_alloc_output_context2(&out, NULL, "mp4", dst);
+    AVStream *os = avformat_new_stream(out, NULL);
+    avcodec_parameters_copy(os->codecpar, in->streams[0]->codecpar);
+    os->codecpar->codec_tag = 0;
+    os->time_base = in->streams[0]->time_base;
+    uint8_t *m = av_stream_new_side_data(os, AV_PKT_DATA_DISPLAYMATRIX, 9 * sizeof(int32_t));
+    av_display_rotation_set((int32_t *)m, cw_degrees);
+    int rc = avio_open(&out->pb, dst, AVIO_FLAG_WRITE) < 0 || avformat_write_header(out, NULL) < 0 ? -1 : 0;
+    AVPacket *pkt = av_packet_alloc();
+    while (rc == 0 && av_read_frame(in, pkt) >= 0) {
+        av_packet_rescale_ts(pkt, in->streams[0]->time_base, os->time_base);
+        pkt->stream_index = 0;
+        av_interleaved_write_frame(out, pkt);
+        av_packet_unref(pkt);
+    }
+    if (rc == 0) av_write_trailer(out);
+    av_packet_free(&pkt);
+    avio_closep(&out->pb);
+    avformat_free_context(out);
+    avformat_close_input(&in);
+    return rc;
+}
+
+static void test_rotation(const char *dir)
+{
+    char src[4096], dst[4096];
+    pg_path_join(src, sizeof src, dir, "rt.mp4");
+    pg_path_join(dst, sizeof dst, dir, "rot.mp4");
+    int angles[3] = { 90, 180, 270 };
+    for (int a = 0; a < 3; a++) {
+        int cw = angles[a];
+        CHECK(remux_rotated(src, dst, cw) == 0, "remux");
+        io_video_info info;
+        CHECK_OK(io_video_probe(dst, &info));
+        int swap = cw != 180;
+        CHECK(info.rotation == cw && info.width == (swap ? H : W), "rotation %d probe %d -> %d x %d", cw, info.rotation,
+              info.width, info.height);
+        io_frames A, B;
+        io_video_options opt = io_video_defaults();
+        opt.count = 2;
+        CHECK_OK(io_frames_read(src, &opt, &A));
+        CHECK_OK(io_frames_read(dst, &opt, &B));
+        if (A.count == 2 && B.count == 2) {
+            CHECK(B.width == (swap ? H : W) && B.height == (swap ? W : H), "rotated size %d x %d", B.width, B.height);
+            int bad = 0;
+            for (int y = 0; y < B.height; y++)
+                for (int x = 0; x < B.width; x++) {
+                    int sx, sy; /* source pixel that lands on (x, y) after a clockwise rotation */
+                    if (cw == 90) { sx = y; sy = H - 1 - x; }
+                    else if (cw == 270) { sx = W - 1 - y; sy = x; }
+                    else { sx = W - 1 - x; sy = H - 1 - y; }
+                    bad += memcmp(B.rgb + ((size_t)y * B.width + x) * 3, A.rgb + ((size_t)sy * W + sx) * 3, 3) != 0;
+                }
+            CHECK(bad == 0, "rotation %d: %d pixels differ", cw, bad);
+        }
+        io_frames_destroy(&A);
+        io_frames_destroy(&B);
+    }
+    /* Resize applies to the upright frame. */
+    io_frames B;
+    io_video_options opt = io_video_defaults();
+    opt.max_side = W / 2;
+    remux_rotated(src, dst, 90);
+    CHECK_OK(io_frames_read(dst, &opt, &B));
+    CHECK(B.width == H / 2 && B.height == W / 2, "rotated+resized %d x %d", B.width, B.height);
+    io_frames_destroy(&B);
 }
 
 static void test_folder(const char *dir)
@@ -194,6 +276,7 @@ int main(void)
     char dir[4096];
     test_tmpdir("test_io_video", dir, sizeof dir);
     test_roundtrip(dir);
+    test_rotation(dir);
     test_folder(dir);
     test_bad(dir);
     return test_summary("test_io_video");

@@ -5,8 +5,10 @@
 #include "core/camera.h"
 #include "core/fileutil.h"
 #include "core/mathx.h"
+#include "io/dataset.h"
 #include "io/image_io.h"
 #include "io/npy.h"
+#include "io/video.h"
 #include "synth/synth.h"
 
 #include <cjson/cJSON.h>
@@ -79,29 +81,6 @@ static void test_determinism(void)
     free(db);
 }
 
-/* LLFF row (3x5 [down right back | centre | hwf], near, far) -> OpenCV camera. */
-static void camera_from_llff(const float *row, pg_camera *cam)
-{
-    int h = (int)lroundf(row[4]), w = (int)lroundf(row[9]);
-    float focal = row[14];
-    cam->width = w;
-    cam->height = h;
-    cam->fx = cam->fy = focal;
-    cam->cx = 0.5f * w;
-    cam->cy = 0.5f * h;
-    float C[3];
-    for (int r = 0; r < 3; r++) {
-        /* camera axes in world coordinates: x = right (col 1), y = down (col 0), z = -back (col 2) */
-        cam->R[0 + r] = row[5 * r + 1];
-        cam->R[3 + r] = row[5 * r + 0];
-        cam->R[6 + r] = -row[5 * r + 2];
-        C[r] = row[5 * r + 3];
-    }
-    float RC[3];
-    mat3_mul_vec(RC, cam->R, C);
-    for (int i = 0; i < 3; i++) cam->t[i] = -RC[i];
-}
-
 /* Surface points seen from cam00 (unprojected from traced depth) plus corners of the objects. */
 static int sample_points(const synth_scene *sc, float s, float pts[][3], int max)
 {
@@ -123,32 +102,35 @@ static int sample_points(const synth_scene *sc, float s, float pts[][3], int max
     return n;
 }
 
-/* The cameras written to poses_bounds.npy reproject like synth's own cameras (<= 0.01 px). */
+/* The cameras io's DyNeRF loader reads from what synth wrote reproject like synth's own cameras
+ * (<= 0.01 px), and its frames are synth's PNGs. */
 static void test_dynerf_files(const char *dir)
 {
     synth_scene sc;
     synth_scene_default(&sc, 3);
     char path[4096];
-    pg_array pb = { 0 };
-    snprintf(path, sizeof path, "%s/poses_bounds.npy", dir);
-    CHECK_OK(io_npy_load(path, &pb));
-    CHECK(pb.ndim == 2 && pb.shape[0] == NC && pb.shape[1] == 17, "poses_bounds shape %zu x %zu", pb.shape[0],
-          pb.shape[1]);
-    if (pb.count != NC * 17) {
-        pg_array_destroy(&pb);
-        return;
-    }
+    io_dataset_options dopt = io_dataset_defaults();
+    pg_dataset *ds = NULL;
+    CHECK_OK(io_dataset_open(dir, &dopt, &ds));
+    if (!ds) return;
+    CHECK(io_dataset_get_kind(ds) == IO_DATASET_DYNERF, "kind %s", io_dataset_kind_name(io_dataset_get_kind(ds)));
+    CHECK(io_dataset_num_cameras(ds) == NC && io_dataset_num_frames(ds) == F, "%d cameras, %d frames",
+          io_dataset_num_cameras(ds), io_dataset_num_frames(ds));
     float pts[64][3];
     int np = sample_points(&sc, 0.5f, pts, 64);
     CHECK(np > 30, "only %d sample points", np);
     double worst = 0;
     int in_view = 0;
-    for (int c = 0; c < NC; c++) {
+    for (int c = 0; c < NC && c < io_dataset_num_cameras(ds); c++) {
         pg_camera a, b;
         CHECK_OK(synth_camera(&sc, c, W, H, &a));
-        camera_from_llff(pb.data + 17 * c, &b);
+        io_dataset_camera(ds, c, &b);
+        char name[16];
+        snprintf(name, sizeof name, "cam%02d", c);
+        CHECK(strcmp(io_dataset_camera_name(ds, c), name) == 0, "camera %d is named %s", c, io_dataset_camera_name(ds, c));
         CHECK(b.width == W && b.height == H, "cam%02d hwf gives %d x %d", c, b.width, b.height);
-        float nearv = pb.data[17 * c + 15], farv = pb.data[17 * c + 16];
+        float nearv, farv;
+        io_dataset_near_far(ds, c, &nearv, &farv);
         CHECK(nearv > 0.5f && farv > nearv && farv < 20, "cam%02d near/far %g %g", c, nearv, farv);
         for (int k = 0; k < np; k++) {
             float ua[2], ub[2];
@@ -158,15 +140,26 @@ static void test_dynerf_files(const char *dir)
             if (e > worst) worst = e;
             in_view += ua[0] >= 0 && ua[0] < W && ua[1] >= 0 && ua[1] < H;
         }
-        /* the centre camera is cam00 at identity; the rig spreads about +-21 degrees */
         float C[3];
-        pg_camera_center(&a, C);
+        pg_camera_center(&b, C);
         if (c == 0) CHECK(vec3_norm(C) < 1e-6f, "cam00 centre %g %g %g", C[0], C[1], C[2]);
     }
-    printf("poses_bounds reprojection: worst %.2e px over %d points x %d cams (%d in view)\n", worst, np, NC, in_view);
-    CHECK(worst <= 0.01, "poses_bounds camera reprojects %.4f px away", worst);
+    printf("DyNeRF loader vs synth cameras: worst reprojection %.2e px over %d points x %d cams (%d in view)\n", worst, np,
+           NC, in_view);
+    CHECK(worst <= 0.01, "loaded camera reprojects %.4f px away", worst);
     CHECK(in_view > np * NC * 8 / 10, "only %d of %d projections in view", in_view, np * NC);
-    pg_array_destroy(&pb);
+    /* frame (cam 2, frame 3) through the loader = the rendered frame to 8-bit precision */
+    pg_image img = { 0 }, ref = { 0 };
+    pg_camera c2;
+    synth_camera(&sc, 2, W, H, &c2);
+    sc.spp = 1; /* the CLI run used --spp 1 */
+    CHECK_OK(io_dataset_frame(ds, 2, 3, &img));
+    CHECK_OK(synth_render_frame(&sc, &c2, synth_frame_time(3, F), &ref, NULL, NULL));
+    double psnr = img.data ? pg_image_psnr(&img, &ref, NULL) : 0;
+    CHECK(psnr > 45, "loaded frame vs render PSNR %.1f dB", psnr);
+    pg_image_destroy(&img);
+    pg_image_destroy(&ref);
+    io_dataset_close(ds);
 
     /* depth_gt: unprojected pixels land on the analytic surfaces (z-depth, not ray length) */
     pg_array dg = { 0 }, mk = { 0 }, dm = { 0 };
@@ -311,11 +304,6 @@ static void test_dynerf_files(const char *dir)
         cJSON_Delete(root);
     }
     free(text);
-    snprintf(path, sizeof path, "%s/cam%02d/images/%04d.png", dir, NC - 1, F - 1);
-    pg_image img = { 0 };
-    CHECK_OK(io_image_load(path, &img));
-    CHECK(img.width == W && img.height == H, "PNG size %d x %d", img.width, img.height);
-    pg_image_destroy(&img);
 }
 
 /* Visibility: cam00's own surface points are visible from cam00; points pushed further along
@@ -436,6 +424,42 @@ static void test_panoptic(const char *dir)
     free(text);
     snprintf(path, sizeof path, "%s/test_meta.json", dir);
     CHECK(pg_path_exists(path), "test_meta.json missing");
+
+    /* io's Panoptic loader: every camera reprojects like synth's (<= 0.01 px), roles from the split */
+    io_dataset_options dopt = io_dataset_defaults();
+    pg_dataset *ds = NULL;
+    CHECK_OK(io_dataset_open(dir, &dopt, &ds));
+    if (!ds) return;
+    CHECK(io_dataset_get_kind(ds) == IO_DATASET_PANOPTIC, "kind %s", io_dataset_kind_name(io_dataset_get_kind(ds)));
+    CHECK(io_dataset_num_cameras(ds) == NC && io_dataset_num_frames(ds) == 2, "%d cameras, %d frames",
+          io_dataset_num_cameras(ds), io_dataset_num_frames(ds));
+    float pts[64][3];
+    int np = sample_points(&sc, 1.0f, pts, 64);
+    double worst = 0;
+    int ntest = 0;
+    for (int i = 0; i < io_dataset_num_cameras(ds); i++) {
+        int c = atoi(io_dataset_camera_name(ds, i));
+        pg_camera a, b;
+        synth_camera(&sc, c, W, H, &a);
+        io_dataset_camera_at(ds, i, 1, &b);
+        for (int k = 0; k < np; k++) {
+            float ua[2], ub[2];
+            pg_camera_project(&a, pts[k], ua);
+            pg_camera_project(&b, pts[k], ub);
+            worst = fmax(worst, hypot(ua[0] - ub[0], ua[1] - ub[1]));
+        }
+        int is_test = strcmp(io_dataset_camera_role(ds, i), "test") == 0;
+        ntest += is_test;
+        CHECK(is_test == (c == 5 || c == 6), "camera %d has role %s", c, io_dataset_camera_role(ds, i));
+    }
+    printf("Panoptic loader vs synth cameras: worst reprojection %.2e px\n", worst);
+    CHECK(worst <= 0.01, "Panoptic camera reprojects %.4f px away", worst);
+    CHECK(ntest == 2, "%d test cameras", ntest);
+    pg_image img = { 0 };
+    CHECK_OK(io_dataset_frame(ds, 0, 1, &img));
+    CHECK(img.width == W && img.height == H, "Panoptic frame %d x %d", img.width, img.height);
+    pg_image_destroy(&img);
+    io_dataset_close(ds);
 }
 
 int main(void)
@@ -448,9 +472,9 @@ int main(void)
     test_tmpdir("synth_a", dir, sizeof dir);
     test_tmpdir("synth_b", dir2, sizeof dir2);
     test_tmpdir("synth_pan", pan, sizeof pan);
-    snprintf(args, sizeof args, "synth '%s' --cams %d --frames %d --size %dx%d --seed 3", dir, NC, F, W, H);
+    snprintf(args, sizeof args, "synth '%s' --cams %d --frames %d --size %dx%d --seed 3 --spp 1", dir, NC, F, W, H);
     CHECK(test_run_cli(args, err, sizeof err) == 0, "synth failed: %s", err);
-    snprintf(args, sizeof args, "synth '%s' --cams %d --frames %d --size %dx%d --seed 3 --threads 1", dir2, NC, F, W, H);
+    snprintf(args, sizeof args, "synth '%s' --cams %d --frames %d --size %dx%d --seed 3 --spp 1 --threads 1", dir2, NC, F, W, H);
     CHECK(test_run_cli(args, err, sizeof err) == 0, "synth failed: %s", err);
     const char *files[] = { "poses_bounds.npy", "depth_gt/cam00.npy", "depth_gt/cam03.npy", "masks_dynamic/cam00.npy",
                             "depth_mono/cam00.npy", "cam02/images/0003.png", "scene.json" };
@@ -465,6 +489,33 @@ int main(void)
     snprintf(args, sizeof args, "synth '%s' --cams %d --frames 2 --size %dx%d --layout panoptic", pan, NC, W, H);
     CHECK(test_run_cli(args, err, sizeof err) == 0, "synth panoptic failed: %s", err);
     test_panoptic(pan);
+
+    /* --video: camXX.mp4 decodes to the PNG frames (H.264 yuv420p crf 10: ~27 dB on this tiny,
+     * saturated, high-frequency content because of chroma subsampling; PNGs stay the reference) */
+    char vid[2048];
+    test_tmpdir("synth_vid", vid, sizeof vid);
+    snprintf(args, sizeof args, "synth '%s' --cams 2 --frames 4 --size %dx%d --spp 1 --video", vid, W, H);
+    CHECK(test_run_cli(args, err, sizeof err) == 0, "synth --video failed: %s", err);
+    {
+        char mp4[4096], png[4096];
+        snprintf(mp4, sizeof mp4, "%s/cam01.mp4", vid);
+        snprintf(png, sizeof png, "%s/cam01/images/0002.png", vid);
+        io_video_options vo = io_video_defaults();
+        io_frames fr = { 0 };
+        pg_image a = { 0 }, b = { 0 };
+        CHECK_OK(io_frames_read(mp4, &vo, &fr));
+        CHECK(fr.count == 4, "video has %d frames", fr.count);
+        if (fr.count == 4) {
+            CHECK_OK(io_frames_image(&fr, 2, &a));
+            CHECK_OK(io_image_load(png, &b));
+            double psnr = a.data && b.data ? pg_image_psnr(&a, &b, NULL) : 0;
+            printf("video frame vs PNG: %.1f dB\n", psnr);
+            CHECK(psnr > 24, "video frame vs PNG %.1f dB", psnr);
+        }
+        pg_image_destroy(&a);
+        pg_image_destroy(&b);
+        io_frames_destroy(&fr);
+    }
 
     /* bad input: exit code 2 with one clear line */
     CHECK(test_run_cli("synth /tmp/x --cams 0", err, sizeof err) == 2 && strstr(err, "--cams"), "cams 0: %s", err);

@@ -39,6 +39,7 @@ int bench_deform(int argc, char **argv)
         { "--chunk", CLI_INT, &chunk, "points per chunk (default 256)" },
         { "--store", CLI_INT, &store, "1: keep activations for the backward, 0: recompute (default 1)" },
         { "--sorted", CLI_INT, &sorted, "1: points ordered along x (spatially coherent), 0: random (default)" },
+        { "--bf16", CLI_INT, &cfg.bf16, "1: hidden layers in bf16 on AMX (if available), 0: f32 (default)" },
         { "--channels", CLI_INT, &cfg.channels, "plane channels C (default 16)" },
         { "--res", CLI_INT, &cfg.res_space, "spatial resolution R (default 64)" },
         { "--res-time", CLI_INT, &cfg.res_time, "time resolution T (default 150)" },
@@ -63,7 +64,7 @@ int bench_deform(int argc, char **argv)
     float *dout = malloc((size_t)points * DEFORM_OUT_DIM * sizeof(float));
     float *dmeans = calloc((size_t)points * 3, sizeof(float));
     double *tf = malloc(reps * sizeof(double)), *tb = malloc(reps * sizeof(double));
-    double cpu_f = 0, cpu_b = 0;
+    double cpu_f = 0, cpu_b = 0, reg_ms = 0;
     if (!st && (!means || !out || !dout || !dmeans || !tf || !tb)) st = pg_fail(PG_ERR_NOMEM, "bench deform: out of memory");
     if (!st) {
         pg_rng rng;
@@ -84,6 +85,9 @@ int bench_deform(int argc, char **argv)
             double c1 = cpu_seconds(), t1 = pg_time_seconds();
             if (!st) st = deform_network_backward(net, ws, dout, dmeans);
             double c2 = cpu_seconds(), t2 = pg_time_seconds();
+            double t3 = pg_time_seconds();
+            if (!st) deform_network_regularize(net, 2e-4f, 1e-3f, 1e-4f);
+            if (r >= 0) reg_ms += (pg_time_seconds() - t3) * 1e3 / reps;
             if (r >= 0) {
                 cpu_f += (c1 - c0) * 1e3 / reps;
                 cpu_b += (c2 - c1) * 1e3 / reps;
@@ -96,10 +100,10 @@ int bench_deform(int argc, char **argv)
         qsort(tf, reps, sizeof(double), cmp_double);
         qsort(tb, reps, sizeof(double), cmp_double);
         printf("{\"bench\":\"deform\",\"points\":%d,\"threads\":%d,\"forward_ms\":%.2f,\"backward_ms\":%.2f,\"forward_min_ms\":%.2f,\"backward_min_ms\":%.2f,"
-               "\"forward_cpu_ms\":%.2f,\"backward_cpu_ms\":%.2f,"
-               "\"params\":%zu,\"channels\":%d,\"res\":%d,\"res_time\":%d,\"width\":%d,\"chunk\":%d,\"store\":%d,\"sorted\":%d}\n",
-               points, threads, tf[reps / 2], tb[reps / 2], tf[0], tb[0], cpu_f, cpu_b, net->num_params, cfg.channels, cfg.res_space,
-               cfg.res_time, cfg.width, chunk ? chunk : 256, store, sorted);
+               "\"forward_cpu_ms\":%.2f,\"backward_cpu_ms\":%.2f,\"regularize_ms\":%.2f,"
+               "\"params\":%zu,\"channels\":%d,\"res\":%d,\"res_time\":%d,\"width\":%d,\"chunk\":%d,\"store\":%d,\"sorted\":%d,\"amx\":%d}\n",
+               points, threads, tf[reps / 2], tb[reps / 2], tf[0], tb[0], cpu_f, cpu_b, reg_ms, net->num_params, cfg.channels, cfg.res_space,
+               cfg.res_time, cfg.width, chunk ? chunk : 256, store, sorted, deform_ws_uses_amx(ws));
     }
     free(means); free(out); free(dout); free(dmeans); free(tf); free(tb);
     deform_ws_destroy(ws);

@@ -7,6 +7,7 @@ int bench_raster(int argc, char **argv);
 int bench_proxy(int argc, char **argv);
 int bench_iteration(int argc, char **argv);
 int bench_deform(int argc, char **argv);
+int bench_loss(int argc, char **argv);
 
 int cmd_bench(int argc, char **argv)
 {
@@ -15,5 +16,6 @@ int cmd_bench(int argc, char **argv)
     if (strcmp(argv[1], "proxy") == 0) return bench_proxy(argc - 1, argv + 1);
     if (strcmp(argv[1], "iteration") == 0) return bench_iteration(argc - 1, argv + 1);
     if (strcmp(argv[1], "deform") == 0) return bench_deform(argc - 1, argv + 1);
+    if (strcmp(argv[1], "loss") == 0) return bench_loss(argc - 1, argv + 1);
     return cli_usage_error("bench: unknown benchmark '%s' (raster, proxy, iteration)", argv[1]);
 }

@@ -5,6 +5,7 @@
 #include "core/fileutil.h"
 #include "io/dataset.h"
 #include "io/depth_io.h"
+#include "io/image_io.h"
 #include "io/json.h"
 #include "io/ply.h"
 #include "io/video.h"
@@ -44,15 +45,20 @@ static int info_dataset(const char *path, int json, pg_status *st_out)
     if (st) return -1;
     int n = io_dataset_num_cameras(ds);
     io_dataset_kind kind = io_dataset_get_kind(ds);
-    /* Decode the first frame of the first camera so a broken source is reported here. */
-    pg_image img;
-    st = io_dataset_frame(ds, 0, 0, &img);
+    /* Decode the first frame of the first camera so a broken source is reported here (through
+     * a one-frame selection: the dataset caches whole cameras). */
+    pg_dataset *one = NULL;
+    o.count = 1;
+    st = io_dataset_open(path, &o, &one);
+    pg_image img = { 0 };
+    if (st == PG_OK) st = io_dataset_frame(one, 0, 0, &img);
+    pg_image_destroy(&img);
+    io_dataset_close(one);
     if (st) {
         io_dataset_close(ds);
         *st_out = st;
         return -1;
     }
-    pg_image_destroy(&img);
     if (json) {
         cJSON *root = cJSON_CreateObject();
         cJSON_AddStringToObject(root, "path", path);
@@ -161,6 +167,81 @@ static int info_ply(const char *path, int json, pg_status *st_out)
     return 0;
 }
 
+static int info_image(const char *path, int json, pg_status *st_out)
+{
+    pg_image img;
+    pg_status st = io_image_load(path, &img);
+    *st_out = st;
+    if (st) return -1;
+    double mean = 0;
+    size_t n = (size_t)img.width * img.height * img.channels;
+    for (size_t i = 0; i < n; i++) mean += img.data[i];
+    mean /= (double)n;
+    int w = img.width, h = img.height;
+    pg_image_destroy(&img);
+    if (json) {
+        cJSON *root = cJSON_CreateObject();
+        cJSON_AddStringToObject(root, "path", path);
+        cJSON_AddStringToObject(root, "type", "image");
+        cJSON_AddNumberToObject(root, "width", w);
+        cJSON_AddNumberToObject(root, "height", h);
+        cJSON_AddNumberToObject(root, "mean", mean);
+        return print_json(root);
+    }
+    printf("%s: image, %d x %d, mean value %.4f\n", path, w, h, mean);
+    return 0;
+}
+
+/* A training-set directory (docs/FORMATS.md): DIR/trainset.json. */
+static int info_trainset(const char *dir, const char *path, int json, pg_status *st_out)
+{
+    cJSON *root;
+    pg_status st = io_json_load(path, &root);
+    int frames = 0, w = 0, h = 0;
+    const cJSON *cams = NULL;
+    if (st == PG_OK) st = io_json_get_int(root, "frames", path, 1, 1000000, &frames);
+    if (st == PG_OK) st = io_json_get_int(root, "width", path, 1, PG_MAX_IMAGE_SIDE, &w);
+    if (st == PG_OK) st = io_json_get_int(root, "height", path, 1, PG_MAX_IMAGE_SIDE, &h);
+    if (st == PG_OK) {
+        cams = cJSON_GetObjectItemCaseSensitive(root, "cameras");
+        if (!cJSON_IsArray(cams) || cJSON_GetArraySize(cams) == 0) st = pg_fail(PG_ERR_FORMAT, "%s: 'cameras' must be a non-empty array", path);
+    }
+    const cJSON *c;
+    cJSON_ArrayForEach(c, cams)
+    {
+        pg_camera cam;
+        if (st == PG_OK) st = io_json_to_camera(c, path, &cam, NULL, 0);
+    }
+    *st_out = st;
+    if (st) {
+        cJSON_Delete(root);
+        return -1;
+    }
+    if (json) {
+        cJSON *out = cJSON_Duplicate(root, 1);
+        cJSON_Delete(root);
+        if (!out) return 1;
+        cJSON_AddStringToObject(out, "path", dir);
+        cJSON_AddStringToObject(out, "type", "trainset");
+        return print_json(out);
+    }
+    printf("%s: training set, %d cameras, %d frames of %d x %d, %.3f fps\n", dir, cJSON_GetArraySize(cams), frames, w, h,
+           io_json_number_or(root, "fps", 0));
+    cJSON_ArrayForEach(c, cams)
+    {
+        pg_camera cam;
+        char name[128];
+        float C[3];
+        io_json_to_camera(c, path, &cam, name, sizeof name);
+        pg_camera_center(&cam, C);
+        const cJSON *mask = cJSON_GetObjectItemCaseSensitive(c, "mask"), *depth = cJSON_GetObjectItemCaseSensitive(c, "depth");
+        printf("  %-10s %-6s f %.2f %.2f  centre (%.3f, %.3f, %.3f)%s%s\n", name, io_json_string_or(c, "role", "?"), cam.fx,
+               cam.fy, C[0], C[1], C[2], cJSON_IsString(mask) ? "  mask" : "", cJSON_IsString(depth) ? "  depth" : "");
+    }
+    cJSON_Delete(root);
+    return 0;
+}
+
 /* A folder with depth files but no images is a depth folder. */
 static int is_depth_folder(const char *path)
 {
@@ -182,7 +263,7 @@ int cmd_info(int argc, char **argv)
     int json = 0;
     cli_option opts[] = { { "--json", CLI_FLAG, &json, "print JSON instead of text" } };
     cli_spec spec = { "prodygs info", "PATH [--json]",
-                      "Describe a video, frame folder, dataset (DyNeRF/Panoptic), depth file/folder or Gaussian PLY.",
+                      "Describe a video, frame folder, dataset (DyNeRF/Panoptic), training set, depth file/folder or Gaussian PLY.",
                       opts, 1, 1, 1 };
     const char *pos[1];
     int npos = 0;
@@ -200,8 +281,13 @@ int cmd_info(int argc, char **argv)
     int dataset_dir = is_dir && ((pg_path_join(probe, sizeof probe, path, "poses_bounds.npy") == PG_OK && pg_path_exists(probe)) ||
                                  (pg_path_join(probe, sizeof probe, path, "train_meta.json") == PG_OK && pg_path_exists(probe)) ||
                                  (pg_path_join(probe, sizeof probe, path, "test_meta.json") == PG_OK && pg_path_exists(probe)));
-    if (!dataset_dir && is_dir && is_depth_folder(path)) rc = info_depth(path, json, &st);
+    char trainset[4200];
+    if (is_dir && pg_path_join(trainset, sizeof trainset, path, "trainset.json") == PG_OK && pg_path_exists(trainset))
+        rc = info_trainset(path, trainset, json, &st);
+    else if (!dataset_dir && is_dir && is_depth_folder(path)) rc = info_depth(path, json, &st);
     else if (!is_dir && (!strcasecmp(x, ".npy") || !strcasecmp(x, ".pfm") || !strcasecmp(x, ".exr"))) rc = info_depth(path, json, &st);
+    else if (!is_dir && (!strcasecmp(x, ".png") || !strcasecmp(x, ".jpg") || !strcasecmp(x, ".jpeg")))
+        rc = info_image(path, json, &st);
     else if (!is_dir && !strcasecmp(x, ".ply")) rc = info_ply(path, json, &st);
     else rc = info_dataset(path, json, &st);
     if (rc < 0) return cli_fail(st);

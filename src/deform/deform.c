@@ -4,6 +4,7 @@
 
 #include "core/fileutil.h"
 #include "core/rng.h"
+#include "deform/gemm_amx.h"
 #include "deform/mlp.h"
 #include "optim/loss_reg.h"
 
@@ -52,6 +53,20 @@ pg_status deform_config_validate(const deform_config *c)
 /* ---------------------------------------------------------------------------------------------- */
 /* network                                                                                         */
 
+/* 64-byte aligned allocation (freed with free): with C = 16 one texel is exactly one cache line, so
+ * aligned planes halve the lines a bilinear gather/scatter touches. */
+static float *alloc_floats(size_t n, int zero, const char *what)
+{
+    size_t bytes = (n * sizeof(float) + 63) & ~(size_t)63;
+    float *p = aligned_alloc(64, bytes ? bytes : 64);
+    if (!p) {
+        pg_fail(PG_ERR_NOMEM, "out of memory allocating %s (%zu bytes)", what, bytes);
+        return NULL;
+    }
+    if (zero) memset(p, 0, bytes);
+    return p;
+}
+
 /* Plans the parameter layout (planes, then layers, then heads) and returns the total count. */
 static size_t plan_layout(deform_network *net)
 {
@@ -60,7 +75,7 @@ static size_t plan_layout(deform_network *net)
     for (int s = 0; s < c->num_scales; s++)
         for (int p = 0; p < HEX_PLANES; p++) {
             net->plane_off[s][p] = off;
-            off += hex_plane_size(&net->grid, s, p);
+            off += (hex_plane_size(&net->grid, s, p) + 15) & ~(size_t)15; /* keep planes 64-byte aligned */
         }
     net->num_plane_params = off;
     int W = c->width, in = c->channels * c->num_scales;
@@ -83,7 +98,7 @@ static size_t plan_layout(deform_network *net)
         L->b_off = off;
         off += (size_t)L->out;
     }
-    return off;
+    return (off + 15) & ~(size_t)15; /* so per-thread gradient copies stay 64-byte aligned too */
 }
 
 static void bind_planes(deform_network *net)
@@ -109,8 +124,8 @@ static pg_status network_alloc(deform_network **out, const deform_config *cfg, c
     net->grid.T = cfg->res_time;
     memcpy(net->grid.aabb, aabb, 6 * sizeof(float));
     net->num_params = plan_layout(net);
-    net->params = pg_malloc(net->num_params * sizeof(float), "deform parameters");
-    net->grads = pg_calloc(net->num_params, sizeof(float), "deform gradients");
+    net->params = alloc_floats(net->num_params, 1, "deform parameters");
+    net->grads = alloc_floats(net->num_params, 1, "deform gradients");
     if (!net->params || !net->grads) {
         deform_network_destroy(net);
         return PG_ERR_NOMEM;
@@ -181,17 +196,45 @@ struct deform_ws {
     long n;
     float t;
     long *order;          /* (order_cap) processing order: row j of the chunks is point order[j] */
+    long *keys;           /* (order_cap) Morton keys of the points */
     long order_cap;
     long *bins;           /* (SORT_BINS + 1) counting-sort histogram */
+    /* bf16 AMX path */
+    int amx;
+    size_t apack_off, bpack_off;  /* offsets (floats) of the packing scratch inside a thread's scratch */
+    size_t dwt_off;               /* per-thread transposed weight gradients (in, out) of every layer */
+    uint16_t *wt_pack[DEFORM_MAX_FEATURE_LAYERS + 1]; /* per layer: w as B of x w^T  */
+    uint16_t *w_pack[DEFORM_MAX_FEATURE_LAYERS + 1];  /* per layer: w as B of d_y w  */
+    uint16_t *head_wt_pack[DEFORM_HEADS]; /* heads' last layers, for forward */
+    uint16_t *head_w_pack[DEFORM_HEADS];  /* heads' last layers, for d a = d_y w */
+    uint16_t *packs;              /* storage of all packed weights */
 };
+
+int deform_ws_uses_amx(const deform_ws *ws) { return ws->amx; }
 
 static size_t ws_scratch_floats(const deform_ws *ws)
 {
     size_t c = (size_t)ws->chunk;
     size_t big = (size_t)DEFORM_HEADS * ws->W;
     size_t mx = (size_t)(ws->W > ws->F ? ws->W : ws->F);
-    /* acts + d_out copy + dA (c, 5W) + two ping-pong (c, max(W, F)) */
-    return c * ws->act_pp + c * DEFORM_OUT_DIM + c * big + 2 * c * mx;
+    /* acts + d_out copy + dA (c, 5W) + two ping-pong (c, max(W, F)) [+ bf16 packing scratch] */
+    size_t n = c * ws->act_pp + c * DEFORM_OUT_DIM + c * big + 2 * c * mx;
+    return (n + 15) & ~(size_t)15;
+}
+
+/* Packing scratch (in uint16) of the AMX path for layers of sizes in -> out. */
+static void ws_amx_scratch(const deform_network *net, int chunk, size_t *a, size_t *b)
+{
+    *a = *b = 0;
+    for (int l = 0; l < net->num_layers; l++) {
+        int in = net->layers[l].in, out = net->layers[l].out;
+        size_t s1 = gemm_amx_a_size(chunk, in), s2 = gemm_amx_a_size(in, chunk), s3 = gemm_amx_a_size(chunk, out);
+        size_t m = s1 > s2 ? s1 : s2;
+        if (s3 > m) m = s3;
+        if (m > *a) *a = m;
+        size_t sb = gemm_amx_b_size(chunk, out);
+        if (sb > *b) *b = sb;
+    }
 }
 
 /* Grows the per-thread buffers to the current OpenMP thread count. */
@@ -199,8 +242,8 @@ static pg_status ws_ensure_threads(deform_ws *ws)
 {
     int nt = omp_get_max_threads();
     if (nt <= ws->nthreads) return PG_OK;
-    float *s = pg_malloc((size_t)nt * ws->scratch_floats * sizeof(float), "deform thread scratch");
-    float *g = nt > 1 ? pg_malloc((size_t)(nt - 1) * ws->num_params * sizeof(float), "deform thread gradients") : NULL;
+    float *s = alloc_floats((size_t)nt * ws->scratch_floats, 0, "deform thread scratch");
+    float *g = nt > 1 ? alloc_floats((size_t)(nt - 1) * ws->num_params, 0, "deform thread gradients") : NULL;
     if (!s || (nt > 1 && !g)) {
         free(s);
         free(g);
@@ -228,6 +271,41 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
     ws->act_pp = (size_t)ws->F + (size_t)(ws->L - 1) * ws->W + (size_t)DEFORM_HEADS * ws->W;
     ws->num_params = net->num_params;
     ws->scratch_floats = ws_scratch_floats(ws);
+    ws->amx = net->cfg.bf16 && gemm_amx_available();
+    if (ws->amx) {
+        size_t a, b, total = 0;
+        ws_amx_scratch(net, chunk, &a, &b);
+        ws->apack_off = ws->scratch_floats;
+        ws->bpack_off = ws->apack_off + ((a / 2 + 16) & ~(size_t)15);
+        ws->dwt_off = ws->bpack_off + ((b / 2 + 16) & ~(size_t)15);
+        size_t dwt = 0;
+        for (int l = 0; l < net->num_layers; l++) dwt += (size_t)net->layers[l].in * net->layers[l].out;
+        ws->scratch_floats = ws->dwt_off + ((dwt + 15) & ~(size_t)15);
+        for (int l = 0; l < net->num_layers; l++)
+            total += gemm_amx_b_size(net->layers[l].in, net->layers[l].out) +
+                     gemm_amx_b_size(net->layers[l].out, net->layers[l].in);
+        for (int h = 0; h < DEFORM_HEADS; h++)
+            total += gemm_amx_b_size(net->heads[h].in, net->heads[h].out) +
+                     gemm_amx_b_size(net->heads[h].out, net->heads[h].in);
+        ws->packs = pg_malloc(total * sizeof(uint16_t), "deform packed weights");
+        if (!ws->packs) {
+            free(ws);
+            return PG_ERR_NOMEM;
+        }
+        uint16_t *p = ws->packs;
+        for (int l = 0; l < net->num_layers; l++) {
+            ws->wt_pack[l] = p;
+            p += gemm_amx_b_size(net->layers[l].in, net->layers[l].out);
+            ws->w_pack[l] = p;
+            p += gemm_amx_b_size(net->layers[l].out, net->layers[l].in);
+        }
+        for (int h = 0; h < DEFORM_HEADS; h++) {
+            ws->head_wt_pack[h] = p;
+            p += gemm_amx_b_size(net->heads[h].in, net->heads[h].out);
+            ws->head_w_pack[h] = p;
+            p += gemm_amx_b_size(net->heads[h].out, net->heads[h].in);
+        }
+    }
     ws->store_points = (max_points + chunk - 1) / chunk * (long)chunk;
     size_t store_floats;
     if (pg_size_mul((size_t)ws->store_points, ws->act_pp, &store_floats)) {
@@ -235,7 +313,7 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
         return pg_fail(PG_ERR_SIZE, "deform_ws_create: %ld points overflow", max_points);
     }
     if (store_floats) {
-        ws->store = pg_malloc(store_floats * sizeof(float), "deform stored activations");
+        ws->store = alloc_floats(store_floats, 0, "deform stored activations");
         if (!ws->store) {
             free(ws);
             return PG_ERR_NOMEM;
@@ -264,7 +342,9 @@ void deform_ws_destroy(deform_ws *ws)
     free(ws->scratch);
     free(ws->tgrads);
     free(ws->order);
+    free(ws->keys);
     free(ws->bins);
+    free(ws->packs);
     free(ws);
 }
 
@@ -287,15 +367,21 @@ static inline long point_row(const deform_ws *ws, long j)
 static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
 {
     if (n > ws->order_cap) {
-        long *o = malloc((size_t)n * sizeof(long));
-        if (!o) return pg_fail(PG_ERR_NOMEM, "deform: no memory to order %ld points", n);
+        long *o = malloc((size_t)n * sizeof(long)), *k = malloc((size_t)n * sizeof(long));
+        if (!o || !k) {
+            free(o);
+            free(k);
+            return pg_fail(PG_ERR_NOMEM, "deform: no memory to order %ld points", n);
+        }
         free(ws->order);
+        free(ws->keys);
         ws->order = o;
+        ws->keys = k;
         ws->order_cap = n;
     }
     if (!ws->bins && !(ws->bins = malloc((SORT_BINS + 1) * sizeof(long))))
         return pg_fail(PG_ERR_NOMEM, "deform: no memory for the point sort");
-    /* key of point i is stored temporarily in order[i] */
+    long *keys = ws->keys;
     for (long i = 0; i < n; i++) {
         const float *p = ws->means + 3 * (ws->idx ? (long)ws->idx[i] : i);
         long key = 0;
@@ -305,17 +391,12 @@ static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
             if (c > (1 << SORT_BITS) - 1) c = (1 << SORT_BITS) - 1;
             for (int b = 0; b < SORT_BITS; b++) key |= (long)((c >> b) & 1) << (3 * b + d);
         }
-        ws->order[i] = key;
+        keys[i] = key;
     }
     memset(ws->bins, 0, (SORT_BINS + 1) * sizeof(long));
-    for (long i = 0; i < n; i++) ws->bins[ws->order[i] + 1]++;
+    for (long i = 0; i < n; i++) ws->bins[keys[i] + 1]++;
     for (long b = 0; b < SORT_BINS; b++) ws->bins[b + 1] += ws->bins[b];
-    /* second array: reuse the tail trick - place indices via a temporary copy of keys */
-    long *keys = malloc((size_t)n * sizeof(long));
-    if (!keys) return pg_fail(PG_ERR_NOMEM, "deform: no memory to order %ld points", n);
-    memcpy(keys, ws->order, (size_t)n * sizeof(long));
     for (long i = 0; i < n; i++) ws->order[ws->bins[keys[i]]++] = i;
-    free(keys);
     return PG_OK;
 }
 
@@ -337,15 +418,20 @@ static float *layer_out(const deform_ws *ws, float *acts, int l, int m)
 }
 
 /* Hexplane + hidden layers of one chunk (everything except the heads' last layers). */
-static void chunk_forward_hidden(const deform_network *net, deform_ws *ws, float *acts, long start, int m)
+static void chunk_forward_hidden(const deform_network *net, deform_ws *ws, float *acts, long start, int m, int tid)
 {
     const int F = ws->F;
     for (int i = 0; i < m; i++)
         hex_sample_forward(acts + (size_t)i * F, &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
+    uint16_t *apack = (uint16_t *)(ws->scratch + (size_t)tid * ws->scratch_floats + ws->apack_off);
     for (int l = 0; l < net->num_layers; l++) {
         const deform_layer *L = &net->layers[l];
-        mlp_linear_forward(layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
-                           net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 1);
+        if (ws->amx)
+            mlp_linear_forward_amx(layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
+                                   ws->wt_pack[l], net->params + L->b_off, m, L->in, L->out, 1, apack);
+        else
+            mlp_linear_forward(layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
+                               net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 1);
     }
 }
 
@@ -359,6 +445,16 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
     ws->n = n;
     ws->t = t;
     PG_TRY(ws_sort_points(ws, &net->grid, n));
+    if (ws->amx) /* weights as B of x w^T, once per call (they change every optimiser step) */
+        for (int l = 0; l < net->num_layers; l++) {
+            const deform_layer *L = &net->layers[l];
+            gemm_amx_pack_b(ws->wt_pack[l], net->params + L->w_off, 1, L->in, L->in, L->out);
+        }
+    if (ws->amx)
+        for (int h = 0; h < DEFORM_HEADS; h++) {
+            const deform_layer *L = &net->heads[h];
+            gemm_amx_pack_b(ws->head_wt_pack[h], net->params + L->w_off, 1, L->in, L->in, L->out);
+        }
     const int W5 = DEFORM_HEADS * ws->W;
     long nchunks = (n + ws->chunk - 1) / ws->chunk;
     #pragma omp parallel for schedule(static)
@@ -367,13 +463,18 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
         long start = k * ws->chunk;
         int m = (int)(n - start < ws->chunk ? n - start : ws->chunk);
         float *acts = chunk_acts(ws, k, tid, &stored);
-        chunk_forward_hidden(net, ws, acts, start, m);
+        chunk_forward_hidden(net, ws, acts, start, m, tid);
         const float *a = layer_out(ws, acts, net->num_layers - 1, m);
         float *y = ws->scratch + (size_t)tid * ws->scratch_floats + (size_t)ws->chunk * ws->act_pp; /* (m, 59) */
+        uint16_t *apack = (uint16_t *)(ws->scratch + (size_t)tid * ws->scratch_floats + ws->apack_off);
         for (int h = 0; h < DEFORM_HEADS; h++) {
             const deform_layer *L = &net->heads[h];
-            mlp_linear_forward(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, W5,
-                               net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 0);
+            if (ws->amx)
+                mlp_linear_forward_amx(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, W5,
+                                       ws->head_wt_pack[h], net->params + L->b_off, m, L->in, L->out, 0, apack);
+            else
+                mlp_linear_forward(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, W5,
+                                   net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 0);
         }
         for (int i = 0; i < m; i++)
             memcpy(out + (size_t)ws->order[start + i] * DEFORM_OUT_DIM, y + (size_t)i * DEFORM_OUT_DIM,
@@ -391,13 +492,45 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
     if (nt > ws->nthreads) return pg_fail(PG_ERR_ARG, "deform_network_backward: thread count changed since forward");
     size_t mx = (size_t)(W > F ? W : F);
     int used_threads = 1;
+    /* Parameter ranges a backward can write: spatial planes, the two time rows at t of each time
+     * plane (60% of the parameters are time planes; this skips zeroing/reducing the rest of them
+     * in the per-thread buffers), and the MLP. */
+    size_t ranges[HEX_MAX_SCALES * HEX_PLANES + 1][2];
+    int nranges = 0;
+    const int trow = hex_time_row(&net->grid, ws->t);
+    for (int s = 0; s < net->cfg.num_scales; s++)
+        for (int p = 0; p < HEX_PLANES; p++) {
+            size_t off = net->plane_off[s][p], len = hex_plane_size(&net->grid, s, p);
+            if (hex_plane_axes[p][1] == 3) {
+                size_t row = len / (size_t)net->cfg.res_time;
+                off += (size_t)trow * row;
+                len = 2 * row;
+            }
+            ranges[nranges][0] = off;
+            ranges[nranges][1] = len;
+            nranges++;
+        }
+    ranges[nranges][0] = net->num_plane_params;
+    ranges[nranges][1] = net->num_params - net->num_plane_params;
+    nranges++;
+    if (ws->amx)
+        for (int l = 0; l < net->num_layers; l++) {
+            const deform_layer *L = &net->layers[l];
+            gemm_amx_pack_b(ws->w_pack[l], net->params + L->w_off, L->in, 1, L->out, L->in);
+        }
+    if (ws->amx)
+        for (int h = 0; h < DEFORM_HEADS; h++) {
+            const deform_layer *L = &net->heads[h];
+            gemm_amx_pack_b(ws->head_w_pack[h], net->params + L->w_off, L->in, 1, L->out, L->in);
+        }
     #pragma omp parallel
     {
         int tid = omp_get_thread_num();
         #pragma omp single
         used_threads = omp_get_num_threads();
         float *grads = tid == 0 ? net->grads : ws->tgrads + (size_t)(tid - 1) * ws->num_params;
-        if (tid > 0) memset(grads, 0, ws->num_params * sizeof(float));
+        if (tid > 0)
+            for (int r = 0; r < nranges; r++) memset(grads + ranges[r][0], 0, ranges[r][1] * sizeof(float));
         float *dplanes[HEX_MAX_SCALES][HEX_PLANES];
         for (int s = 0; s < net->cfg.num_scales; s++)
             for (int p = 0; p < HEX_PLANES; p++) dplanes[s][p] = grads + net->plane_off[s][p];
@@ -407,29 +540,51 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
         float *dA = dy + c * DEFORM_OUT_DIM;   /* (c, 5W) */
         float *dB = dA + c * W5;               /* (c, max(W, F)) */
         float *dC = dB + c * mx;               /* (c, max(W, F)) */
+        float *dwt[DEFORM_MAX_FEATURE_LAYERS + 1]; /* AMX path: (in, out) per layer */
+        if (ws->amx) {
+            float *q = scr + ws->dwt_off;
+            for (int l = 0; l < net->num_layers; l++) {
+                dwt[l] = q;
+                q += (size_t)net->layers[l].in * net->layers[l].out;
+            }
+            memset(scr + ws->dwt_off, 0, (size_t)(q - (scr + ws->dwt_off)) * sizeof(float));
+        }
         #pragma omp for schedule(static)
         for (long k = 0; k < nchunks; k++) {
             int stored;
             long start = k * ws->chunk;
             int m = (int)(n - start < ws->chunk ? n - start : ws->chunk);
             float *acts = chunk_acts(ws, k, tid, &stored);
-            if (!stored) chunk_forward_hidden(net, ws, acts, start, m);
+            if (!stored) chunk_forward_hidden(net, ws, acts, start, m, tid);
             for (int i = 0; i < m; i++)
                 memcpy(dy + (size_t)i * DEFORM_OUT_DIM, d_out + (size_t)ws->order[start + i] * DEFORM_OUT_DIM,
                        DEFORM_OUT_DIM * sizeof(float));
             const float *a = layer_out(ws, acts, net->num_layers - 1, m);
             for (int h = 0; h < DEFORM_HEADS; h++) {
                 const deform_layer *L = &net->heads[h];
-                mlp_linear_backward(dA + (size_t)h * W, W5, grads + L->w_off, grads + L->b_off,
+                /* weight/bias gradients of the small last layers stay f32 (a strided bf16 pack of a^T
+                 * would cost more than it saves); d a = d_y w goes on AMX when enabled */
+                mlp_linear_backward(ws->amx ? NULL : dA + (size_t)h * W, W5, grads + L->w_off, grads + L->b_off,
                                     dy + deform_head_offset[h], DEFORM_OUT_DIM, NULL, 0, a + (size_t)h * W, W5,
                                     net->params + L->w_off, m, L->in, L->out, 0);
+                if (ws->amx) {
+                    uint16_t *apack = (uint16_t *)(scr + ws->apack_off);
+                    gemm_amx_pack_a(apack, dy + deform_head_offset[h], DEFORM_OUT_DIM, 1, m, L->out);
+                    gemm_amx_run(dA + (size_t)h * W, W5, apack, ws->head_w_pack[h], m, W, L->out, 0);
+                }
             }
             float *dcur = dA, *dnext = dB;
             for (int l = net->num_layers - 1; l >= 0; l--) {
                 const deform_layer *L = &net->layers[l];
-                mlp_linear_backward(dnext, L->in, grads + L->w_off, grads + L->b_off, dcur, L->out,
-                                    layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
-                                    net->params + L->w_off, m, L->in, L->out, 1);
+                if (ws->amx)
+                    mlp_linear_backward_amx(dnext, L->in, dwt[l], grads + L->b_off, dcur, L->out,
+                                            layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
+                                            ws->w_pack[l], m, L->in, L->out, 1, (uint16_t *)(scr + ws->apack_off),
+                                            (uint16_t *)(scr + ws->bpack_off));
+                else
+                    mlp_linear_backward(dnext, L->in, grads + L->w_off, grads + L->b_off, dcur, L->out,
+                                        layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
+                                        net->params + L->w_off, m, L->in, L->out, 1);
                 dcur = dnext;
                 dnext = dnext == dB ? dC : dB;
             }
@@ -440,15 +595,27 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
                                     ws->means + 3 * gi, ws->t);
             }
         }
-    }
-    /* Fixed-order reduction of the other threads' buffers (parallel over parameters). */
-    if (used_threads > 1) {
-        const size_t P = ws->num_params;
-        #pragma omp parallel for schedule(static)
-        for (size_t i = 0; i < P; i++) {
-            float s = net->grads[i];
-            for (int th = 1; th < used_threads; th++) s += ws->tgrads[(size_t)(th - 1) * P + i];
-            net->grads[i] = s;
+        if (ws->amx) /* this thread's transposed weight gradients -> its (out, in) gradient buffer */
+            for (int l = 0; l < net->num_layers; l++) {
+                const deform_layer *L = &net->layers[l];
+                float *gw = grads + L->w_off;
+                for (int o = 0; o < L->out; o++)
+                    for (int i = 0; i < L->in; i++) gw[(size_t)o * L->in + i] += dwt[l][(size_t)i * L->out + o];
+            }
+        /* Fixed-order reduction of the other threads' buffers over the written ranges, inside the
+         * same parallel region (a fork/join per range is slow when the cores are busy). */
+        if (used_threads > 1) {
+            #pragma omp barrier
+            const size_t P = ws->num_params;
+            for (int r = 0; r < nranges; r++) {
+                size_t lo = ranges[r][0], hi = lo + ranges[r][1];
+                #pragma omp for schedule(static) nowait
+                for (size_t i = lo; i < hi; i++) {
+                    float sum = net->grads[i];
+                    for (int th = 1; th < used_threads; th++) sum += ws->tgrads[(size_t)(th - 1) * P + i];
+                    net->grads[i] = sum;
+                }
+            }
         }
     }
     return PG_OK;
@@ -457,32 +624,41 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
 /* ---------------------------------------------------------------------------------------------- */
 /* regularisers                                                                                    */
 
+/* One parallel region over the planes (each plane's regularisers then run serially inside it):
+ * the per-function row parallelism would fork/join ~50 times per call, which is slow on busy
+ * cores. Per-plane totals are summed in plane order, so the result is thread-count independent. */
 float deform_network_regularize(deform_network *net, float w_tv, float w_time, float w_l1)
 {
-    double total = 0;
-    for (int s = 0; s < net->cfg.num_scales; s++)
-        for (int p = 0; p < HEX_PLANES; p++) {
-            int Wp = hex_axis_res(&net->grid, s, hex_plane_axes[p][0]);
-            int Hp = hex_axis_res(&net->grid, s, hex_plane_axes[p][1]);
-            int C = net->cfg.channels;
-            const float *pl = net->grid.planes[s][p];
-            float *g = net->grads + net->plane_off[s][p];
-            if (hex_plane_axes[p][1] != 3) {
-                if (w_tv != 0) {
-                    total += (double)w_tv * optim_plane_tv_forward(pl, Hp, Wp, C);
-                    optim_plane_tv_backward(g, w_tv, pl, Hp, Wp, C);
-                }
-            } else {
-                if (w_time != 0) {
-                    total += (double)w_time * optim_plane_time_smooth_forward(pl, Hp, Wp, C);
-                    optim_plane_time_smooth_backward(g, w_time, pl, Hp, Wp, C);
-                }
-                if (w_l1 != 0) {
-                    total += (double)w_l1 * optim_plane_l1_one_forward(pl, Hp, Wp, C);
-                    optim_plane_l1_one_backward(g, w_l1, pl, Hp, Wp, C);
-                }
+    const int np = net->cfg.num_scales * HEX_PLANES;
+    double part[HEX_MAX_SCALES * HEX_PLANES];
+    #pragma omp parallel for schedule(dynamic, 1)
+    for (int q = np - 1; q >= 0; q--) { /* finest scale first: the biggest planes start early */
+        int s = q / HEX_PLANES, p = q % HEX_PLANES;
+        int Wp = hex_axis_res(&net->grid, s, hex_plane_axes[p][0]);
+        int Hp = hex_axis_res(&net->grid, s, hex_plane_axes[p][1]);
+        int C = net->cfg.channels;
+        const float *pl = net->grid.planes[s][p];
+        float *g = net->grads + net->plane_off[s][p];
+        double t = 0;
+        if (hex_plane_axes[p][1] != 3) {
+            if (w_tv != 0) {
+                t += (double)w_tv * optim_plane_tv_forward(pl, Hp, Wp, C);
+                optim_plane_tv_backward(g, w_tv, pl, Hp, Wp, C);
+            }
+        } else {
+            if (w_time != 0) {
+                t += (double)w_time * optim_plane_time_smooth_forward(pl, Hp, Wp, C);
+                optim_plane_time_smooth_backward(g, w_time, pl, Hp, Wp, C);
+            }
+            if (w_l1 != 0) {
+                t += (double)w_l1 * optim_plane_l1_one_forward(pl, Hp, Wp, C);
+                optim_plane_l1_one_backward(g, w_l1, pl, Hp, Wp, C);
             }
         }
+        part[q] = t;
+    }
+    double total = 0;
+    for (int q = 0; q < np; q++) total += part[q];
     return (float)total;
 }
 

@@ -51,6 +51,13 @@ static void hex_axes(hex_axis ax[4], const hex_grid *g, int s, const float *pos,
     hex_axis_setup(&ax[3], t, 1.0f, g->T);
 }
 
+int hex_time_row(const hex_grid *g, float t)
+{
+    hex_axis ax;
+    hex_axis_setup(&ax, t, 1.0f, g->T);
+    return ax.i0;
+}
+
 void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float t)
 {
     const int C = g->C;

@@ -41,6 +41,10 @@ size_t hex_plane_size(const hex_grid *g, int s, int p);
 /* Total floats of all planes. */
 size_t hex_total_size(const hex_grid *g);
 
+/* First of the two time rows (of T) that a sample at t reads; the backward writes only rows
+ * hex_time_row(g, t) and +1 of the time planes. */
+int hex_time_row(const hex_grid *g, float t);
+
 /* Samples one point: feat (S*C). pos (3) in world units, t in [0,1]. */
 void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float t);
 

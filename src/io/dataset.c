@@ -104,14 +104,15 @@ pg_status io_dataset_open(const char *path, const io_dataset_options *opt, pg_da
     if (!pg_path_exists(path)) {
         st = pg_fail(PG_ERR_IO, "%s: no such file or folder", path);
     } else if (pg_path_is_dir(path) &&
+               ((pg_path_join(probe, sizeof probe, ds->path, "train_meta.json"), pg_path_exists(probe)) ||
+                (pg_path_join(probe, sizeof probe, ds->path, "test_meta.json"), pg_path_exists(probe)))) {
+        /* Checked first: a Panoptic folder may carry a poses_bounds.npy as well. */
+        ds->kind = IO_DATASET_PANOPTIC;
+        st = ds_open_panoptic(ds);
+    } else if (pg_path_is_dir(path) &&
                (pg_path_join(probe, sizeof probe, ds->path, "poses_bounds.npy"), pg_path_exists(probe))) {
         ds->kind = IO_DATASET_DYNERF;
         st = ds_open_dynerf(ds);
-    } else if (pg_path_is_dir(path) &&
-               ((pg_path_join(probe, sizeof probe, ds->path, "train_meta.json"), pg_path_exists(probe)) ||
-                (pg_path_join(probe, sizeof probe, ds->path, "test_meta.json"), pg_path_exists(probe)))) {
-        ds->kind = IO_DATASET_PANOPTIC;
-        st = ds_open_panoptic(ds);
     } else {
         st = open_single(ds);
         if (st && pg_path_is_dir(path))

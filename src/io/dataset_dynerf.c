@@ -182,7 +182,7 @@ pg_status ds_open_dynerf(pg_dataset *ds)
         st = io_video_probe(c->source, &info);
         if (st) break;
         int frames = info.frames;
-        if (!info.frames_exact && frames <= 0) {
+        if (!info.frames_exact) {
             st = io_video_count_frames(c->source, &frames);
             if (st) break;
         }

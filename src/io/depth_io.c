@@ -28,6 +28,14 @@ io_depth_options io_depth_defaults(void)
     return o;
 }
 
+pg_status io_depth_kind_parse(const char *text, io_depth_kind *kind)
+{
+    if (text && !strcmp(text, "depth")) *kind = IO_DEPTH_KIND_DEPTH;
+    else if (text && !strcmp(text, "disparity")) *kind = IO_DEPTH_KIND_DISPARITY;
+    else return pg_fail(PG_ERR_ARG, "--depth-kind must be 'depth' or 'disparity', got '%s'", text ? text : "");
+    return PG_OK;
+}
+
 void io_depth_destroy(io_depth *d)
 {
     if (!d) return;
@@ -194,6 +202,7 @@ pg_status io_png16_load(const char *path, pg_array *arr)
     int depth = png_get_bit_depth(png, info), ct = png_get_color_type(png, info);
     if (ct == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
     if (depth < 8) png_set_expand_gray_1_2_4_to_8(png);
+    int passes = png_set_interlace_handling(png);
     png_read_update_info(png, info);
     int ch = png_get_channels(png, info);
     int bytes = png_get_bit_depth(png, info) == 16 ? 2 : 1;
@@ -201,15 +210,17 @@ pg_status io_png16_load(const char *path, pg_array *arr)
         snprintf(ctx.message, sizeof ctx.message, "%s", pg_last_error());
         longjmp(ctx.jump, 2);
     }
-    rowbuf = malloc(png_get_rowbytes(png, info));
+    /* The whole image is buffered so interlaced files (several passes over the rows) work too. */
+    size_t rb = png_get_rowbytes(png, info);
+    rowbuf = malloc(rb * (size_t)h);
     if (!rowbuf) { snprintf(ctx.message, sizeof ctx.message, "out of memory"); longjmp(ctx.jump, 3); }
-    for (int y = 0; y < h; y++) {
-        png_read_row(png, rowbuf, NULL);
+    for (int pass = 0; pass < passes; pass++)
+        for (int y = 0; y < h; y++) png_read_row(png, rowbuf + rb * (size_t)y, NULL);
+    for (int y = 0; y < h; y++)
         for (int x = 0; x < w; x++) {
-            const uint8_t *p = rowbuf + (size_t)x * ch * bytes;
+            const uint8_t *p = rowbuf + rb * (size_t)y + (size_t)x * ch * bytes;
             arr->data[(size_t)y * w + x] = bytes == 2 ? (float)((p[0] << 8) | p[1]) : (float)p[0];
         }
-    }
     png_read_end(png, NULL);
     png_destroy_read_struct(&png, &info, NULL);
     free(rowbuf);
@@ -580,9 +591,10 @@ static pg_status load_stack(const char *path, const io_depth_options *o, io_dept
     if (arr.ndim == 2) { F = 1; H = arr.shape[0]; W = arr.shape[1]; }
     else if (arr.ndim == 3) { F = arr.shape[0]; H = arr.shape[1]; W = arr.shape[2]; }
     else if (arr.ndim == 4 && arr.shape[3] == 1) { F = arr.shape[0]; H = arr.shape[1]; W = arr.shape[2]; }
+    else if (arr.ndim == 4 && arr.shape[1] == 1) { F = arr.shape[0]; H = arr.shape[2]; W = arr.shape[3]; } /* torch (F,1,H,W) */
     else {
         pg_array_destroy(&arr);
-        return pg_fail(PG_ERR_SIZE, "%s: depth must have shape (F,H,W) or (H,W), got %d dimensions", path, arr.ndim);
+        return pg_fail(PG_ERR_SIZE, "%s: depth must have shape (F,H,W), (H,W), (F,H,W,1) or (F,1,H,W); got %d dimensions", path, arr.ndim);
     }
     if (H == 0 || W == 0 || F == 0 || H > PG_MAX_IMAGE_SIDE || W > PG_MAX_IMAGE_SIDE) {
         pg_array_destroy(&arr);

@@ -1,6 +1,6 @@
 /* depth_io.h - per-frame depth maps from .npy / .pfm / 16-bit .png / .exr, and PFM output.
  *
- * A depth input is either one .npy holding (F,H,W) or (H,W) (float32/float64/uint16/...),
+ * A depth input is either one .npy holding (F,H,W), (H,W), (F,H,W,1) or (F,1,H,W) (any dtype),
  * or a folder of per-frame files (.npy, .pfm, .png, .exr, natural name order). Values are
  * multiplied by `scale`; with kind DISPARITY they are then inverted (depth = 1 / value).
  * NaN, inf and values <= 0 become 0 (= invalid) and are counted.
@@ -33,6 +33,8 @@ typedef struct {
 } io_depth_options;
 
 io_depth_options io_depth_defaults(void);
+/* Parses "depth" / "disparity" (the --depth-kind flag); fails naming the bad value. */
+pg_status io_depth_kind_parse(const char *text, io_depth_kind *kind);
 
 typedef struct {
     int frames, width, height;  /* after selection and resize */

@@ -2,7 +2,8 @@
  *
  * Reading decodes any container/codec Debian's FFmpeg libraries handle (libavformat +
  * libavcodec, converted to RGB24 with libswscale), or a folder of PNG/JPEG frames sorted
- * by name (natural order: "f2" < "f10"). Frames are kept as uint8 RGB to save memory and
+ * by name (natural order: "f2" < "f10"). A rotation tag (display matrix, as phones write) is
+ * applied, so frames come out upright as players show them. Frames are kept as uint8 RGB to save memory and
  * converted to float pg_image on demand:
  *
  *   io_video_options opt = io_video_defaults();
@@ -42,9 +43,10 @@ io_video_options io_video_defaults(void);
 
 typedef struct {
     int is_folder;
-    int width, height;   /* source size */
+    int width, height;   /* source size as displayed (after the rotation tag) */
+    int rotation;        /* clockwise degrees from the display matrix, applied when reading */
     int frames;          /* frame count (exact for folders; header or duration estimate for video) */
-    int frames_exact;    /* 1 when `frames` was counted, not estimated */
+    int frames_exact;    /* 1 when `frames` was counted or read from the container index, 0 if estimated */
     double fps;
     double duration;     /* seconds, 0 if unknown */
     char codec[32];      /* "h264", "png", ... */
@@ -60,7 +62,7 @@ typedef struct {
 } io_frames;
 
 /* Cheap look at a video or folder: size, fps, frame count, codec. Counts folder images exactly;
- * for video uses the container's frame count or duration x fps (frames_exact = 0). */
+ * for video uses the container's frame count, else duration x fps (then frames_exact = 0). */
 pg_status io_video_probe(const char *path, io_video_info *info);
 /* Counts a video's frames exactly by demuxing every packet (no decoding). */
 pg_status io_video_count_frames(const char *path, int *frames);

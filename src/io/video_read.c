@@ -5,6 +5,7 @@
 
 #include <libavcodec/avcodec.h>
 #include <libavformat/avformat.h>
+#include <libavutil/display.h>
 #include <libavutil/imgutils.h>
 #include <libswscale/swscale.h>
 
@@ -270,6 +271,18 @@ typedef struct {
     int stream;
 } av_input;
 
+/* Clockwise rotation (0, 90, 180, 270) a player applies from the stream's display matrix
+ * (phone videos are stored landscape with a "rotate" tag). */
+static int stream_rotation(const AVStream *s)
+{
+    const uint8_t *m = av_stream_get_side_data(s, AV_PKT_DATA_DISPLAYMATRIX, NULL);
+    if (!m) return 0;
+    double a = -av_display_rotation_get((const int32_t *)m);
+    if (isnan(a)) return 0;
+    int r = (int)lround(a / 90.0) * 90 % 360;
+    return r < 0 ? r + 360 : r;
+}
+
 static void av_input_close(av_input *in)
 {
     avcodec_free_context(&in->dec);
@@ -326,10 +339,16 @@ pg_status io_video_probe(const char *path, io_video_info *info)
     AVStream *s = in.fmt->streams[in.stream];
     info->width = s->codecpar->width;
     info->height = s->codecpar->height;
+    info->rotation = stream_rotation(s);
+    if (info->rotation == 90 || info->rotation == 270) {
+        info->width = s->codecpar->height;
+        info->height = s->codecpar->width;
+    }
     info->fps = stream_fps(s);
     if (in.fmt->duration > 0) info->duration = in.fmt->duration / (double)AV_TIME_BASE;
     if (s->nb_frames > 0 && s->nb_frames < IO_MAX_FRAMES) {
-        info->frames = (int)s->nb_frames;
+        info->frames = (int)s->nb_frames; /* from the container's index (mp4/mov): trusted */
+        info->frames_exact = 1;
     } else if (info->duration > 0) {
         info->frames = (int)lround(info->duration * info->fps);
     }
@@ -370,7 +389,24 @@ typedef struct {
     int first, count, stride; /* count < 0: all */
     int decoded;              /* frames decoded so far */
     int cap;                  /* allocated frames in out->rgb */
+    int rotation;             /* clockwise degrees applied after scaling */
+    int sw, sh;               /* scaled size before rotation */
+    uint8_t *tmp;             /* (sh, sw, 3) scaled frame when rotating */
 } decode_state;
+
+/* Rotates an RGB24 image (w, h) clockwise by rot degrees into dst. */
+static void rotate_rgb(uint8_t *dst, const uint8_t *src, int w, int h, int rot)
+{
+    int ow = rot == 180 ? w : h;
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            int ox, oy;
+            if (rot == 90) { ox = h - 1 - y; oy = x; }
+            else if (rot == 270) { ox = y; oy = w - 1 - x; }
+            else { ox = w - 1 - x; oy = h - 1 - y; }
+            memcpy(dst + ((size_t)oy * ow + ox) * 3, src + ((size_t)y * w + x) * 3, 3);
+        }
+}
 
 /* Stores a decoded frame if the selection keeps it; grows the buffer when reading "all". */
 static pg_status take_frame(decode_state *ds, const AVFrame *f)
@@ -380,7 +416,9 @@ static pg_status take_frame(decode_state *ds, const AVFrame *f)
     int k = (idx - ds->first) / ds->stride;
     if (ds->count >= 0 && k >= ds->count) return PG_OK;
     io_frames *out = ds->out;
-    if (f->width != out->src_width || f->height != out->src_height)
+    int fw = ds->rotation == 90 || ds->rotation == 270 ? f->height : f->width;
+    int fh = ds->rotation == 90 || ds->rotation == 270 ? f->width : f->height;
+    if (fw != out->src_width || fh != out->src_height)
         return pg_fail(PG_ERR_FORMAT, "%s: frame %d changes size to %d x %d", ds->path, idx, f->width, f->height);
     if (k >= ds->cap) {
         int ncap = ds->cap ? ds->cap * 2 : 16;
@@ -393,14 +431,20 @@ static pg_status take_frame(decode_state *ds, const AVFrame *f)
         ds->cap = ncap;
     }
     if (!ds->sws) {
-        int flags = (out->width < f->width || out->height < f->height) ? SWS_AREA : SWS_BICUBIC;
-        ds->sws = sws_getContext(f->width, f->height, (enum AVPixelFormat)f->format, out->width, out->height,
+        int flags = (ds->sw < f->width || ds->sh < f->height) ? SWS_AREA : SWS_BICUBIC;
+        ds->sws = sws_getContext(f->width, f->height, (enum AVPixelFormat)f->format, ds->sw, ds->sh,
                                  AV_PIX_FMT_RGB24, flags | SWS_ACCURATE_RND | SWS_FULL_CHR_H_INT, NULL, NULL, NULL);
         if (!ds->sws) return pg_fail(PG_ERR_FORMAT, "%s: cannot convert pixel format %d to RGB", ds->path, f->format);
     }
-    uint8_t *dst[4] = { out->rgb + (size_t)k * out->width * out->height * 3, NULL, NULL, NULL };
-    int dst_stride[4] = { out->width * 3, 0, 0, 0 };
+    uint8_t *frame_dst = out->rgb + (size_t)k * out->width * out->height * 3;
+    if (ds->rotation && !ds->tmp) {
+        ds->tmp = pg_malloc((size_t)ds->sw * ds->sh * 3, ds->path);
+        if (!ds->tmp) return PG_ERR_NOMEM;
+    }
+    uint8_t *dst[4] = { ds->rotation ? ds->tmp : frame_dst, NULL, NULL, NULL };
+    int dst_stride[4] = { ds->sw * 3, 0, 0, 0 };
     sws_scale(ds->sws, (const uint8_t *const *)f->data, f->linesize, 0, f->height, dst, dst_stride);
+    if (ds->rotation) rotate_rgb(frame_dst, ds->tmp, ds->sw, ds->sh, ds->rotation);
     out->count = k + 1;
     return PG_OK;
 }
@@ -436,10 +480,14 @@ static pg_status read_video(const char *path, const io_video_options *opt, io_fr
     ds.first = opt->first < 0 ? 0 : opt->first;
     ds.stride = opt->stride < 1 ? 1 : opt->stride;
     ds.count = opt->count > 0 ? opt->count : -1;
-    out->src_width = in.dec->width;
-    out->src_height = in.dec->height;
+    ds.rotation = stream_rotation(s);
+    int swap = ds.rotation == 90 || ds.rotation == 270;
+    out->src_width = swap ? in.dec->height : in.dec->width;
+    out->src_height = swap ? in.dec->width : in.dec->height;
     out->fps = stream_fps(s);
     io_video_target_size(opt, out->src_width, out->src_height, &out->width, &out->height);
+    ds.sw = swap ? out->height : out->width;
+    ds.sh = swap ? out->width : out->height;
     if (out->width > PG_MAX_IMAGE_SIDE || out->height > PG_MAX_IMAGE_SIDE) {
         av_input_close(&in);
         return pg_fail(PG_ERR_SIZE, "%s: resize target %d x %d is out of range", path, out->width, out->height);
@@ -486,6 +534,7 @@ static pg_status read_video(const char *path, const io_video_options *opt, io_fr
         if (nb) out->rgb = nb;
     }
     sws_freeContext(ds.sws);
+    free(ds.tmp);
     av_frame_free(&frame);
     av_packet_free(&pkt);
     av_input_close(&in);

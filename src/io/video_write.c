@@ -151,6 +151,15 @@ pg_status io_video_writer_open(io_video_writer **out, const char *path, int widt
     av_log_set_level(AV_LOG_QUIET);
     snprintf(w->path, sizeof w->path, "%s", path);
     snprintf(w->tmp, sizeof w->tmp, "%s.tmp.%ld", path, (long)getpid());
+    /* An unwritable destination is an error, not a reason to fall back to PNGs. */
+    FILE *probe = fopen(w->tmp, "wb");
+    if (!probe) {
+        pg_status st = pg_fail(PG_ERR_IO, "%s: cannot write: %s", path, strerror(errno));
+        free(w);
+        return st;
+    }
+    fclose(probe);
+    remove(w->tmp);
     int ok = 0;
     if (!opt->force_png) {
         if (try_encoder(w, "libx264", opt) == 0) { w->backend = IO_VIDEO_H264; ok = 1; }

@@ -7,7 +7,8 @@
  *   time smooth  = mean over C (H-2) W of (p[i+1,j] - 2 p[i,j] + p[i-1,j])^2       (along rows = time)
  *   L1-to-one    = mean over C H W of |1 - p|
  * Backward functions ADD scale * dLoss/dplane into d_plane. Sizes too small for a term give 0.
- * All are deterministic (serial sums in double, or per-row work with no shared writes).
+ * All are deterministic (per-row sums added in row order; backward rows never share writes).
+ * Forward functions return NaN only if a small row-sum buffer cannot be allocated.
  */
 #ifndef PG_OPTIM_LOSS_REG_H
 #define PG_OPTIM_LOSS_REG_H

@@ -14,9 +14,12 @@
 #include "core/parallel.h"
 
 #include <limits.h>
+#include <omp.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+
+#define SPLAT_MAX_THREADS 256
 
 struct splat_raster {
     int use_simd;               /* 1: SIMD tile kernels (when compiled in), 0: scalar reference */
@@ -25,12 +28,14 @@ struct splat_raster {
     splat_rec *rec;             /* (N) */
     int *ntiles;                /* (N) tiles touched, 0 when culled */
     unsigned char *clamp;       /* (N) bit c set: colour channel c clamped at 0 */
+    uint16_t *rect;             /* (N, 4) tile box tx0 ty0 tx1 ty1 (compact copy for binning) */
     uint32_t *keys, *keys_tmp;  /* (N) depth sort keys */
     int *order, *order_tmp;     /* (N) visible Gaussians sorted by depth */
     /* Per-tile workspace. */
     int cap_tiles;
     int *tile_start;            /* (tiles + 1) offsets into isect */
-    int *tile_cursor;           /* (tiles) */
+    int *tcount;                /* (threads, tiles) per-thread tile counts, then cursors */
+    size_t cap_tcount;
     /* Per-intersection workspace, capacity cap_m. */
     size_t cap_m, cap_slots;
     int *isect;                 /* (M) Gaussian ids, grouped by tile, front to back in a tile */
@@ -68,8 +73,8 @@ pg_status splat_raster_create(splat_raster **out)
 void splat_raster_destroy(splat_raster *r)
 {
     if (!r) return;
-    free(r->rec); free(r->ntiles); free(r->clamp); free(r->keys); free(r->keys_tmp);
-    free(r->order); free(r->order_tmp); free(r->tile_start); free(r->tile_cursor);
+    free(r->rec); free(r->ntiles); free(r->clamp); free(r->rect); free(r->keys); free(r->keys_tmp);
+    free(r->order); free(r->order_tmp); free(r->tile_start); free(r->tcount);
     free(r->isect); free(r->slots);
     free(r->rgb); free(r->depth); free(r->alpha); free(r->tfinal); free(r->last);
     free(r);
@@ -101,6 +106,7 @@ static pg_status ensure_gaussians(splat_raster *r, int n)
     PG_TRY(grow((void **)&r->rec, &cap, (size_t)n, sizeof(splat_rec), "Gaussian records"));
     c2 = 0; PG_TRY(grow((void **)&r->ntiles, &c2, (size_t)n, sizeof(int), "tile counts"));
     c2 = 0; PG_TRY(grow((void **)&r->clamp, &c2, (size_t)n, 1, "clamp flags"));
+    c2 = 0; PG_TRY(grow((void **)&r->rect, &c2, (size_t)n, 4 * sizeof(uint16_t), "tile boxes"));
     c2 = 0; PG_TRY(grow((void **)&r->keys, &c2, (size_t)n, sizeof(uint32_t), "sort keys"));
     c2 = 0; PG_TRY(grow((void **)&r->keys_tmp, &c2, (size_t)n, sizeof(uint32_t), "sort keys"));
     c2 = 0; PG_TRY(grow((void **)&r->order, &c2, (size_t)n, sizeof(int), "sort order"));
@@ -125,9 +131,8 @@ static pg_status ensure_pixels(splat_raster *r, size_t px)
 static pg_status ensure_tiles(splat_raster *r, int tiles)
 {
     if (tiles <= r->cap_tiles && r->tile_start) return PG_OK;
-    size_t cap = 0, c2 = 0;
+    size_t cap = 0;
     PG_TRY(grow((void **)&r->tile_start, &cap, (size_t)tiles + 1, sizeof(int), "tile ranges"));
-    PG_TRY(grow((void **)&r->tile_cursor, &c2, (size_t)tiles + 1, sizeof(int), "tile cursors"));
     r->cap_tiles = (int)(cap - 1);
     return PG_OK;
 }
@@ -172,6 +177,9 @@ static void preprocess_one(splat_raster *r, const pg_gaussians *g, const pg_came
     splat_sh_forward(deg, g->sh + (size_t)48 * i, dir, rc->col, cl);
     r->clamp[i] = (unsigned char)(cl[0] | cl[1] << 1 | cl[2] << 2);
     r->ntiles[i] = rc->tw * (ymax / SPLAT_TILE - ymin / SPLAT_TILE + 1);
+    uint16_t *bx = r->rect + 4 * (size_t)i;
+    bx[0] = (uint16_t)rc->tx0; bx[1] = (uint16_t)(ymin / SPLAT_TILE);
+    bx[2] = (uint16_t)(xmax / SPLAT_TILE); bx[3] = (uint16_t)(ymax / SPLAT_TILE);
 }
 
 /* Stable LSD radix sort of (key, value) pairs by 32-bit key, 8 bits per pass. */
@@ -242,43 +250,87 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     #pragma omp parallel for schedule(static, 1024)
     for (int i = 0; i < n; i++) preprocess_one(r, g, cam, s, deg, i);
 
-    /* Gradient slot offsets (Gaussian-major) and the visible list in index order. */
-    size_t m = 0;
-    int vis = 0;
-    for (int i = 0; i < n; i++) {
-        r->rec[i].slot_base = (int)m;
-        if (r->ntiles[i] > 0) {
-            m += (size_t)r->ntiles[i];
-            union { float f; uint32_t u; } z = { r->rec[i].z };
-            r->keys[vis] = z.u; /* positive floats order like their bit patterns */
-            r->order[vis++] = i;
-        }
-        if (m > INT_MAX) return pg_fail(PG_ERR_SIZE, "rasterizer: more than %d tile intersections", INT_MAX);
+    /* Gradient slot offsets (Gaussian-major) and the visible list in index order: per-thread
+     * chunk sums, then each chunk fills its part (same result for any thread count). */
+    int nth = pg_get_threads();
+    if (nth < 1) nth = 1;
+    if (nth > SPLAT_MAX_THREADS) nth = SPLAT_MAX_THREADS;
+    size_t part_m[SPLAT_MAX_THREADS + 1] = { 0 };
+    int part_v[SPLAT_MAX_THREADS + 1] = { 0 };
+    #pragma omp parallel num_threads(nth)
+    {
+        int t = omp_get_thread_num(), T = omp_get_num_threads();
+        int i0 = (int)((long)n * t / T), i1 = (int)((long)n * (t + 1) / T);
+        size_t mm = 0;
+        int vv = 0;
+        for (int i = i0; i < i1; i++) { mm += (size_t)r->ntiles[i]; vv += r->ntiles[i] > 0; }
+        part_m[t + 1] = mm;
+        part_v[t + 1] = vv;
+        #pragma omp barrier
+        #pragma omp single
+        for (int q = 0; q < T; q++) { part_m[q + 1] += part_m[q]; part_v[q + 1] += part_v[q]; }
+        mm = part_m[t];
+        vv = part_v[t];
+        if (part_m[T] <= INT_MAX)
+            for (int i = i0; i < i1; i++) {
+                r->rec[i].slot_base = (int)mm;
+                if (r->ntiles[i] > 0) {
+                    mm += (size_t)r->ntiles[i];
+                    union { float f; uint32_t u; } z = { r->rec[i].z };
+                    r->keys[vv] = z.u; /* positive floats order like their bit patterns */
+                    r->order[vv++] = i;
+                }
+            }
+        if (t == 0) { part_m[SPLAT_MAX_THREADS] = part_m[T]; part_v[SPLAT_MAX_THREADS] = part_v[T]; }
     }
+    size_t m = part_m[SPLAT_MAX_THREADS];
+    int vis = part_v[SPLAT_MAX_THREADS];
+    if (m > INT_MAX) return pg_fail(PG_ERR_SIZE, "rasterizer: %zu tile intersections (limit %d)", m, INT_MAX);
     r->m = m;
     r->visible = vis;
     if (vis > 0) radix_sort(r->keys, r->order, r->keys_tmp, r->order_tmp, vis);
 
-    /* Bin: counting sort by tile of the depth-sorted list keeps depth order inside each tile. */
+    /* Bin: counting sort by tile of the depth-sorted list keeps depth order inside each tile.
+     * Each thread counts a contiguous part of the list; a thread's entries of a tile go after
+     * those of earlier parts, so the lists equal the serial ones. */
     size_t capm = r->cap_m;
     PG_TRY(grow((void **)&r->isect, &capm, m > 0 ? m : 1, sizeof(int), "tile lists"));
     r->cap_m = capm;
     int ntile = tx * ty;
-    memset(r->tile_start, 0, (size_t)(ntile + 1) * sizeof(int));
-    for (int v = 0; v < vis; v++) {
-        const splat_rec *rc = &r->rec[r->order[v]];
-        int y0 = rc->ymin / SPLAT_TILE, y1 = rc->ymax / SPLAT_TILE;
-        for (int yy = y0; yy <= y1; yy++)
-            for (int xx = rc->tx0; xx < rc->tx0 + rc->tw; xx++) r->tile_start[yy * tx + xx + 1]++;
-    }
-    for (int t = 0; t < ntile; t++) r->tile_start[t + 1] += r->tile_start[t];
-    memcpy(r->tile_cursor, r->tile_start, (size_t)ntile * sizeof(int));
-    for (int v = 0; v < vis; v++) {
-        int id = r->order[v];
-        const splat_rec *rc = &r->rec[id];
-        int y0 = rc->ymin / SPLAT_TILE, y1 = rc->ymax / SPLAT_TILE;
-        for (int yy = y0; yy <= y1; yy++)
-            for (int xx = rc->tx0; xx < rc->tx0 + rc->tw; xx++) r->isect[r->tile_cursor[yy * tx + xx]++] = id;
+    size_t capc = r->cap_tcount;
+    PG_TRY(grow((void **)&r->tcount, &capc, (size_t)nth * ntile, sizeof(int), "tile counts"));
+    r->cap_tcount = capc;
+    #pragma omp parallel num_threads(nth)
+    {
+        int t = omp_get_thread_num(), T = omp_get_num_threads();
+        int v0 = (int)((long)vis * t / T), v1 = (int)((long)vis * (t + 1) / T);
+        int *cnt = r->tcount + (size_t)t * ntile;
+        memset(cnt, 0, (size_t)ntile * sizeof(int));
+        for (int v = v0; v < v1; v++) {
+            const uint16_t *bx = r->rect + 4 * (size_t)r->order[v];
+            for (int yy = bx[1]; yy <= bx[3]; yy++)
+                for (int xx = bx[0]; xx <= bx[2]; xx++) cnt[yy * tx + xx]++;
+        }
+        #pragma omp barrier
+        #pragma omp single
+        {
+            int run = 0;
+            for (int tile = 0; tile < ntile; tile++) {
+                r->tile_start[tile] = run;
+                for (int q = 0; q < T; q++) {
+                    int c = r->tcount[(size_t)q * ntile + tile];
+                    r->tcount[(size_t)q * ntile + tile] = run;
+                    run += c;
+                }
+            }
+            r->tile_start[ntile] = run;
+        }
+        for (int v = v0; v < v1; v++) {
+            int id = r->order[v];
+            const uint16_t *bx = r->rect + 4 * (size_t)id;
+            for (int yy = bx[1]; yy <= bx[3]; yy++)
+                for (int xx = bx[0]; xx <= bx[2]; xx++) r->isect[cnt[yy * tx + xx]++] = id;
+        }
     }
     double t1 = pg_time_seconds();
 

@@ -153,17 +153,21 @@ typedef struct {
     float fps;         /* default 30 */
     synth_layout layout;
     int video;         /* DyNeRF: also write camXX.mp4 (needs the io video writer) */
-    int all_depth;     /* DyNeRF: depth_gt/camXX.npy for every camera (default 1), else cam00 only */
+    int all_depth;     /* ground truth for every camera (default 1), else cam00 only */
 } synth_options;
 
 void synth_options_default(synth_options *o);
 /* Renders and writes the dataset into out_dir (created). DyNeRF layout:
- *   poses_bounds.npy (N, 17), camXX/images/0000.png, depth_gt/camXX.npy (F, H, W) float32,
- *   masks_dynamic/cam00.npy (F, H, W) uint8, depth_mono/cam00.npy (F, H, W) float32, scene.json,
- *   covis_cam00/camXX.npy (F, H, W) uint8 for XX >= 1 (synth_render_covisibility with ref = cam00,
- *   written with all_depth)
+ *   poses_bounds.npy (N, 17)                 LLFF c2w [down right back | centre | hwf], near, far
+ *   camXX/images/0000.png                    8-bit RGB (camXX.mp4 too with `video`)
+ *   depth_gt/camXX.npy     float32 (F, H, W) z-depth, 0 = no hit
+ *   masks_dynamic/camXX.npy  uint8 (F, H, W) 1 = moving object
+ *   covis_cam00/camXX.npy    uint8 (F, H, W) XX >= 1: 1 = point also seen by cam00
+ *   depth_mono/cam00.npy   float32 (F, H, W) simulated monocular depth of cam00
+ *   scene.json                               objects, motions, cameras, depth_mono truth
+ * (depth_gt, masks_dynamic, covis for every camera with all_depth, else cam00 only.)
  * Panoptic layout: train_meta.json, test_meta.json (test = cams 5 and 6 when present),
- *   ims/<c>/<ffffff>.jpg, plus depth_gt/, masks_dynamic/, depth_mono/ and scene.json as above.
+ *   ims/<c>/<ffffff>.jpg, plus the ground-truth files and scene.json as above.
  * Reports progress as stage "synth". */
 pg_status synth_write_dataset(const char *out_dir, const synth_options *o);
 

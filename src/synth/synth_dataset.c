@@ -17,6 +17,7 @@
 #include "core/rng.h"
 #include "io/image_io.h"
 #include "io/npy.h"
+#include "io/video.h"
 
 void synth_options_default(synth_options *o)
 {
@@ -189,7 +190,7 @@ static const char *SHAPE_NAMES[SYNTH_SHAPE_COUNT] = { "plane", "box", "sphere", 
 static const char *TEX_NAMES[SYNTH_TEX_COUNT] = { "wood", "brick", "checker", "stripes", "marble", "segments" };
 
 static pg_status write_scene_json(const char *path, const synth_scene *sc, const synth_options *o, const pg_camera *cams,
-                                  const float *near_far, const synth_mono_info *mono)
+                                  const float *near_far, const synth_mono_info *mono, int video_backend)
 {
     cJSON *root = cJSON_CreateObject();
     cJSON_AddNumberToObject(root, "version", 1);
@@ -283,7 +284,11 @@ static pg_status write_scene_json(const char *path, const synth_scene *sc, const
     cJSON_AddItemToObject(dm, "frame_scale", jarray(mono->frame_scale, mono->frames));
     cJSON *files = cJSON_AddObjectToObject(root, "files");
     cJSON_AddStringToObject(files, "depth_gt", "depth_gt/camXX.npy float32 (F,H,W) z-depth, 0 = no hit");
-    cJSON_AddStringToObject(files, "masks_dynamic", "masks_dynamic/cam00.npy uint8 (F,H,W) 1 = moving object");
+    if (video_backend >= 0)
+        cJSON_AddStringToObject(files, "video", video_backend == IO_VIDEO_H264    ? "camXX.mp4 (H.264)"
+                                                : video_backend == IO_VIDEO_MPEG4 ? "camXX.mp4 (MPEG-4 part 2 fallback)"
+                                                                                  : "camXX_frames/ (PNG fallback: no video encoder)");
+    cJSON_AddStringToObject(files, "masks_dynamic", "masks_dynamic/camXX.npy uint8 (F,H,W) 1 = moving object");
     cJSON_AddStringToObject(files, "covis_cam00",
                             "covis_cam00/camXX.npy uint8 (F,H,W) 1 = camXX pixel's surface point is also seen by cam00");
     return write_json(path, root);
@@ -386,6 +391,7 @@ typedef struct {
     float *scratch;        /* (H, W) */
     pg_image rgb[CHUNK];
     synth_mono_info mono_info;
+    int video_backend;     /* io_video_backend used for camXX.mp4, -1 = none */
 } writer_buffers;
 
 static void writer_free(writer_buffers *b)
@@ -425,7 +431,7 @@ static pg_status check_options(const synth_options *o)
     if (o->frames < 1 || o->frames > 10000) return pg_fail(PG_ERR_ARG, "synth: --frames must be 1..10000 (got %d)", o->frames);
     if (o->width < 8 || o->height < 8 || o->width > 4096 || o->height > 4096)
         return pg_fail(PG_ERR_ARG, "synth: --size must be between 8x8 and 4096x4096 (got %dx%d)", o->width, o->height);
-    if (o->spp < 1 || o->spp > 8) return pg_fail(PG_ERR_ARG, "synth: spp side must be 1..8 (got %d)", o->spp);
+    if (o->spp < 1 || o->spp > 8) return pg_fail(PG_ERR_ARG, "synth: --spp must be 1..8 (got %d)", o->spp);
     if (o->layout < 0 || o->layout >= SYNTH_LAYOUT_COUNT) return pg_fail(PG_ERR_ARG, "synth: unknown layout %d", (int)o->layout);
     if (!(o->fps > 0)) return pg_fail(PG_ERR_ARG, "synth: fps must be > 0");
     return PG_OK;
@@ -483,15 +489,29 @@ static pg_status write_dataset_impl(const char *out, const synth_options *o, wri
             else st = join_fmt(dir, sizeof dir, "%s/cam%02d/images", out, c);
         }
         if (!st) st = pg_mkdir_p(dir);
+        io_video_writer *vw = NULL;
+        if (!st && o->video && o->layout == SYNTH_LAYOUT_DYNERF) {
+            io_video_write_options vo = io_video_write_defaults();
+            vo.fps = o->fps;
+            vo.crf = 10;
+            st = join_fmt(path, sizeof path, "%s/cam%02d.mp4", out, c);
+            if (!st) st = io_video_writer_open(&vw, path, W, H, &vo);
+            if (!st) b->video_backend = (int)io_video_writer_backend(vw);
+        }
         for (int f0 = 0; f0 < F && !st; f0 += CHUNK) {
             int n = F - f0 < CHUNK ? F - f0 : CHUNK;
             pg_progress_report("synth", (long)c * F + f0, (long)N * F, "cam%02d frame %d", c, f0);
             for (int i = 0; i < n && !st; i++) {
                 int f = f0 + i;
                 st = synth_render_frame(&sc, &cams[c], synth_frame_time(f, F), &b->rgb[i], b->depth + f * plane,
-                                        c == 0 ? b->mask + f * plane : NULL);
+                                        b->mask + f * plane);
             }
             if (!st) st = save_chunk(b, dir, f0, n, o->layout == SYNTH_LAYOUT_PANOPTIC);
+            for (int i = 0; i < n && !st && vw; i++) st = io_video_writer_add(vw, &b->rgb[i]);
+        }
+        if (vw) {
+            if (st) io_video_writer_abort(vw);
+            else st = io_video_writer_close(vw);
         }
         if (st) break;
         depth_bounds(b->depth, plane, b->scratch, &near_far[2 * c], &near_far[2 * c + 1]);
@@ -499,6 +519,8 @@ static pg_status write_dataset_impl(const char *out, const synth_options *o, wri
         if (c == 0 || o->all_depth) {
             st = join_fmt(path, sizeof path, "%s/depth_gt/cam%02d.npy", out, c);
             if (!st) st = io_npy_save(path, b->depth, 3, shape3);
+            if (!st) st = join_fmt(path, sizeof path, "%s/masks_dynamic/cam%02d.npy", out, c);
+            if (!st) st = io_npy_save_u8(path, b->mask, 3, shape3);
         }
         if (!st && c > 0 && o->all_depth) {
             for (int f = 0; f < F && !st; f++)
@@ -507,14 +529,12 @@ static pg_status write_dataset_impl(const char *out, const synth_options *o, wri
             if (!st) st = io_npy_save_u8(path, b->mask, 3, shape3);
         }
         if (!st && c == 0) {
-            st = join_fmt(path, sizeof path, "%s/masks_dynamic/cam00.npy", out);
-            if (!st) st = io_npy_save_u8(path, b->mask, 3, shape3);
-            if (!st) st = synth_depth_mono(b->depth, F, H, W, o->seed, b->mono, &b->mono_info);
+            st = synth_depth_mono(b->depth, F, H, W, o->seed, b->mono, &b->mono_info);
             if (!st) st = join_fmt(path, sizeof path, "%s/depth_mono/cam00.npy", out);
             if (!st) st = io_npy_save(path, b->mono, 3, shape3);
         }
     }
-    if (!st) {
+    if (!st && o->layout == SYNTH_LAYOUT_DYNERF) { /* (a Panoptic folder must not look like DyNeRF) */
         const size_t shape2[2] = { (size_t)N, 17 };
         st = join_fmt(path, sizeof path, "%s/poses_bounds.npy", out);
         if (!st) st = io_npy_save(path, rows, 2, shape2);
@@ -535,7 +555,7 @@ static pg_status write_dataset_impl(const char *out, const synth_options *o, wri
     }
     if (!st) {
         st = join_fmt(path, sizeof path, "%s/scene.json", out);
-        if (!st) st = write_scene_json(path, &sc, o, cams, near_far, &b->mono_info);
+        if (!st) st = write_scene_json(path, &sc, o, cams, near_far, &b->mono_info, b->video_backend);
     }
     if (!st) pg_progress_report("synth", (long)N * F, (long)N * F, "done");
     return st;
@@ -544,10 +564,9 @@ static pg_status write_dataset_impl(const char *out, const synth_options *o, wri
 pg_status synth_write_dataset(const char *out_dir, const synth_options *o)
 {
     PG_TRY(check_options(o));
-    if (o->video && o->layout == SYNTH_LAYOUT_DYNERF)
-        return pg_fail(PG_ERR_ARG, "synth: --video needs the video writer, which is not in this build yet");
     writer_buffers b;
     memset(&b, 0, sizeof b);
+    b.video_backend = -1;
     pg_status st = write_dataset_impl(out_dir, o, &b);
     writer_free(&b);
     return st;

@@ -391,16 +391,19 @@ static int intersect_local(const synth_object *ob, const float o[3], const float
     }
 }
 
-/* Nearest hit along the scene-frame ray o + t d, t in (tmin, tmax). If any_hit, stops at the
- * first hit found (shadow rays). */
+/* Nearest hit along the scene-frame ray o + t d, t in (tmin, tmax), over the objects whose bit
+ * is set in candidates. If any_hit, stops at the first hit found (shadow rays). */
+#define ALL_OBJECTS 0xFFFFFFFFu
+
 static int trace_scene(const frame_state *fs, const float o[3], const float d[3], float tmin, float tmax, int any_hit,
-                       hit_info *hit)
+                       uint32_t candidates, hit_info *hit)
 {
     const synth_scene *sc = fs->sc;
     hit->t = tmax;
     hit->object = -1;
     float dd = vec3_dot(d, d);
     for (int k = 0; k < sc->num_objects; k++) {
+        if (!(candidates >> k & 1u)) continue;
         const pose_cache *pc = &fs->pose[k];
         float rel[3];
         vec3_sub(rel, o, pc->p);
@@ -575,11 +578,12 @@ static void texture_eval(const synth_object *ob, uint32_t seed, const float q[3]
 /* ---------------------------------------------------------------- shading and rendering */
 
 /* Colour (linear) of the scene-frame ray o + t d. */
-static void shade_ray(const frame_state *fs, const float o[3], const float d[3], float out[3], hit_info *hit_out)
+static void shade_ray(const frame_state *fs, const float o[3], const float d[3], uint32_t candidates, float out[3],
+                      hit_info *hit_out)
 {
     const synth_scene *sc = fs->sc;
     hit_info hit;
-    if (!trace_scene(fs, o, d, 0, 1e30f, 0, &hit)) {
+    if (!trace_scene(fs, o, d, 0, 1e30f, 0, candidates, &hit)) {
         memcpy(out, sc->background, 3 * sizeof(float));
         if (hit_out) *hit_out = hit;
         return;
@@ -603,7 +607,7 @@ static void shade_ray(const frame_state *fs, const float o[3], const float d[3],
             float so[3];
             for (int i = 0; i < 3; i++) so[i] = X[i] + 1e-4f * n[i];
             hit_info sh;
-            if (trace_scene(fs, so, sc->light_dir, 1e-5f, 1e30f, 1, &sh)) vis = 0;
+            if (trace_scene(fs, so, sc->light_dir, 1e-5f, 1e30f, 1, ALL_OBJECTS, &sh)) vis = 0;
         }
         light += sc->diffuse * ndl * vis;
     }
@@ -628,6 +632,44 @@ static inline void pixel_ray(const pg_camera *cam, const float Rs[9], float u, f
 
 static inline float linear_to_display(float x) { return powf(clampf(x, 0, 1), 1.0f / 2.2f); }
 
+/* Conservative pixel box (x0, y0, x1, y1) of each object's bounding sphere on screen, so primary
+ * rays only test the objects that can cover their pixel (planes and spheres reaching behind the
+ * camera get the whole image). X/Z is monotone in X and Z over the sphere's bounding box (Z > 0),
+ * so its extremes sit at the box corners. */
+static void screen_boxes(const frame_state *fs, const pg_camera *cam, const float Rs[9], const float C[3],
+                         float box[][4])
+{
+    for (int k = 0; k < fs->sc->num_objects; k++) {
+        const pose_cache *pc = &fs->pose[k];
+        float rel[3], Xc[3], r = pc->bound;
+        vec3_sub(rel, pc->p, C);
+        mat3_mul_vec(Xc, Rs, rel);
+        if (r <= 0 || Xc[2] - r <= 1e-3f) {
+            box[k][0] = box[k][1] = -1e30f;
+            box[k][2] = box[k][3] = 1e30f;
+            continue;
+        }
+        float umin = 1e30f, umax = -1e30f, vmin = 1e30f, vmax = -1e30f;
+        for (int a = -1; a <= 1; a += 2)
+            for (int b = -1; b <= 1; b += 2) {
+                float z = Xc[2] + b * r;
+                float u = cam->fx * (Xc[0] + a * r) / z + cam->cx, v = cam->fy * (Xc[1] + a * r) / z + cam->cy;
+                umin = fminf(umin, u); umax = fmaxf(umax, u);
+                vmin = fminf(vmin, v); vmax = fmaxf(vmax, v);
+            }
+        box[k][0] = umin - 1; box[k][1] = vmin - 1; box[k][2] = umax + 1; box[k][3] = vmax + 1;
+    }
+}
+
+/* Bit k set when object k's screen box overlaps pixel (x, y). */
+static inline uint32_t pixel_candidates(const float box[][4], int n, int x, int y)
+{
+    uint32_t m = 0;
+    for (int k = 0; k < n; k++)
+        if (x + 1 >= box[k][0] && x <= box[k][2] && y + 1 >= box[k][1] && y <= box[k][3]) m |= 1u << k;
+    return m;
+}
+
 pg_status synth_render_frame(const synth_scene *sc, const pg_camera *cam, float s, pg_image *rgb, float *depth,
                              unsigned char *dynamic_mask)
 {
@@ -646,19 +688,22 @@ pg_status synth_render_frame(const synth_scene *sc, const pg_camera *cam, float 
     camera_in_scene(sc, cam, Rs, C);
     const int n = sc->spp < 1 ? 1 : sc->spp;
     const float inv = 1.0f / (float)(n * n);
+    float box[SYNTH_MAX_OBJECTS][4];
+    screen_boxes(&fs, cam, Rs, C, box);
 
 #pragma omp parallel for schedule(dynamic, 2)
     for (int y = 0; y < H; y++) {
         for (int x = 0; x < W; x++) {
             size_t idx = (size_t)y * W + x;
             float d[3];
+            uint32_t cand = pixel_candidates(box, sc->num_objects, x, y);
             if (rgb) {
                 float acc[3] = { 0, 0, 0 };
                 for (int sy = 0; sy < n; sy++)
                     for (int sx = 0; sx < n; sx++) {
                         pixel_ray(cam, Rs, x + (sx + 0.5f) / n, y + (sy + 0.5f) / n, d);
                         float c[3];
-                        shade_ray(&fs, C, d, c, NULL);
+                        shade_ray(&fs, C, d, cand, c, NULL);
                         vec3_add(acc, acc, c);
                     }
                 float *px = rgb->data + idx * 3;
@@ -667,7 +712,7 @@ pg_status synth_render_frame(const synth_scene *sc, const pg_camera *cam, float 
             if (depth || dynamic_mask) {
                 pixel_ray(cam, Rs, x + 0.5f, y + 0.5f, d);
                 hit_info hit;
-                int any = trace_scene(&fs, C, d, 0, 1e30f, 0, &hit);
+                int any = trace_scene(&fs, C, d, 0, 1e30f, 0, cand, &hit);
                 if (depth) depth[idx] = any ? hit.t : 0.0f;
                 if (dynamic_mask) dynamic_mask[idx] = (unsigned char)(any && sc->objects[hit.object].dynamic);
             }
@@ -684,7 +729,7 @@ float synth_trace_depth(const synth_scene *sc, const pg_camera *cam, float u, fl
     camera_in_scene(sc, cam, Rs, C);
     pixel_ray(cam, Rs, u, v, d);
     hit_info hit;
-    int any = trace_scene(&fs, C, d, 0, 1e30f, 0, &hit);
+    int any = trace_scene(&fs, C, d, 0, 1e30f, 0, ALL_OBJECTS, &hit);
     if (object) *object = any ? hit.object : -1;
     return any ? hit.t : 0.0f;
 }
@@ -729,7 +774,7 @@ static int visible_from(const frame_state *fs, const pg_camera *cam, const float
     float d[3];
     vec3_sub(d, Xs, C); /* the point sits at t = 1 */
     hit_info hit;
-    if (!trace_scene(fs, C, d, 0, 1e30f, 0, &hit)) return 1; /* nothing in the way (point off-surface) */
+    if (!trace_scene(fs, C, d, 0, 1e30f, 0, ALL_OBJECTS, &hit)) return 1; /* nothing in the way (point off-surface) */
     return hit.t >= 1.0f - rel_tol;
 }
 
@@ -761,7 +806,7 @@ pg_status synth_render_covisibility(const synth_scene *sc, const pg_camera *cam,
             pixel_ray(cam, Rs, x + 0.5f, y + 0.5f, d);
             hit_info hit;
             unsigned char v = 0;
-            if (trace_scene(&fs, C, d, 0, 1e30f, 0, &hit)) {
+            if (trace_scene(&fs, C, d, 0, 1e30f, 0, ALL_OBJECTS, &hit)) {
                 for (int i = 0; i < 3; i++) Xs[i] = C[i] + hit.t * d[i];
                 synth_scene_to_world(sc, Xs, Xw);
                 v = (unsigned char)visible_from(&fs, ref, Cr, Xw, Xs, rel_tol);
@@ -791,7 +836,7 @@ pg_status synth_render_flow(const synth_scene *sc, const pg_camera *cam, float s
             hit_info hit;
             flow[2 * idx] = flow[2 * idx + 1] = 0;
             unsigned char ok = 0;
-            if (trace_scene(&fs0, C, d, 0, 1e30f, 0, &hit)) {
+            if (trace_scene(&fs0, C, d, 0, 1e30f, 0, ALL_OBJECTS, &hit)) {
                 const pose_cache *p0 = &fs0.pose[hit.object], *p1 = &fs1.pose[hit.object];
                 for (int i = 0; i < 3; i++) X0[i] = C[i] + hit.t * d[i];
                 vec3_sub(rel, X0, p0->p);
@@ -808,7 +853,7 @@ pg_status synth_render_flow(const synth_scene *sc, const pg_camera *cam, float s
                         vec3_sub(dd, X1, C);
                         hit_info h1;
                         ok = uv[0] >= 0 && uv[1] >= 0 && uv[0] < W && uv[1] < H &&
-                             (!trace_scene(&fs1, C, dd, 0, 1e30f, 0, &h1) || h1.t >= 1.0f - 1e-3f);
+                             (!trace_scene(&fs1, C, dd, 0, 1e30f, 0, ALL_OBJECTS, &h1) || h1.t >= 1.0f - 1e-3f);
                     }
                 }
             }

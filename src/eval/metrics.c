@@ -1,0 +1,91 @@
+/* metrics.c - PSNR/SSIM (plain and alpha-masked) and the per-frame evaluation record. */
+#include "eval/metrics.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+pg_status eval_score_image(optim_ssim_ws *ws, const pg_image *pred, const pg_image *truth, const float *alpha,
+                           eval_scores *out)
+{
+    const int W = truth->width, H = truth->height, C = truth->channels;
+    if (pred->width != W || pred->height != H || pred->channels != C)
+        return pg_fail(PG_ERR_SIZE, "render is %dx%dx%d but the reference frame is %dx%dx%d", pred->width,
+                       pred->height, pred->channels, W, H, C);
+    const size_t npix = (size_t)W * H;
+    float *mask = NULL;
+    size_t covered = npix;
+    if (alpha) {
+        mask = pg_malloc(npix * sizeof(float), "evaluation mask");
+        if (!mask) return PG_ERR_NOMEM;
+        covered = 0;
+        for (size_t i = 0; i < npix; i++) {
+            mask[i] = alpha[i] > 0.5f ? 1.0f : 0.0f;
+            covered += alpha[i] > 0.5f;
+        }
+    }
+    out->psnr = pg_image_psnr(pred, truth, NULL);
+    out->ssim = optim_ssim_forward(ws, pred->data, truth->data, NULL, H, W, C);
+    out->coverage = (double)covered / npix;
+    if (mask && covered > 0) {
+        out->psnr_masked = pg_image_psnr(pred, truth, mask);
+        out->ssim_masked = optim_ssim_forward(ws, pred->data, truth->data, mask, H, W, C);
+    } else if (mask) {
+        out->psnr_masked = out->ssim_masked = 0; /* nothing rendered: no score to give */
+    } else {
+        out->psnr_masked = out->psnr;
+        out->ssim_masked = out->ssim;
+    }
+    free(mask);
+    if (isnan(out->ssim) || isnan(out->ssim_masked))
+        return pg_fail(PG_ERR_INTERNAL, "SSIM workspace does not match a %dx%d image", W, H);
+    return PG_OK;
+}
+
+pg_status eval_results_add(eval_results *r, const char *camera, int frame, const eval_scores *s)
+{
+    if (r->count == r->capacity) {
+        int cap = r->capacity ? 2 * r->capacity : 64;
+        eval_frame_record *grown = realloc(r->records, (size_t)cap * sizeof *grown);
+        if (!grown) return pg_fail(PG_ERR_NOMEM, "out of memory growing the evaluation record");
+        r->records = grown;
+        r->capacity = cap;
+    }
+    eval_frame_record *rec = &r->records[r->count++];
+    snprintf(rec->camera, sizeof rec->camera, "%s", camera);
+    rec->frame = frame;
+    rec->s = *s;
+    return PG_OK;
+}
+
+int eval_results_mean(const eval_results *r, const char *camera, eval_scores *mean)
+{
+    memset(mean, 0, sizeof *mean);
+    int n = 0;
+    for (int i = 0; i < r->count; i++) {
+        const eval_frame_record *rec = &r->records[i];
+        if (camera && strcmp(rec->camera, camera) != 0) continue;
+        mean->psnr += rec->s.psnr;
+        mean->ssim += rec->s.ssim;
+        mean->psnr_masked += rec->s.psnr_masked;
+        mean->ssim_masked += rec->s.ssim_masked;
+        mean->coverage += rec->s.coverage;
+        n++;
+    }
+    if (n) {
+        mean->psnr /= n;
+        mean->ssim /= n;
+        mean->psnr_masked /= n;
+        mean->ssim_masked /= n;
+        mean->coverage /= n;
+    }
+    return n;
+}
+
+void eval_results_destroy(eval_results *r)
+{
+    if (!r) return;
+    free(r->records);
+    memset(r, 0, sizeof *r);
+}

@@ -1,0 +1,348 @@
+/* frame_model.c - per-frame RGB-D Gaussians: seed from pixels, short Adam fit, render proxies. */
+#include "proxy/frame_model.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/image.h"
+#include "core/mathx.h"
+#include "core/parallel.h"
+#include "optim/loss_image.h"
+#include "splat/gaussians.h"
+#include "splat/raster.h"
+
+#define SH_C0 0.28209479177387814f
+
+struct proxy_frame_model {
+    int W, H;              /* source frame size */
+    proxy_fit_options opt;
+    pg_gaussians g, grad;  /* parameters and their gradients (N) */
+    float *m, *v;          /* Adam moments, (N, 10): mean 3, log-scale 3, opacity 1, SH DC 3 */
+    splat_raster *raster;
+    optim_ssim_ws *ssim;   /* SSIM workspace at the source size */
+    float *vmask;          /* (H, W) 1 where the source depth is valid (loss mask) */
+    pg_camera cam;         /* source camera */
+    float *rgb;            /* (H, W, 3) source colours */
+    float *depth;          /* (H, W) source depth in pose units, 0 = invalid */
+    float *d_rgb;          /* (H, W, 3) loss gradient w.r.t. rendered colour */
+    float *d_depth;        /* (H, W) w.r.t. rendered (unnormalised) depth */
+    float *d_alpha;        /* (H, W) w.r.t. rendered alpha */
+    float *zmesh;          /* (view H, view W) mesh depth scratch for masks */
+    size_t zmesh_size;
+    float median_depth;
+    int valid_pixels;
+    proxy_model_stats stats;
+};
+
+proxy_fit_options proxy_default_fit_options(void)
+{
+    proxy_fit_options o;
+    o.block = 1;
+    o.steps = 100;
+    o.ssim_weight = 0.2f;
+    o.depth_weight = 0.1f;
+    o.init_opacity = 0.8f;
+    o.scale_mult = 0.6f;
+    o.lr_means = 2e-5f;
+    o.lr_scales = 0.005f;
+    o.lr_opacity = 0.02f;
+    o.lr_color = 0.005f;
+    o.mask = proxy_default_mask_options();
+    return o;
+}
+
+void proxy_model_destroy(proxy_frame_model *m)
+{
+    if (!m) return;
+    splat_gaussians_destroy(&m->g);
+    splat_gaussians_destroy(&m->grad);
+    splat_raster_destroy(m->raster);
+    optim_ssim_destroy(m->ssim);
+    free(m->vmask);
+    free(m->m);
+    free(m->v);
+    free(m->rgb);
+    free(m->depth);
+    free(m->d_rgb);
+    free(m->d_depth);
+    free(m->d_alpha);
+    free(m->zmesh);
+    free(m);
+}
+
+pg_status proxy_model_create(proxy_frame_model **out, int width, int height, const proxy_fit_options *o)
+{
+    *out = NULL;
+    if (width < 1 || height < 1 || width > PG_MAX_IMAGE_SIDE || height > PG_MAX_IMAGE_SIDE)
+        return pg_fail(PG_ERR_SIZE, "proxy model: frame size %dx%d out of range", width, height);
+    proxy_fit_options opt = o ? *o : proxy_default_fit_options();
+    if (opt.block < 1 || opt.block > 64) return pg_fail(PG_ERR_ARG, "proxy model: block %d not in 1..64", opt.block);
+    if (opt.steps < 0) return pg_fail(PG_ERR_ARG, "proxy model: negative step count %d", opt.steps);
+    proxy_frame_model *m = pg_calloc(1, sizeof *m, "proxy model");
+    if (!m) return PG_ERR_NOMEM;
+    m->W = width;
+    m->H = height;
+    m->opt = opt;
+    size_t npix = (size_t)width * height;
+    size_t ng = (size_t)((width + opt.block - 1) / opt.block) * ((height + opt.block - 1) / opt.block);
+    pg_status st = splat_gaussians_create(&m->g, (int)ng);
+    if (!st) st = splat_gaussians_create(&m->grad, (int)ng);
+    if (!st) st = splat_raster_create(&m->raster);
+    if (!st) st = optim_ssim_create(&m->ssim, height, width, 3);
+    if (st) { proxy_model_destroy(m); return st; }
+    m->m = pg_calloc(ng * 10, sizeof(float), "proxy Adam m");
+    m->v = pg_calloc(ng * 10, sizeof(float), "proxy Adam v");
+    m->rgb = pg_malloc(npix * 3 * sizeof(float), "proxy source rgb");
+    m->depth = pg_malloc(npix * sizeof(float), "proxy source depth");
+    m->d_rgb = pg_malloc(npix * 3 * sizeof(float), "proxy d_rgb");
+    m->d_depth = pg_malloc(npix * sizeof(float), "proxy d_depth");
+    m->d_alpha = pg_malloc(npix * sizeof(float), "proxy d_alpha");
+    m->vmask = pg_malloc(npix * sizeof(float), "proxy loss mask");
+    if (!m->vmask || !m->m || !m->v || !m->rgb || !m->depth || !m->d_rgb || !m->d_depth || !m->d_alpha) {
+        proxy_model_destroy(m);
+        return PG_ERR_NOMEM;
+    }
+    *out = m;
+    return PG_OK;
+}
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+/* One Gaussian per k x k block at the block's median depth; its colour and position average the
+ * block pixels on that surface (within 5 % of the median), so blocks on an edge do not blend the
+ * foreground with the background. */
+pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const float *rgb, const float *depth)
+{
+    double t0 = pg_time_seconds();
+    int W = m->W, H = m->H, k = m->opt.block;
+    if (cam->width != W || cam->height != H)
+        return pg_fail(PG_ERR_SIZE, "proxy model: camera is %dx%d, model %dx%d", cam->width, cam->height, W, H);
+    m->cam = *cam;
+    size_t npix = (size_t)W * H;
+    memcpy(m->rgb, rgb, npix * 3 * sizeof(float));
+    int valid = 0;
+    for (size_t i = 0; i < npix; i++) {
+        float d = depth[i];
+        int ok = isfinite(d) && d > 0;
+        m->depth[i] = ok ? d : 0;
+        m->vmask[i] = (float)ok;
+        valid += ok;
+    }
+    if (valid == 0) return pg_fail(PG_ERR_ARG, "proxy model: the depth map has no valid pixel");
+    m->valid_pixels = valid;
+
+    float vals[64 * 64];
+    int n = 0;
+    double dsum = 0;
+    pg_gaussians *g = &m->g;
+    PG_TRY(splat_gaussians_resize(g, g->capacity));
+    const float logit = logf(m->opt.init_opacity / (1.0f - m->opt.init_opacity));
+    for (int by = 0; by < H; by += k) {
+        for (int bx = 0; bx < W; bx += k) {
+            int cnt = 0;
+            for (int y = by; y < by + k && y < H; y++)
+                for (int x = bx; x < bx + k && x < W; x++)
+                    if (m->depth[(size_t)y * W + x] > 0) vals[cnt++] = m->depth[(size_t)y * W + x];
+            if (cnt == 0) continue;
+            qsort(vals, cnt, sizeof(float), cmp_float);
+            float dm = vals[cnt / 2];
+            float col[3] = { 0, 0, 0 }, su = 0, sv = 0, sd = 0;
+            int used = 0;
+            for (int y = by; y < by + k && y < H; y++)
+                for (int x = bx; x < bx + k && x < W; x++) {
+                    float d = m->depth[(size_t)y * W + x];
+                    if (!(d > 0) || fabsf(d - dm) > 0.05f * dm) continue;
+                    const float *p = rgb + ((size_t)y * W + x) * 3;
+                    col[0] += p[0]; col[1] += p[1]; col[2] += p[2];
+                    su += x + 0.5f; sv += y + 0.5f; sd += d;
+                    used++;
+                }
+            float d = sd / used;
+            float *mu = g->means + (size_t)n * 3;
+            pg_camera_unproject(cam, su / used, sv / used, d, mu);
+            float ls = logf(m->opt.scale_mult * k * d / cam->fx);
+            g->log_scales[n * 3 + 0] = g->log_scales[n * 3 + 1] = g->log_scales[n * 3 + 2] = ls;
+            float *q = g->quats + (size_t)n * 4;
+            q[0] = 1; q[1] = q[2] = q[3] = 0;
+            g->opacity[n] = logit;
+            float *sh = g->sh + (size_t)n * PG_SH_COEFFS * 3;
+            memset(sh, 0, PG_SH_COEFFS * 3 * sizeof(float));
+            for (int c = 0; c < 3; c++) sh[c] = (col[c] / used - 0.5f) / SH_C0;
+            dsum += d;
+            n++;
+        }
+    }
+    g->count = n;
+    g->sh_degree = 0;
+    PG_TRY(splat_gaussians_resize(&m->grad, n));
+    m->grad.sh_degree = 0;
+    memset(m->m, 0, (size_t)n * 10 * sizeof(float));
+    memset(m->v, 0, (size_t)n * 10 * sizeof(float));
+    m->median_depth = (float)(dsum / n);
+    m->stats.gaussians = n;
+    m->stats.init_s += pg_time_seconds() - t0;
+    return PG_OK;
+}
+
+static pg_render_settings model_settings(void)
+{
+    pg_render_settings s = splat_default_settings();
+    s.background[0] = s.background[1] = s.background[2] = 0;
+    s.sh_degree = 0;
+    return s;
+}
+
+/* One Adam update of x (n values) with gradient g, moments at mom/vel with stride 10 per Gaussian. */
+static void adam_group(float *x, const float *g, float *mom, float *vel, int count, int dim, int off, float lr,
+                       float bc1, float bc2)
+{
+    const float b1 = 0.9f, b2 = 0.999f, eps = 1e-15f;
+    for (int i = 0; i < count; i++) {
+        for (int d = 0; d < dim; d++) {
+            float gi = g[(size_t)i * dim + d];
+            float *mi = &mom[(size_t)i * 10 + off + d], *vi = &vel[(size_t)i * 10 + off + d];
+            *mi = b1 * *mi + (1 - b1) * gi;
+            *vi = b2 * *vi + (1 - b2) * gi * gi;
+            x[(size_t)i * dim + d] -= lr * (*mi / bc1) / (sqrtf(*vi / bc2) + eps);
+        }
+    }
+}
+
+/* Same for the SH DC coefficients, which sit at stride 48 inside the SH array. */
+static void adam_dc(float *sh, const float *gsh, float *mom, float *vel, int count, float lr, float bc1, float bc2)
+{
+    const float b1 = 0.9f, b2 = 0.999f, eps = 1e-15f;
+    for (int i = 0; i < count; i++) {
+        for (int c = 0; c < 3; c++) {
+            float gi = gsh[(size_t)i * PG_SH_COEFFS * 3 + c];
+            float *mi = &mom[(size_t)i * 10 + 7 + c], *vi = &vel[(size_t)i * 10 + 7 + c];
+            *mi = b1 * *mi + (1 - b1) * gi;
+            *vi = b2 * *vi + (1 - b2) * gi * gi;
+            sh[(size_t)i * PG_SH_COEFFS * 3 + c] -= lr * (*mi / bc1) / (sqrtf(*vi / bc2) + eps);
+        }
+    }
+}
+
+/* Loss on the source view and its gradient w.r.t. the rendered rgb/depth/alpha:
+ * (1 - w) L1 + w D-SSIM on pixels with valid depth (the others have no Gaussian behind them),
+ * plus depth_weight * mean |depth/alpha - D| / D. Returns the loss. */
+static float source_loss(proxy_frame_model *m, const pg_render_output *out)
+{
+    int W = m->W, H = m->H;
+    size_t npix = (size_t)W * H;
+    const float ws = m->opt.ssim_weight, wl1 = 1.0f - ws, wd = m->opt.depth_weight;
+    const float inv_v = 1.0f / m->valid_pixels;
+    memset(m->d_rgb, 0, npix * 3 * sizeof(float));
+    memset(m->d_depth, 0, npix * sizeof(float));
+    memset(m->d_alpha, 0, npix * sizeof(float));
+    float loss = wl1 * optim_l1_forward(out->rgb, m->rgb, m->vmask, H, W, 3);
+    optim_l1_backward(m->d_rgb, wl1, out->rgb, m->rgb, m->vmask, H, W, 3);
+    if (ws > 0) {
+        loss += ws * (1.0f - optim_ssim_forward(m->ssim, out->rgb, m->rgb, m->vmask, H, W, 3));
+        optim_ssim_backward(m->ssim, m->d_rgb, -ws, out->rgb, m->rgb, m->vmask, H, W, 3);
+    }
+    double ld = 0;
+    if (wd > 0) {
+        for (size_t i = 0; i < npix; i++) {
+            float D = m->depth[i], a = out->alpha[i];
+            if (!(D > 0) || a <= 0.05f) continue;
+            float dn = out->depth[i] / a, e = (dn - D) / D;
+            ld += fabsf(e);
+            float gdn = wd * inv_v * (float)((e > 0) - (e < 0)) / D;
+            m->d_depth[i] = gdn / a;
+            m->d_alpha[i] = -gdn * out->depth[i] / (a * a);
+        }
+    }
+    return loss + (float)(wd * ld * inv_v);
+}
+
+pg_status proxy_model_fit(proxy_frame_model *m)
+{
+    double t0 = pg_time_seconds();
+    pg_render_settings s = model_settings();
+    pg_render_output out;
+    pg_gaussians *g = &m->g, *gr = &m->grad;
+    int n = g->count;
+    const float lr_mean = m->opt.lr_means * m->median_depth;
+    for (int it = 0; it < m->opt.steps; it++) {
+        PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));
+        float loss = source_loss(m, &out);
+        if (it == 0) m->stats.first_loss = loss;
+        m->stats.last_loss = loss;
+        splat_gaussians_zero(gr);
+        PG_TRY(splat_render_backward(m->raster, g, &m->cam, &s, m->d_rgb, m->d_depth, m->d_alpha, gr, NULL));
+        float bc1 = 1.0f - powf(0.9f, (float)(it + 1)), bc2 = 1.0f - powf(0.999f, (float)(it + 1));
+        adam_group(g->means, gr->means, m->m, m->v, n, 3, 0, lr_mean, bc1, bc2);
+        adam_group(g->log_scales, gr->log_scales, m->m, m->v, n, 3, 3, m->opt.lr_scales, bc1, bc2);
+        adam_group(g->opacity, gr->opacity, m->m, m->v, n, 1, 6, m->opt.lr_opacity, bc1, bc2);
+        adam_dc(g->sh, gr->sh, m->m, m->v, n, m->opt.lr_color, bc1, bc2);
+    }
+    /* Final quality at the source view (for reports). */
+    PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));
+    double se = 0;
+    size_t cnt = 0;
+    for (size_t i = 0; i < (size_t)m->W * m->H; i++) {
+        if (!(m->depth[i] > 0)) continue;
+        for (int c = 0; c < 3; c++) {
+            double d = out.rgb[i * 3 + c] - m->rgb[i * 3 + c];
+            se += d * d;
+        }
+        cnt += 3;
+    }
+    m->stats.source_psnr = cnt ? (float)(-10.0 * log10(fmax(se / cnt, 1e-12))) : 0;
+    m->stats.fit_s += pg_time_seconds() - t0;
+    return PG_OK;
+}
+
+pg_status proxy_model_render(proxy_frame_model *m, const pg_camera *view, float *rgb, float *depth,
+                             unsigned char *mask, float *valid_fraction)
+{
+    double t0 = pg_time_seconds();
+    pg_render_settings s = model_settings();
+    pg_render_output out;
+    PG_TRY(splat_render_forward(m->raster, &m->g, view, &s, &out));
+    size_t n = (size_t)view->width * view->height;
+    if (m->zmesh_size < n) {
+        free(m->zmesh);
+        m->zmesh = pg_malloc(n * sizeof(float), "proxy mesh depth");
+        m->zmesh_size = m->zmesh ? n : 0;
+        if (!m->zmesh) return PG_ERR_NOMEM;
+    }
+    /* Depth normalised by alpha, into the caller's buffer or a temporary. */
+    float *dn = depth;
+    float *tmp = NULL;
+    if (!dn) {
+        tmp = pg_malloc(n * sizeof(float), "proxy depth");
+        if (!tmp) return PG_ERR_NOMEM;
+        dn = tmp;
+    }
+    for (size_t i = 0; i < n; i++) dn[i] = out.alpha[i] > 1e-3f ? out.depth[i] / out.alpha[i] : 0;
+    if (rgb) memcpy(rgb, out.rgb, n * 3 * sizeof(float));
+    pg_status st = PG_OK;
+    if (mask || valid_fraction) {
+        st = proxy_mesh_depth(&m->cam, m->depth, view, &m->opt.mask, m->zmesh);
+        if (!st) {
+            unsigned char *mk = mask ? mask : pg_malloc(n, "proxy mask");
+            if (!mk) {
+                st = PG_ERR_NOMEM;
+            } else {
+                float f = proxy_mask_combine(view->width, view->height, out.alpha, dn, m->zmesh, &m->opt.mask, mk);
+                if (valid_fraction) *valid_fraction = f;
+                if (depth)
+                    for (size_t i = 0; i < n; i++)
+                        if (!mk[i]) depth[i] = 0;
+                if (!mask) free(mk);
+            }
+        }
+    }
+    free(tmp);
+    m->stats.render_s += pg_time_seconds() - t0;
+    return st;
+}
+
+const proxy_model_stats *proxy_model_get_stats(const proxy_frame_model *m) { return &m->stats; }

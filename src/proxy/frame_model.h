@@ -1,0 +1,64 @@
+/* frame_model.h - the lightweight per-frame 3DGS model that renders proxy views (paper §3.2).
+ *
+ *   proxy_frame_model *m;
+ *   proxy_fit_options o = proxy_default_fit_options();
+ *   proxy_model_create(&m, W, H, &o);                       // one per worker, reused across frames
+ *   for each frame:
+ *       proxy_model_init(m, &real_cam, rgb, depth);         // one Gaussian per pixel (or k x k block)
+ *       proxy_model_fit(m, &loss);                          // ~100 Adam steps on the source view
+ *       for each proxy camera:
+ *           proxy_model_render(m, &cam, rgb, depth, mask);  // RGB, depth/alpha, validity mask
+ *   proxy_model_destroy(m);
+ *
+ * depth is in the pose units of the cameras (already multiplied by any pose scale), 0 = invalid.
+ */
+#ifndef PG_PROXY_FRAME_MODEL_H
+#define PG_PROXY_FRAME_MODEL_H
+
+#include "core/camera.h"
+#include "core/status.h"
+#include "proxy/mask.h"
+
+typedef struct {
+    int block;            /* k: one Gaussian per k x k pixel block (1) */
+    int steps;            /* Adam steps on the source view (100) */
+    float ssim_weight;    /* weight of D-SSIM against L1 (0.2) */
+    float depth_weight;   /* weight of the relative depth L1 term (0.1) */
+    float init_opacity;   /* initial opacity (0.8; higher gave lower proxy PSNR) */
+    float scale_mult;     /* initial std = scale_mult * k * depth / f (0.6) */
+    float lr_means;       /* mean learning rate relative to the median depth (2e-5) */
+    float lr_scales, lr_opacity, lr_color; /* Adam learning rates (0.005, 0.02, 0.005) */
+    proxy_mask_options mask;
+} proxy_fit_options;
+
+typedef struct {
+    double init_s, fit_s, render_s; /* accumulated wall time of each phase */
+    float first_loss, last_loss;    /* loss of the first and last fit step of the latest frame */
+    float source_psnr;              /* PSNR of the fitted model at the source view (latest frame) */
+    int gaussians;                  /* Gaussians of the latest frame */
+} proxy_model_stats;
+
+typedef struct proxy_frame_model proxy_frame_model;
+
+proxy_fit_options proxy_default_fit_options(void);
+
+/* Allocates a model for frames of width x height (the worst case: every pixel valid). */
+pg_status proxy_model_create(proxy_frame_model **m, int width, int height, const proxy_fit_options *o);
+void proxy_model_destroy(proxy_frame_model *m);
+
+/* Seeds the Gaussians from one RGB-D frame: rgb (H,W,3), depth (H,W). Fails (PG_ERR_ARG) when
+ * no pixel has valid depth. */
+pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const float *rgb, const float *depth);
+
+/* Runs the Adam steps on the source view (L1 + D-SSIM + depth). */
+pg_status proxy_model_fit(proxy_frame_model *m);
+
+/* Renders a view: rgb (H',W',3), depth (H',W') normalised by alpha (0 where invalid), mask
+ * (H',W') 0/1; any output may be NULL. The view may differ in size from the source.
+ * valid_fraction (may be NULL) receives the masked fraction. */
+pg_status proxy_model_render(proxy_frame_model *m, const pg_camera *view, float *rgb, float *depth,
+                             unsigned char *mask, float *valid_fraction);
+
+const proxy_model_stats *proxy_model_get_stats(const proxy_frame_model *m);
+
+#endif

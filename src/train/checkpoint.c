@@ -1,0 +1,417 @@
+/* checkpoint.c - the training checkpoint: everything needed to continue bit-exactly, and to
+ * render the model.
+ *
+ * Layout (little-endian, written in one go to a temporary file then renamed):
+ *   "PGDYCKP1"                              magic
+ *   u32 version (1), u32 config text length, config text ("key=value\n" lines)
+ *   i32 iter, fine, frames, width, height, num_views; i64 gstep, nstep; u64 rng[4]
+ *   f32 extent, center[3], max_disp, bg[3]
+ *   i32 N, sh_degree; Gaussians params, Adam m, Adam v (each means, log_scales, quats,
+ *       opacity, sh for N rows); u8 is_static[N]; f32 grad_accum[N], grad_denom[N]
+ *   if fine: network config (f32 aabb[6], i32 width, res, tres, channels, u64 seed),
+ *       u64 P, f32 params[P], m[P], v[P]
+ *   "PGEND\0\0\0"
+ * Nothing time- or machine-dependent is stored, so equal training gives equal bytes.
+ */
+#include "train/train_internal.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/fileutil.h"
+
+#define CKPT_MAGIC "PGDYCKP1"
+#define CKPT_END "PGEND\0\0\0"
+#define CKPT_VERSION 1u
+#define SH_ROW (PG_SH_COEFFS * 3)
+
+typedef struct {
+    unsigned char *data;
+    size_t size, cap;
+    int failed;
+} buf;
+
+static void put(buf *b, const void *p, size_t n)
+{
+    if (b->failed) return;
+    if (b->size + n > b->cap) {
+        size_t nc = b->cap ? b->cap : 1 << 20;
+        while (nc < b->size + n) nc *= 2;
+        unsigned char *d = realloc(b->data, nc);
+        if (!d) {
+            b->failed = 1;
+            return;
+        }
+        b->data = d;
+        b->cap = nc;
+    }
+    memcpy(b->data + b->size, p, n);
+    b->size += n;
+}
+static void put_i32(buf *b, int32_t x) { put(b, &x, 4); }
+static void put_i64(buf *b, int64_t x) { put(b, &x, 8); }
+static void put_u64(buf *b, uint64_t x) { put(b, &x, 8); }
+static void put_f32(buf *b, float x) { put(b, &x, 4); }
+
+static void put_gaussians(buf *b, const pg_gaussians *g, int n)
+{
+    put(b, g->means, (size_t)n * 3 * 4);
+    put(b, g->log_scales, (size_t)n * 3 * 4);
+    put(b, g->quats, (size_t)n * 4 * 4);
+    put(b, g->opacity, (size_t)n * 4);
+    put(b, g->sh, (size_t)n * SH_ROW * 4);
+}
+
+/* The config as text lines; read back by name so fields can be added later. */
+static void config_text(const train_config *c, char *out, size_t size)
+{
+    snprintf(out, size,
+             "iters=%d\ncoarse_iters=%d\nseed=%llu\nmax_gaussians=%d\ninit_points=%d\nreal_every=%d\n"
+             "sh_max_degree=%d\nsh_ramp_every=%d\nbg=%.9g,%.9g,%.9g\nlambda_dssim=%.9g\nlambda_depth=%.9g\n"
+             "reg_tv=%.9g\nreg_time=%.9g\nreg_l1=%.9g\nlr_means=%.9g\nlr_means_final=%.9g\nlr_scales=%.9g\n"
+             "lr_quats=%.9g\nlr_opacity=%.9g\nlr_sh_dc=%.9g\nlr_sh_rest=%.9g\nlr_net=%.9g\nlr_net_final=%.9g\n"
+             "lr_grid=%.9g\nlr_grid_final=%.9g\ndensify_from=%d\ndensify_until=%d\ndensify_every=%d\n"
+             "opacity_reset_every=%d\ndensify_grad=%.9g\npercent_dense=%.9g\nprune_opacity=%.9g\n"
+             "prune_big_scale=%.9g\nuse_static_flags=%d\nuse_frustum_cull=%d\nstatic_check_every=%d\n"
+             "static_eps=%.9g\ndeform_width=%d\ndeform_res=%d\ndeform_tres=%d\ndeform_channels=%d\n",
+             c->iters, c->coarse_iters, (unsigned long long)c->seed, c->max_gaussians, c->init_points, c->real_every,
+             c->sh_max_degree, c->sh_ramp_every, c->bg[0], c->bg[1], c->bg[2], c->lambda_dssim, c->lambda_depth,
+             c->reg_tv, c->reg_time, c->reg_l1, c->lr_means, c->lr_means_final, c->lr_scales, c->lr_quats,
+             c->lr_opacity, c->lr_sh_dc, c->lr_sh_rest, c->lr_net, c->lr_net_final, c->lr_grid, c->lr_grid_final,
+             c->densify_from, c->densify_until, c->densify_every, c->opacity_reset_every, c->densify_grad,
+             c->percent_dense, c->prune_opacity, c->prune_big_scale, c->use_static_flags, c->use_frustum_cull,
+             c->static_check_every, c->static_eps, c->deform_width, c->deform_res, c->deform_tres,
+             c->deform_channels);
+}
+
+static int cfg_get(const char *text, const char *key, char *val, size_t size)
+{
+    size_t kl = strlen(key);
+    for (const char *p = text; p && *p;) {
+        if (strncmp(p, key, kl) == 0 && p[kl] == '=') {
+            const char *e = strchr(p + kl + 1, '\n');
+            size_t n = e ? (size_t)(e - (p + kl + 1)) : strlen(p + kl + 1);
+            if (n >= size) n = size - 1;
+            memcpy(val, p + kl + 1, n);
+            val[n] = 0;
+            return 1;
+        }
+        p = strchr(p, '\n');
+        if (p) p++;
+    }
+    return 0;
+}
+
+static void config_parse(const char *text, train_config *c)
+{
+    char v[256];
+#define GI(name) if (cfg_get(text, #name, v, sizeof v)) c->name = atoi(v)
+#define GF(name) if (cfg_get(text, #name, v, sizeof v)) c->name = strtof(v, NULL)
+    GI(iters); GI(coarse_iters); GI(max_gaussians); GI(init_points); GI(real_every); GI(sh_max_degree);
+    GI(sh_ramp_every); GF(lambda_dssim); GF(lambda_depth); GF(reg_tv); GF(reg_time); GF(reg_l1);
+    GF(lr_means); GF(lr_means_final); GF(lr_scales); GF(lr_quats); GF(lr_opacity); GF(lr_sh_dc);
+    GF(lr_sh_rest); GF(lr_net); GF(lr_net_final); GF(lr_grid); GF(lr_grid_final); GI(densify_from);
+    GI(densify_until); GI(densify_every); GI(opacity_reset_every); GF(densify_grad); GF(percent_dense);
+    GF(prune_opacity); GF(prune_big_scale); GI(use_static_flags); GI(use_frustum_cull);
+    GI(static_check_every); GF(static_eps); GI(deform_width); GI(deform_res); GI(deform_tres);
+    GI(deform_channels);
+#undef GI
+#undef GF
+    if (cfg_get(text, "seed", v, sizeof v)) c->seed = strtoull(v, NULL, 10);
+    if (cfg_get(text, "bg", v, sizeof v)) sscanf(v, "%f,%f,%f", &c->bg[0], &c->bg[1], &c->bg[2]);
+}
+
+pg_status train_checkpoint_write(train_session *s, const char *path)
+{
+    buf b = {0};
+    char text[8192];
+    config_text(&s->cfg, text, sizeof text);
+    put(&b, CKPT_MAGIC, 8);
+    put_i32(&b, (int32_t)CKPT_VERSION);
+    put_i32(&b, (int32_t)strlen(text));
+    put(&b, text, strlen(text));
+    put_i32(&b, s->iter);
+    put_i32(&b, s->fine);
+    put_i32(&b, s->ts->frames);
+    put_i32(&b, s->ts->width);
+    put_i32(&b, s->ts->height);
+    put_i32(&b, s->ts->num_views);
+    put_i64(&b, s->gstep);
+    put_i64(&b, s->nstep);
+    for (int k = 0; k < 4; k++) put_u64(&b, s->rng.s[k]);
+    put_f32(&b, s->extent);
+    for (int k = 0; k < 3; k++) put_f32(&b, s->center[k]);
+    put_f32(&b, s->max_disp);
+    for (int k = 0; k < 3; k++) put_f32(&b, s->cfg.bg[k]);
+    int n = s->g.count;
+    put_i32(&b, n);
+    put_i32(&b, s->g.sh_degree);
+    put_gaussians(&b, &s->g, n);
+    put_gaussians(&b, &s->m, n);
+    put_gaussians(&b, &s->v, n);
+    put(&b, s->is_static, (size_t)n);
+    put(&b, s->grad_accum, (size_t)n * 4);
+    put(&b, s->grad_denom, (size_t)n * 4);
+    if (s->fine) {
+        const train_net_config *nc = &s->net_cfg;
+        for (int k = 0; k < 3; k++) put_f32(&b, nc->aabb_min[k]);
+        for (int k = 0; k < 3; k++) put_f32(&b, nc->aabb_max[k]);
+        put_i32(&b, nc->width);
+        put_i32(&b, nc->res);
+        put_i32(&b, nc->tres);
+        put_i32(&b, nc->channels);
+        put_u64(&b, nc->seed);
+        uint64_t P = train_net_num_params(s->net);
+        put_u64(&b, P);
+        put(&b, train_net_params(s->net), (size_t)P * 4);
+        put(&b, s->net_m, (size_t)P * 4);
+        put(&b, s->net_v, (size_t)P * 4);
+    }
+    put(&b, CKPT_END, 8);
+    if (b.failed) {
+        free(b.data);
+        return pg_fail(PG_ERR_NOMEM, "%s: out of memory building the checkpoint", path);
+    }
+    pg_status st = pg_write_file_atomic(path, b.data, b.size);
+    free(b.data);
+    return st;
+}
+
+/* ---------- reading ---------- */
+
+typedef struct {
+    const unsigned char *p;
+    size_t size, off;
+    int bad;
+} rd;
+
+static void get(rd *r, void *dst, size_t n)
+{
+    if (r->bad || r->size - r->off < n) {
+        r->bad = 1;
+        memset(dst, 0, n);
+        return;
+    }
+    memcpy(dst, r->p + r->off, n);
+    r->off += n;
+}
+static int32_t get_i32(rd *r) { int32_t x; get(r, &x, 4); return x; }
+static int64_t get_i64(rd *r) { int64_t x; get(r, &x, 8); return x; }
+static uint64_t get_u64(rd *r) { uint64_t x; get(r, &x, 8); return x; }
+static float get_f32(rd *r) { float x; get(r, &x, 4); return x; }
+
+static void get_gaussians(rd *r, pg_gaussians *g, int n)
+{
+    get(r, g->means, (size_t)n * 3 * 4);
+    get(r, g->log_scales, (size_t)n * 3 * 4);
+    get(r, g->quats, (size_t)n * 4 * 4);
+    get(r, g->opacity, (size_t)n * 4);
+    get(r, g->sh, (size_t)n * SH_ROW * 4);
+}
+
+typedef struct {
+    train_config cfg;
+    int iter, fine, frames, width, height, num_views;
+    int64_t gstep, nstep;
+    uint64_t rng[4];
+    float extent, center[3], max_disp, bg[3];
+    int n, sh_degree;
+} ckpt_header;
+
+#define CKPT_MAX_GAUSSIANS 50000000
+
+static pg_status read_header(rd *r, const char *path, ckpt_header *h)
+{
+    char magic[8];
+    get(r, magic, 8);
+    if (r->bad || memcmp(magic, CKPT_MAGIC, 8) != 0)
+        return pg_fail(PG_ERR_FORMAT, "%s: not a prodygs training checkpoint", path);
+    uint32_t ver = (uint32_t)get_i32(r);
+    if (ver != CKPT_VERSION) return pg_fail(PG_ERR_FORMAT, "%s: checkpoint version %u is not supported", path, ver);
+    int32_t tl = get_i32(r);
+    if (tl < 0 || (size_t)tl > r->size - r->off) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint", path);
+    char *text = pg_malloc((size_t)tl + 1, "checkpoint config");
+    if (!text) return PG_ERR_NOMEM;
+    get(r, text, (size_t)tl);
+    text[tl] = 0;
+    h->cfg = train_default_config();
+    config_parse(text, &h->cfg);
+    free(text);
+    h->iter = get_i32(r);
+    h->fine = get_i32(r);
+    h->frames = get_i32(r);
+    h->width = get_i32(r);
+    h->height = get_i32(r);
+    h->num_views = get_i32(r);
+    h->gstep = get_i64(r);
+    h->nstep = get_i64(r);
+    for (int k = 0; k < 4; k++) h->rng[k] = get_u64(r);
+    h->extent = get_f32(r);
+    for (int k = 0; k < 3; k++) h->center[k] = get_f32(r);
+    h->max_disp = get_f32(r);
+    for (int k = 0; k < 3; k++) h->bg[k] = get_f32(r);
+    h->n = get_i32(r);
+    h->sh_degree = get_i32(r);
+    if (r->bad) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint header", path);
+    if (h->n < 1 || h->n > CKPT_MAX_GAUSSIANS || h->sh_degree < 0 || h->sh_degree > 3 || h->frames < 1)
+        return pg_fail(PG_ERR_FORMAT, "%s: corrupt checkpoint header (N=%d, sh=%d)", path, h->n, h->sh_degree);
+    /* the rest must fit: 3 copies of the Gaussians + flags and statistics */
+    size_t need = (size_t)h->n * ((3 + 3 + 4 + 1 + SH_ROW) * 4 * 3 + 1 + 8);
+    if (r->size - r->off < need) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (Gaussians)", path);
+    return PG_OK;
+}
+
+static pg_status read_net(rd *r, const char *path, train_net_config *nc, train_net **net, float **m, float **v)
+{
+    memset(nc, 0, sizeof *nc);
+    for (int k = 0; k < 3; k++) nc->aabb_min[k] = get_f32(r);
+    for (int k = 0; k < 3; k++) nc->aabb_max[k] = get_f32(r);
+    nc->width = get_i32(r);
+    nc->res = get_i32(r);
+    nc->tres = get_i32(r);
+    nc->channels = get_i32(r);
+    nc->seed = get_u64(r);
+    uint64_t P = get_u64(r);
+    if (r->bad) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (network)", path);
+    if (nc->width < 0 || nc->width > 4096 || nc->res < 0 || nc->res > 4096 || nc->tres < 0 || nc->tres > 100000 ||
+        nc->channels < 0 || nc->channels > 1024)
+        return pg_fail(PG_ERR_FORMAT, "%s: corrupt network config in the checkpoint", path);
+    PG_TRY(train_net_create(net, nc));
+    if (train_net_num_params(*net) != P)
+        return pg_fail(PG_ERR_FORMAT, "%s: network has %llu parameters, this build expects %zu", path,
+                       (unsigned long long)P, train_net_num_params(*net));
+    if (r->size - r->off < P * 12) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (network)", path);
+    get(r, train_net_params(*net), (size_t)P * 4);
+    if (m) {
+        *m = pg_calloc(P ? P : 1, 4, "network Adam moments");
+        *v = pg_calloc(P ? P : 1, 4, "network Adam moments");
+        if (!*m || !*v) return PG_ERR_NOMEM;
+        get(r, *m, (size_t)P * 4);
+        get(r, *v, (size_t)P * 4);
+    } else {
+        r->off += (size_t)P * 8;
+    }
+    return PG_OK;
+}
+
+static pg_status check_end(rd *r, const char *path)
+{
+    char end[8];
+    get(r, end, 8);
+    if (r->bad || memcmp(end, CKPT_END, 8) != 0 || r->off != r->size)
+        return pg_fail(PG_ERR_FORMAT, "%s: checkpoint is truncated or has trailing bytes", path);
+    return PG_OK;
+}
+
+pg_status train_checkpoint_read(train_session *s, const char *path)
+{
+    char *data = NULL;
+    size_t size = 0;
+    PG_TRY(pg_read_file(path, (size_t)1 << 34, &data, &size));
+    rd r = {(const unsigned char *)data, size, 0, 0};
+    ckpt_header h;
+    pg_status st = read_header(&r, path, &h);
+    if (st) goto done;
+    const train_set *ts = s->ts;
+    if (h.frames != ts->frames || h.width != ts->width || h.height != ts->height || h.num_views != ts->num_views) {
+        st = pg_fail(PG_ERR_ARG, "%s: checkpoint was made for %d views of %d frames %dx%d, not this training set",
+                     path, h.num_views, h.frames, h.width, h.height);
+        goto done;
+    }
+    s->cfg = h.cfg;
+    s->iter = h.iter;
+    s->gstep = h.gstep;
+    s->nstep = h.nstep;
+    memcpy(s->rng.s, h.rng, sizeof h.rng);
+    s->extent = h.extent;
+    memcpy(s->center, h.center, sizeof h.center);
+    s->max_disp = h.max_disp;
+    memcpy(s->cfg.bg, h.bg, sizeof h.bg);
+    if ((st = train_resize_all(s, h.n))) goto done;
+    get_gaussians(&r, &s->g, h.n);
+    get_gaussians(&r, &s->m, h.n);
+    get_gaussians(&r, &s->v, h.n);
+    s->g.sh_degree = h.sh_degree;
+    get(&r, s->is_static, (size_t)h.n);
+    get(&r, s->grad_accum, (size_t)h.n * 4);
+    get(&r, s->grad_denom, (size_t)h.n * 4);
+    if (h.fine) {
+        if ((st = read_net(&r, path, &s->net_cfg, &s->net, &s->net_m, &s->net_v))) goto done;
+        s->fine = 1;
+    }
+    st = check_end(&r, path);
+done:
+    free(data);
+    return st;
+}
+
+pg_status train_model_load(const char *path, train_model *m)
+{
+    memset(m, 0, sizeof *m);
+    char *data = NULL;
+    size_t size = 0;
+    PG_TRY(pg_read_file(path, (size_t)1 << 34, &data, &size));
+    rd r = {(const unsigned char *)data, size, 0, 0};
+    ckpt_header h;
+    pg_gaussians skip = {0};
+    pg_status st = read_header(&r, path, &h);
+    if (st) goto done;
+    if ((st = splat_gaussians_create(&m->g, h.n)) || (st = splat_gaussians_resize(&m->g, h.n))) goto done;
+    get_gaussians(&r, &m->g, h.n);
+    m->g.sh_degree = h.sh_degree;
+    r.off += (size_t)h.n * (3 + 3 + 4 + 1 + SH_ROW) * 4 * 2; /* Adam moments */
+    m->is_static = pg_malloc((size_t)h.n, "model static flags");
+    if (!m->is_static) {
+        st = PG_ERR_NOMEM;
+        goto done;
+    }
+    get(&r, m->is_static, (size_t)h.n);
+    r.off += (size_t)h.n * 8;
+    if (h.fine) {
+        train_net_config nc;
+        if ((st = read_net(&r, path, &nc, &m->net, NULL, NULL))) goto done;
+    }
+    st = check_end(&r, path);
+    m->frames = h.frames;
+    memcpy(m->bg, h.bg, sizeof h.bg);
+done:
+    splat_gaussians_destroy(&skip);
+    free(data);
+    if (st) train_model_destroy(m);
+    return st;
+}
+
+void train_model_destroy(train_model *m)
+{
+    if (!m) return;
+    splat_gaussians_destroy(&m->g);
+    free(m->is_static);
+    train_net_destroy(m->net);
+    memset(m, 0, sizeof *m);
+}
+
+pg_status train_model_deform(train_model *m, float t, pg_gaussians *out)
+{
+    int n = m->g.count;
+    if (out->capacity < n) {
+        splat_gaussians_destroy(out);
+        PG_TRY(splat_gaussians_create(out, n));
+    }
+    PG_TRY(splat_gaussians_resize(out, n));
+    size_t N = (size_t)n;
+    memcpy(out->means, m->g.means, N * 3 * 4);
+    memcpy(out->log_scales, m->g.log_scales, N * 3 * 4);
+    memcpy(out->quats, m->g.quats, N * 4 * 4);
+    memcpy(out->opacity, m->g.opacity, N * 4);
+    memcpy(out->sh, m->g.sh, N * SH_ROW * 4);
+    out->sh_degree = m->g.sh_degree;
+    if (!m->net) return PG_OK;
+    int *idx = pg_malloc(N * sizeof(int) + 1, "deform indices");
+    if (!idx) return PG_ERR_NOMEM;
+    int k = 0;
+    for (int i = 0; i < n; i++)
+        if (!m->is_static[i]) idx[k++] = i;
+    pg_status st = k ? train_net_forward(m->net, &m->g, idx, k, t, out) : PG_OK;
+    free(idx);
+    return st;
+}

@@ -1,0 +1,233 @@
+/* densify.c - adaptive density control (3DGS): clone small / split large Gaussians whose mean
+ * view-space gradient is high, prune transparent and oversized ones, keep N under the cap.
+ *
+ * Every per-Gaussian array of the session (parameters, Adam moments, static flags, density
+ * statistics) moves together; new rows get zero Adam moments, as in the reference.
+ */
+#include "train/train_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/mathx.h"
+
+#define SH_ROW (PG_SH_COEFFS * 3)
+
+pg_status train_ensure_side(train_session *s, int n)
+{
+    if (n <= s->side_cap) return PG_OK;
+    int nc = s->side_cap ? s->side_cap : 1024;
+    while (nc < n) nc *= 2;
+    uint8_t *a = realloc(s->is_static, (size_t)nc);
+    if (!a) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
+    s->is_static = a;
+    float *b = realloc(s->grad_accum, (size_t)nc * sizeof(float));
+    if (!b) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
+    s->grad_accum = b;
+    float *c = realloc(s->grad_denom, (size_t)nc * sizeof(float));
+    if (!c) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
+    s->grad_denom = c;
+    float *d = realloc(s->vs_grad, (size_t)nc * sizeof(float));
+    if (!d) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
+    s->vs_grad = d;
+    int *e = realloc(s->idx, (size_t)nc * sizeof(int));
+    if (!e) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
+    s->idx = e;
+    size_t old = (size_t)s->side_cap, add = (size_t)(nc - s->side_cap);
+    memset(s->is_static + old, 0, add);
+    memset(s->grad_accum + old, 0, add * sizeof(float));
+    memset(s->grad_denom + old, 0, add * sizeof(float));
+    memset(s->vs_grad + old, 0, add * sizeof(float));
+    s->side_cap = nc;
+    return PG_OK;
+}
+
+static void zero_rows(pg_gaussians *g, int from, int to)
+{
+    if (to <= from) return;
+    size_t n = (size_t)(to - from);
+    memset(g->means + 3 * (size_t)from, 0, n * 3 * sizeof(float));
+    memset(g->log_scales + 3 * (size_t)from, 0, n * 3 * sizeof(float));
+    memset(g->quats + 4 * (size_t)from, 0, n * 4 * sizeof(float));
+    memset(g->opacity + from, 0, n * sizeof(float));
+    memset(g->sh + (size_t)SH_ROW * from, 0, n * SH_ROW * sizeof(float));
+}
+
+/* Sets the count of every per-Gaussian array to n; rows past the old count are zeroed. */
+pg_status train_resize_all(train_session *s, int n)
+{
+    pg_gaussians *all[6] = {&s->g, &s->gg, &s->m, &s->v, &s->d, &s->dg};
+    for (int k = 0; k < 6; k++) {
+        int old = all[k]->count;
+        if (all[k]->capacity == 0) PG_TRY(splat_gaussians_create(all[k], n > 16 ? n : 16));
+        PG_TRY(splat_gaussians_resize(all[k], n));
+        zero_rows(all[k], old, n);
+    }
+    int old = s->g.count;
+    (void)old;
+    PG_TRY(train_ensure_side(s, n));
+    return PG_OK;
+}
+
+static void copy_row(pg_gaussians *dst, int di, const pg_gaussians *src, int si)
+{
+    memmove(dst->means + 3 * (size_t)di, src->means + 3 * (size_t)si, 3 * sizeof(float));
+    memmove(dst->log_scales + 3 * (size_t)di, src->log_scales + 3 * (size_t)si, 3 * sizeof(float));
+    memmove(dst->quats + 4 * (size_t)di, src->quats + 4 * (size_t)si, 4 * sizeof(float));
+    dst->opacity[di] = src->opacity[si];
+    memmove(dst->sh + (size_t)SH_ROW * di, src->sh + (size_t)SH_ROW * si, SH_ROW * sizeof(float));
+}
+
+static float max_scale(const pg_gaussians *g, int i)
+{
+    const float *l = g->log_scales + 3 * (size_t)i;
+    return expf(fmaxf(l[0], fmaxf(l[1], l[2])));
+}
+
+typedef struct {
+    float grad;
+    int index;
+} cand;
+
+static int cand_cmp(const void *a, const void *b)
+{
+    const cand *x = a, *y = b;
+    if (x->grad != y->grad) return x->grad > y->grad ? -1 : 1;
+    return x->index - y->index;
+}
+
+/* Appends a copy of row i (Adam moments zero, flags inherited); returns the new index. */
+static int append_copy(train_session *s, int i)
+{
+    int j = s->g.count;
+    /* capacity was ensured by the caller */
+    s->g.count = s->gg.count = s->m.count = s->v.count = s->d.count = s->dg.count = j + 1;
+    copy_row(&s->g, j, &s->g, i);
+    zero_rows(&s->m, j, j + 1);
+    zero_rows(&s->v, j, j + 1);
+    s->is_static[j] = s->is_static[i];
+    s->grad_accum[j] = 0;
+    s->grad_denom[j] = 0;
+    return j;
+}
+
+pg_status train_densify_and_prune(train_session *s, int densify)
+{
+    const train_config *c = &s->cfg;
+    int n0 = s->g.count;
+    float thr_scale = c->percent_dense * s->extent;
+    cand *cs = NULL;
+    uint8_t *split = NULL;
+    int nc = 0;
+    if (densify) {
+        cs = pg_malloc(sizeof(cand) * (size_t)(n0 ? n0 : 1), "densify candidates");
+        if (!cs) return PG_ERR_NOMEM;
+        for (int i = 0; i < n0; i++) {
+            float g = s->grad_denom[i] > 0 ? s->grad_accum[i] / s->grad_denom[i] : 0;
+            if (g >= c->densify_grad) cs[nc++] = (cand){g, i};
+        }
+        int budget = c->max_gaussians - n0;
+        if (budget < 0) budget = 0;
+        if (nc > budget) {
+            qsort(cs, (size_t)nc, sizeof(cand), cand_cmp);
+            nc = budget;
+        }
+        /* room for the clones and the second half of each split */
+        int grow = n0 + nc;
+        pg_gaussians *all[6] = {&s->g, &s->gg, &s->m, &s->v, &s->d, &s->dg};
+        for (int k = 0; k < 6; k++) {
+            PG_TRY(splat_gaussians_resize(all[k], grow));
+            all[k]->count = n0;
+        }
+        pg_status st = train_ensure_side(s, grow);
+        if (st) {
+            free(cs);
+            return st;
+        }
+        split = pg_calloc((size_t)grow + 1, 1, "densify split flags");
+        if (!split) {
+            free(cs);
+            return PG_ERR_NOMEM;
+        }
+        /* in index order so the result does not depend on the sort above */
+        uint8_t *chosen = pg_calloc((size_t)n0 + 1, 1, "densify chosen");
+        if (!chosen) {
+            free(cs);
+            free(split);
+            return PG_ERR_NOMEM;
+        }
+        for (int k = 0; k < nc; k++) chosen[cs[k].index] = 1;
+        for (int i = 0; i < n0; i++) {
+            if (!chosen[i]) continue;
+            if (max_scale(&s->g, i) <= thr_scale) {
+                append_copy(s, i); /* clone: same Gaussian twice, the gradient pulls them apart */
+            } else {
+                /* split: two samples from the Gaussian, scales / 1.6; the original row becomes
+                 * the first sample and an appended row the second */
+                float R[9], q[4];
+                memcpy(q, s->g.quats + 4 * (size_t)i, sizeof q);
+                float qn = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+                if (qn > 0)
+                    for (int k = 0; k < 4; k++) q[k] /= qn;
+                else
+                    q[0] = 1;
+                quat_to_mat3(R, q);
+                float sc[3];
+                for (int k = 0; k < 3; k++) sc[k] = expf(s->g.log_scales[3 * (size_t)i + k]);
+                int j = append_copy(s, i);
+                int rows[2] = {i, j};
+                float mean[3];
+                memcpy(mean, s->g.means + 3 * (size_t)i, sizeof mean);
+                for (int r = 0; r < 2; r++) {
+                    float z[3], w[3];
+                    for (int k = 0; k < 3; k++) z[k] = (float)pg_rng_normal(&s->rng) * sc[k];
+                    mat3_mul_vec(w, R, z);
+                    for (int k = 0; k < 3; k++) {
+                        s->g.means[3 * (size_t)rows[r] + k] = mean[k] + w[k];
+                        s->g.log_scales[3 * (size_t)rows[r] + k] -= logf(1.6f);
+                    }
+                }
+                zero_rows(&s->m, i, i + 1);
+                zero_rows(&s->v, i, i + 1);
+                split[i] = 1;
+            }
+        }
+        free(chosen);
+        free(cs);
+        free(split);
+    }
+    /* prune: transparent or too large (in place, order kept) */
+    int n = s->g.count, w = 0;
+    float big = c->prune_big_scale * s->extent;
+    for (int i = 0; i < n; i++) {
+        float op = 1.0f / (1.0f + expf(-s->g.opacity[i]));
+        int keep = op >= c->prune_opacity && max_scale(&s->g, i) <= big;
+        if (!keep && n - (i + 1) + w == 0 && w == 0) keep = 1; /* never prune to nothing */
+        if (!keep) continue;
+        if (w != i) {
+            copy_row(&s->g, w, &s->g, i);
+            copy_row(&s->m, w, &s->m, i);
+            copy_row(&s->v, w, &s->v, i);
+            s->is_static[w] = s->is_static[i];
+        }
+        w++;
+    }
+    pg_gaussians *all[6] = {&s->g, &s->gg, &s->m, &s->v, &s->d, &s->dg};
+    for (int k = 0; k < 6; k++) all[k]->count = w;
+    memset(s->grad_accum, 0, (size_t)s->side_cap * sizeof(float));
+    memset(s->grad_denom, 0, (size_t)s->side_cap * sizeof(float));
+    return PG_OK;
+}
+
+void train_reset_opacity(train_session *s)
+{
+    float lim = logf(0.01f / 0.99f);
+    for (int i = 0; i < s->g.count; i++) {
+        if (s->g.opacity[i] > lim) {
+            s->g.opacity[i] = lim;
+            s->m.opacity[i] = 0;
+            s->v.opacity[i] = 0;
+        }
+    }
+}

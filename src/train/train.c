@@ -1,0 +1,509 @@
+/* train.c - the training loop: sampling, deformation, rendering, loss, Adam, density control.
+ *
+ * One iteration (fine stage):
+ *   1. pick (view, frame), t = frame / (F - 1)
+ *   2. d = canonical copy; rows of movable, possibly visible Gaussians go through the network
+ *   3. rasterize d, loss, backward -> dg
+ *   4. gg = dg (identity path); network backward adds the deformation path into gg and its params
+ *   5. K-Planes regularisers, Adam on the Gaussians and the network, density statistics
+ * The coarse stage is the same without step 2/4 (d = g).
+ */
+#include "train/train_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/fileutil.h"
+#include "core/mathx.h"
+#include "core/parallel.h"
+#include "core/progress.h"
+#include "train/train_loss.h"
+
+#define ADAM_B1 0.9f
+#define ADAM_B2 0.999f
+#define ADAM_EPS 1e-15f
+
+train_config train_default_config(void)
+{
+    train_config c;
+    memset(&c, 0, sizeof c);
+    c.iters = 3000;
+    c.coarse_iters = 500;
+    c.seed = 1;
+    c.threads = 0;
+    c.max_gaussians = 200000;
+    c.init_points = 30000;
+    c.checkpoint_every = 0;
+    c.real_every = 3;
+    c.sh_max_degree = 3;
+    c.sh_ramp_every = 500;
+    c.lambda_dssim = 0.2f;
+    c.lambda_depth = 0.05f;
+    c.reg_tv = 2e-4f;
+    c.reg_time = 1e-3f;
+    c.reg_l1 = 1e-4f;
+    c.lr_means = 1.6e-4f;
+    c.lr_means_final = 1.6e-6f;
+    c.lr_scales = 5e-3f;
+    c.lr_quats = 1e-3f;
+    c.lr_opacity = 0.05f;
+    c.lr_sh_dc = 2.5e-3f;
+    c.lr_sh_rest = 2.5e-3f / 20;
+    c.lr_net = 1.6e-3f;
+    c.lr_net_final = 1.6e-4f;
+    c.lr_grid = 1.6e-2f;
+    c.lr_grid_final = 1.6e-3f;
+    c.densify_from = 200;
+    c.densify_until = 0; /* 0: 70% of iters */
+    c.densify_every = 100;
+    c.opacity_reset_every = 0;
+    c.densify_grad = 2e-4f;
+    c.percent_dense = 0.01f;
+    c.prune_opacity = 0.005f;
+    c.prune_big_scale = 0.2f;
+    c.use_static_flags = 1;
+    c.use_frustum_cull = 1;
+    c.static_check_every = 0;
+    c.static_eps = 1e-3f;
+    return c;
+}
+
+int train_session_iteration(const train_session *s) { return s->iter; }
+int train_session_gaussians(const train_session *s) { return s->g.count; }
+void train_session_timing(const train_session *s, train_timing *t) { *t = s->timing; }
+
+void train_session_destroy(train_session *s)
+{
+    if (!s) return;
+    splat_gaussians_destroy(&s->g);
+    splat_gaussians_destroy(&s->gg);
+    splat_gaussians_destroy(&s->m);
+    splat_gaussians_destroy(&s->v);
+    splat_gaussians_destroy(&s->d);
+    splat_gaussians_destroy(&s->dg);
+    free(s->is_static);
+    free(s->grad_accum);
+    free(s->grad_denom);
+    free(s->vs_grad);
+    free(s->idx);
+    train_net_destroy(s->net);
+    free(s->net_m);
+    free(s->net_v);
+    splat_raster_destroy(s->raster);
+    pg_image_destroy(&s->target);
+    free(s->mask);
+    free(s->depth_t);
+    free(s->d_rgb);
+    free(s->d_depth);
+    free(s);
+}
+
+static void copy_gaussians(pg_gaussians *dst, const pg_gaussians *src)
+{
+    size_t n = (size_t)src->count;
+    memcpy(dst->means, src->means, n * 3 * sizeof(float));
+    memcpy(dst->log_scales, src->log_scales, n * 3 * sizeof(float));
+    memcpy(dst->quats, src->quats, n * 4 * sizeof(float));
+    memcpy(dst->opacity, src->opacity, n * sizeof(float));
+    memcpy(dst->sh, src->sh, n * PG_SH_COEFFS * 3 * sizeof(float));
+    dst->sh_degree = src->sh_degree;
+}
+
+/* Creates the network (fine stage) over the box of the current canonical means. */
+static pg_status start_fine(train_session *s)
+{
+    train_net_config nc;
+    memset(&nc, 0, sizeof nc);
+    float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
+    for (int i = 0; i < s->g.count; i++)
+        for (int k = 0; k < 3; k++) {
+            float x = s->g.means[3 * i + k];
+            lo[k] = fminf(lo[k], x);
+            hi[k] = fmaxf(hi[k], x);
+        }
+    for (int k = 0; k < 3; k++) {
+        float pad = 0.05f * (hi[k] - lo[k]) + 1e-4f;
+        nc.aabb_min[k] = lo[k] - pad;
+        nc.aabb_max[k] = hi[k] + pad;
+    }
+    nc.width = s->cfg.deform_width;
+    nc.res = s->cfg.deform_res;
+    nc.tres = s->cfg.deform_tres > 0 ? s->cfg.deform_tres : (s->ts->frames / 2 > 2 ? s->ts->frames / 2 : 2);
+    nc.channels = s->cfg.deform_channels;
+    nc.seed = s->cfg.seed * 7919u + 17u;
+    s->net_cfg = nc;
+    PG_TRY(train_net_create(&s->net, &nc));
+    size_t P = train_net_num_params(s->net);
+    s->net_m = pg_calloc(P ? P : 1, sizeof(float), "network Adam moments");
+    s->net_v = pg_calloc(P ? P : 1, sizeof(float), "network Adam moments");
+    if (!s->net_m || !s->net_v) return PG_ERR_NOMEM;
+    s->nstep = 0;
+    s->fine = 1;
+    return PG_OK;
+}
+
+pg_status train_session_force_fine(train_session *s)
+{
+    if (s->fine) return PG_OK;
+    s->iter = s->cfg.coarse_iters;
+    return start_fine(s);
+}
+
+pg_status train_session_set_gaussians(train_session *s, const pg_gaussians *g, const uint8_t *is_static)
+{
+    if (g->count < 1) return pg_fail(PG_ERR_ARG, "train: empty Gaussian set");
+    PG_TRY(train_resize_all(s, 0));
+    PG_TRY(train_resize_all(s, g->count));
+    copy_gaussians(&s->g, g);
+    for (int i = 0; i < g->count; i++) s->is_static[i] = is_static ? is_static[i] : 0;
+    memset(s->grad_accum, 0, (size_t)s->side_cap * sizeof(float));
+    memset(s->grad_denom, 0, (size_t)s->side_cap * sizeof(float));
+    return PG_OK;
+}
+
+pg_status train_session_create(train_session **out, const train_set *ts, const train_config *cfg,
+                               const char *ckpt_path, int resume)
+{
+    *out = NULL;
+    if (cfg->iters < 1 || cfg->coarse_iters < 0 || cfg->max_gaussians < 1)
+        return pg_fail(PG_ERR_ARG, "train: bad iteration counts or Gaussian cap");
+    if (train_set_count_role(ts, TRAIN_ROLE_REAL) + train_set_count_role(ts, TRAIN_ROLE_PROXY) == 0)
+        return pg_fail(PG_ERR_ARG, "train: the training set has no real or proxy views");
+    train_session *s = pg_calloc(1, sizeof *s, "training session");
+    if (!s) return PG_ERR_NOMEM;
+    s->ts = ts;
+    s->cfg = *cfg;
+    if (s->cfg.real_every < 1) s->cfg.real_every = 1;
+    if (s->cfg.densify_until <= 0) s->cfg.densify_until = (int)(0.7 * cfg->iters);
+    if (ckpt_path) snprintf(s->ckpt_path, sizeof s->ckpt_path, "%s", ckpt_path);
+    pg_status st;
+    size_t px = (size_t)ts->width * ts->height;
+    if ((st = splat_raster_create(&s->raster))) goto fail;
+    if ((st = pg_image_create(&s->target, ts->width, ts->height, 3))) goto fail;
+    s->mask = pg_malloc(px * sizeof(float), "training mask");
+    s->depth_t = pg_malloc(px * sizeof(float), "training depth");
+    s->d_rgb = pg_malloc(px * 3 * sizeof(float), "rgb gradient");
+    s->d_depth = pg_malloc(px * sizeof(float), "depth gradient");
+    if (!s->mask || !s->depth_t || !s->d_rgb || !s->d_depth) {
+        st = PG_ERR_NOMEM;
+        goto fail;
+    }
+    if (resume && ckpt_path && pg_path_exists(ckpt_path)) {
+        if ((st = train_checkpoint_read(s, ckpt_path))) goto fail;
+        /* options that may legitimately change on resume */
+        s->cfg.iters = cfg->iters;
+        s->cfg.checkpoint_every = cfg->checkpoint_every;
+        s->cfg.stop_at_iter = cfg->stop_at_iter;
+    } else {
+        pg_rng_seed(&s->rng, cfg->seed);
+        if ((st = train_init_gaussians(s))) goto fail;
+        if (!s->cfg.use_static_flags) memset(s->is_static, 0, (size_t)s->g.count);
+        if (s->cfg.coarse_iters == 0 && (st = start_fine(s))) goto fail;
+    }
+    *out = s;
+    return PG_OK;
+fail:
+    train_session_destroy(s);
+    return st;
+}
+
+/* Exponential interpolation lr0 -> lr1 over progress u in [0,1] (3DGS schedule). */
+static float lr_exp(float lr0, float lr1, float u)
+{
+    if (u < 0) u = 0;
+    if (u > 1) u = 1;
+    if (lr0 <= 0 || lr1 <= 0) return lr0 * (1 - u) + lr1 * u;
+    return expf(logf(lr0) * (1 - u) + logf(lr1) * u);
+}
+
+/* One Adam update of n parameters (eps 1e-15 as in 3DGS). */
+static void adam_update(float *p, const float *g, float *m, float *v, size_t n, float lr, float bc1, float bc2)
+{
+    if (lr == 0) return;
+    long nn = (long)n;
+#pragma omp parallel for schedule(static)
+    for (long i = 0; i < nn; i++) {
+        float gi = g[i];
+        float mi = ADAM_B1 * m[i] + (1 - ADAM_B1) * gi;
+        float vi = ADAM_B2 * v[i] + (1 - ADAM_B2) * gi * gi;
+        m[i] = mi;
+        v[i] = vi;
+        p[i] -= lr * (mi / bc1) / (sqrtf(vi / bc2) + ADAM_EPS);
+    }
+}
+
+static void adam_gaussians(train_session *s, float stage_u)
+{
+    s->gstep++;
+    float bc1 = 1 - powf(ADAM_B1, (float)s->gstep), bc2 = 1 - powf(ADAM_B2, (float)s->gstep);
+    size_t n = (size_t)s->g.count;
+    float lr_mean = lr_exp(s->cfg.lr_means, s->cfg.lr_means_final, stage_u) * s->extent;
+    adam_update(s->g.means, s->gg.means, s->m.means, s->v.means, n * 3, lr_mean, bc1, bc2);
+    adam_update(s->g.log_scales, s->gg.log_scales, s->m.log_scales, s->v.log_scales, n * 3, s->cfg.lr_scales, bc1,
+                bc2);
+    adam_update(s->g.quats, s->gg.quats, s->m.quats, s->v.quats, n * 4, s->cfg.lr_quats, bc1, bc2);
+    adam_update(s->g.opacity, s->gg.opacity, s->m.opacity, s->v.opacity, n, s->cfg.lr_opacity, bc1, bc2);
+    /* SH: DC (first 3 floats of each row) and the rest have their own rates */
+    long nn = (long)n;
+#pragma omp parallel for schedule(static)
+    for (long i = 0; i < nn; i++) {
+        size_t o = (size_t)i * PG_SH_COEFFS * 3;
+        for (int k = 0; k < PG_SH_COEFFS * 3; k++) {
+            float lr = k < 3 ? s->cfg.lr_sh_dc : s->cfg.lr_sh_rest;
+            float gi = s->gg.sh[o + k];
+            float mi = ADAM_B1 * s->m.sh[o + k] + (1 - ADAM_B1) * gi;
+            float vi = ADAM_B2 * s->v.sh[o + k] + (1 - ADAM_B2) * gi * gi;
+            s->m.sh[o + k] = mi;
+            s->v.sh[o + k] = vi;
+            s->g.sh[o + k] -= lr * (mi / bc1) / (sqrtf(vi / bc2) + ADAM_EPS);
+        }
+    }
+}
+
+static void adam_network(train_session *s, float stage_u)
+{
+    size_t P = train_net_num_params(s->net);
+    if (P == 0) return;
+    s->nstep++;
+    float bc1 = 1 - powf(ADAM_B1, (float)s->nstep), bc2 = 1 - powf(ADAM_B2, (float)s->nstep);
+    size_t ge = train_net_grid_end(s->net);
+    float *p = train_net_params(s->net), *g = train_net_grads(s->net);
+    float lr_grid = lr_exp(s->cfg.lr_grid, s->cfg.lr_grid_final, stage_u) * s->extent;
+    float lr_net = lr_exp(s->cfg.lr_net, s->cfg.lr_net_final, stage_u) * s->extent;
+    adam_update(p, g, s->net_m, s->net_v, ge, lr_grid, bc1, bc2);
+    adam_update(p + ge, g + ge, s->net_m + ge, s->net_v + ge, P - ge, lr_net, bc1, bc2);
+}
+
+/* Picks a training (view, frame): a real view every real_every iterations (and whenever there
+ * are no proxies), otherwise a proxy view uniformly; the frame uniformly. */
+static void pick_sample(train_session *s, int *view, int *frame)
+{
+    const train_set *ts = s->ts;
+    int nreal = train_set_count_role(ts, TRAIN_ROLE_REAL), nproxy = train_set_count_role(ts, TRAIN_ROLE_PROXY);
+    train_role role;
+    int n;
+    if (nproxy == 0 || (nreal > 0 && s->iter % s->cfg.real_every == 0)) {
+        role = TRAIN_ROLE_REAL;
+        n = nreal;
+    } else {
+        role = TRAIN_ROLE_PROXY;
+        n = nproxy;
+    }
+    int k = (int)pg_rng_below(&s->rng, (uint32_t)n);
+    for (int i = 0; i < ts->num_views; i++)
+        if (ts->views[i].role == role && k-- == 0) {
+            *view = i;
+            break;
+        }
+    *frame = (int)pg_rng_below(&s->rng, (uint32_t)ts->frames);
+}
+
+float train_frame_time(int f, int frames) { return frames > 1 ? (float)f / (float)(frames - 1) : 0.0f; }
+
+/* Selects the Gaussians to send through the network: not static and (if culling) within the
+ * view frustum enlarged by the largest displacement seen plus the Gaussian's own size. */
+static int build_subset(train_session *s, const pg_camera *cam, int use_cull)
+{
+    int n = 0;
+    const pg_gaussians *g = &s->g;
+    for (int i = 0; i < g->count; i++) {
+        if (s->cfg.use_static_flags && s->is_static[i]) continue;
+        if (use_cull && cam) {
+            const float *x = g->means + 3 * i;
+            float zc = cam->R[6] * x[0] + cam->R[7] * x[1] + cam->R[8] * x[2] + cam->t[2];
+            float xc = cam->R[0] * x[0] + cam->R[1] * x[1] + cam->R[2] * x[2] + cam->t[0];
+            float yc = cam->R[3] * x[0] + cam->R[4] * x[1] + cam->R[5] * x[2] + cam->t[1];
+            const float *ls = g->log_scales + 3 * i;
+            float m = s->max_disp + 3.0f * expf(fmaxf(ls[0], fmaxf(ls[1], ls[2])));
+            if (zc + m < 0.01f) continue;
+            float z = fmaxf(zc, 0.01f);
+            float mx = cam->fx * m / z + 0.15f * cam->width, my = cam->fy * m / z + 0.15f * cam->height;
+            float u = cam->fx * xc / z + cam->cx, v = cam->fy * yc / z + cam->cy;
+            if (zc > m && (u < -mx || u > cam->width + mx || v < -my || v > cam->height + my)) continue;
+        }
+        s->idx[n++] = i;
+    }
+    return n;
+}
+
+
+/* Loads the target image, mask and depth of (view, frame) into the session buffers. */
+static int load_target(train_session *s, int vi, int f)
+{
+    const train_set *ts = s->ts;
+    const train_view *v = &ts->views[vi];
+    size_t px = (size_t)ts->width * ts->height;
+    train_set_frame_rgb(ts, vi, f, &s->target);
+    for (size_t i = 0; i < px; i++) s->mask[i] = v->mask ? (float)v->mask[(size_t)f * px + i] : 1.0f;
+    if (v->depth) memcpy(s->depth_t, v->depth + (size_t)f * px, px * sizeof(float));
+    return v->depth != NULL;
+}
+
+/* Deformed copy d of the canonical set for camera cam at time t (cam NULL: no culling). */
+static pg_status deform_all(train_session *s, const pg_camera *cam, float t, int *n_deformed)
+{
+    copy_gaussians(&s->d, &s->g);
+    *n_deformed = 0;
+    if (!s->fine) return PG_OK;
+    int n = build_subset(s, cam, cam && s->cfg.use_frustum_cull);
+    *n_deformed = n;
+    if (n == 0) return PG_OK;
+    return train_net_forward(s->net, &s->g, s->idx, n, t, &s->d);
+}
+
+pg_status train_session_step(train_session *s)
+{
+    const train_set *ts = s->ts;
+    const train_config *c = &s->cfg;
+    int W = ts->width, H = ts->height;
+    size_t px = (size_t)W * H;
+    if (!s->fine && s->iter >= c->coarse_iters) PG_TRY(start_fine(s));
+    double t0 = pg_time_seconds(), t1;
+    int vi = 0, f = 0;
+    pick_sample(s, &vi, &f);
+    const pg_camera *cam = &ts->views[vi].cam;
+    float t = train_frame_time(f, ts->frames);
+    int has_depth = load_target(s, vi, f);
+    memset(&s->timing, 0, sizeof s->timing);
+
+    int nd = 0;
+    PG_TRY(deform_all(s, cam, t, &nd));
+    s->timing.deformed = nd;
+    if (s->fine && nd > 0) {
+        float md = s->max_disp;
+        for (int k = 0; k < nd; k++) {
+            int i = s->idx[k];
+            float dx[3];
+            vec3_sub(dx, s->d.means + 3 * i, s->g.means + 3 * i);
+            md = fmaxf(md, vec3_norm(dx));
+        }
+        s->max_disp = fminf(md, s->extent);
+    }
+    t1 = pg_time_seconds();
+    s->timing.deform_forward = (t1 - t0) * 1e3;
+    t0 = t1;
+
+    pg_render_settings rs = splat_default_settings();
+    memcpy(rs.background, c->bg, sizeof rs.background);
+    pg_render_output out;
+    PG_TRY(splat_render_forward(s->raster, &s->d, cam, &rs, &out));
+    t1 = pg_time_seconds();
+    s->timing.raster_forward = (t1 - t0) * 1e3;
+    t0 = t1;
+
+    memset(s->d_rgb, 0, px * 3 * sizeof(float));
+    memset(s->d_depth, 0, px * sizeof(float));
+    int any_mask = ts->views[vi].mask != NULL;
+    double loss = train_l1_forward_backward(out.rgb, s->target.data, any_mask ? s->mask : NULL, W, H, 1.0f, s->d_rgb);
+    if (has_depth && c->lambda_depth > 0)
+        loss += train_ssi_depth_forward_backward(out.depth, s->depth_t, s->mask, W, H, c->lambda_depth, s->d_depth);
+    if (ts->views[vi].role == TRAIN_ROLE_REAL) {
+        pg_image rendered = {W, H, 3, out.rgb};
+        s->last_psnr = pg_image_psnr(&rendered, &s->target, any_mask ? s->mask : NULL);
+    }
+    t1 = pg_time_seconds();
+    s->timing.loss = (t1 - t0) * 1e3;
+    t0 = t1;
+
+    splat_gaussians_zero(&s->dg);
+    memset(s->vs_grad, 0, (size_t)s->g.count * sizeof(float));
+    PG_TRY(splat_render_backward(s->raster, &s->d, cam, &rs, s->d_rgb, has_depth ? s->d_depth : NULL, NULL, &s->dg,
+                                 s->vs_grad));
+    t1 = pg_time_seconds();
+    s->timing.raster_backward = (t1 - t0) * 1e3;
+    t0 = t1;
+
+    /* identity path, then the deformation path for the deformed rows */
+    copy_gaussians(&s->gg, &s->dg);
+    float stage_u;
+    if (s->fine) {
+        train_net_zero_grad(s->net);
+        if (nd > 0) PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, &s->dg, &s->gg));
+        loss += train_net_regularize(s->net, c->reg_tv, c->reg_time, c->reg_l1);
+        int fine_len = c->iters - c->coarse_iters;
+        stage_u = fine_len > 0 ? (float)(s->iter - c->coarse_iters) / (float)fine_len : 1.0f;
+    } else {
+        stage_u = c->coarse_iters > 0 ? (float)s->iter / (float)c->coarse_iters : 1.0f;
+    }
+    t1 = pg_time_seconds();
+    s->timing.deform_backward = (t1 - t0) * 1e3;
+    t0 = t1;
+
+    adam_gaussians(s, stage_u);
+    if (s->fine) adam_network(s, stage_u);
+    t1 = pg_time_seconds();
+    s->timing.optimizer = (t1 - t0) * 1e3;
+    t0 = t1;
+
+    /* density statistics: view-space gradient (converted to 3DGS's NDC units) of visible ones */
+    float ndc = 0.5f * (float)(W > H ? W : H);
+    for (int i = 0; i < s->d.count; i++) {
+        float uv[2];
+        float z = pg_camera_project(cam, s->d.means + 3 * i, uv);
+        if (z > 0.01f && uv[0] >= 0 && uv[0] < W && uv[1] >= 0 && uv[1] < H) {
+            s->grad_accum[i] += s->vs_grad[i] * ndc;
+            s->grad_denom[i] += 1;
+        }
+    }
+    s->last_loss = loss;
+    s->iter++;
+
+    int it = s->iter;
+    if (c->sh_ramp_every > 0 && it % c->sh_ramp_every == 0 && s->g.sh_degree < c->sh_max_degree) s->g.sh_degree++;
+    if (it < c->densify_until && it >= c->densify_from && c->densify_every > 0 && it % c->densify_every == 0)
+        PG_TRY(train_densify_and_prune(s, 1));
+    if (c->opacity_reset_every > 0 && it < c->densify_until && it % c->opacity_reset_every == 0) train_reset_opacity(s);
+    s->timing.other = (pg_time_seconds() - t0) * 1e3;
+    return PG_OK;
+}
+
+pg_status train_session_save(train_session *s, const char *path) { return train_checkpoint_write(s, path); }
+
+pg_status train_session_run(train_session *s)
+{
+    const train_config *c = &s->cfg;
+    s->t_start = pg_time_seconds();
+    s->it_start = s->iter;
+    while (s->iter < c->iters) {
+        if (c->stop_at_iter > 0 && s->iter == c->stop_at_iter) return PG_OK; /* simulated kill */
+        PG_TRY(train_session_step(s));
+        int it = s->iter;
+        if (s->ckpt_path[0] && c->checkpoint_every > 0 && it % c->checkpoint_every == 0 && it < c->iters)
+            PG_TRY(train_checkpoint_write(s, s->ckpt_path));
+        if (it % 10 == 0 || it == c->iters) {
+            double el = pg_time_seconds() - s->t_start;
+            double ips = el > 0 ? (it - s->it_start) / el : 0;
+            double eta = ips > 0 ? (c->iters - it) / ips : 0;
+            pg_progress_report("train", it, c->iters, "loss=%.4f psnr=%.2f gaussians=%d it/s=%.2f eta=%.0fs%s",
+                               s->last_loss, s->last_psnr, s->g.count, ips, eta, s->fine ? "" : " (coarse)");
+        }
+    }
+    if (s->ckpt_path[0]) PG_TRY(train_checkpoint_write(s, s->ckpt_path));
+    return PG_OK;
+}
+
+pg_status train_session_evaluate(train_session *s, train_role role, double *psnr)
+{
+    const train_set *ts = s->ts;
+    double sum = 0;
+    int n = 0;
+    pg_render_settings rs = splat_default_settings();
+    memcpy(rs.background, s->cfg.bg, sizeof rs.background);
+    for (int vi = 0; vi < ts->num_views; vi++) {
+        if (ts->views[vi].role != role) continue;
+        for (int f = 0; f < ts->frames; f++) {
+            int nd;
+            load_target(s, vi, f);
+            PG_TRY(deform_all(s, &ts->views[vi].cam, train_frame_time(f, ts->frames), &nd));
+            pg_render_output out;
+            PG_TRY(splat_render_forward(s->raster, &s->d, &ts->views[vi].cam, &rs, &out));
+            pg_image rendered = {ts->width, ts->height, 3, out.rgb};
+            sum += pg_image_psnr(&rendered, &s->target, ts->views[vi].mask ? s->mask : NULL);
+            n++;
+        }
+    }
+    if (n == 0) return pg_fail(PG_ERR_ARG, "evaluate: no views with that role in the training set");
+    *psnr = sum / n;
+    return PG_OK;
+}

@@ -1,0 +1,85 @@
+/* train.h - the 4D trainer: canonical Gaussians + deformation network, coarse then fine stage.
+ *
+ *   train_set ts;          PG_TRY(train_set_load(dir, &ts));
+ *   train_config cfg = train_default_config();
+ *   cfg.iters = 3000; cfg.seed = 1; cfg.checkpoint_every = 500;
+ *   train_session *s;
+ *   PG_TRY(train_session_create(&s, &ts, &cfg, "out/model.ckpt", resume));  // resume: load if present
+ *   PG_TRY(train_session_run(s));      // checkpoints every K iterations and at the end
+ *   double psnr; train_session_evaluate(s, TRAIN_ROLE_TEST, &psnr);
+ *   train_session_destroy(s);
+ *
+ * The model is rendered later from the checkpoint alone (render/model_render.h). Same seed,
+ * same thread count and same training set give byte-identical checkpoints, also across
+ * --resume (all state - RNG, Adam moments, densification statistics - is in the file).
+ */
+#ifndef PG_TRAIN_H
+#define PG_TRAIN_H
+
+#include <stdint.h>
+
+#include "core/status.h"
+#include "splat/gaussians.h"
+#include "train/trainset.h"
+
+typedef struct {
+    int iters;            /* total iterations, coarse included */
+    int coarse_iters;     /* static stage (no deformation) */
+    uint64_t seed;
+    int threads;          /* informative; the caller sets the thread count */
+    int max_gaussians;
+    int init_points;      /* target number of Gaussians after voxel downsampling */
+    int checkpoint_every; /* 0 = only at the end */
+    int stop_at_iter;     /* testing: return PG_OK after saving at this iteration (0 = off) */
+    int real_every;       /* a real view at least every k iterations (when proxies exist) */
+    int sh_max_degree;
+    int sh_ramp_every;
+    float bg[3];
+    /* loss */
+    float lambda_dssim, lambda_depth;
+    float reg_tv, reg_time, reg_l1;
+    /* learning rates (means scaled by the scene extent) */
+    float lr_means, lr_means_final, lr_scales, lr_quats, lr_opacity, lr_sh_dc, lr_sh_rest;
+    float lr_net, lr_net_final, lr_grid, lr_grid_final;
+    /* density control */
+    int densify_from, densify_until, densify_every, opacity_reset_every;
+    float densify_grad, percent_dense, prune_opacity, prune_big_scale;
+    /* deformation-network speed tricks */
+    int use_static_flags, use_frustum_cull;
+    int static_check_every;  /* learned static flags: re-check every k fine iterations (0 = off) */
+    float static_eps;        /* max |delta position| / extent to call a Gaussian static */
+    int deform_width, deform_res, deform_tres, deform_channels; /* 0 = library defaults */
+} train_config;
+
+train_config train_default_config(void);
+
+typedef struct train_session train_session;
+
+/* Creates a session; if resume and ckpt_path exists, continues from it (the training set and
+ * the config must match the ones it was made with, except iters may grow). */
+pg_status train_session_create(train_session **s, const train_set *ts, const train_config *cfg,
+                               const char *ckpt_path, int resume);
+void train_session_destroy(train_session *s);
+/* Runs to cfg.iters (or stop_at_iter), writing checkpoints; reports progress as "train". */
+pg_status train_session_run(train_session *s);
+/* One iteration (exposed for benchmarks and tests). */
+pg_status train_session_step(train_session *s);
+/* Mean PSNR over every frame of every view with the role (only frames where ts has them). */
+pg_status train_session_evaluate(train_session *s, train_role role, double *psnr);
+pg_status train_session_save(train_session *s, const char *path);
+int train_session_iteration(const train_session *s);
+int train_session_gaussians(const train_session *s);
+
+/* Per-phase timings of the last step in milliseconds (bench iteration). */
+typedef struct {
+    double deform_forward, deform_backward, raster_forward, raster_backward, loss, optimizer, other;
+    int deformed; /* Gaussians sent through the network */
+} train_timing;
+void train_session_timing(const train_session *s, train_timing *t);
+/* Benchmarks: start the fine stage now (creates the network). */
+pg_status train_session_force_fine(train_session *s);
+/* Replaces the canonical Gaussians (moments and density statistics zeroed); is_static (N) may
+ * be NULL (all movable). Call before the fine stage starts (the network box follows them). */
+pg_status train_session_set_gaussians(train_session *s, const pg_gaussians *g, const uint8_t *is_static);
+
+#endif

@@ -1,0 +1,64 @@
+/* train_internal.h - the trainer's state, shared by train.c, init.c, densify.c, checkpoint.c. */
+#ifndef PG_TRAIN_INTERNAL_H
+#define PG_TRAIN_INTERNAL_H
+
+#include "core/image.h"
+#include "core/rng.h"
+#include "splat/raster.h"
+#include "train/model.h"
+#include "train/train.h"
+
+struct train_session {
+    const train_set *ts;
+    train_config cfg;
+    char ckpt_path[4096];
+
+    int iter;          /* iterations done */
+    pg_rng rng;
+    int fine;          /* 1 once the fine stage started (network exists) */
+    long gstep;        /* Adam steps of the Gaussian groups (reset at the fine stage) */
+    long nstep;        /* Adam steps of the network */
+    float extent;      /* scene radius for lr scaling and densification */
+    float center[3];
+    float max_disp;    /* largest |delta position| seen, culling margin */
+    train_net_config net_cfg;
+
+    pg_gaussians g;    /* canonical parameters */
+    pg_gaussians gg;   /* their gradients */
+    pg_gaussians m, v; /* Adam moments */
+    pg_gaussians d;    /* deformed copy for the current frame */
+    pg_gaussians dg;   /* gradients w.r.t. the deformed copy */
+    int side_cap;
+    uint8_t *is_static;  /* (side_cap) */
+    float *grad_accum;   /* (side_cap) summed view-space gradient norms */
+    float *grad_denom;   /* (side_cap) times visible */
+    float *vs_grad;      /* (side_cap) this iteration's view-space gradient norm */
+    int *idx;            /* (side_cap) Gaussians sent through the network */
+    train_net *net;
+    float *net_m, *net_v; /* (P) */
+
+    splat_raster *raster;
+    pg_image target;     /* (H, W, 3) */
+    float *mask;         /* (H, W) */
+    float *depth_t;      /* (H, W) */
+    float *d_rgb;        /* (H, W, 3) */
+    float *d_depth;      /* (H, W) */
+
+    /* reporting (not part of the checkpoint) */
+    double last_loss, last_psnr, t_start;
+    int it_start;
+    train_timing timing;
+};
+
+/* init.c */
+pg_status train_init_gaussians(train_session *s);
+/* densify.c */
+pg_status train_ensure_side(train_session *s, int n);
+pg_status train_resize_all(train_session *s, int n);
+pg_status train_densify_and_prune(train_session *s, int densify);
+void train_reset_opacity(train_session *s);
+/* checkpoint.c */
+pg_status train_checkpoint_write(train_session *s, const char *path);
+pg_status train_checkpoint_read(train_session *s, const char *path);
+
+#endif

@@ -1,0 +1,175 @@
+/* train_net.c - adapter between the trainer and the deformation network (src/deform).
+ *
+ * The network predicts additive deltas for the five Gaussian attributes; the adapter applies
+ * them to the selected rows and maps the rasterizer's gradients back (the identity part of
+ * canon + delta is already in the caller's canonical gradient). Until src/deform exists in the
+ * tree this compiles to an identity deformation with no parameters.
+ */
+#include "train/model.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#if defined(__has_include)
+#if __has_include("deform/deform.h")
+#define TRAIN_HAVE_DEFORM 1
+#endif
+#endif
+
+#define SH_ROW (PG_SH_COEFFS * 3)
+
+#ifdef TRAIN_HAVE_DEFORM
+#include "deform/deform.h"
+
+#define WS_MAX_POINTS 32768
+
+struct train_net {
+    train_net_config cfg;
+    deform_network *net;
+    deform_ws *ws;
+    float *out;   /* (n, 59) */
+    float *d_out; /* (n, 59) */
+    long cap;
+};
+
+pg_status train_net_create(train_net **n, const train_net_config *cfg)
+{
+    train_net *t = pg_calloc(1, sizeof *t, "deformation network");
+    if (!t) return PG_ERR_NOMEM;
+    t->cfg = *cfg;
+    deform_config dc;
+    deform_config_default(&dc);
+    if (cfg->width > 0) dc.width = cfg->width;
+    if (cfg->res > 0) dc.res_space = cfg->res;
+    if (cfg->tres > 0) dc.res_time = cfg->tres;
+    if (cfg->channels > 0) dc.channels = cfg->channels;
+    dc.seed = cfg->seed;
+    float aabb[6] = {cfg->aabb_min[0], cfg->aabb_min[1], cfg->aabb_min[2],
+                     cfg->aabb_max[0], cfg->aabb_max[1], cfg->aabb_max[2]};
+    pg_status st = deform_network_create(&t->net, &dc, aabb);
+    if (!st) st = deform_ws_create(&t->ws, t->net, WS_MAX_POINTS);
+    if (st) {
+        train_net_destroy(t);
+        return st;
+    }
+    *n = t;
+    return PG_OK;
+}
+
+void train_net_destroy(train_net *n)
+{
+    if (!n) return;
+    deform_ws_destroy(n->ws);
+    deform_network_destroy(n->net);
+    free(n->out);
+    free(n->d_out);
+    free(n);
+}
+
+size_t train_net_num_params(const train_net *n) { return n->net->num_params; }
+float *train_net_params(train_net *n) { return n->net->params; }
+float *train_net_grads(train_net *n) { return n->net->grads; }
+size_t train_net_grid_end(const train_net *n) { return n->net->num_plane_params; }
+void train_net_zero_grad(train_net *n) { deform_network_zero_grad(n->net); }
+
+static pg_status ensure(train_net *t, long n)
+{
+    if (n <= t->cap) return PG_OK;
+    long c = t->cap ? t->cap : 4096;
+    while (c < n) c *= 2;
+    float *a = realloc(t->out, (size_t)c * DEFORM_OUT_DIM * sizeof(float));
+    if (!a) return pg_fail(PG_ERR_NOMEM, "deformation: out of memory for %ld points", c);
+    t->out = a;
+    float *b = realloc(t->d_out, (size_t)c * DEFORM_OUT_DIM * sizeof(float));
+    if (!b) return pg_fail(PG_ERR_NOMEM, "deformation: out of memory for %ld points", c);
+    t->d_out = b;
+    t->cap = c;
+    return PG_OK;
+}
+
+pg_status train_net_forward(train_net *t, const pg_gaussians *g, const int *idx, int n, float tm, pg_gaussians *out)
+{
+    PG_TRY(ensure(t, n));
+    PG_TRY(deform_network_forward(t->net, t->ws, g->means, idx, n, tm, t->out));
+#pragma omp parallel for schedule(static)
+    for (int k = 0; k < n; k++) {
+        int i = idx[k];
+        const float *o = t->out + (size_t)k * DEFORM_OUT_DIM;
+        for (int a = 0; a < 3; a++) out->means[3 * i + a] = g->means[3 * i + a] + o[DEFORM_OUT_POS + a];
+        for (int a = 0; a < 3; a++)
+            out->log_scales[3 * i + a] = g->log_scales[3 * i + a] + o[DEFORM_OUT_SCALE + a];
+        for (int a = 0; a < 4; a++) out->quats[4 * i + a] = g->quats[4 * i + a] + o[DEFORM_OUT_ROT + a];
+        out->opacity[i] = g->opacity[i] + o[DEFORM_OUT_OPACITY];
+        for (int a = 0; a < SH_ROW; a++)
+            out->sh[(size_t)i * SH_ROW + a] = g->sh[(size_t)i * SH_ROW + a] + o[DEFORM_OUT_SH + a];
+    }
+    return PG_OK;
+}
+
+pg_status train_net_backward(train_net *t, const pg_gaussians *g, const int *idx, int n, float tm,
+                             const pg_gaussians *d_out, pg_gaussians *d_canon)
+{
+    (void)g;
+    (void)tm;
+    PG_TRY(ensure(t, n));
+#pragma omp parallel for schedule(static)
+    for (int k = 0; k < n; k++) {
+        int i = idx[k];
+        float *o = t->d_out + (size_t)k * DEFORM_OUT_DIM;
+        memcpy(o + DEFORM_OUT_POS, d_out->means + 3 * (size_t)i, 3 * sizeof(float));
+        memcpy(o + DEFORM_OUT_SCALE, d_out->log_scales + 3 * (size_t)i, 3 * sizeof(float));
+        memcpy(o + DEFORM_OUT_ROT, d_out->quats + 4 * (size_t)i, 4 * sizeof(float));
+        o[DEFORM_OUT_OPACITY] = d_out->opacity[i];
+        memcpy(o + DEFORM_OUT_SH, d_out->sh + (size_t)i * SH_ROW, SH_ROW * sizeof(float));
+    }
+    return deform_network_backward(t->net, t->ws, t->d_out, d_canon->means);
+}
+
+float train_net_regularize(train_net *t, float w_tv, float w_time, float w_l1)
+{
+    return deform_network_regularize(t->net, w_tv, w_time, w_l1);
+}
+
+#else /* no src/deform yet: identity deformation */
+
+struct train_net {
+    train_net_config cfg;
+};
+
+pg_status train_net_create(train_net **n, const train_net_config *cfg)
+{
+    *n = pg_calloc(1, sizeof **n, "deformation network");
+    if (!*n) return PG_ERR_NOMEM;
+    (*n)->cfg = *cfg;
+    return PG_OK;
+}
+
+void train_net_destroy(train_net *n) { free(n); }
+size_t train_net_num_params(const train_net *n) { (void)n; return 0; }
+float *train_net_params(train_net *n) { (void)n; return NULL; }
+float *train_net_grads(train_net *n) { (void)n; return NULL; }
+size_t train_net_grid_end(const train_net *n) { (void)n; return 0; }
+void train_net_zero_grad(train_net *n) { (void)n; }
+
+pg_status train_net_forward(train_net *net, const pg_gaussians *g, const int *idx, int n, float t, pg_gaussians *out)
+{
+    (void)net; (void)g; (void)idx; (void)n; (void)t; (void)out;
+    return PG_OK;
+}
+
+pg_status train_net_backward(train_net *net, const pg_gaussians *g, const int *idx, int n, float t,
+                             const pg_gaussians *d_out, pg_gaussians *d_canon)
+{
+    (void)net; (void)g; (void)idx; (void)n; (void)t; (void)d_out; (void)d_canon;
+    return PG_OK;
+}
+
+float train_net_regularize(train_net *net, float w_tv, float w_time, float w_l1)
+{
+    (void)net; (void)w_tv; (void)w_time; (void)w_l1;
+    return 0.0f;
+}
+
+#endif
+
+void train_net_config_of(const train_net *n, train_net_config *cfg) { *cfg = n->cfg; }

@@ -1,0 +1,547 @@
+/* trainset.c - load a training set (docs/FORMATS.md) or build one from a DyNeRF dataset. */
+#include "train/trainset.h"
+
+#include <cjson/cJSON.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/fileutil.h"
+#include "io/image_io.h"
+#include "io/npy.h"
+
+#define TS_MAX_VIEWS 4096
+#define TS_MAX_FRAMES 100000
+
+void train_set_destroy(train_set *ts)
+{
+    if (!ts) return;
+    for (int i = 0; i < ts->num_views; i++) {
+        free(ts->views[i].rgb);
+        free(ts->views[i].mask);
+        free(ts->views[i].depth);
+    }
+    free(ts->views);
+    memset(ts, 0, sizeof *ts);
+}
+
+int train_set_find(const train_set *ts, const char *name)
+{
+    for (int i = 0; i < ts->num_views; i++)
+        if (strcmp(ts->views[i].name, name) == 0) return i;
+    return -1;
+}
+
+int train_set_count_role(const train_set *ts, train_role role)
+{
+    int n = 0;
+    for (int i = 0; i < ts->num_views; i++) n += ts->views[i].role == role;
+    return n;
+}
+
+void train_set_frame_rgb(const train_set *ts, int v, int f, pg_image *img)
+{
+    size_t px = (size_t)ts->width * ts->height;
+    const uint8_t *src = ts->views[v].rgb + (size_t)f * px * 3;
+    for (size_t i = 0; i < px * 3; i++) img->data[i] = src[i] * (1.0f / 255.0f);
+}
+
+pg_status train_set_add_view(train_set *ts, const char *name, train_role role, const pg_camera *cam,
+                             int with_mask, int with_depth, int *index)
+{
+    if (ts->num_views >= TS_MAX_VIEWS) return pg_fail(PG_ERR_SIZE, "training set: more than %d views", TS_MAX_VIEWS);
+    train_view *nv = realloc(ts->views, sizeof(train_view) * (size_t)(ts->num_views + 1));
+    if (!nv) return pg_fail(PG_ERR_NOMEM, "training set: out of memory for views");
+    ts->views = nv;
+    train_view *v = &ts->views[ts->num_views];
+    memset(v, 0, sizeof *v);
+    snprintf(v->name, sizeof v->name, "%s", name);
+    v->role = role;
+    v->cam = *cam;
+    size_t px, n;
+    if (pg_size_mul((size_t)ts->width, (size_t)ts->height, &px) || pg_size_mul(px, (size_t)ts->frames, &n))
+        return pg_fail(PG_ERR_SIZE, "training set: %d frames of %dx%d overflow", ts->frames, ts->width, ts->height);
+    ts->num_views++; /* counted now so destroy frees partial allocations */
+    v->rgb = pg_malloc(n * 3, "training-set images");
+    if (!v->rgb) return PG_ERR_NOMEM;
+    if (with_mask) {
+        v->mask = pg_malloc(n, "training-set masks");
+        if (!v->mask) return PG_ERR_NOMEM;
+        memset(v->mask, 1, n);
+    }
+    if (with_depth) {
+        v->depth = pg_calloc(n, sizeof(float), "training-set depth");
+        if (!v->depth) return PG_ERR_NOMEM;
+    }
+    if (index) *index = ts->num_views - 1;
+    return PG_OK;
+}
+
+/* Stores a float image (any size equal to the set's) as uint8 frame f of view v. */
+static void store_rgb(train_set *ts, int v, int f, const pg_image *img)
+{
+    size_t px = (size_t)ts->width * ts->height;
+    uint8_t *dst = ts->views[v].rgb + (size_t)f * px * 3;
+    for (size_t i = 0; i < px * 3; i++) {
+        float x = img->data[i];
+        x = x < 0 ? 0 : (x > 1 ? 1 : x);
+        dst[i] = (uint8_t)lrintf(x * 255.0f);
+    }
+}
+
+/* ---------- trainset.json directory ---------- */
+
+static pg_status json_number(const cJSON *obj, const char *key, const char *path, double *out)
+{
+    const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, key);
+    if (!cJSON_IsNumber(it)) return pg_fail(PG_ERR_FORMAT, "%s: missing or non-numeric \"%s\"", path, key);
+    *out = it->valuedouble;
+    return PG_OK;
+}
+
+static pg_status json_floats(const cJSON *obj, const char *key, const char *path, float *out, int n)
+{
+    const cJSON *arr = cJSON_GetObjectItemCaseSensitive(obj, key);
+    if (!cJSON_IsArray(arr) || cJSON_GetArraySize(arr) != n)
+        return pg_fail(PG_ERR_FORMAT, "%s: \"%s\" must be an array of %d numbers", path, key, n);
+    for (int i = 0; i < n; i++) {
+        const cJSON *x = cJSON_GetArrayItem(arr, i);
+        if (!cJSON_IsNumber(x)) return pg_fail(PG_ERR_FORMAT, "%s: \"%s\"[%d] is not a number", path, key, i);
+        out[i] = (float)x->valuedouble;
+    }
+    return PG_OK;
+}
+
+static pg_status parse_camera(const cJSON *c, const char *path, pg_camera *cam)
+{
+    double w = 0, h = 0, fx = 0, fy = 0, cx = 0, cy = 0;
+    PG_TRY(json_number(c, "width", path, &w));
+    PG_TRY(json_number(c, "height", path, &h));
+    PG_TRY(json_number(c, "fx", path, &fx));
+    PG_TRY(json_number(c, "fy", path, &fy));
+    PG_TRY(json_number(c, "cx", path, &cx));
+    PG_TRY(json_number(c, "cy", path, &cy));
+    memset(cam, 0, sizeof *cam);
+    cam->width = (int)w;
+    cam->height = (int)h;
+    cam->fx = (float)fx;
+    cam->fy = (float)fy;
+    cam->cx = (float)cx;
+    cam->cy = (float)cy;
+    PG_TRY(json_floats(c, "R", path, cam->R, 9));
+    PG_TRY(json_floats(c, "t", path, cam->t, 3));
+    if (!(fx > 0 && fy > 0)) return pg_fail(PG_ERR_FORMAT, "%s: camera focal lengths must be positive", path);
+    return PG_OK;
+}
+
+static pg_status load_view_files(train_set *ts, int vi, const char *dir, const char *rgb_rel, const char *mask_rel,
+                                 const char *depth_rel)
+{
+    char sub[4096], path[4200], name[32];
+    pg_image img = {0};
+    size_t px = (size_t)ts->width * ts->height;
+    pg_status st = PG_OK;
+    PG_TRY(pg_path_join(sub, sizeof sub, dir, rgb_rel));
+    for (int f = 0; f < ts->frames && !st; f++) {
+        snprintf(name, sizeof name, "%04d.png", f);
+        if ((st = pg_path_join(path, sizeof path, sub, name))) break;
+        if ((st = io_image_load(path, &img))) break;
+        if (img.width != ts->width || img.height != ts->height)
+            st = pg_fail(PG_ERR_SIZE, "%s: image is %dx%d, trainset.json says %dx%d", path, img.width, img.height,
+                         ts->width, ts->height);
+        else
+            store_rgb(ts, vi, f, &img);
+        pg_image_destroy(&img);
+    }
+    if (!st && mask_rel) {
+        if ((st = pg_path_join(sub, sizeof sub, dir, mask_rel))) return st;
+        for (int f = 0; f < ts->frames && !st; f++) {
+            snprintf(name, sizeof name, "%04d.png", f);
+            if ((st = pg_path_join(path, sizeof path, sub, name))) break;
+            if ((st = io_image_load(path, &img))) break;
+            if (img.width != ts->width || img.height != ts->height)
+                st = pg_fail(PG_ERR_SIZE, "%s: mask is %dx%d, expected %dx%d", path, img.width, img.height, ts->width,
+                             ts->height);
+            else
+                for (size_t i = 0; i < px; i++) ts->views[vi].mask[(size_t)f * px + i] = img.data[i * 3] > 0.5f;
+            pg_image_destroy(&img);
+        }
+    }
+    if (!st && depth_rel) {
+        pg_array arr = {0};
+        if ((st = pg_path_join(path, sizeof path, dir, depth_rel))) return st;
+        if ((st = io_npy_load(path, &arr))) return st;
+        if (arr.count != px * (size_t)ts->frames)
+            st = pg_fail(PG_ERR_SIZE, "%s: depth has %zu values, expected (%d, %d, %d)", path, arr.count, ts->frames,
+                         ts->height, ts->width);
+        else
+            for (size_t i = 0; i < arr.count; i++) {
+                float d = arr.data[i];
+                ts->views[vi].depth[i] = (isfinite(d) && d > 0) ? d : 0.0f;
+            }
+        pg_array_destroy(&arr);
+    }
+    return st;
+}
+
+static const char *json_str_or_null(const cJSON *obj, const char *key)
+{
+    const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, key);
+    return cJSON_IsString(it) ? it->valuestring : NULL;
+}
+
+pg_status train_set_load(const char *dir, train_set *ts)
+{
+    memset(ts, 0, sizeof *ts);
+    char path[4096];
+    PG_TRY(pg_path_join(path, sizeof path, dir, "trainset.json"));
+    char *text = NULL;
+    size_t size = 0;
+    PG_TRY(pg_read_file(path, 64u << 20, &text, &size));
+    cJSON *root = cJSON_Parse(text);
+    free(text);
+    if (!root) return pg_fail(PG_ERR_FORMAT, "%s: not valid JSON", path);
+    pg_status st = PG_OK;
+    double frames = 0, width = 0, height = 0, fps = 30;
+    if ((st = json_number(root, "frames", path, &frames)) || (st = json_number(root, "width", path, &width)) ||
+        (st = json_number(root, "height", path, &height)))
+        goto done;
+    json_number(root, "fps", path, &fps);
+    if (frames < 1 || frames > TS_MAX_FRAMES || width < 1 || height < 1 || width > PG_MAX_IMAGE_SIDE ||
+        height > PG_MAX_IMAGE_SIDE) {
+        st = pg_fail(PG_ERR_SIZE, "%s: absurd size %g frames of %g x %g", path, frames, width, height);
+        goto done;
+    }
+    ts->frames = (int)frames;
+    ts->width = (int)width;
+    ts->height = (int)height;
+    ts->fps = (float)fps;
+    const cJSON *scene = cJSON_GetObjectItemCaseSensitive(root, "scene");
+    if (cJSON_IsObject(scene)) {
+        double r = 0, n = 0, fz = 0;
+        if (!json_floats(scene, "center", path, ts->center, 3) && !json_number(scene, "radius", path, &r)) {
+            ts->has_scene = 1;
+            ts->radius = (float)r;
+            if (!json_number(scene, "near", path, &n)) ts->near_z = (float)n;
+            if (!json_number(scene, "far", path, &fz)) ts->far_z = (float)fz;
+        }
+    }
+    const cJSON *cams = cJSON_GetObjectItemCaseSensitive(root, "cameras");
+    if (!cJSON_IsArray(cams) || cJSON_GetArraySize(cams) < 1) {
+        st = pg_fail(PG_ERR_FORMAT, "%s: \"cameras\" must be a non-empty array", path);
+        goto done;
+    }
+    const cJSON *c;
+    cJSON_ArrayForEach(c, cams)
+    {
+        pg_camera cam;
+        if ((st = parse_camera(c, path, &cam))) goto done;
+        const char *name = json_str_or_null(c, "name");
+        const char *role_s = json_str_or_null(c, "role");
+        const char *rgb = json_str_or_null(c, "rgb");
+        const char *mask = json_str_or_null(c, "mask");
+        const char *depth = json_str_or_null(c, "depth");
+        if (!name || !role_s || !rgb) {
+            st = pg_fail(PG_ERR_FORMAT, "%s: every camera needs \"name\", \"role\" and \"rgb\"", path);
+            goto done;
+        }
+        train_role role;
+        if (strcmp(role_s, "real") == 0) role = TRAIN_ROLE_REAL;
+        else if (strcmp(role_s, "proxy") == 0) role = TRAIN_ROLE_PROXY;
+        else if (strcmp(role_s, "test") == 0) role = TRAIN_ROLE_TEST;
+        else {
+            st = pg_fail(PG_ERR_FORMAT, "%s: camera %s has unknown role \"%s\"", path, name, role_s);
+            goto done;
+        }
+        if (cam.width != ts->width || cam.height != ts->height) {
+            st = pg_fail(PG_ERR_SIZE, "%s: camera %s is %dx%d but the set is %dx%d", path, name, cam.width,
+                         cam.height, ts->width, ts->height);
+            goto done;
+        }
+        int vi;
+        if ((st = train_set_add_view(ts, name, role, &cam, mask != NULL, depth != NULL, &vi))) goto done;
+        if ((st = load_view_files(ts, vi, dir, rgb, mask, depth))) goto done;
+    }
+done:
+    cJSON_Delete(root);
+    if (st) train_set_destroy(ts);
+    return st;
+}
+
+/* ---------- DyNeRF dataset (real cameras) ---------- */
+
+#if defined(__has_include)
+#if __has_include("io/dataset.h")
+#define TS_HAVE_DATASET 1
+#include "io/dataset.h"
+#endif
+#endif
+
+train_set_dynerf_options train_set_dynerf_defaults(void)
+{
+    train_set_dynerf_options o;
+    memset(&o, 0, sizeof o);
+    o.all_real = 1;
+    return o;
+}
+
+static int in_list(const int *list, int n, int x)
+{
+    for (int i = 0; i < n; i++)
+        if (list[i] == x) return 1;
+    return 0;
+}
+
+/* Copies depth (F', H', W') into view vi, nearest-neighbour resampled to the set's size. */
+static pg_status store_depth(train_set *ts, int vi, const char *path)
+{
+    pg_array dep = {0};
+    PG_TRY(io_npy_load(path, &dep));
+    pg_status st = PG_OK;
+    if (dep.ndim != 3 || dep.shape[0] < (size_t)ts->frames) {
+        st = pg_fail(PG_ERR_SIZE, "%s: depth must be (F>=%d, H, W)", path, ts->frames);
+    } else {
+        int dh = (int)dep.shape[1], dw = (int)dep.shape[2];
+        size_t px = (size_t)ts->width * ts->height;
+        for (int f = 0; f < ts->frames; f++)
+            for (int y = 0; y < ts->height; y++)
+                for (int x = 0; x < ts->width; x++) {
+                    int sx = (int)((x + 0.5f) * dw / ts->width), sy = (int)((y + 0.5f) * dh / ts->height);
+                    float d = dep.data[((size_t)f * dh + sy) * dw + sx];
+                    ts->views[vi].depth[(size_t)f * px + (size_t)y * ts->width + x] = (isfinite(d) && d > 0) ? d : 0;
+                }
+    }
+    pg_array_destroy(&dep);
+    return st;
+}
+
+#ifdef TS_HAVE_DATASET
+pg_status train_set_from_dynerf(const char *dir, const train_set_dynerf_options *opt, train_set *ts)
+{
+    memset(ts, 0, sizeof *ts);
+    io_dataset_options o = io_dataset_defaults();
+    if (opt->width > 0) o.width = opt->width;
+    if (opt->max_frames > 0) o.count = opt->max_frames;
+    pg_dataset *ds = NULL;
+    PG_TRY(io_dataset_open(dir, &o, &ds));
+    pg_status st = PG_OK;
+    pg_image img = {0};
+    int ncam = io_dataset_num_cameras(ds);
+    for (int i = 0; i < opt->num_test; i++)
+        if (opt->test_cams[i] < 0 || opt->test_cams[i] >= ncam) {
+            st = pg_fail(PG_ERR_ARG, "%s: test camera %d does not exist (%d cameras)", dir, opt->test_cams[i], ncam);
+            goto done;
+        }
+    for (int i = 0; !opt->all_real && i < opt->num_real; i++)
+        if (opt->real_cams[i] < 0 || opt->real_cams[i] >= ncam) {
+            st = pg_fail(PG_ERR_ARG, "%s: camera %d does not exist (%d cameras)", dir, opt->real_cams[i], ncam);
+            goto done;
+        }
+    ts->frames = io_dataset_num_frames(ds);
+    ts->width = io_dataset_width(ds);
+    ts->height = io_dataset_height(ds);
+    ts->fps = (float)io_dataset_fps(ds);
+    float near_min = 1e30f, far_max = 0;
+    int depth_view = -1;
+    for (int c = 0; c < ncam; c++) {
+        int is_test = in_list(opt->test_cams, opt->num_test, c);
+        int is_real = opt->all_real ? !is_test : in_list(opt->real_cams, opt->num_real, c);
+        if (!is_test && !is_real) continue;
+        pg_camera cam;
+        io_dataset_camera(ds, c, &cam);
+        float zn, zf;
+        io_dataset_near_far(ds, c, &zn, &zf);
+        if (zn > 0 && zn < near_min) near_min = zn;
+        if (zf > far_max) far_max = zf;
+        int want_depth = is_real && depth_view < 0 && opt->depth_path;
+        int vi;
+        if ((st = train_set_add_view(ts, io_dataset_camera_name(ds, c), is_test ? TRAIN_ROLE_TEST : TRAIN_ROLE_REAL,
+                                     &cam, 0, want_depth, &vi)))
+            goto done;
+        if (want_depth) depth_view = vi;
+        for (int f = 0; f < ts->frames; f++) {
+            if ((st = io_dataset_frame(ds, c, f, &img))) goto done;
+            store_rgb(ts, vi, f, &img);
+            pg_image_destroy(&img);
+        }
+        io_dataset_release(ds, c);
+    }
+    if (ts->num_views == 0) {
+        st = pg_fail(PG_ERR_ARG, "%s: no cameras selected", dir);
+        goto done;
+    }
+    if (depth_view >= 0 && (st = store_depth(ts, depth_view, opt->depth_path))) goto done;
+    ts->near_z = near_min < 1e30f ? near_min : 0;
+    ts->far_z = far_max;
+done:
+    pg_image_destroy(&img);
+    io_dataset_close(ds);
+    if (st) train_set_destroy(ts);
+    return st;
+}
+#else
+
+
+/* Converts one LLFF poses_bounds row (3x5 [down right back | C | hwf], near, far) to OpenCV. */
+static void llff_row_to_camera(const float *row, pg_camera *cam)
+{
+    float col[5][3];
+    for (int j = 0; j < 5; j++)
+        for (int i = 0; i < 3; i++) col[j][i] = row[i * 5 + j];
+    memset(cam, 0, sizeof *cam);
+    cam->height = (int)lrintf(col[4][0]);
+    cam->width = (int)lrintf(col[4][1]);
+    cam->fx = cam->fy = col[4][2];
+    cam->cx = cam->width * 0.5f;
+    cam->cy = cam->height * 0.5f;
+    /* world-to-camera rows: x = right (col1), y = down (col0), z = forward (-back) */
+    for (int i = 0; i < 3; i++) {
+        cam->R[0 * 3 + i] = col[1][i];
+        cam->R[1 * 3 + i] = col[0][i];
+        cam->R[2 * 3 + i] = -col[2][i];
+    }
+    for (int r = 0; r < 3; r++)
+        cam->t[r] = -(cam->R[r * 3] * col[3][0] + cam->R[r * 3 + 1] * col[3][1] + cam->R[r * 3 + 2] * col[3][2]);
+}
+
+
+/* Counts consecutive frames camXX/images/NNNN.png starting at 0 (or 1). */
+static int count_frames(const char *imgdir, int *first)
+{
+    char path[4400];
+    for (*first = 0; *first <= 1; (*first)++) {
+        int n = 0;
+        for (;; n++) {
+            snprintf(path, sizeof path, "%s/%04d.png", imgdir, (n + *first) % 100000);
+            if (!pg_path_exists(path)) break;
+        }
+        if (n > 0) return n;
+    }
+    *first = 0;
+    return 0;
+}
+
+pg_status train_set_from_dynerf(const char *dir, const train_set_dynerf_options *opt, train_set *ts)
+{
+    memset(ts, 0, sizeof *ts);
+    char path[4096];
+    PG_TRY(pg_path_join(path, sizeof path, dir, "poses_bounds.npy"));
+    pg_array pb = {0};
+    PG_TRY(io_npy_load(path, &pb));
+    pg_status st = PG_OK;
+    pg_image img = {0}, small = {0};
+    pg_array dep = {0};
+    if (pb.ndim != 2 || pb.shape[1] != 17 || pb.shape[0] < 1) {
+        st = pg_fail(PG_ERR_FORMAT, "%s: expected shape (N, 17)", path);
+        goto done;
+    }
+    int ncam = (int)pb.shape[0];
+    int frames = -1, first = 0;
+    float near_min = 1e30f, far_max = 0;
+    for (int c = 0; c < ncam; c++) {
+        int is_test = in_list(opt->test_cams, opt->num_test, c);
+        int is_real = opt->all_real ? !is_test : in_list(opt->real_cams, opt->num_real, c);
+        if (!is_test && !is_real) continue;
+        char imgdir[4200];
+        snprintf(imgdir, sizeof imgdir, "%s/cam%02d/images", dir, c);
+        int fst, n = count_frames(imgdir, &fst);
+        if (n == 0) {
+            st = pg_fail(PG_ERR_IO, "%s: no frames 0000.png... (video datasets need the frames extracted)", imgdir);
+            goto done;
+        }
+        if (frames < 0 || n < frames) frames = n;
+        first = fst;
+        const float *row = pb.data + (size_t)c * 17;
+        if (row[15] > 0 && row[15] < near_min) near_min = row[15];
+        if (row[16] > far_max) far_max = row[16];
+    }
+    if (frames < 1) {
+        st = pg_fail(PG_ERR_ARG, "%s: no cameras selected", dir);
+        goto done;
+    }
+    if (opt->max_frames > 0 && frames > opt->max_frames) frames = opt->max_frames;
+    ts->frames = frames;
+    ts->fps = 30;
+    int added_real = 0;
+    for (int c = 0; c < ncam; c++) {
+        int is_test = in_list(opt->test_cams, opt->num_test, c);
+        int is_real = opt->all_real ? !is_test : in_list(opt->real_cams, opt->num_real, c);
+        if (!is_test && !is_real) continue;
+        pg_camera cam;
+        llff_row_to_camera(pb.data + (size_t)c * 17, &cam);
+        char imgdir[4200];
+        snprintf(imgdir, sizeof imgdir, "%s/cam%02d/images", dir, c);
+        for (int f = 0; f < frames; f++) {
+            char fp[4300];
+            snprintf(fp, sizeof fp, "%s/%04d.png", imgdir, f + first);
+            if ((st = io_image_load(fp, &img))) goto done;
+            if (ts->width == 0) {
+                int w = opt->width > 0 ? opt->width : img.width;
+                int h = opt->width > 0 ? (int)lrintf((float)img.height * w / img.width) : img.height;
+                ts->width = w;
+                ts->height = h;
+            }
+            if (f == 0) {
+                /* intrinsics follow the actual image size */
+                if (cam.width != img.width || cam.height != img.height) {
+                    float s = (float)img.width / (float)cam.width;
+                    cam.fx *= s;
+                    cam.fy *= s;
+                    cam.width = img.width;
+                    cam.height = img.height;
+                    cam.cx = img.width * 0.5f;
+                    cam.cy = img.height * 0.5f;
+                }
+                pg_camera_resize(&cam, ts->width, ts->height);
+                char name[64];
+                snprintf(name, sizeof name, "cam%02d", c);
+                int want_depth = is_real && added_real == 0 && opt->depth_path;
+                if ((st = train_set_add_view(ts, name, is_test ? TRAIN_ROLE_TEST : TRAIN_ROLE_REAL, &cam, 0,
+                                             want_depth, NULL)))
+                    goto done;
+                if (is_real) added_real++;
+            }
+            const pg_image *use = &img;
+            if (img.width != ts->width || img.height != ts->height) {
+                if ((st = pg_image_resize(&small, &img, ts->width, ts->height))) goto done;
+                use = &small;
+            }
+            store_rgb(ts, ts->num_views - 1, f, use);
+            pg_image_destroy(&img);
+            pg_image_destroy(&small);
+        }
+    }
+    if (opt->depth_path) {
+        int vi = -1;
+        for (int i = 0; i < ts->num_views; i++)
+            if (ts->views[i].depth) vi = i;
+        if (vi >= 0) {
+            if ((st = io_npy_load(opt->depth_path, &dep))) goto done;
+            if (dep.ndim != 3 || dep.shape[0] < (size_t)frames) {
+                st = pg_fail(PG_ERR_SIZE, "%s: depth must be (F>=%d, H, W)", opt->depth_path, frames);
+                goto done;
+            }
+            int dh = (int)dep.shape[1], dw = (int)dep.shape[2];
+            size_t px = (size_t)ts->width * ts->height;
+            for (int f = 0; f < frames; f++)
+                for (int y = 0; y < ts->height; y++)
+                    for (int x = 0; x < ts->width; x++) {
+                        int sx = (int)((x + 0.5f) * dw / ts->width), sy = (int)((y + 0.5f) * dh / ts->height);
+                        float d = dep.data[((size_t)f * dh + sy) * dw + sx];
+                        ts->views[vi].depth[(size_t)f * px + (size_t)y * ts->width + x] = (isfinite(d) && d > 0) ? d : 0;
+                    }
+        }
+    }
+    ts->has_scene = 0;
+    ts->near_z = near_min < 1e30f ? near_min : 0;
+    ts->far_z = far_max;
+done:
+    pg_image_destroy(&img);
+    pg_image_destroy(&small);
+    pg_array_destroy(&pb);
+    pg_array_destroy(&dep);
+    if (st) train_set_destroy(ts);
+    return st;
+}
+#endif

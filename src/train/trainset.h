@@ -1,0 +1,78 @@
+/* trainset.h - a training set held in memory: views (camera + per-frame images) with roles.
+ *
+ *   train_set ts;
+ *   PG_TRY(train_set_load("out/proxies", &ts));            // docs/FORMATS.md directory
+ *   // or: the real cameras of a DyNeRF dataset, two held out for testing
+ *   train_set_dynerf_options o = train_set_dynerf_defaults();
+ *   o.test_cams = (int[]){5, 6}; o.num_test = 2;
+ *   PG_TRY(train_set_from_dynerf("data/scene", &o, &ts));
+ *   ...
+ *   train_set_destroy(&ts);
+ *
+ * Images are kept as uint8 RGB (4x smaller than float; the trainer converts the sampled
+ * frame on the fly), masks as uint8 0/1, depth as float32 (0 = invalid).
+ */
+#ifndef PG_TRAINSET_H
+#define PG_TRAINSET_H
+
+#include <stdint.h>
+
+#include "core/camera.h"
+#include "core/image.h"
+#include "core/status.h"
+
+typedef enum { TRAIN_ROLE_REAL = 0, TRAIN_ROLE_PROXY, TRAIN_ROLE_TEST } train_role;
+
+typedef struct {
+    char name[64];
+    train_role role;
+    pg_camera cam;
+    uint8_t *rgb;   /* (F, H, W, 3) */
+    uint8_t *mask;  /* (F, H, W) 1 = valid, or NULL (all valid) */
+    float *depth;   /* (F, H, W) z-depth, 0 = invalid, or NULL */
+} train_view;
+
+typedef struct {
+    int frames, width, height;
+    float fps;
+    int num_views;
+    train_view *views; /* (num_views) */
+    int has_scene;     /* scene box below is known */
+    float center[3], radius, near_z, far_z;
+} train_set;
+
+/* Reads a training-set directory (trainset.json + PNGs + depth.npy). Fails with a message
+ * naming the file on missing/garbled parts or sizes that disagree with trainset.json. */
+pg_status train_set_load(const char *dir, train_set *ts);
+
+typedef struct {
+    int all_real;          /* 1: every camera not in test_cams is a real training view */
+    const int *real_cams;  /* used when all_real = 0 */
+    int num_real;
+    const int *test_cams;  /* held out (role test) */
+    int num_test;
+    const char *depth_path; /* optional (F,H,W) depth of the first real camera (init/depth loss) */
+    int max_frames;         /* 0 = all */
+    int width;              /* 0 = native, else resize (height keeps the aspect) */
+} train_set_dynerf_options;
+
+train_set_dynerf_options train_set_dynerf_defaults(void);
+/* Builds a training set from the real cameras of a DyNeRF-layout dataset (poses_bounds.npy +
+ * camXX/images/NNNN.png, or camXX.mp4 when the io video reader is available). Cameras are
+ * converted from LLFF (down, right, back) to OpenCV. */
+pg_status train_set_from_dynerf(const char *dir, const train_set_dynerf_options *opt, train_set *ts);
+
+void train_set_destroy(train_set *ts);
+
+/* Index of the view with this name, or -1. */
+int train_set_find(const train_set *ts, const char *name);
+/* Counts views of a role. */
+int train_set_count_role(const train_set *ts, train_role role);
+/* Frame f of view v as a float (H, W, 3) image (img must be created with the set's size). */
+void train_set_frame_rgb(const train_set *ts, int v, int f, pg_image *img);
+
+/* Appends an empty view with allocated rgb (and mask/depth if asked); returns its index. */
+pg_status train_set_add_view(train_set *ts, const char *name, train_role role, const pg_camera *cam,
+                             int with_mask, int with_depth, int *index);
+
+#endif

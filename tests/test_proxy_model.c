@@ -1,0 +1,81 @@
+/* test_proxy_model.c - per-frame RGB-D Gaussians on the analytic scene: the fit improves the source
+ * view, proxies match the ray-cast ground truth where the mask says valid, and the mask keeps the
+ * truly visible area while rejecting disocclusions. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/camera.h"
+#include "core/parallel.h"
+#include "proxy/frame_model.h"
+#include "proxy/metrics.h"
+#include "proxy/poses.h"
+#include "proxy/procedural.h"
+#include "testlib.h"
+
+enum { W = 128, H = 96, M = 4 };
+
+static void run(int block, int steps, double min_psnr, double min_cov)
+{
+    pg_camera real;
+    pg_camera_from_fov(&real, W, H, 60);
+    float *rgb = malloc(sizeof(float) * W * H * 3), *depth = malloc(sizeof(float) * W * H);
+    float *vrgb = malloc(sizeof(float) * W * H * 3), *vdepth = malloc(sizeof(float) * W * H);
+    float *prgb = malloc(sizeof(float) * W * H * 3), *pdepth = malloc(sizeof(float) * W * H);
+    unsigned char *mask = malloc(W * H);
+    proxy_procedural_render(&real, 0, 3, rgb, depth);
+    float c[3], r;
+    CHECK_OK(proxy_scene_center(&real, depth, 1.0f, c, &r));
+    pg_camera cams[M];
+    CHECK_OK(proxy_poses_hemisphere(&real, c, M, 10.0f, cams));
+
+    proxy_fit_options o = proxy_default_fit_options();
+    o.block = block;
+    o.steps = steps;
+    proxy_frame_model *m = NULL;
+    CHECK_OK(proxy_model_create(&m, W, H, &o));
+    if (!m) return;
+    CHECK_OK(proxy_model_init(m, &real, rgb, depth));
+    CHECK_OK(proxy_model_fit(m));
+    const proxy_model_stats *st = proxy_model_get_stats(m);
+    printf("block %d steps %d: %d Gaussians, loss %.4f -> %.4f, source PSNR %.2f dB\n", block, steps, st->gaussians,
+           st->first_loss, st->last_loss, st->source_psnr);
+    if (steps > 0) CHECK(st->last_loss < st->first_loss, "fit did not reduce the loss (%g -> %g)", st->first_loss,
+                         st->last_loss);
+    double worst_psnr = 1e9, worst_cov = 1e9, worst_false = 0;
+    for (int k = 0; k < M; k++) {
+        float frac;
+        CHECK_OK(proxy_model_render(m, &cams[k], prgb, pdepth, mask, &frac));
+        proxy_procedural_render(&cams[k], 0, 3, vrgb, vdepth);
+        proxy_view_metrics mt;
+        CHECK_OK(proxy_measure_view(&real, depth, &cams[k], vdepth, vrgb, prgb, mask, 0.01f, &mt));
+        /* masked proxy depth must agree with the true depth */
+        double derr = 0;
+        long nd = 0;
+        for (int i = 0; i < W * H; i++)
+            if (mask[i]) { derr += fabs(pdepth[i] - vdepth[i]) / vdepth[i]; nd++; }
+        printf("  view %d (%.1f deg): psnr %.2f coverage %.3f false %.4f mask %.3f depth err %.4f\n", k,
+               proxy_camera_angle_deg(&real, &cams[k]), mt.psnr_masked, mt.coverage, mt.false_valid,
+               mt.mask_fraction, nd ? derr / nd : 0);
+        if (mt.psnr_masked < worst_psnr) worst_psnr = mt.psnr_masked;
+        if (mt.coverage < worst_cov) worst_cov = mt.coverage;
+        if (mt.false_valid > worst_false) worst_false = mt.false_valid;
+        CHECK(nd && derr / nd < 0.01, "view %d: masked depth error %g", k, nd ? derr / nd : -1);
+    }
+    CHECK(worst_psnr >= min_psnr, "block %d: worst masked PSNR %.2f < %.2f", block, worst_psnr, min_psnr);
+    CHECK(worst_cov >= min_cov, "block %d: worst visible coverage %.3f < %.3f", block, worst_cov, min_cov);
+    CHECK(worst_false <= 0.02, "block %d: %.4f of the mask is not visible from the real camera", block, worst_false);
+    /* Bad input: all-invalid depth. */
+    memset(depth, 0, sizeof(float) * W * H);
+    CHECK(proxy_model_init(m, &real, rgb, depth) == PG_ERR_ARG, "all-invalid depth accepted");
+    proxy_model_destroy(m);
+    free(rgb); free(depth); free(vrgb); free(vdepth); free(prgb); free(pdepth); free(mask);
+}
+
+int main(void)
+{
+    pg_set_threads(2);
+    run(1, 40, 25.0, 0.85);
+    run(2, 10, 20.0, 0.80);
+    return test_summary("test_proxy_model");
+}

@@ -1,0 +1,94 @@
+/* test_splat_adam.c - Adam optimiser: exact first step, convergence, learning-rate schedule,
+ * strided Gaussian groups and moment remapping for clone / prune. */
+#include "testlib.h"
+#include "optim/adam.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+static void test_first_step_and_convergence(void)
+{
+    optim_adam *opt;
+    CHECK_OK(optim_adam_create_flat(&opt, 3, 1e-15f));
+    float x[3] = { 1, -2, 0.5f }, g[3] = { 4, -0.001f, 0 };
+    CHECK_OK(optim_adam_step_group(opt, 0, x, g, 0.1f));
+    /* bias-corrected first step is lr * sign(g) (0 where g = 0) */
+    CHECK(fabsf(x[0] - 0.9f) < 1e-6f && fabsf(x[1] + 1.9f) < 1e-6f && x[2] == 0.5f,
+          "first step gave %g %g %g", x[0], x[1], x[2]);
+    optim_adam_destroy(opt);
+
+    CHECK_OK(optim_adam_create_flat(&opt, 2, 1e-8f));
+    float p[2] = { 5, -3 }, t[2] = { 1, 2 };
+    for (int it = 0; it < 2000; it++) {
+        float gr[2] = { 2 * (p[0] - t[0]), 2 * (p[1] - t[1]) };
+        CHECK_OK(optim_adam_step_group(opt, 0, p, gr, 0.05f));
+    }
+    CHECK(fabsf(p[0] - 1) < 1e-2f && fabsf(p[1] - 2) < 1e-2f, "quadratic not minimised: %g %g", p[0], p[1]);
+    CHECK(optim_adam_step_group(opt, 3, p, t, 0.1f) == PG_ERR_ARG, "bad group index accepted");
+    optim_adam_destroy(opt);
+}
+
+static void test_schedule(void)
+{
+    optim_lr_schedule s = { 1.6e-4f, 1.6e-6f, 0, 1.0f, 30000 };
+    CHECK(fabsf(optim_lr_expon(&s, 0) - 1.6e-4f) < 1e-10f, "lr(0) = %g", optim_lr_expon(&s, 0));
+    CHECK(fabsf(optim_lr_expon(&s, 30000) - 1.6e-6f) < 1e-11f, "lr(max) = %g", optim_lr_expon(&s, 30000));
+    CHECK(fabsf(optim_lr_expon(&s, 15000) - 1.6e-5f) < 1e-9f, "lr(mid) = %g (geometric mean expected)", optim_lr_expon(&s, 15000));
+    CHECK(fabsf(optim_lr_expon(&s, 90000) - 1.6e-6f) < 1e-11f, "lr past max = %g", optim_lr_expon(&s, 90000));
+    CHECK(optim_lr_expon(&s, -1) == 0, "negative step");
+    optim_lr_schedule d = { 1e-2f, 1e-2f, 100, 0.01f, 1000 };
+    CHECK(fabsf(optim_lr_expon(&d, 0) - 1e-4f) < 1e-9f, "delayed lr(0) = %g", optim_lr_expon(&d, 0));
+    CHECK(fabsf(optim_lr_expon(&d, 100) - 1e-2f) < 1e-7f, "delayed lr(100) = %g", optim_lr_expon(&d, 100));
+}
+
+static void test_gaussian_groups_and_remap(void)
+{
+    pg_gaussians g, gr;
+    CHECK_OK(splat_gaussians_create(&g, 3));
+    CHECK_OK(splat_gaussians_resize(&g, 3));
+    CHECK_OK(splat_gaussians_create(&gr, 3));
+    CHECK_OK(splat_gaussians_resize(&gr, 3));
+    for (int i = 0; i < 3; i++) {
+        for (int k = 0; k < 3; k++) gr.means[3*i+k] = (float)(i + 1);
+        for (int k = 0; k < 48; k++) gr.sh[48*i+k] = 1;
+        gr.opacity[i] = -1;
+    }
+    optim_adam *opt;
+    CHECK_OK(optim_adam_create_gaussians(&opt, 3, 1e-15f));
+    float lr[OPTIM_GAUSS_GROUPS] = { 0.1f, 0, 0, 0.2f, 0.3f, 0.01f };
+    CHECK_OK(optim_adam_step_gaussians(opt, &g, &gr, lr));
+    CHECK(fabsf(g.means[0] + 0.1f) < 1e-6f && fabsf(g.opacity[2] - 0.2f) < 1e-6f, "means/opacity step wrong");
+    CHECK(fabsf(g.sh[48 + 2] + 0.3f) < 1e-6f && fabsf(g.sh[48 + 3] + 0.01f) < 1e-6f && fabsf(g.sh[47] + 0.01f) < 1e-6f,
+          "SH dc/rest groups got %g %g %g", g.sh[50], g.sh[51], g.sh[47]);
+    CHECK(g.log_scales[0] == 0 && g.quats[0] == 0, "frozen groups changed");
+    CHECK(optim_adam_group_step(opt, OPTIM_G_MEANS) == 1 && optim_adam_group_step(opt, OPTIM_G_QUATS) == 0,
+          "frozen group advanced its step");
+    /* moments of row i are (1 - beta1) * grad_i for the means group */
+    int src[4] = { 2, 0, -1, 0 };
+    CHECK_OK(optim_adam_remap_rows(opt, src, 4));
+    float *m = optim_adam_moment(opt, OPTIM_G_MEANS, 0);
+    CHECK(fabsf(m[0] - 0.3f) < 1e-6f && fabsf(m[3] - 0.1f) < 1e-6f && m[6] == 0 && fabsf(m[9] - 0.1f) < 1e-6f,
+          "remapped moments %g %g %g %g", m[0], m[3], m[6], m[9]);
+    CHECK(optim_adam_rows(opt) == 4, "rows after remap %d", optim_adam_rows(opt));
+    int bad[1] = { 7 };
+    CHECK(optim_adam_remap_rows(opt, bad, 1) == PG_ERR_ARG && optim_adam_rows(opt) == 4, "bad remap accepted");
+    /* stepping with the old row count is refused */
+    CHECK(optim_adam_step_gaussians(opt, &g, &gr, lr) == PG_ERR_ARG, "row-count mismatch accepted");
+    CHECK_OK(splat_gaussians_resize(&g, 4));
+    CHECK_OK(splat_gaussians_resize(&gr, 4));
+    CHECK_OK(optim_adam_step_gaussians(opt, &g, &gr, lr));
+    optim_adam_reset_group(opt, OPTIM_G_OPACITY);
+    CHECK(optim_adam_moment(opt, OPTIM_G_OPACITY, 1)[1] == 0, "reset group kept moments");
+    optim_adam_destroy(opt);
+    splat_gaussians_destroy(&g);
+    splat_gaussians_destroy(&gr);
+}
+
+int main(void)
+{
+    test_first_step_and_convergence();
+    test_schedule();
+    test_gaussian_groups_and_remap();
+    return test_summary("test_splat_adam");
+}

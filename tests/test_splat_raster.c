@@ -1,0 +1,184 @@
+/* test_splat_raster.c - rasterizer properties other than gradients: SIMD vs scalar agreement,
+ * determinism across runs and thread counts, edge cases and bad input. */
+#include "testlib.h"
+#include "splat/random_scene.h"
+#include "splat/raster.h"
+#include "core/parallel.h"
+#include "core/rng.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct {
+    float *rgb, *depth, *alpha;
+    pg_gaussians grad;
+    float *vs;
+} run_result;
+
+static void run(splat_raster *r, const pg_gaussians *g, const pg_camera *cam, const float *d_rgb,
+                const float *d_depth, const float *d_alpha, run_result *res)
+{
+    size_t P = (size_t)cam->width * cam->height;
+    pg_render_settings s = splat_default_settings();
+    s.background[0] = 0.1f; s.background[1] = 0.2f; s.background[2] = 0.3f;
+    pg_render_output out;
+    CHECK_OK(splat_render_forward(r, g, cam, &s, &out));
+    res->rgb = malloc(P * 3 * sizeof(float));
+    res->depth = malloc(P * sizeof(float));
+    res->alpha = malloc(P * sizeof(float));
+    memcpy(res->rgb, out.rgb, P * 3 * sizeof(float));
+    memcpy(res->depth, out.depth, P * sizeof(float));
+    memcpy(res->alpha, out.alpha, P * sizeof(float));
+    splat_gaussians_create(&res->grad, g->count);
+    splat_gaussians_resize(&res->grad, g->count);
+    res->vs = calloc((size_t)g->count + 1, sizeof(float));
+    CHECK_OK(splat_render_backward(r, g, cam, &s, d_rgb, d_depth, d_alpha, &res->grad, res->vs));
+}
+
+static void free_result(run_result *res)
+{
+    free(res->rgb); free(res->depth); free(res->alpha); free(res->vs);
+    splat_gaussians_destroy(&res->grad);
+}
+
+/* Largest |a - b| / max|a| over an array. */
+static double rel_diff(const float *a, const float *b, size_t n)
+{
+    double m = 1e-30, d = 0;
+    for (size_t i = 0; i < n; i++) { m = fmax(m, fabs(a[i])); d = fmax(d, fabs(a[i] - b[i])); }
+    return d / m;
+}
+
+static int same_bytes(const run_result *a, const run_result *b, int n, size_t P)
+{
+    return !memcmp(a->rgb, b->rgb, P * 3 * sizeof(float)) && !memcmp(a->depth, b->depth, P * sizeof(float)) &&
+           !memcmp(a->alpha, b->alpha, P * sizeof(float)) &&
+           !memcmp(a->grad.means, b->grad.means, (size_t)n * 3 * sizeof(float)) &&
+           !memcmp(a->grad.log_scales, b->grad.log_scales, (size_t)n * 3 * sizeof(float)) &&
+           !memcmp(a->grad.quats, b->grad.quats, (size_t)n * 4 * sizeof(float)) &&
+           !memcmp(a->grad.opacity, b->grad.opacity, (size_t)n * sizeof(float)) &&
+           !memcmp(a->grad.sh, b->grad.sh, (size_t)n * 48 * sizeof(float)) &&
+           !memcmp(a->vs, b->vs, (size_t)n * sizeof(float));
+}
+
+static void test_simd_and_determinism(void)
+{
+    const int W = 150, H = 90, N = 3000;
+    size_t P = (size_t)W * H;
+    pg_camera cam;
+    pg_camera_from_fov(&cam, W, H, 60);
+    pg_gaussians g;
+    CHECK_OK(splat_gaussians_create(&g, N));
+    CHECK_OK(splat_random_scene(&g, &cam, N, 3.0f, 3, 17));
+    pg_rng rng;
+    pg_rng_seed(&rng, 4);
+    float *d_rgb = malloc(P * 3 * sizeof(float)), *d_depth = malloc(P * sizeof(float)), *d_alpha = malloc(P * sizeof(float));
+    for (size_t i = 0; i < 3 * P; i++) d_rgb[i] = (float)pg_rng_normal(&rng);
+    for (size_t i = 0; i < P; i++) { d_depth[i] = (float)(0.1 * pg_rng_normal(&rng)); d_alpha[i] = (float)pg_rng_normal(&rng); }
+
+    splat_raster *r;
+    CHECK_OK(splat_raster_create(&r));
+    run_result sc, si, si2, t1;
+    splat_raster_set_simd(r, 0);
+    pg_set_threads(2);
+    run(r, &g, &cam, d_rgb, d_depth, d_alpha, &sc);
+    splat_raster_set_simd(r, 1);
+    printf("SIMD kind: %s\n", splat_raster_simd_name(r));
+    run(r, &g, &cam, d_rgb, d_depth, d_alpha, &si);
+    run(r, &g, &cam, d_rgb, d_depth, d_alpha, &si2);
+    pg_set_threads(1);
+    run(r, &g, &cam, d_rgb, d_depth, d_alpha, &t1);
+    pg_set_threads(2);
+
+    double e_img = fmax(rel_diff(sc.rgb, si.rgb, 3 * P), fmax(rel_diff(sc.depth, si.depth, P), rel_diff(sc.alpha, si.alpha, P)));
+    double e_grad[6] = { rel_diff(sc.grad.means, si.grad.means, 3 * (size_t)N),
+                         rel_diff(sc.grad.log_scales, si.grad.log_scales, 3 * (size_t)N),
+                         rel_diff(sc.grad.quats, si.grad.quats, 4 * (size_t)N),
+                         rel_diff(sc.grad.opacity, si.grad.opacity, (size_t)N),
+                         rel_diff(sc.grad.sh, si.grad.sh, 48 * (size_t)N),
+                         rel_diff(sc.vs, si.vs, (size_t)N) };
+    double e_max = 0;
+    for (int k = 0; k < 6; k++) e_max = fmax(e_max, e_grad[k]);
+    printf("scalar vs SIMD: images %.2e, gradients mean %.2e scale %.2e quat %.2e opacity %.2e sh %.2e vs-norm %.2e\n",
+           e_img, e_grad[0], e_grad[1], e_grad[2], e_grad[3], e_grad[4], e_grad[5]);
+    CHECK(e_img <= 1e-5, "scalar and SIMD images differ by %g", e_img);
+    CHECK(e_max <= 1e-5, "scalar and SIMD gradients differ by %g (relative to the largest)", e_max);
+    CHECK(same_bytes(&si, &si2, N, P), "two identical runs gave different bytes");
+    CHECK(same_bytes(&si, &t1, N, P), "1 and 2 threads gave different bytes");
+    double cover = 0;
+    for (size_t i = 0; i < P; i++) cover += si.alpha[i];
+    CHECK(cover / P > 0.3, "workload covers too little: mean alpha %g", cover / P);
+    free_result(&sc); free_result(&si); free_result(&si2); free_result(&t1);
+    free(d_rgb); free(d_depth); free(d_alpha);
+    splat_raster_destroy(r);
+    splat_gaussians_destroy(&g);
+}
+
+static void test_edge_cases(void)
+{
+    pg_camera cam;
+    pg_camera_from_fov(&cam, 33, 17, 50);
+    splat_raster *r;
+    CHECK_OK(splat_raster_create(&r));
+    pg_render_settings s = splat_default_settings();
+    s.background[0] = 0.25f; s.background[1] = 0.5f; s.background[2] = 1.0f;
+    pg_gaussians g, grad;
+    CHECK_OK(splat_gaussians_create(&g, 4));
+    CHECK_OK(splat_gaussians_create(&grad, 4));
+    pg_render_output out;
+    /* backward before any forward */
+    CHECK(splat_render_backward(r, &g, &cam, &s, NULL, NULL, NULL, &grad, NULL) != PG_OK, "backward without forward accepted");
+    /* empty set: background everywhere */
+    CHECK_OK(splat_render_forward(r, &g, &cam, &s, &out));
+    CHECK(out.rgb[0] == 0.25f && out.rgb[3 * 33 * 17 - 1] == 1.0f && out.alpha[5] == 0 && out.depth[7] == 0,
+          "empty scene is not the background");
+    CHECK_OK(splat_render_backward(r, &g, &cam, &s, NULL, NULL, NULL, &grad, NULL));
+    /* behind the camera, NaN, huge and off-screen Gaussians are culled without trouble */
+    CHECK_OK(splat_gaussians_resize(&g, 4));
+    CHECK_OK(splat_gaussians_resize(&grad, 4));
+    float means[12] = { 0, 0, -3, NAN, 0, 3, 1e30f, 0, 3, 0, 0, 3 };
+    memcpy(g.means, means, sizeof(means));
+    for (int i = 0; i < 4; i++) { g.quats[4*i] = 1; g.opacity[i] = 3; for (int k = 0; k < 3; k++) g.log_scales[3*i+k] = -2; }
+    g.log_scales[9] = 40; /* enormous */
+    CHECK_OK(splat_render_forward(r, &g, &cam, &s, &out));
+    int finite = 1;
+    for (int i = 0; i < 33 * 17 * 3; i++) finite &= isfinite(out.rgb[i]);
+    CHECK(finite, "non-finite pixels");
+    float *d = calloc(33 * 17 * 3, sizeof(float));
+    for (int i = 0; i < 33 * 17 * 3; i++) d[i] = 1;
+    CHECK_OK(splat_render_backward(r, &g, &cam, &s, d, NULL, NULL, &grad, NULL));
+    CHECK(grad.means[0] == 0 && grad.opacity[0] == 0 && grad.opacity[1] == 0, "culled Gaussians got gradients");
+    /* mismatched gradient set */
+    pg_gaussians small;
+    CHECK_OK(splat_gaussians_create(&small, 1));
+    CHECK(splat_render_backward(r, &g, &cam, &s, d, NULL, NULL, &small, NULL) == PG_ERR_ARG, "wrong gradient size accepted");
+    /* bad camera */
+    pg_camera bad = cam;
+    bad.width = 0;
+    CHECK(splat_render_forward(r, &g, &bad, &s, &out) != PG_OK, "zero-width camera accepted");
+    CHECK(splat_render_backward(r, &g, &bad, &s, d, NULL, NULL, &grad, NULL) != PG_OK, "backward after failed forward accepted");
+    free(d);
+    splat_gaussians_destroy(&small);
+    splat_gaussians_destroy(&g);
+    splat_gaussians_destroy(&grad);
+    splat_raster_destroy(r);
+}
+
+static void test_bench_cli(void)
+{
+    char err[512];
+    int rc = test_run_cli("bench raster --width 64 --height 48 --gaussians 500 --sigma-px 2 --threads 1 --reps 5", err, sizeof(err));
+    CHECK(rc == 0, "bench raster failed (%d): %s", rc, err);
+    rc = test_run_cli("bench raster --gaussians -5", err, sizeof(err));
+    CHECK(rc == 2 && strstr(err, "--gaussians"), "bad --gaussians gives %d: %s", rc, err);
+}
+
+int main(void)
+{
+    test_simd_and_determinism();
+    test_edge_cases();
+    test_bench_cli();
+    return test_summary("test_splat_raster");
+}

@@ -1,0 +1,162 @@
+/* test_train.c - trainer machinery on a tiny rendered scene: training-set loader, training
+ * lowers the error, checkpoint -> render gives the session's image, kill + --resume gives a
+ * byte-identical final checkpoint (in process and through the CLI), clean CLI errors. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/fileutil.h"
+#include "core/parallel.h"
+#include "render/model_render.h"
+#include "testlib.h"
+#include "train/train.h"
+#include "train/trainset.h"
+#include "train_toy.h"
+
+static int files_equal(const char *a, const char *b)
+{
+    char *da = NULL, *db = NULL;
+    size_t na = 0, nb = 0;
+    if (pg_read_file(a, 1u << 30, &da, &na) || pg_read_file(b, 1u << 30, &db, &nb)) {
+        free(da);
+        free(db);
+        return 0;
+    }
+    int eq = na == nb && memcmp(da, db, na) == 0;
+    free(da);
+    free(db);
+    return eq;
+}
+
+static train_config small_config(void)
+{
+    train_config c = train_default_config();
+    c.iters = 60;
+    c.coarse_iters = 20;
+    c.init_points = 2000;
+    c.max_gaussians = 4000;
+    c.densify_from = 10;
+    c.densify_every = 10;
+    c.densify_until = 50;
+    c.sh_ramp_every = 20;
+    c.deform_res = 8;
+    c.deform_width = 32;
+    c.deform_channels = 8;
+    c.seed = 3;
+    return c;
+}
+
+int main(void)
+{
+    char dir[1024], data[1100], a[1200], b[1200], cmd[8192], err[4096];
+    test_tmpdir("test_train", dir, sizeof dir);
+    snprintf(data, sizeof data, "%s/set", dir);
+    pg_set_threads(2);
+    CHECK_OK(toy_write_trainset(data, 64, 48, 4, 3, 1));
+
+    train_set ts;
+    CHECK_OK(train_set_load(data, &ts));
+    CHECK(ts.num_views == 5 && ts.frames == 4 && ts.width == 64, "loaded %d views %d frames", ts.num_views, ts.frames);
+    CHECK(train_set_count_role(&ts, TRAIN_ROLE_PROXY) == 3, "proxies");
+    CHECK(ts.views[1].mask && ts.views[1].mask[0] == 0 && ts.views[1].mask[63] == 1, "proxy mask loaded");
+    CHECK(ts.views[0].depth && ts.views[0].depth[64 * 24 + 32] > 3, "depth loaded");
+
+    /* uninterrupted run */
+    train_config cfg = small_config();
+    cfg.checkpoint_every = 20;
+    snprintf(a, sizeof a, "%s/a.ckpt", dir);
+    train_session *s = NULL;
+    double psnr0 = 0, psnr1 = 0, test_psnr = 0;
+    CHECK_OK(train_session_create(&s, &ts, &cfg, a, 0));
+    if (s) {
+        CHECK_OK(train_session_evaluate(s, TRAIN_ROLE_REAL, &psnr0));
+        CHECK_OK(train_session_run(s));
+        CHECK_OK(train_session_evaluate(s, TRAIN_ROLE_REAL, &psnr1));
+        CHECK_OK(train_session_evaluate(s, TRAIN_ROLE_TEST, &test_psnr));
+        CHECK(psnr1 > psnr0 + 3, "training should help: real-view PSNR %.2f -> %.2f", psnr0, psnr1);
+        fprintf(stderr, "toy: real PSNR %.2f -> %.2f, test %.2f, %d Gaussians\n", psnr0, psnr1, test_psnr,
+                train_session_gaussians(s));
+    }
+
+    /* the checkpoint alone renders what the session renders */
+    render_model *rm = NULL;
+    CHECK_OK(render_model_open(a, &rm));
+    if (rm && s) {
+        pg_image truth = {0};
+        pg_image_create(&truth, 64, 48, 3);
+        train_set_frame_rgb(&ts, 0, 2, &truth);
+        pg_render_output out;
+        CHECK_OK(render_model_frame(rm, &ts.views[0].cam, 2.0f / 3.0f, &out));
+        pg_image r = {64, 48, 3, out.rgb};
+        double p = pg_image_psnr(&r, &truth, NULL);
+        CHECK(p > psnr0 + 3, "render from checkpoint: PSNR %.2f (untrained %.2f)", p, psnr0);
+        CHECK(render_model_frame(rm, &ts.views[0].cam, 1.5f, &out) == PG_ERR_ARG, "t outside [0,1] rejected");
+        pg_image_destroy(&truth);
+    }
+    render_model_close(rm);
+    train_session_destroy(s);
+
+    /* killed at iteration 47 (last checkpoint at 40), then resumed: same bytes */
+    snprintf(b, sizeof b, "%s/b.ckpt", dir);
+    train_config c2 = small_config();
+    c2.checkpoint_every = 20;
+    c2.stop_at_iter = 47;
+    s = NULL;
+    CHECK_OK(train_session_create(&s, &ts, &c2, b, 0));
+    if (s) CHECK_OK(train_session_run(s));
+    CHECK(s && train_session_iteration(s) == 47, "stopped at 47");
+    train_session_destroy(s);
+    c2.stop_at_iter = 0;
+    s = NULL;
+    CHECK_OK(train_session_create(&s, &ts, &c2, b, 1));
+    CHECK(s && train_session_iteration(s) == 40, "resumed from the checkpoint at 40, got %d",
+          s ? train_session_iteration(s) : -1);
+    if (s) CHECK_OK(train_session_run(s));
+    train_session_destroy(s);
+    CHECK(files_equal(a, b), "resumed final checkpoint differs from the uninterrupted one");
+
+    /* corrupt checkpoints fail cleanly */
+    char *blob = NULL;
+    size_t n = 0;
+    if (pg_read_file(a, 1u << 30, &blob, &n) == PG_OK) {
+        char c[1200];
+        snprintf(c, sizeof c, "%s/cut.ckpt", dir);
+        pg_write_file_atomic(c, blob, n / 2);
+        train_model m;
+        CHECK(train_model_load(c, &m) == PG_ERR_FORMAT, "truncated checkpoint rejected");
+        blob[0] = 'X';
+        pg_write_file_atomic(c, blob, n);
+        CHECK(train_model_load(c, &m) == PG_ERR_FORMAT, "bad magic rejected");
+        free(blob);
+    }
+    train_set_destroy(&ts);
+
+    /* CLI: kill via PG_TEST_STOP_AT_ITER, resume, same bytes as one run */
+    const char *opts = "--iters 30 --coarse-iters 10 --checkpoint-every 10 --init-points 1500 --threads 2 --seed 5";
+    snprintf(cmd, sizeof cmd, "train '%s' --out '%s/m1' %s", data, dir, opts);
+    CHECK(test_run_cli(cmd, err, sizeof err) == 0, "train CLI: %s", err);
+    setenv("PG_TEST_STOP_AT_ITER", "17", 1);
+    snprintf(cmd, sizeof cmd, "train '%s' --out '%s/m2' %s", data, dir, opts);
+    CHECK(test_run_cli(cmd, err, sizeof err) == 0, "train CLI stop: %s", err);
+    unsetenv("PG_TEST_STOP_AT_ITER");
+    snprintf(cmd, sizeof cmd, "train '%s' --out '%s/m2' %s --resume", data, dir, opts);
+    CHECK(test_run_cli(cmd, err, sizeof err) == 0, "train CLI resume: %s", err);
+    snprintf(a, sizeof a, "%s/m1/model.ckpt", dir);
+    snprintf(b, sizeof b, "%s/m2/model.ckpt", dir);
+    CHECK(files_equal(a, b), "CLI resume: final checkpoints differ");
+    snprintf(a, sizeof a, "%s/m1/train.json", dir);
+    CHECK(pg_path_exists(a), "train.json written");
+
+    /* bad input */
+    CHECK(test_run_cli("train", err, sizeof err) == 2, "no args -> 2");
+    snprintf(cmd, sizeof cmd, "train '%s/nothing' --out '%s/x'", dir, dir);
+    CHECK(test_run_cli(cmd, err, sizeof err) == 2, "missing dir -> 2: %s", err);
+    snprintf(cmd, sizeof cmd, "train '%s' --out '%s/x' --iters 0", data, dir);
+    CHECK(test_run_cli(cmd, err, sizeof err) == 2, "bad iters -> 2");
+    snprintf(a, sizeof a, "%s/bad/trainset.json", dir);
+    snprintf(b, sizeof b, "%s/bad", dir);
+    pg_mkdir_p(b);
+    pg_write_file_atomic(a, "{\"frames\": 4", 12);
+    snprintf(cmd, sizeof cmd, "train '%s/bad' --out '%s/x'", dir, dir);
+    CHECK(test_run_cli(cmd, err, sizeof err) == 2 && strstr(err, "trainset.json"), "garbled json -> 2: %s", err);
+    return test_summary("test_train");
+}
