@@ -72,7 +72,7 @@ int cmd_prepare(int argc, char **argv)
     if (no_refine) popt.refine = DEPTH_REFINE_NONE;
     popt.align = !no_align;
     popt.keep_flow = !no_vis_flow;
-    pg_set_threads(threads);
+    if (threads > 0) pg_set_threads(threads); /* else keep what the caller (e.g. `prodygs run`) set */
 
     pg_status st;
     pg_dataset *ds = NULL;
