@@ -69,8 +69,8 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
                     i1wx[k] = i1wy[k] = grad[k] = rhoc[k] = 0.0f;
                     continue;
                 }
-                float v = plane_sample_bicubic(i1, w, h, xs, ys);
-                float gx = plane_sample_bicubic(i1x, w, h, xs, ys), gy = plane_sample_bicubic(i1y, w, h, xs, ys);
+                float v = depth_plane_sample_bicubic(i1, w, h, xs, ys);
+                float gx = depth_plane_sample_bicubic(i1x, w, h, xs, ys), gy = depth_plane_sample_bicubic(i1y, w, h, xs, ys);
                 i1w[k] = v;
                 i1wx[k] = gx;
                 i1wy[k] = gy;
@@ -131,9 +131,9 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
             }
         }
         if (prm->median) {
-            plane_median3(u1, w, h, tmp);
+            depth_plane_median3(u1, w, h, tmp);
             memcpy(u1, tmp, sizeof(float) * n);
-            plane_median3(u2, w, h, tmp);
+            depth_plane_median3(u2, w, h, tmp);
             memcpy(u2, tmp, sizeof(float) * n);
         }
     }
@@ -172,16 +172,16 @@ static pg_status tvl1_compute(void *ctx, const pg_image *img0, const pg_image *i
           *p22 = work + 5 * n0, *scratch = work + 6 * n0, *rs = work + 16 * n0;
 
     /* Level 0: light pre-smoothing against noise; coarser levels: anti-alias blur then resample. */
-    plane_from_image(img0, 255.0f, scratch);
-    plane_gaussian_blur(scratch, W, H, 0.5f, scratch + n0, pyr0);
-    plane_from_image(img1, 255.0f, scratch);
-    plane_gaussian_blur(scratch, W, H, 0.5f, scratch + n0, pyr1);
+    depth_plane_from_image(img0, 255.0f, scratch);
+    depth_plane_gaussian_blur(scratch, W, H, 0.5f, scratch + n0, pyr0);
+    depth_plane_from_image(img1, 255.0f, scratch);
+    depth_plane_gaussian_blur(scratch, W, H, 0.5f, scratch + n0, pyr1);
     const float sigma_down = 0.6f * sqrtf(3.0f); /* 0.6 sqrt(1/eta^2 - 1) for eta = 0.5 */
     for (int s = 1; s < L; s++) {
         for (int k = 0; k < 2; k++) {
             float *pyr = k ? pyr1 : pyr0;
-            plane_gaussian_blur(pyr + offs[s - 1], ws[s - 1], hs[s - 1], sigma_down, scratch, scratch + n0);
-            plane_resize(scratch + n0, ws[s - 1], hs[s - 1], pyr + offs[s], ws[s], hs[s]);
+            depth_plane_gaussian_blur(pyr + offs[s - 1], ws[s - 1], hs[s - 1], sigma_down, scratch, scratch + n0);
+            depth_plane_resize(scratch + n0, ws[s - 1], hs[s - 1], pyr + offs[s], ws[s], hs[s]);
         }
     }
 
@@ -194,7 +194,7 @@ static pg_status tvl1_compute(void *ctx, const pg_image *img0, const pg_image *i
         const int w2 = ws[s - 1], h2 = hs[s - 1];
         float *planes[6] = { u1, u2, p11, p12, p21, p22 };
         for (int q = 0; q < 6; q++) {
-            plane_resize(planes[q], w, h, rs, w2, h2);
+            depth_plane_resize(planes[q], w, h, rs, w2, h2);
             float f = q == 0 ? (float)w2 / w : (q == 1 ? (float)h2 / h : 1.0f);
             size_t n2 = (size_t)w2 * h2;
             for (size_t k = 0; k < n2; k++) planes[q][k] = rs[k] * f;

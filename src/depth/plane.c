@@ -9,7 +9,7 @@
 
 static inline int clampi(int v, int lo, int hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
-void plane_from_image(const pg_image *img, float scale, float *gray)
+void depth_plane_from_image(const pg_image *img, float scale, float *gray)
 {
     const size_t n = (size_t)img->width * img->height;
     const int C = img->channels;
@@ -19,7 +19,7 @@ void plane_from_image(const pg_image *img, float scale, float *gray)
     }
 }
 
-void plane_gaussian_blur(const float *src, int w, int h, float sigma, float *tmp, float *dst)
+void depth_plane_gaussian_blur(const float *src, int w, int h, float sigma, float *tmp, float *dst)
 {
     if (sigma <= 0.0f) {
         if (dst != src) memcpy(dst, src, sizeof(float) * (size_t)w * h);
@@ -52,7 +52,7 @@ void plane_gaussian_blur(const float *src, int w, int h, float sigma, float *tmp
     }
 }
 
-float plane_sample_bilinear(const float *p, int w, int h, float x, float y)
+float depth_plane_sample_bilinear(const float *p, int w, int h, float x, float y)
 {
     if (x < 0.0f) x = 0.0f;
     if (y < 0.0f) y = 0.0f;
@@ -79,7 +79,7 @@ static inline void keys_weights(float t, float wt[4])
     wt[3] = 0.5f * t3 - 0.5f * t2;
 }
 
-float plane_sample_bicubic(const float *p, int w, int h, float x, float y)
+float depth_plane_sample_bicubic(const float *p, int w, int h, float x, float y)
 {
     if (x < 0.0f) x = 0.0f;
     if (y < 0.0f) y = 0.0f;
@@ -102,13 +102,13 @@ float plane_sample_bicubic(const float *p, int w, int h, float x, float y)
     return acc;
 }
 
-void plane_resize(const float *src, int w, int h, float *dst, int w2, int h2)
+void depth_plane_resize(const float *src, int w, int h, float *dst, int w2, int h2)
 {
     const float sx = (float)w / w2, sy = (float)h / h2;
     #pragma omp parallel for schedule(static) if (PAR_OK)
     for (int y = 0; y < h2; y++)
         for (int x = 0; x < w2; x++)
-            dst[(size_t)y * w2 + x] = plane_sample_bilinear(src, w, h, (x + 0.5f) * sx - 0.5f, (y + 0.5f) * sy - 0.5f);
+            dst[(size_t)y * w2 + x] = depth_plane_sample_bilinear(src, w, h, (x + 0.5f) * sx - 0.5f, (y + 0.5f) * sy - 0.5f);
 }
 
 static inline void sort9(float *v)
@@ -121,7 +121,7 @@ static inline void sort9(float *v)
     }
 }
 
-void plane_median3(const float *src, int w, int h, float *dst)
+void depth_plane_median3(const float *src, int w, int h, float *dst)
 {
     #pragma omp parallel for schedule(static) if (PAR_OK)
     for (int y = 0; y < h; y++) {
@@ -160,5 +160,5 @@ static void mask_morph(const unsigned char *src, int w, int h, int r, unsigned c
     }
 }
 
-void mask_erode(const unsigned char *src, int w, int h, int r, unsigned char *dst) { mask_morph(src, w, h, r, dst, 0); }
-void mask_dilate(const unsigned char *src, int w, int h, int r, unsigned char *dst) { mask_morph(src, w, h, r, dst, 1); }
+void depth_mask_erode(const unsigned char *src, int w, int h, int r, unsigned char *dst) { mask_morph(src, w, h, r, dst, 0); }
+void depth_mask_dilate(const unsigned char *src, int w, int h, int r, unsigned char *dst) { mask_morph(src, w, h, r, dst, 1); }

@@ -84,8 +84,8 @@ pg_status depth_refine_band(const depth_refine_params *p, const float *depth, in
         v[k] = ok ? 1.0f : 0.0f;
         lv[k] = ok ? logf(depth[k]) : 0.0f;
     }
-    plane_gaussian_blur(lv, W, H, 1.0f, tmp, lv);
-    plane_gaussian_blur(v, W, H, 1.0f, tmp, v);
+    depth_plane_gaussian_blur(lv, W, H, 1.0f, tmp, lv);
+    depth_plane_gaussian_blur(v, W, H, 1.0f, tmp, v);
     for (size_t k = 0; k < n; k++) ls[k] = v[k] > 0.5f ? lv[k] / v[k] : NAN;
     static const int dirs[4][2] = { { 2, 0 }, { 0, 2 }, { 2, 2 }, { 2, -2 } };
     #pragma omp parallel for schedule(static)
@@ -104,7 +104,7 @@ pg_status depth_refine_band(const depth_refine_params *p, const float *depth, in
             e8[k] = e > p->edge_thresh;
         }
     }
-    mask_dilate(e8, W, H, p->band_radius, band);
+    depth_mask_dilate(e8, W, H, p->band_radius, band);
     for (size_t k = 0; k < n; k++) band[k] = band[k] && depth_valid(depth[k]);
     free(buf);
     free(e8);
@@ -150,7 +150,7 @@ static pg_status refine_edge_snap(void *ctx, const pg_image *rgb, const float *d
         if (!plane) st = PG_ERR_NOMEM;
         for (int c = 0; c < guide.channels && !st; c++) {
             for (size_t k = 0; k < n; k++) plane[k] = rgb->data[k * guide.channels + c];
-            plane_gaussian_blur(plane, W, H, p.guide_blur, plane + n, plane);
+            depth_plane_gaussian_blur(plane, W, H, p.guide_blur, plane + n, plane);
             for (size_t k = 0; k < n; k++) guide.data[k * guide.channels + c] = plane[k];
         }
         free(plane);
@@ -164,7 +164,7 @@ static pg_status refine_edge_snap(void *ctx, const pg_image *rgb, const float *d
     /* Gradients of the lightly smoothed depth, only where the whole stencil is confident. */
     float *sm = buf, *tmp = buf + n, *gx = buf + 2 * n, *gy = buf + 3 * n;
     for (size_t k = 0; k < n; k++) sm[k] = depth_valid(din[k]) ? din[k] : 0.0f;
-    plane_gaussian_blur(sm, W, H, 1.0f, tmp, sm);
+    depth_plane_gaussian_blur(sm, W, H, 1.0f, tmp, sm);
     #pragma omp parallel for schedule(static)
     for (int y = 0; y < H; y++) {
         for (int x = 0; x < W; x++) {
