@@ -134,7 +134,7 @@ static pg_status prepare_frames(const depth_prepare_options *opt, const pg_image
                 #pragma omp critical(prepare_progress)
                 {
                     done++;
-                    pg_progress_report("prepare", done, 2L * (F - 1), "flow frame %d", i);
+                    pg_progress_report("prepare", done, 2L * F, "flow frame %d", i);
                 }
             }
             free(work);
@@ -174,7 +174,7 @@ static pg_status prepare_frames(const depth_prepare_options *opt, const pg_image
         }
         if (valid[i]) depth_align_apply(refined + (size_t)i * n, n, fi->alpha, fi->beta, res->depth + (size_t)i * n);
         res->seconds_align += pg_time_seconds() - ta;
-        pg_progress_report("prepare", (F - 1) + (i + 1) * (F - 1) / F, 2L * (F - 1), "frame %d alpha=%.4f beta=%.4f static=%.1f%%",
+        pg_progress_report("prepare", (long)F + i + 1, 2L * F, "frame %d alpha=%.4f beta=%.4f static=%.1f%%",
                            i, fi->alpha, fi->beta, 100.0 * fi->static_pixels / n);
     }
 
