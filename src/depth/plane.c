@@ -121,21 +121,56 @@ static inline void sort9(float *v)
     }
 }
 
+/* Median of the clamped 3x3 neighbourhood by sorting (reference and border path). */
+static inline float median3_at(const float *src, int w, int h, int x, int y)
+{
+    float v[9];
+    int k = 0;
+    for (int dy = -1; dy <= 1; dy++)
+        for (int dx = -1; dx <= 1; dx++)
+            v[k++] = src[(size_t)clampi(y + dy, 0, h - 1) * w + clampi(x + dx, 0, w - 1)];
+    sort9(v);
+    return v[4];
+}
+
+void depth_plane_median3_ref(const float *src, int w, int h, float *dst)
+{
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) dst[(size_t)y * w + x] = median3_at(src, w, h, x, y);
+}
+
+/* Compare-exchange: a gets the smaller, b the larger (branch-free, vectorises). */
+#define CE(a, b) do { float lo_ = (a) < (b) ? (a) : (b), hi_ = (a) < (b) ? (b) : (a); (a) = lo_; (b) = hi_; } while (0)
+
+/* Interior pixels use the classic 19 compare-exchange median-of-9 network (same result as
+ * sorting for finite values), written so the compiler can vectorise across x. */
 void depth_plane_median3(const float *src, int w, int h, float *dst)
 {
     #pragma omp parallel for schedule(static) if (PAR_OK)
     for (int y = 0; y < h; y++) {
-        for (int x = 0; x < w; x++) {
-            float v[9];
-            int k = 0;
-            for (int dy = -1; dy <= 1; dy++)
-                for (int dx = -1; dx <= 1; dx++)
-                    v[k++] = src[(size_t)clampi(y + dy, 0, h - 1) * w + clampi(x + dx, 0, w - 1)];
-            sort9(v);
-            dst[(size_t)y * w + x] = v[4];
+        float *out = dst + (size_t)y * w;
+        if (y == 0 || y == h - 1 || w < 3) {
+            for (int x = 0; x < w; x++) out[x] = median3_at(src, w, h, x, y);
+            continue;
+        }
+        const float *r0 = src + (size_t)(y - 1) * w, *r1 = src + (size_t)y * w, *r2 = src + (size_t)(y + 1) * w;
+        out[0] = median3_at(src, w, h, 0, y);
+        out[w - 1] = median3_at(src, w, h, w - 1, y);
+        for (int x = 1; x < w - 1; x++) {
+            float p0 = r0[x - 1], p1 = r0[x], p2 = r0[x + 1], p3 = r1[x - 1], p4 = r1[x], p5 = r1[x + 1];
+            float p6 = r2[x - 1], p7 = r2[x], p8 = r2[x + 1];
+            CE(p1, p2); CE(p4, p5); CE(p7, p8);
+            CE(p0, p1); CE(p3, p4); CE(p6, p7);
+            CE(p1, p2); CE(p4, p5); CE(p7, p8);
+            CE(p0, p3); CE(p5, p8); CE(p4, p7);
+            CE(p3, p6); CE(p1, p4); CE(p2, p5);
+            CE(p4, p7); CE(p4, p2); CE(p6, p4);
+            CE(p4, p2);
+            out[x] = p4;
         }
     }
 }
+#undef CE
 
 /* Disc-shaped min/max filter; out-of-image pixels are ignored. */
 static void mask_morph(const unsigned char *src, int w, int h, int r, unsigned char *dst, int dilate)

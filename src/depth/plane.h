@@ -21,8 +21,9 @@ void depth_plane_resize(const float *src, int w, int h, float *dst, int w2, int 
 float depth_plane_sample_bilinear(const float *p, int w, int h, float x, float y);
 /* Bicubic (Keys, a = -0.5) sample, same coordinates as above. */
 float depth_plane_sample_bicubic(const float *p, int w, int h, float x, float y);
-/* 3x3 median filter (borders replicate). */
+/* 3x3 median filter (borders replicate): a sorting network; _ref sorts (test oracle). */
 void depth_plane_median3(const float *src, int w, int h, float *dst);
+void depth_plane_median3_ref(const float *src, int w, int h, float *dst);
 /* Binary morphology on a (h,w) uint8 mask with a disc of radius r: erode or dilate. */
 void depth_mask_erode(const unsigned char *src, int w, int h, int r, unsigned char *dst);
 void depth_mask_dilate(const unsigned char *src, int w, int h, int r, unsigned char *dst);
