@@ -26,7 +26,8 @@ typedef enum {
     DEPTH_REFINE_COUNT
 } depth_refine_kind;
 
-/* depth_in, depth_out: (H,W) matching rgb; invalid pixels (<= 0, NaN) stay 0 in the output. */
+/* depth_in, depth_out: (H,W) matching rgb; invalid pixels (<= 0, NaN) stay 0 in the output.
+ * The depth stage calls it for one frame at a time (it may use threads inside). */
 typedef pg_status (*depth_refine_fn)(void *ctx, const pg_image *rgb, const float *depth_in, float *depth_out);
 
 typedef struct {
