@@ -131,10 +131,11 @@ int main(void)
     train_set_destroy(&ts);
 
     /* CLI: kill via PG_TEST_STOP_AT_ITER, resume, same bytes as one run */
-    const char *opts = "--iters 30 --coarse-iters 10 --checkpoint-every 10 --init-points 1500 --threads 2 --seed 5";
+    const char *opts = "--iters 24 --coarse-iters 8 --checkpoint-every 8 --init-points 1500 --threads 2 --seed 5 "
+                       "--deform-res 8 --deform-width 32";
     snprintf(cmd, sizeof cmd, "train '%s' --out '%s/m1' %s", data, dir, opts);
     CHECK(test_run_cli(cmd, err, sizeof err) == 0, "train CLI: %s", err);
-    setenv("PG_TEST_STOP_AT_ITER", "17", 1);
+    setenv("PG_TEST_STOP_AT_ITER", "19", 1);
     snprintf(cmd, sizeof cmd, "train '%s' --out '%s/m2' %s", data, dir, opts);
     CHECK(test_run_cli(cmd, err, sizeof err) == 0, "train CLI stop: %s", err);
     unsetenv("PG_TEST_STOP_AT_ITER");

@@ -64,7 +64,7 @@ int cmd_train(int argc, char **argv)
     const char *out = NULL, *real_cams = NULL, *test_cams = NULL, *depth = NULL;
     int iters = 3000, coarse = -1, resume = 0, threads = 2, seed = 1, max_g = 200000, ck_every = 500;
     int init_points = 30000, frames = 0, width = 0, no_static = 0, no_cull = 0, sh = 3, real_every = 3;
-    int eval_train = 0;
+    int eval_train = 0, deform_res = 0, deform_width = 0;
     float lambda_depth = -1, lambda_dssim = -1;
     cli_option opts[] = {
         {"--out", CLI_STR, &out, "model directory to write (model.ckpt, train.json)"},
@@ -85,6 +85,8 @@ int cmd_train(int argc, char **argv)
         {"--real-every", CLI_INT, &real_every, "a real view at least every k iterations (3)"},
         {"--lambda-depth", CLI_FLOAT, &lambda_depth, "weight of the SSI depth loss (0.05)"},
         {"--lambda-dssim", CLI_FLOAT, &lambda_dssim, "weight of D-SSIM (0.2)"},
+        {"--deform-res", CLI_INT, &deform_res, "HexPlane spatial resolution of the coarse scale (64)"},
+        {"--deform-width", CLI_INT, &deform_width, "deformation MLP width (128)"},
         {"--no-static", CLI_FLAG, &no_static, "send every Gaussian through the network"},
         {"--no-cull", CLI_FLAG, &no_cull, "no frustum culling before the network"},
         {"--eval-train", CLI_FLAG, &eval_train, "also report PSNR over all frames of the real views"},
@@ -103,6 +105,8 @@ int cmd_train(int argc, char **argv)
     if (max_g < 16) return cli_usage_error("train: --max-gaussians must be >= 16");
     if (threads < 1 || threads > 256) return cli_usage_error("train: --threads must be in 1..256");
     if (sh < 0 || sh > 3) return cli_usage_error("train: --sh-degree must be 0..3");
+    if (deform_res < 0 || deform_res > 1024 || deform_width < 0 || deform_width > 1024)
+        return cli_usage_error("train: --deform-res/--deform-width out of range");
     if (ck_every < 0) return cli_usage_error("train: --checkpoint-every must be >= 0");
     pg_set_threads(threads);
     cli_install_progress();
@@ -152,6 +156,8 @@ int cmd_train(int argc, char **argv)
     cfg.real_every = real_every;
     if (lambda_depth >= 0) cfg.lambda_depth = lambda_depth;
     if (lambda_dssim >= 0) cfg.lambda_dssim = lambda_dssim;
+    cfg.deform_res = deform_res;
+    cfg.deform_width = deform_width;
     cfg.use_static_flags = !no_static;
     cfg.use_frustum_cull = !no_cull;
     const char *stop = getenv("PG_TEST_STOP_AT_ITER");

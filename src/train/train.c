@@ -18,7 +18,8 @@
 #include "core/mathx.h"
 #include "core/parallel.h"
 #include "core/progress.h"
-#include "train/train_loss.h"
+#include "optim/loss_depth.h"
+#include "optim/loss_image.h"
 
 #define ADAM_B1 0.9f
 #define ADAM_B2 0.999f
@@ -71,6 +72,11 @@ train_config train_default_config(void)
 
 int train_session_iteration(const train_session *s) { return s->iter; }
 int train_session_gaussians(const train_session *s) { return s->g.count; }
+void train_session_last(const train_session *s, double *loss, double *real_psnr)
+{
+    if (loss) *loss = s->last_loss;
+    if (real_psnr) *real_psnr = s->last_psnr;
+}
 void train_session_timing(const train_session *s, train_timing *t) { *t = s->timing; }
 
 void train_session_destroy(train_session *s)
@@ -94,6 +100,8 @@ void train_session_destroy(train_session *s)
     pg_image_destroy(&s->target);
     free(s->mask);
     free(s->depth_t);
+    free(s->depth_mask);
+    optim_ssim_destroy(s->ssim);
     free(s->d_rgb);
     free(s->d_depth);
     free(s);
@@ -183,9 +191,11 @@ pg_status train_session_create(train_session **out, const train_set *ts, const t
     if ((st = pg_image_create(&s->target, ts->width, ts->height, 3))) goto fail;
     s->mask = pg_malloc(px * sizeof(float), "training mask");
     s->depth_t = pg_malloc(px * sizeof(float), "training depth");
+    s->depth_mask = pg_malloc(px * sizeof(float), "training depth mask");
+    if ((st = optim_ssim_create(&s->ssim, ts->height, ts->width, 3))) goto fail;
     s->d_rgb = pg_malloc(px * 3 * sizeof(float), "rgb gradient");
     s->d_depth = pg_malloc(px * sizeof(float), "depth gradient");
-    if (!s->mask || !s->depth_t || !s->d_rgb || !s->d_depth) {
+    if (!s->mask || !s->depth_t || !s->depth_mask || !s->d_rgb || !s->d_depth) {
         st = PG_ERR_NOMEM;
         goto fail;
     }
@@ -352,6 +362,31 @@ static pg_status deform_all(train_session *s, const pg_camera *cam, float t, int
     return train_net_forward(s->net, &s->g, s->idx, n, t, &s->d);
 }
 
+/* lambda_d * scale-and-shift-invariant L2 of the rendered depth against the target, divided by
+ * the target's variance on valid pixels so the weight does not depend on the depth units. */
+static double depth_loss(train_session *s, const float *depth, int W, int H)
+{
+    size_t px = (size_t)W * H;
+    double n = 0, sum = 0, sum2 = 0;
+    for (size_t i = 0; i < px; i++) {
+        /* invalid target pixels are excluded through the mask */
+        s->depth_mask[i] = (s->depth_t[i] > 0 && s->mask[i] > 0.5f) ? 1.0f : 0.0f;
+        if (s->depth_mask[i] > 0) {
+            n += 1;
+            sum += s->depth_t[i];
+            sum2 += (double)s->depth_t[i] * s->depth_t[i];
+        }
+    }
+    if (n < 16) return 0;
+    double var = sum2 / n - (sum / n) * (sum / n);
+    if (!(var > 1e-12)) return 0;
+    optim_ssi_depth fit;
+    double l = optim_ssi_depth_forward(&fit, depth, s->depth_t, s->depth_mask, (long)px);
+    float w = (float)(s->cfg.lambda_depth / var);
+    optim_ssi_depth_backward(s->d_depth, w, &fit, depth, s->depth_t, s->depth_mask, (long)px);
+    return w * l;
+}
+
 pg_status train_session_step(train_session *s)
 {
     const train_set *ts = s->ts;
@@ -395,9 +430,15 @@ pg_status train_session_step(train_session *s)
     memset(s->d_rgb, 0, px * 3 * sizeof(float));
     memset(s->d_depth, 0, px * sizeof(float));
     int any_mask = ts->views[vi].mask != NULL;
-    double loss = train_l1_forward_backward(out.rgb, s->target.data, any_mask ? s->mask : NULL, W, H, 1.0f, s->d_rgb);
-    if (has_depth && c->lambda_depth > 0)
-        loss += train_ssi_depth_forward_backward(out.depth, s->depth_t, s->mask, W, H, c->lambda_depth, s->d_depth);
+    const float *mk = any_mask ? s->mask : NULL;
+    double loss = optim_l1_forward(out.rgb, s->target.data, mk, H, W, 3);
+    optim_l1_backward(s->d_rgb, 1.0f, out.rgb, s->target.data, mk, H, W, 3);
+    if (c->lambda_dssim > 0) {
+        float ssim = optim_ssim_forward(s->ssim, out.rgb, s->target.data, mk, H, W, 3);
+        optim_ssim_backward(s->ssim, s->d_rgb, -c->lambda_dssim, out.rgb, s->target.data, mk, H, W, 3);
+        loss += c->lambda_dssim * (1.0 - ssim);
+    }
+    if (has_depth && c->lambda_depth > 0) loss += depth_loss(s, out.depth, W, H);
     if (ts->views[vi].role == TRAIN_ROLE_REAL) {
         pg_image rendered = {W, H, 3, out.rgb};
         s->last_psnr = pg_image_psnr(&rendered, &s->target, any_mask ? s->mask : NULL);
