@@ -72,6 +72,12 @@ train_config train_default_config(void)
 
 int train_session_iteration(const train_session *s) { return s->iter; }
 int train_session_gaussians(const train_session *s) { return s->g.count; }
+int train_session_static_count(const train_session *s)
+{
+    int n = 0;
+    for (int i = 0; i < s->g.count; i++) n += s->is_static[i] != 0;
+    return n;
+}
 void train_session_last(const train_session *s, double *loss, double *real_psnr)
 {
     if (loss) *loss = s->last_loss;
@@ -387,6 +393,62 @@ static double depth_loss(train_session *s, const float *depth, int W, int H)
     return w * l;
 }
 
+/* Learned static flags: evaluates the network for every movable Gaussian at 5 times; those
+ * whose predicted deltas hardly change over time (position by < static_eps * extent, the other
+ * attributes by < 0.02) get the mean delta baked into their canonical parameters and are
+ * flagged static, so they skip the network from now on. */
+static pg_status check_static(train_session *s)
+{
+    int n = 0;
+    for (int i = 0; i < s->g.count; i++)
+        if (!s->is_static[i]) s->idx[n++] = i;
+    if (n == 0) return PG_OK;
+    size_t N = (size_t)s->g.count;
+    enum { K = 5 };
+    float *lo = pg_malloc((size_t)n * 59 * sizeof(float), "static check");
+    float *hi = pg_malloc((size_t)n * 59 * sizeof(float), "static check");
+    float *mean = pg_calloc((size_t)n * 59, sizeof(float), "static check");
+    pg_status st = (lo && hi && mean) ? PG_OK : PG_ERR_NOMEM;
+    for (int k = 0; k < K && !st; k++) {
+        copy_gaussians(&s->d, &s->g);
+        if ((st = train_net_forward(s->net, &s->g, s->idx, n, (float)k / (K - 1), &s->d))) break;
+        for (int j = 0; j < n; j++) {
+            int i = s->idx[j];
+            float dl[59];
+            for (int a = 0; a < 3; a++) dl[a] = s->d.means[3 * i + a] - s->g.means[3 * i + a];
+            for (int a = 0; a < 3; a++) dl[3 + a] = s->d.log_scales[3 * i + a] - s->g.log_scales[3 * i + a];
+            for (int a = 0; a < 4; a++) dl[6 + a] = s->d.quats[4 * i + a] - s->g.quats[4 * i + a];
+            dl[10] = s->d.opacity[i] - s->g.opacity[i];
+            for (int a = 0; a < 48; a++) dl[11 + a] = s->d.sh[(size_t)i * 48 + a] - s->g.sh[(size_t)i * 48 + a];
+            for (int a = 0; a < 59; a++) {
+                size_t o = (size_t)j * 59 + a;
+                lo[o] = k ? fminf(lo[o], dl[a]) : dl[a];
+                hi[o] = k ? fmaxf(hi[o], dl[a]) : dl[a];
+                mean[o] += dl[a] / K;
+            }
+        }
+    }
+    float pos_tol = s->cfg.static_eps * s->extent;
+    for (int j = 0; j < n && !st; j++) {
+        size_t o = (size_t)j * 59;
+        int ok = 1;
+        for (int a = 0; a < 59 && ok; a++) ok = hi[o + a] - lo[o + a] < (a < 3 ? pos_tol : 0.02f);
+        if (!ok) continue;
+        int i = s->idx[j];
+        for (int a = 0; a < 3; a++) s->g.means[3 * i + a] += mean[o + a];
+        for (int a = 0; a < 3; a++) s->g.log_scales[3 * i + a] += mean[o + 3 + a];
+        for (int a = 0; a < 4; a++) s->g.quats[4 * i + a] += mean[o + 6 + a];
+        s->g.opacity[i] += mean[o + 10];
+        for (int a = 0; a < 48; a++) s->g.sh[(size_t)i * 48 + a] += mean[o + 11 + a];
+        s->is_static[i] = 1;
+    }
+    (void)N;
+    free(lo);
+    free(hi);
+    free(mean);
+    return st;
+}
+
 pg_status train_session_step(train_session *s)
 {
     const train_set *ts = s->ts;
@@ -477,13 +539,12 @@ pg_status train_session_step(train_session *s)
     s->timing.optimizer = (t1 - t0) * 1e3;
     t0 = t1;
 
-    /* density statistics: view-space gradient (converted to 3DGS's NDC units) of visible ones */
-    float ndc = 0.5f * (float)(W > H ? W : H);
+    /* density statistics: view-space gradient (the rasterizer gives it in 3DGS's NDC units) */
     for (int i = 0; i < s->d.count; i++) {
         float uv[2];
         float z = pg_camera_project(cam, s->d.means + 3 * i, uv);
         if (z > 0.01f && uv[0] >= 0 && uv[0] < W && uv[1] >= 0 && uv[1] < H) {
-            s->grad_accum[i] += s->vs_grad[i] * ndc;
+            s->grad_accum[i] += s->vs_grad[i];
             s->grad_denom[i] += 1;
         }
     }
@@ -494,6 +555,10 @@ pg_status train_session_step(train_session *s)
     if (c->sh_ramp_every > 0 && it % c->sh_ramp_every == 0 && s->g.sh_degree < c->sh_max_degree) s->g.sh_degree++;
     if (it < c->densify_until && it >= c->densify_from && c->densify_every > 0 && it % c->densify_every == 0)
         PG_TRY(train_densify_and_prune(s, 1));
+    int fine_it = it - c->coarse_iters;
+    if (s->fine && c->static_check_every > 0 && fine_it >= 2 * c->static_check_every &&
+        fine_it % c->static_check_every == 0 && c->use_static_flags)
+        PG_TRY(check_static(s));
     if (c->opacity_reset_every > 0 && it < c->densify_until && it % c->opacity_reset_every == 0) train_reset_opacity(s);
     s->timing.other = (pg_time_seconds() - t0) * 1e3;
     return PG_OK;
