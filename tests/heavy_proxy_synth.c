@@ -16,6 +16,7 @@
 
 #include "core/camera.h"
 #include "core/parallel.h"
+#include "depth/prepare.h"
 #include "proxy/frame_model.h"
 #include "proxy/poses.h"
 #include "synth/synth.h"
@@ -160,11 +161,19 @@ int main(void)
         CHECK_OK(synth_render_frame(&sc, &cams[0], synth_frame_time(f, F), &img, gt0 + (size_t)f * npix, NULL));
     }
     CHECK_OK(synth_depth_mono(gt0, F, H, W, 7, mono, NULL));
-    /* Simple robust temporal alignment (the depth stage does better): per-frame median-ratio scale to
-     * frame 0, on all pixels (the moving objects are a small part of the image). */
-    for (int f = 0; f < F; f++) {
-        float a = median_ratio(mono, mono + (size_t)f * npix, npix);
-        for (size_t i = 0; i < npix; i++) aligned[(size_t)f * npix + i] = a * mono[(size_t)f * npix + i];
+    /* The depth stage (refinement + temporal alignment to frame 0), as `prodygs prepare` runs it. */
+    {
+        pg_image *fr = calloc((size_t)F, sizeof(pg_image));
+        for (int f = 0; f < F; f++) fr[f] = (pg_image){ W, H, 3, rgb0 + (size_t)f * npix * 3 };
+        depth_prepare_options po;
+        depth_prepare_defaults(&po);
+        depth_prepare_result pr;
+        double tp = pg_time_seconds();
+        CHECK_OK(depth_prepare_run(&po, fr, F, mono, &pr));
+        memcpy(aligned, pr.depth, (size_t)F * npix * sizeof(float));
+        printf("depth prepare: %.1f s\n", pg_time_seconds() - tp);
+        depth_prepare_result_destroy(&pr);
+        free(fr);
     }
     const float s_true = median_ratio(gt0, aligned, npix);
 
@@ -195,6 +204,11 @@ int main(void)
     if (getenv("PG_PROXY_LR_OPACITY")) o.lr_opacity = (float)atof(getenv("PG_PROXY_LR_OPACITY"));
     if (getenv("PG_PROXY_SSIM")) o.ssim_weight = (float)atof(getenv("PG_PROXY_SSIM"));
     if (getenv("PG_PROXY_OPACITY")) o.init_opacity = (float)atof(getenv("PG_PROXY_OPACITY"));
+    if (getenv("PG_PROXY_DEPTH_TOL")) o.mask.depth_tol = (float)atof(getenv("PG_PROXY_DEPTH_TOL"));
+    if (getenv("PG_PROXY_EDGE_REL")) o.mask.edge_rel = (float)atof(getenv("PG_PROXY_EDGE_REL"));
+    if (getenv("PG_PROXY_STRETCH")) o.mask.stretch_max = (float)atof(getenv("PG_PROXY_STRETCH"));
+    if (getenv("PG_PROXY_SURFELS")) o.surfels = atoi(getenv("PG_PROXY_SURFELS"));
+    if (getenv("PG_PROXY_THICK")) o.surfel_thickness = (float)atof(getenv("PG_PROXY_THICK"));
     int with_mono = getenv("PG_PROXY_NO_MONO") == NULL;
     proxy_frame_model *m = NULL;
     CHECK_OK(proxy_model_create(&m, W, H, &o));

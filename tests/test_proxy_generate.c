@@ -169,9 +169,15 @@ int main(void)
     job.pose_scale = 0;
     CHECK(proxy_generate(&o, &job, dir, &res) == PG_ERR_ARG, "pose scale 0 accepted");
     job.pose_scale = scale;
+    job.num_proxies = -1;
+    CHECK(proxy_generate(&o, &job, dir, &res) == PG_ERR_ARG, "negative proxy count accepted");
+    /* No proxies: the real view (and test cameras) only. */
     job.proxies = NULL;
     job.num_proxies = 0;
-    CHECK(proxy_generate(&o, &job, dir, &res) == PG_ERR_ARG, "no proxies accepted");
+    snprintf(path, sizeof path, "%s/none", base);
+    CHECK_OK(proxy_generate(&o, &job, path, &res));
+    snprintf(path, sizeof path, "%s/none/cam00/rgb/0002.png", base);
+    CHECK(pg_path_exists(path), "real frames missing without proxies");
     free(depth);
     return test_summary("test_proxy_generate");
 }

@@ -44,6 +44,8 @@ proxy_fit_options proxy_default_fit_options(void)
     o.depth_weight = 0.1f;
     o.init_opacity = 0.8f;
     o.scale_mult = 0.6f;
+    o.surfels = 1;
+    o.surfel_thickness = 0.2f;
     o.lr_means = 2e-5f;
     o.lr_scales = 0.005f;
     o.lr_opacity = 0.02f;
@@ -113,6 +115,68 @@ static int cmp_float(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* World point of pixel (x, y) at its depth, if valid and on the same surface as depth ref. */
+static int surface_point(const proxy_frame_model *m, const pg_camera *cam, int x, int y, float ref, float X[3])
+{
+    if (x < 0 || y < 0 || x >= m->W || y >= m->H) return 0;
+    float d = m->depth[(size_t)y * m->W + x];
+    if (!(d > 0) || fabsf(d - ref) > m->opt.mask.edge_rel * ref) return 0;
+    pg_camera_unproject(cam, x + 0.5f, y + 0.5f, d, X);
+    return 1;
+}
+
+/* Surfel initialisation: a flat Gaussian in the local tangent plane of the depth map, stretched
+ * along the tilt direction by 1/cos(view angle) so that it still covers about one pixel (k for
+ * blocks) in the source view. Seen from a proxy camera it then foreshortens like the surface
+ * does, where an isotropic blob would not. Returns 0 (caller falls back to isotropic) when the
+ * normal cannot be estimated (depth edge or image border on both sides). */
+static int init_surfel(const proxy_frame_model *m, const pg_camera *cam, int x, int y, int k, const float mu[3],
+                       float sigma, float q[4], float ls[3])
+{
+    if (x >= m->W) x = m->W - 1;
+    if (y >= m->H) y = m->H - 1;
+    float ref = m->depth[(size_t)y * m->W + x];
+    if (!(ref > 0)) return 0;
+    float c[3], a[3], b[3], tx[3], ty[3], n[3];
+    if (!surface_point(m, cam, x, y, ref, c)) return 0;
+    /* tangents by central differences where possible, else one-sided */
+    int ha = surface_point(m, cam, x + k, y, ref, a), hb = surface_point(m, cam, x - k, y, ref, b);
+    if (ha && hb) vec3_sub(tx, a, b);
+    else if (ha) vec3_sub(tx, a, c);
+    else if (hb) vec3_sub(tx, c, b);
+    else return 0;
+    ha = surface_point(m, cam, x, y + k, ref, a);
+    hb = surface_point(m, cam, x, y - k, ref, b);
+    if (ha && hb) vec3_sub(ty, a, b);
+    else if (ha) vec3_sub(ty, a, c);
+    else if (hb) vec3_sub(ty, c, b);
+    else return 0;
+    vec3_cross(n, tx, ty);
+    if (!(vec3_norm(n) > 0)) return 0;
+    vec3_normalize(n);
+    float eye[3], r[3];
+    pg_camera_center(cam, eye);
+    vec3_sub(r, mu, eye);
+    vec3_normalize(r);
+    float cosv = fabsf(vec3_dot(r, n));
+    float t1[3], t2[3];
+    for (int i = 0; i < 3; i++) t1[i] = r[i] - vec3_dot(r, n) * n[i];
+    if (vec3_norm(t1) < 1e-4f) { /* facing the camera: any tangent */
+        float ax[3] = { 1, 0, 0 };
+        if (fabsf(n[0]) > 0.9f) { ax[0] = 0; ax[1] = 1; }
+        vec3_cross(t1, ax, n);
+    }
+    vec3_normalize(t1);
+    vec3_cross(t2, n, t1);
+    /* local axes (x, y, z) = (t1, t2, n) are the columns of the rotation */
+    float R[9] = { t1[0], t2[0], n[0], t1[1], t2[1], n[1], t1[2], t2[2], n[2] };
+    mat3_to_quat(q, R);
+    ls[0] = logf(sigma / fmaxf(cosv, 0.3f));
+    ls[1] = logf(sigma);
+    ls[2] = logf(sigma * m->opt.surfel_thickness);
+    return 1;
+}
+
 /* One Gaussian per k x k block at the block's median depth; its colour and position average the
  * block pixels on that surface (within 5 % of the median), so blocks on an edge do not blend the
  * foreground with the background. */
@@ -165,10 +229,12 @@ pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const flo
             float d = sd / used;
             float *mu = g->means + (size_t)n * 3;
             pg_camera_unproject(cam, su / used, sv / used, d, mu);
-            float ls = logf(m->opt.scale_mult * k * d / cam->fx);
-            g->log_scales[n * 3 + 0] = g->log_scales[n * 3 + 1] = g->log_scales[n * 3 + 2] = ls;
-            float *q = g->quats + (size_t)n * 4;
-            q[0] = 1; q[1] = q[2] = q[3] = 0;
+            float sigma = m->opt.scale_mult * k * d / cam->fx;
+            float *q = g->quats + (size_t)n * 4, *ls = g->log_scales + (size_t)n * 3;
+            if (!(m->opt.surfels && init_surfel(m, cam, bx + k / 2, by + k / 2, k, mu, sigma, q, ls))) {
+                ls[0] = ls[1] = ls[2] = logf(sigma);
+                q[0] = 1; q[1] = q[2] = q[3] = 0;
+            }
             g->opacity[n] = logit;
             float *sh = g->sh + (size_t)n * PG_SH_COEFFS * 3;
             memset(sh, 0, PG_SH_COEFFS * 3 * sizeof(float));

@@ -26,6 +26,8 @@ typedef struct {
     float depth_weight;   /* weight of the relative depth L1 term (0.1) */
     float init_opacity;   /* initial opacity (0.8; higher gave lower proxy PSNR) */
     float scale_mult;     /* initial std = scale_mult * k * depth / f (0.6) */
+    int surfels;          /* 1: flat Gaussians in the depth map's tangent plane (1); 0: isotropic */
+    float surfel_thickness; /* surfel std along the normal, relative to the in-plane std (0.2) */
     float lr_means;       /* mean learning rate relative to the median depth (2e-5) */
     float lr_scales, lr_opacity, lr_color; /* Adam learning rates (0.005, 0.02, 0.005) */
     proxy_mask_options mask;

@@ -58,6 +58,8 @@ static unsigned long long settings_hash(const proxy_options *o, const proxy_job 
     h = hash_int(h, 2); /* format version of the cache */
     h = hash_int(h, f->block);
     h = hash_int(h, f->steps);
+    h = hash_int(h, f->surfels);
+    h = hash_float(h, f->surfel_thickness);
     float fl[] = { f->ssim_weight, f->depth_weight, f->init_opacity, f->scale_mult, f->lr_means, f->lr_scales,
                    f->lr_opacity, f->lr_color, f->mask.alpha_min, f->mask.edge_rel, f->mask.stretch_max,
                    f->mask.depth_tol, j->pose_scale };
@@ -226,7 +228,7 @@ static pg_status check_job(const proxy_job *j)
     if (j->real.width != j->width || j->real.height != j->height)
         return pg_fail(PG_ERR_SIZE, "proxies: real camera is %dx%d but frames are %dx%d", j->real.width,
                        j->real.height, j->width, j->height);
-    if (j->num_proxies < 1) return pg_fail(PG_ERR_ARG, "proxies: no proxy camera");
+    if (j->num_proxies < 0) return pg_fail(PG_ERR_ARG, "proxies: negative proxy camera count");
     for (int k = 0; k < j->num_proxies + j->num_tests; k++) {
         const pg_camera *c = k < j->num_proxies ? &j->proxies[k] : &j->tests[k - j->num_proxies];
         const char *name = k < j->num_proxies ? j->proxy_names[k] : j->test_names[k - j->num_proxies];

@@ -40,7 +40,7 @@ typedef struct {
     float pose_scale;   /* pose units per depth unit (1 for hemisphere poses) */
     const char *real_name;
     pg_camera real;
-    int num_proxies;
+    int num_proxies; /* may be 0: only the real (and test) cameras are written */
     const char *const *proxy_names;
     const pg_camera *proxies;
     int num_tests; /* test cameras: their frames are written with role "test", never used here */

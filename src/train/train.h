@@ -69,6 +69,10 @@ pg_status train_session_evaluate(train_session *s, train_role role, double *psnr
 pg_status train_session_save(train_session *s, const char *path);
 int train_session_iteration(const train_session *s);
 int train_session_gaussians(const train_session *s);
+/* Gaussians flagged static (never sent through the network). */
+int train_session_static_count(const train_session *s);
+/* Loss and real-view PSNR of the latest iteration that used a real view. */
+void train_session_last(const train_session *s, double *loss, double *real_psnr);
 
 /* Per-phase timings of the last step in milliseconds (bench iteration). */
 typedef struct {

@@ -78,6 +78,32 @@ pg_status train_set_add_view(train_set *ts, const char *name, train_role role, c
     return PG_OK;
 }
 
+void train_set_limit_proxies(train_set *ts, int n)
+{
+    int P = train_set_count_role(ts, TRAIN_ROLE_PROXY);
+    if (n < 0 || n >= P) return;
+    int k = 0, w = 0, next = 0;
+    for (int i = 0; i < ts->num_views; i++) {
+        train_view *v = &ts->views[i];
+        int keep = 1;
+        if (v->role == TRAIN_ROLE_PROXY) {
+            /* keep proxy k when it is the next of the n evenly spaced picks */
+            keep = next < n && k == (int)((long)next * P / n);
+            if (keep) next++;
+            k++;
+        }
+        if (!keep) {
+            free(v->rgb);
+            free(v->mask);
+            free(v->depth);
+            continue;
+        }
+        if (w != i) ts->views[w] = *v;
+        w++;
+    }
+    ts->num_views = w;
+}
+
 /* Stores a float image (any size equal to the set's) as uint8 frame f of view v. */
 static void store_rgb(train_set *ts, int v, int f, const pg_image *img)
 {

@@ -1,0 +1,130 @@
+/* test_proxy_cli.c - `prodygs proxies` on a tiny synth dataset (dataset and hemisphere poses, the
+ * fitted pose scale, resume) and its usage / bad-input errors. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cjson/cJSON.h>
+
+#include "core/fileutil.h"
+#include "io/npy.h"
+#include "synth/synth.h"
+#include "testlib.h"
+
+static cJSON *load_json(const char *path)
+{
+    char *text = NULL;
+    size_t n = 0;
+    if (pg_read_file(path, 1 << 20, &text, &n)) return NULL;
+    cJSON *j = cJSON_Parse(text);
+    free(text);
+    return j;
+}
+
+static int count_role(cJSON *root, const char *role)
+{
+    int n = 0;
+    cJSON *c;
+    cJSON_ArrayForEach(c, cJSON_GetObjectItem(root, "cameras"))
+    {
+        const char *r = cJSON_GetStringValue(cJSON_GetObjectItem(c, "role"));
+        n += r && !strcmp(r, role);
+    }
+    return n;
+}
+
+int main(void)
+{
+    char dir[1024], data[1200], out[1200], out2[1200], args[4096], err[2048], path[1400];
+    test_tmpdir("test_proxy_cli", dir, sizeof dir);
+    snprintf(data, sizeof data, "%s/data", dir);
+    snprintf(out, sizeof out, "%s/out", dir);
+    snprintf(out2, sizeof out2, "%s/hemi", dir);
+    synth_options so;
+    synth_options_default(&so);
+    so.cams = 8;
+    so.frames = 2;
+    so.width = 80;
+    so.height = 60;
+    so.spp = 1;
+    CHECK_OK(synth_write_dataset(data, &so));
+
+    /* Dataset poses: cam00 real, cam05/06 test, the 5 others proxies; scale fitted on depth_gt = 1. */
+    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s' --steps 3", data, data, out);
+    int rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 0, "proxies failed (%d): %s", rc, err);
+    snprintf(path, sizeof path, "%s/trainset.json", out);
+    cJSON *j = load_json(path);
+    CHECK(j != NULL, "%s missing or invalid", path);
+    if (j) {
+        CHECK(count_role(j, "real") == 1 && count_role(j, "proxy") == 5 && count_role(j, "test") == 2,
+              "roles real %d proxy %d test %d", count_role(j, "real"), count_role(j, "proxy"), count_role(j, "test"));
+        double s = cJSON_GetObjectItem(cJSON_GetObjectItem(j, "source"), "pose_scale")->valuedouble;
+        CHECK(fabs(s - 1.0) < 0.02, "fitted pose scale %g on ground-truth depth", s);
+        cJSON_Delete(j);
+    }
+    snprintf(path, sizeof path, "%s/cam03/mask/0001.png", out);
+    CHECK(pg_path_exists(path), "%s missing", path);
+    snprintf(path, sizeof path, "%s/cam05/rgb/0001.png", out);
+    CHECK(pg_path_exists(path), "test camera frames missing (%s)", path);
+    snprintf(path, sizeof path, "%s/cam05/mask", out);
+    CHECK(!pg_path_exists(path), "a test camera got proxy masks");
+
+    /* Hemisphere poses on the single camera's frame folder, with a given scale. */
+    snprintf(args, sizeof args,
+             "proxies '%s/cam00/images' --depth '%s/depth_gt/cam00.npy' --out '%s' --poses hemisphere --num 3 "
+             "--max-angle 12 --steps 2 --block 2 --frames 1 --pose-scale 2",
+             data, data, out2);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 0, "hemisphere proxies failed (%d): %s", rc, err);
+    snprintf(path, sizeof path, "%s/trainset.json", out2);
+    j = load_json(path);
+    CHECK(j != NULL, "%s missing", path);
+    if (j) {
+        CHECK(count_role(j, "proxy") == 3 && count_role(j, "test") == 0, "hemisphere roles");
+        CHECK(cJSON_GetObjectItem(j, "frames")->valueint == 1, "--frames ignored");
+        cJSON_Delete(j);
+    }
+    pg_array a = { 0 };
+    snprintf(path, sizeof path, "%s/proxy02/depth.npy", out2);
+    CHECK_OK(io_npy_load(path, &a));
+    CHECK(a.ndim == 3 && a.shape[0] == 1 && a.shape[1] == 60 && a.shape[2] == 80, "proxy depth shape");
+    pg_array_destroy(&a);
+
+    /* Dataset poses limited to the 2 cameras closest to the real one, real camera given by name. */
+    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s/two' --steps 1 --num 2 "
+             "--train-cam cam00 --pose-scale 1", data, data, dir);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 0, "--num 2 failed (%d): %s", rc, err);
+    snprintf(path, sizeof path, "%s/two/trainset.json", dir);
+    j = load_json(path);
+    if (j) {
+        CHECK(count_role(j, "proxy") == 2 && count_role(j, "test") == 2, "--num 2: %d proxies", count_role(j, "proxy"));
+        cJSON_Delete(j);
+    }
+
+    /* Errors: exit 2 with one line naming the problem. */
+    snprintf(args, sizeof args, "proxies '%s' --depth '%s/nope.npy' --out '%s'", data, data, out);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "nope.npy"), "missing depth: rc %d, %s", rc, err);
+    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s' --poses sideways", data,
+             data, out);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "sideways"), "bad --poses: rc %d, %s", rc, err);
+    snprintf(args, sizeof args, "proxies '%s' --out '%s'", data, out);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "--depth"), "missing --depth: rc %d, %s", rc, err);
+    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s' --test-cams 0", data, data,
+             out);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2, "real camera as test camera accepted: rc %d", rc);
+    /* depth of another size/shape: a (2, 60, 80) array where 3 frames are asked for */
+    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s' --frames 3", data, data, out);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2, "3 frames of a 2-frame input accepted: rc %d %s", rc, err);
+    snprintf(args, sizeof args, "bench proxy --width 48 --height 32 --num 2 --frames 2 --steps 2 --out '%s/bench'", dir);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 0, "bench proxy failed: %s", err);
+    return test_summary("test_proxy_cli");
+}
