@@ -327,6 +327,21 @@ static float source_loss(proxy_frame_model *m, const pg_render_output *out)
     return loss + (float)(wd * ld * inv_v);
 }
 
+/* Zeroes the gradients the fit reads. The SH rows beyond DC stay untouched: the model renders at
+ * SH degree 0, and zeroing all 48 coefficients per Gaussian every step cost 4 % of the fit. */
+static void zero_grads(pg_gaussians *gr)
+{
+    size_t n = (size_t)gr->count;
+    memset(gr->means, 0, n * 3 * sizeof(float));
+    memset(gr->log_scales, 0, n * 3 * sizeof(float));
+    memset(gr->quats, 0, n * 4 * sizeof(float));
+    memset(gr->opacity, 0, n * sizeof(float));
+    for (size_t i = 0; i < n; i++) {
+        float *dc = gr->sh + i * PG_SH_COEFFS * 3;
+        dc[0] = dc[1] = dc[2] = 0;
+    }
+}
+
 pg_status proxy_model_fit(proxy_frame_model *m)
 {
     double t0 = pg_time_seconds();
@@ -340,7 +355,7 @@ pg_status proxy_model_fit(proxy_frame_model *m)
         float loss = source_loss(m, &out);
         if (it == 0) m->stats.first_loss = loss;
         m->stats.last_loss = loss;
-        splat_gaussians_zero(gr);
+        zero_grads(gr);
         PG_TRY(splat_render_backward(m->raster, g, &m->cam, &s, m->d_rgb, m->d_depth, m->d_alpha, gr, NULL));
         float bc1 = 1.0f - powf(0.9f, (float)(it + 1)), bc2 = 1.0f - powf(0.999f, (float)(it + 1));
         adam_group(g->means, gr->means, m->m, m->v, n, 3, 0, lr_mean, bc1, bc2);
