@@ -233,19 +233,32 @@ static float lr_exp(float lr0, float lr1, float u)
     return expf(logf(lr0) * (1 - u) + logf(lr1) * u);
 }
 
-/* One Adam update of n parameters (eps 1e-15 as in 3DGS). */
-static void adam_update(float *p, const float *g, float *m, float *v, size_t n, float lr, float bc1, float bc2)
+/* One Adam update of n parameters (eps 1e-15 as in 3DGS); element-wise, so the result does not
+ * depend on the thread count. */
+static inline void adam_span(float *restrict p, const float *restrict g, float *restrict m, float *restrict v, long n,
+                             float lr, float bc1, float bc2)
 {
-    if (lr == 0) return;
-    long nn = (long)n;
-#pragma omp parallel for schedule(static)
-    for (long i = 0; i < nn; i++) {
+    float a = lr / bc1, ib2 = 1.0f / bc2;
+#pragma omp simd
+    for (long i = 0; i < n; i++) {
         float gi = g[i];
         float mi = ADAM_B1 * m[i] + (1 - ADAM_B1) * gi;
         float vi = ADAM_B2 * v[i] + (1 - ADAM_B2) * gi * gi;
         m[i] = mi;
         v[i] = vi;
-        p[i] -= lr * (mi / bc1) / (sqrtf(vi / bc2) + ADAM_EPS);
+        p[i] -= a * mi / (sqrtf(vi * ib2) + ADAM_EPS);
+    }
+}
+
+static void adam_update(float *p, const float *g, float *m, float *v, size_t n, float lr, float bc1, float bc2)
+{
+    if (lr == 0 || n == 0) return;
+    const long block = 16384;
+    long nb = ((long)n + block - 1) / block;
+#pragma omp parallel for schedule(static)
+    for (long b = 0; b < nb; b++) {
+        long o = b * block, len = (long)n - o < block ? (long)n - o : block;
+        adam_span(p + o, g + o, m + o, v + o, len, lr, bc1, bc2);
     }
 }
 
@@ -260,20 +273,18 @@ static void adam_gaussians(train_session *s, float stage_u)
                 bc2);
     adam_update(s->g.quats, s->gg.quats, s->m.quats, s->v.quats, n * 4, s->cfg.lr_quats, bc1, bc2);
     adam_update(s->g.opacity, s->gg.opacity, s->m.opacity, s->v.opacity, n, s->cfg.lr_opacity, bc1, bc2);
-    /* SH: DC (first 3 floats of each row) and the rest have their own rates */
+    /* SH: the DC (first 3 floats of each row) and the rest have their own rates; the degree only
+     * grows, so coefficients above it have always had zero gradient and moments: skipping them
+     * is exact */
+    int deg = s->g.sh_degree, used = (deg + 1) * (deg + 1) * 3;
     long nn = (long)n;
+    float lr_dc = s->cfg.lr_sh_dc, lr_rest = s->cfg.lr_sh_rest;
 #pragma omp parallel for schedule(static)
     for (long i = 0; i < nn; i++) {
         size_t o = (size_t)i * PG_SH_COEFFS * 3;
-        for (int k = 0; k < PG_SH_COEFFS * 3; k++) {
-            float lr = k < 3 ? s->cfg.lr_sh_dc : s->cfg.lr_sh_rest;
-            float gi = s->gg.sh[o + k];
-            float mi = ADAM_B1 * s->m.sh[o + k] + (1 - ADAM_B1) * gi;
-            float vi = ADAM_B2 * s->v.sh[o + k] + (1 - ADAM_B2) * gi * gi;
-            s->m.sh[o + k] = mi;
-            s->v.sh[o + k] = vi;
-            s->g.sh[o + k] -= lr * (mi / bc1) / (sqrtf(vi / bc2) + ADAM_EPS);
-        }
+        adam_span(s->g.sh + o, s->gg.sh + o, s->m.sh + o, s->v.sh + o, 3, lr_dc, bc1, bc2);
+        int rest = used - 3;
+        if (rest > 0) adam_span(s->g.sh + o + 3, s->gg.sh + o + 3, s->m.sh + o + 3, s->v.sh + o + 3, rest, lr_rest, bc1, bc2);
     }
 }
 
@@ -523,14 +534,16 @@ pg_status train_session_step(train_session *s)
     if (s->fine) {
         train_net_zero_grad(s->net);
         if (nd > 0) PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, &s->dg, &s->gg));
+        double tr = pg_time_seconds();
         loss += train_net_regularize(s->net, c->reg_tv, c->reg_time, c->reg_l1);
+        s->timing.regularize = (pg_time_seconds() - tr) * 1e3;
         int fine_len = c->iters - c->coarse_iters;
         stage_u = fine_len > 0 ? (float)(s->iter - c->coarse_iters) / (float)fine_len : 1.0f;
     } else {
         stage_u = c->coarse_iters > 0 ? (float)s->iter / (float)c->coarse_iters : 1.0f;
     }
     t1 = pg_time_seconds();
-    s->timing.deform_backward = (t1 - t0) * 1e3;
+    s->timing.deform_backward = (t1 - t0) * 1e3 - s->timing.regularize;
     t0 = t1;
 
     adam_gaussians(s, stage_u);

@@ -76,7 +76,7 @@ void train_session_last(const train_session *s, double *loss, double *real_psnr)
 
 /* Per-phase timings of the last step in milliseconds (bench iteration). */
 typedef struct {
-    double deform_forward, deform_backward, raster_forward, raster_backward, loss, optimizer, other;
+    double deform_forward, deform_backward, regularize, raster_forward, raster_backward, loss, optimizer, other;
     int deformed; /* Gaussians sent through the network */
 } train_timing;
 void train_session_timing(const train_session *s, train_timing *t);
