@@ -10,6 +10,7 @@
 #include "io/depth_io.h"
 
 #include <stdio.h>
+#include <stdlib.h>
 
 int main(void)
 {
@@ -21,7 +22,10 @@ int main(void)
     pg_set_threads(2);
     pg_dataset *ds = NULL;
     io_dataset_options dopt = io_dataset_defaults();
-    dopt.count = 20; /* the first 20 of 40 frames keep this under a minute on a shared machine */
+    /* The first 20 of 40 frames keep this under a minute on a shared machine; set
+     * PG_TABLETOP_FRAMES=40 for the full figures in docs/depth.md. */
+    const char *env = getenv("PG_TABLETOP_FRAMES");
+    dopt.count = env && atoi(env) > 0 ? atoi(env) : 20;
     CHECK_OK(io_dataset_open(dir, &dopt, &ds));
     if (!ds) return test_summary("heavy_depth_tabletop");
     const int F = io_dataset_num_frames(ds), W = io_dataset_width(ds), H = io_dataset_height(ds);
@@ -81,7 +85,7 @@ int main(void)
         printf("tabletop refine band MAE %.4f -> %.4f (%+.1f %%), elsewhere %.4f -> %.4f (%+.2f %%)\n", ba, bb,
                100 * (bb / ba - 1), ea, eb, 100 * (eb / ea - 1));
         /* The issue asks 20 % on the sample scene; tabletop_dev is harder (white and yellow objects
-         * on a white/yellow striped table, curved silhouettes): we reach about 18-21 % there. */
+         * on a white/yellow striped table, curved silhouettes): we reach about 20-22 % there. */
         CHECK(bb <= 0.85 * ba, "band error %.4f -> %.4f", ba, bb);
         CHECK(eb <= 1.02 * ea, "elsewhere %.4f -> %.4f", ea, eb);
         free(ref);

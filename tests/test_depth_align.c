@@ -46,7 +46,7 @@ static void test_fit(void)
 static void test_prepare_scene(void)
 {
     test_scene sc;
-    const int W = 160, H = 120, F = 12;
+    const int W = 160, H = 120, F = 8;
     CHECK(test_scene_make(&sc, W, H, F, 9) == 0, "scene");
     const size_t n = (size_t)W * H;
     depth_prepare_options opt;
@@ -148,6 +148,7 @@ static void test_fallbacks(void)
     depth_prepare_result_destroy(&res);
     for (size_t k = 0; k < n * F; k++) d[k] = NAN;
     CHECK(depth_prepare_run(&opt, sc.rgb, F, d, &res) == PG_ERR_ARG, "all-NaN input accepted");
+    CHECK(strstr(pg_last_error(), "valid depth") != NULL, "message: %s", pg_last_error());
     CHECK(res.depth == NULL, "result not cleared on failure");
     pg_image small;
     CHECK_OK(pg_image_create(&small, 32, 24, 3));
@@ -155,6 +156,37 @@ static void test_fallbacks(void)
     CHECK(depth_prepare_run(&opt, two, 2, sc.depth_mono, &res) == PG_ERR_SIZE, "frame size mismatch accepted");
     pg_image_destroy(&small);
     free(d);
+    test_scene_destroy(&sc);
+
+    /* A tiny image (below the pyramid's minimum side, fewer pixels than the fit needs). */
+    CHECK(test_scene_make(&sc, 6, 5, 3, 1) == 0, "tiny scene");
+    CHECK_OK(depth_prepare_run(&opt, sc.rgb, 3, sc.depth_mono, &res));
+    if (res.info) CHECK(res.info[1].fallback == DEPTH_FALLBACK_IDENTITY && res.info[1].alpha == 1.0, "tiny: fallback %d",
+                        res.info[1].fallback);
+    depth_prepare_result_destroy(&res);
+    test_scene_destroy(&sc);
+}
+
+/* Same bytes for 1 and 2 threads (frames run in parallel, each single-threaded inside). */
+static void test_determinism(void)
+{
+    test_scene sc;
+    const int W = 96, H = 72, F = 4;
+    CHECK(test_scene_make(&sc, W, H, F, 4) == 0, "scene");
+    const size_t n = (size_t)W * H;
+    depth_prepare_options opt;
+    depth_prepare_defaults(&opt);
+    depth_prepare_result a, b;
+    pg_set_threads(1);
+    CHECK_OK(depth_prepare_run(&opt, sc.rgb, F, sc.depth_mono, &a));
+    pg_set_threads(2);
+    CHECK_OK(depth_prepare_run(&opt, sc.rgb, F, sc.depth_mono, &b));
+    if (a.depth && b.depth) {
+        CHECK(memcmp(a.depth, b.depth, sizeof(float) * n * F) == 0, "depth differs between 1 and 2 threads");
+        CHECK(memcmp(a.static_masks, b.static_masks, n * F) == 0, "masks differ between 1 and 2 threads");
+    }
+    depth_prepare_result_destroy(&a);
+    depth_prepare_result_destroy(&b);
     test_scene_destroy(&sc);
 }
 
@@ -164,5 +196,6 @@ int main(void)
     test_fit();
     test_prepare_scene();
     test_fallbacks();
+    test_determinism();
     return test_summary("test_depth_align");
 }

@@ -5,6 +5,7 @@
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "depth/flow.h"
+#include "depth/plane.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -133,6 +134,18 @@ int main(void)
     CHECK_OK(depth_flow_compute(&be, &i0, &i1, flow));
     CHECK_OK(depth_flow_compute(&be, &i0, &i1, back));
     CHECK(memcmp(flow, back, sizeof(float) * W * H * 2) == 0, "flow not deterministic");
+
+    /* The median-of-9 network equals the sorting reference (also with ties). */
+    {
+        pg_rng rng;
+        pg_rng_seed(&rng, 3);
+        const int mw = 37, mh = 23;
+        float a[37 * 23], m1[37 * 23], m2[37 * 23];
+        for (int k = 0; k < mw * mh; k++) a[k] = (float)pg_rng_below(&rng, 6) + (k % 5 == 0 ? 0.5f : 0.0f);
+        depth_plane_median3(a, mw, mh, m1);
+        depth_plane_median3_ref(a, mw, mh, m2);
+        CHECK(memcmp(m1, m2, sizeof m1) == 0, "median network differs from the sorting reference");
+    }
 
     /* Size mismatch is an error, not a crash. */
     pg_image small;

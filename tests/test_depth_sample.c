@@ -110,6 +110,8 @@ int main(void)
     CHECK(pg_path_exists(path), "missing %s", path);
     snprintf(path, sizeof path, "%s/prepare.json", out);
     CHECK(pg_path_exists(path), "missing %s", path);
+    snprintf(path, sizeof path, "%s/dynamic_prob.npy", out);
+    CHECK(pg_path_exists(path), "missing %s", path);
 
     /* Bad input through the CLI. */
     if (mono.data) {

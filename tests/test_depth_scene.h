@@ -135,7 +135,7 @@ static inline int test_scene_make(test_scene *sc, int W, int H, int F, unsigned 
         }
         float s = 1.3f * (1.0f + 0.06f * sinf(2.0f * (float)M_PI * 1.5f * t / F + 0.3f) + 0.02f * (float)pg_rng_normal(&rng));
         if (t < 64) sc->scale[t] = s;
-        plane_gaussian_blur(sc->depth_gt + t * n, W, H, 1.2f, tmp, tmp + n);
+        depth_plane_gaussian_blur(sc->depth_gt + t * n, W, H, 1.2f, tmp, tmp + n);
         for (int y = 0; y < H; y++)
             for (int x = 0; x < W; x++) {
                 size_t k = (size_t)y * W + x;
@@ -205,7 +205,7 @@ static inline void scene_band_errors(const float *unrefined, const float *refine
                 if (x + 1 < W && fabsf(logf(g[k]) - logf(g[k + 1])) > 0.05f) edge[k] = edge[k + 1] = 1;
                 if (y + 1 < H && fabsf(logf(g[k]) - logf(g[k + W])) > 0.05f) edge[k] = edge[k + W] = 1;
             }
-        mask_dilate(edge, W, H, 3, band);
+        depth_mask_dilate(edge, W, H, 3, band);
         for (size_t k = 0; k < n; k++) {
             if (!(u[k] > 0) || !(r[k] > 0) || !(g[k] > 0)) continue;
             double ea = fabs(ar.alpha * u[k] + ar.beta - g[k]), eb = fabs(ar.alpha * r[k] + ar.beta - g[k]);

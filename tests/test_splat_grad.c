@@ -6,6 +6,7 @@
  * gradient is ~0 compared with their siblings are not judged on float round-off alone.
  * Tolerance 1e-3 as required for smooth functions (test data avoids the 0.99 alpha clamp,
  * the early-stop threshold and the 1/255 cut by construction or by being far from them).
+ * The rasterizer is checked with a loss on each output (rgb, depth, alpha) separately.
  */
 #include "testlib.h"
 #include "splat_ref.h"
@@ -21,7 +22,7 @@
 static double rel(double a, double b, double floor)
 {
     double m = fmax(fmax(fabs(a), fabs(b)), floor);
-    return fabs(a - b) / m;
+    return m > 0 ? fabs(a - b) / m : 0.0; /* both exactly zero (e.g. colour under a depth loss) */
 }
 
 static void camera_for_test(pg_camera *cam, int w, int h, int rotated)
@@ -92,6 +93,66 @@ static void test_projection(void)
     CHECK(worst[2] < 1e-3, "quaternion gradient rel err %g", worst[2]);
 }
 
+/* The 16-wide projection forward/backward (AVX-512 builds) against the scalar functions,
+ * which the test above checks against finite differences. */
+static void test_projection16(void)
+{
+    pg_rng rng;
+    pg_rng_seed(&rng, 21);
+    pg_camera cam;
+    camera_for_test(&cam, 64, 48, 1);
+    const int n = 64;
+    float means[3 * 64], ls[3 * 64], q[4 * 64];
+    for (int i = 0; i < n; i++) {
+        float spread = i % 5 == 4 ? 8.0f : 1.0f; /* some outside the 1.3x frustum: clamp path */
+        means[3*i] = (float)pg_rng_range(&rng, -spread, spread);
+        means[3*i+1] = (float)pg_rng_range(&rng, -spread, spread);
+        means[3*i+2] = (float)pg_rng_range(&rng, i % 7 == 6 ? -1 : 2, 6); /* some behind the camera */
+        for (int k = 0; k < 3; k++) ls[3*i+k] = (float)pg_rng_range(&rng, -3, -1);
+        for (int k = 0; k < 4; k++) q[4*i+k] = (float)pg_rng_normal(&rng);
+    }
+    float lim[4];
+    splat_project_limits(&cam, lim);
+    float out[9][16], dxy[2][16], dcon[3][16], dz[16];
+    unsigned valid;
+    if (!splat_project_forward16(means, ls, q, 0, &cam, lim, 0.01f, out, &valid)) {
+        printf("projection16: not compiled in (no AVX-512), skipped\n");
+        return;
+    }
+    double ef = 0, eb = 0;
+    float gm[3 * 64] = { 0 }, gs[3 * 64] = { 0 }, gq[4 * 64] = { 0 };
+    float hm[3 * 64] = { 0 }, hs[3 * 64] = { 0 }, hq[4 * 64] = { 0 };
+    int kept = 0;
+    for (int b = 0; b < n; b += 16) {
+        splat_project_forward16(means, ls, q, b, &cam, lim, 0.01f, out, &valid);
+        for (int l = 0; l < 16; l++) {
+            int i = b + l;
+            splat_proj p;
+            int ok = splat_project_forward_lim(means + 3*i, ls + 3*i, q + 4*i, &cam, lim, 0.01f, &p);
+            CHECK(ok == (int)(valid >> l & 1), "Gaussian %d kept by one projection only", i);
+            for (int k = 0; k < 2; k++) dxy[k][l] = (float)pg_rng_normal(&rng);
+            for (int k = 0; k < 3; k++) dcon[k][l] = (float)pg_rng_normal(&rng);
+            dz[l] = (float)pg_rng_normal(&rng);
+            if (!ok) continue;
+            kept++;
+            float v[9] = { p.xy[0], p.xy[1], p.z, p.cov2d[0], p.cov2d[1], p.cov2d[2], p.conic[0], p.conic[1], p.conic[2] };
+            for (int k = 0; k < 9; k++) ef = fmax(ef, rel(v[k], out[k][l], 1e-6));
+            float d1[2] = { dxy[0][l], dxy[1][l] }, d2[3] = { dcon[0][l], dcon[1][l], dcon[2][l] };
+            splat_project_backward_lim(means + 3*i, ls + 3*i, q + 4*i, &cam, lim, d1, d2, dz[l], hm + 3*i, hs + 3*i, hq + 4*i);
+        }
+        splat_project_backward16(means, ls, q, b, &cam, lim, dxy, dcon, dz, valid, gm, gs, gq);
+    }
+    double scale[3] = { 1e-9, 1e-9, 1e-9 };
+    for (int i = 0; i < 3 * n; i++) { scale[0] = fmax(scale[0], fabs(hm[i])); scale[1] = fmax(scale[1], fabs(hs[i])); }
+    for (int i = 0; i < 4 * n; i++) scale[2] = fmax(scale[2], fabs(hq[i]));
+    for (int i = 0; i < 3 * n; i++) { eb = fmax(eb, rel(gm[i], hm[i], 1e-3 * scale[0])); eb = fmax(eb, rel(gs[i], hs[i], 1e-3 * scale[1])); }
+    for (int i = 0; i < 4 * n; i++) eb = fmax(eb, rel(gq[i], hq[i], 1e-3 * scale[2]));
+    printf("projection16 vs scalar (%d of %d kept): forward %.2e, backward %.2e\n", kept, n, ef, eb);
+    CHECK(kept > 20 && kept < n, "test data should keep some and cull some (%d)", kept);
+    CHECK(ef < 1e-4, "16-wide projection differs by %g", ef);
+    CHECK(eb < 1e-3, "16-wide projection backward differs by %g", eb);
+}
+
 /* SH: every degree, loss = w . rgb, gradient to the coefficients and the view direction. */
 static void test_sh(void)
 {
@@ -155,11 +216,14 @@ static void make_scene(pg_gaussians *g, int n, pg_rng *rng)
     g->sh_degree = 3;
 }
 
-static void test_raster(void)
+/* output: 0 = rgb, 1 = depth, 2 = alpha; the loss is a random weighting of that output only,
+ * and the float backward gets NULL for the other two (as a caller would pass). */
+static void test_raster(int output)
 {
+    static const char *outname[3] = { "rgb", "depth", "alpha" };
     pg_rng rng;
     pg_rng_seed(&rng, 3);
-    const int n = 8, W = 40, H = 36; /* 3 x 3 tiles, partial edge tiles */
+    const int n = 6, W = 40, H = 24; /* 3 x 2 tiles, partial edge tiles */
     pg_gaussians g, grads[2];
     make_scene(&g, n, &rng);
     pg_camera cam;
@@ -168,8 +232,11 @@ static void test_raster(void)
     s.background[0] = 0.2f; s.background[1] = 0.5f; s.background[2] = 0.9f;
     size_t P = (size_t)W * H;
     float *wr = malloc(P * 3 * sizeof(float)), *wd = malloc(P * sizeof(float)), *wa = malloc(P * sizeof(float));
-    for (size_t i = 0; i < 3 * P; i++) wr[i] = (float)pg_rng_normal(&rng);
-    for (size_t i = 0; i < P; i++) { wd[i] = (float)(0.2 * pg_rng_normal(&rng)); wa[i] = (float)pg_rng_normal(&rng); }
+    for (size_t i = 0; i < 3 * P; i++) wr[i] = output == 0 ? (float)pg_rng_normal(&rng) : 0.0f;
+    for (size_t i = 0; i < P; i++) {
+        wd[i] = output == 1 ? (float)pg_rng_normal(&rng) : 0.0f;
+        wa[i] = output == 2 ? (float)pg_rng_normal(&rng) : 0.0f;
+    }
 
     splat_raster *r;
     CHECK_OK(splat_raster_create(&r));
@@ -180,7 +247,8 @@ static void test_raster(void)
         splat_gaussians_resize(&grads[simd], n);
         splat_raster_set_simd(r, simd);
         CHECK_OK(splat_render_forward(r, &g, &cam, &s, &out));
-        CHECK_OK(splat_render_backward(r, &g, &cam, &s, wr, wd, wa, &grads[simd], vs));
+        CHECK_OK(splat_render_backward(r, &g, &cam, &s, output == 0 ? wr : NULL, output == 1 ? wd : NULL,
+                                       output == 2 ? wa : NULL, &grads[simd], vs));
     }
 
     double *params = malloc(sizeof(double) * REF_NP * n);
@@ -197,8 +265,9 @@ static void test_raster(void)
     }
     double cover = 0;
     for (size_t i = 0; i < P; i++) cover += out.alpha[i];
-    printf("raster forward (%s) vs double reference: max abs err %.2e, mean alpha %.3f\n",
-           splat_raster_simd_name(r), fwd_err, cover / P);
+    if (output == 0)
+        printf("raster forward (%s) vs double reference: max abs err %.2e, mean alpha %.3f\n",
+               splat_raster_simd_name(r), fwd_err, cover / P);
     CHECK(fwd_err < 1e-4, "forward differs from the double reference by %g", fwd_err);
     CHECK(cover / P > 0.15, "test scene covers too little (mean alpha %g)", cover / P);
 
@@ -234,9 +303,11 @@ static void test_raster(void)
                 if (e > 1e-3) fprintf(stderr, "raster gaussian %d param %d (%s): analytic %.8g fd %.8g\n", i, k, names[kind], a, b);
                 worst[kind] = fmax(worst[kind], e);
             }
-        printf("raster FD (%s kernels): worst rel err mean %.2e log_scale %.2e quat %.2e opacity %.2e sh %.2e\n",
-               simd ? "SIMD" : "scalar", worst[0], worst[1], worst[2], worst[3], worst[4]);
-        for (int k = 0; k < 5; k++) CHECK(worst[k] < 1e-3, "raster %s gradient rel err %g (simd %d)", names[k], worst[k], simd);
+        printf("raster FD, loss on %s (%s kernels): worst rel err mean %.2e log_scale %.2e quat %.2e opacity %.2e sh %.2e\n",
+               outname[output], simd ? "SIMD" : "scalar", worst[0], worst[1], worst[2], worst[3], worst[4]);
+        for (int k = 0; k < 5; k++)
+            CHECK(worst[k] < 1e-3, "raster %s gradient rel err %g (loss on %s, simd %d)", names[k], worst[k],
+                  outname[output], simd);
     }
     double vs_sum = 0;
     for (int i = 0; i < n; i++) vs_sum += vs[i];
@@ -252,7 +323,8 @@ static void test_raster(void)
 int main(void)
 {
     test_projection();
+    test_projection16();
     test_sh();
-    test_raster();
+    for (int output = 0; output < 3; output++) test_raster(output);
     return test_summary("test_splat_grad");
 }

@@ -72,6 +72,14 @@ static void test_simd_and_determinism(void)
     pg_gaussians g;
     CHECK_OK(splat_gaussians_create(&g, N));
     CHECK_OK(splat_random_scene(&g, &cam, N, 3.0f, 3, 17));
+    /* some nearly opaque Gaussians: exercises the 0.99 alpha clamp and early termination */
+    for (int i = 0; i < N; i += 7) g.opacity[i] = 6.0f;
+    /* some anisotropic, rotated ones */
+    for (int i = 3; i < N; i += 5) {
+        g.log_scales[3*i] += 0.7f;
+        g.log_scales[3*i+2] -= 0.5f;
+        g.quats[4*i+1] = 0.4f; g.quats[4*i+3] = -0.3f;
+    }
     pg_rng rng;
     pg_rng_seed(&rng, 4);
     float *d_rgb = malloc(P * 3 * sizeof(float)), *d_depth = malloc(P * sizeof(float)), *d_alpha = malloc(P * sizeof(float));

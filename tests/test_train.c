@@ -42,6 +42,7 @@ static train_config small_config(void)
     c.deform_width = 32;
     c.deform_channels = 8;
     c.seed = 3;
+    c.static_check_every = 8;
     return c;
 }
 
@@ -59,6 +60,16 @@ int main(void)
     CHECK(train_set_count_role(&ts, TRAIN_ROLE_PROXY) == 3, "proxies");
     CHECK(ts.views[1].mask && ts.views[1].mask[0] == 0 && ts.views[1].mask[63] == 1, "proxy mask loaded");
     CHECK(ts.views[0].depth && ts.views[0].depth[64 * 24 + 32] > 3, "depth loaded");
+
+    {
+        train_set t2;
+        CHECK_OK(train_set_load(data, &t2));
+        train_set_limit_proxies(&t2, 2);
+        CHECK(t2.num_views == 4 && train_set_count_role(&t2, TRAIN_ROLE_PROXY) == 2 &&
+                  strcmp(t2.views[1].name, "proxy01") == 0 && strcmp(t2.views[2].name, "proxy02") == 0,
+              "limit proxies: %d views", t2.num_views);
+        train_set_destroy(&t2);
+    }
 
     /* uninterrupted run */
     train_config cfg = small_config();
@@ -131,10 +142,11 @@ int main(void)
     train_set_destroy(&ts);
 
     /* CLI: kill via PG_TEST_STOP_AT_ITER, resume, same bytes as one run */
-    const char *opts = "--iters 30 --coarse-iters 10 --checkpoint-every 10 --init-points 1500 --threads 2 --seed 5";
+    const char *opts = "--iters 24 --coarse-iters 8 --checkpoint-every 8 --init-points 1500 --threads 2 --seed 5 "
+                       "--deform-res 8 --deform-width 32";
     snprintf(cmd, sizeof cmd, "train '%s' --out '%s/m1' %s", data, dir, opts);
     CHECK(test_run_cli(cmd, err, sizeof err) == 0, "train CLI: %s", err);
-    setenv("PG_TEST_STOP_AT_ITER", "17", 1);
+    setenv("PG_TEST_STOP_AT_ITER", "19", 1);
     snprintf(cmd, sizeof cmd, "train '%s' --out '%s/m2' %s", data, dir, opts);
     CHECK(test_run_cli(cmd, err, sizeof err) == 0, "train CLI stop: %s", err);
     unsetenv("PG_TEST_STOP_AT_ITER");

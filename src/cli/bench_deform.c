@@ -36,10 +36,10 @@ int bench_deform(int argc, char **argv)
         { "--points", CLI_INT, &points, "number of points (default 100000)" },
         { "--threads", CLI_INT, &threads, "threads (default 1)" },
         { "--reps", CLI_INT, &reps, "timed repetitions (default 5)" },
-        { "--chunk", CLI_INT, &chunk, "points per chunk (default 256)" },
+        { "--chunk", CLI_INT, &chunk, "points per chunk (default 128 with AMX, else 256)" },
         { "--store", CLI_INT, &store, "1: keep activations for the backward, 0: recompute (default 1)" },
         { "--sorted", CLI_INT, &sorted, "1: points ordered along x (spatially coherent), 0: random (default)" },
-        { "--bf16", CLI_INT, &cfg.bf16, "1: hidden layers in bf16 on AMX (if available), 0: f32 (default)" },
+        { "--bf16", CLI_INT, &cfg.bf16, "1: Linear layers in bf16 on AMX if available (default), 0: f32" },
         { "--channels", CLI_INT, &cfg.channels, "plane channels C (default 16)" },
         { "--res", CLI_INT, &cfg.res_space, "spatial resolution R (default 64)" },
         { "--res-time", CLI_INT, &cfg.res_time, "time resolution T (default 150)" },
@@ -103,7 +103,7 @@ int bench_deform(int argc, char **argv)
                "\"forward_cpu_ms\":%.2f,\"backward_cpu_ms\":%.2f,\"regularize_ms\":%.2f,"
                "\"params\":%zu,\"channels\":%d,\"res\":%d,\"res_time\":%d,\"width\":%d,\"chunk\":%d,\"store\":%d,\"sorted\":%d,\"amx\":%d}\n",
                points, threads, tf[reps / 2], tb[reps / 2], tf[0], tb[0], cpu_f, cpu_b, reg_ms, net->num_params, cfg.channels, cfg.res_space,
-               cfg.res_time, cfg.width, chunk ? chunk : 256, store, sorted, deform_ws_uses_amx(ws));
+               cfg.res_time, cfg.width, deform_ws_chunk(ws), store, sorted, deform_ws_uses_amx(ws));
     }
     free(means); free(out); free(dout); free(dmeans); free(tf); free(tb);
     deform_ws_destroy(ws);

@@ -68,7 +68,7 @@ int bench_iteration(int argc, char **argv)
     pg_gaussians g = {0};
     uint8_t *flags = NULL;
     train_session *s = NULL;
-    double *t[8] = {0};
+    double *t[9] = {0};
     if (st) goto done;
     size_t px = (size_t)width * height;
     for (int f = 0; f < ts.frames; f++)
@@ -116,7 +116,7 @@ int bench_iteration(int argc, char **argv)
     g.sh_degree = 3;
     if ((st = train_session_set_gaussians(s, &g, flags))) goto done;
     if ((st = train_session_force_fine(s))) goto done;
-    for (int k = 0; k < 8; k++) {
+    for (int k = 0; k < 9; k++) {
         t[k] = calloc((size_t)reps, sizeof(double));
         if (!t[k]) {
             st = pg_fail(PG_ERR_NOMEM, "bench: out of memory");
@@ -139,17 +139,18 @@ int bench_iteration(int argc, char **argv)
         t[5][r] = tm.loss;
         t[6][r] = tm.optimizer;
         t[7][r] = tm.other;
+        t[8][r] = tm.regularize;
         deformed = tm.deformed;
     }
     printf("{\"ms_per_iteration\": %.2f, \"deform_forward\": %.2f, \"deform_backward\": %.2f, "
-           "\"raster_forward\": %.2f, \"raster_backward\": %.2f, \"loss\": %.2f, \"optimizer\": %.2f, "
+           "\"regularize\": %.2f, \"raster_forward\": %.2f, \"raster_backward\": %.2f, \"loss\": %.2f, \"optimizer\": %.2f, "
            "\"other\": %.2f, \"deformed\": %d, \"gaussians\": %d, \"width\": %d, \"height\": %d, \"threads\": %d, "
            "\"static_fraction\": %.2f, \"cull\": %s}\n",
-           median(t[0], reps), median(t[1], reps), median(t[2], reps), median(t[3], reps), median(t[4], reps),
+           median(t[0], reps), median(t[1], reps), median(t[2], reps), median(t[8], reps), median(t[3], reps), median(t[4], reps),
            median(t[5], reps), median(t[6], reps), median(t[7], reps), deformed, n, width, height, threads,
            static_fraction, no_cull ? "false" : "true");
 done:
-    for (int k = 0; k < 8; k++) free(t[k]);
+    for (int k = 0; k < 9; k++) free(t[k]);
     free(flags);
     splat_gaussians_destroy(&g);
     train_session_destroy(s);

@@ -43,7 +43,7 @@ int cmd_prepare(int argc, char **argv)
         { "--size", CLI_STR, &size, "resize frames and depth to WxH (0 for one side keeps the aspect)" },
         { "--train-cam", CLI_STR, &train_cam, "dataset camera to use (default: the first, e.g. cam00)" },
         { "--threads", CLI_INT, &threads, "worker threads (default: all cores)" },
-        { "--no-flow-vis", CLI_FLAG, &no_vis_flow, "do not keep flow fields for vis/flow_*.png (saves memory)" },
+        { "--no-flow-vis", CLI_FLAG, &no_vis_flow, "do not keep flow fields for vis/flow_*.png (saves memory; automatic above 1 GiB)" },
     };
     const cli_spec spec = { "prodygs prepare", "INPUT --depth PATH --out DIR [options]",
                             "refine per-frame depth at colour edges, find static pixels, align depth scale over time",
@@ -72,7 +72,7 @@ int cmd_prepare(int argc, char **argv)
     if (no_refine) popt.refine = DEPTH_REFINE_NONE;
     popt.align = !no_align;
     popt.keep_flow = !no_vis_flow;
-    pg_set_threads(threads);
+    if (threads > 0) pg_set_threads(threads); /* else keep what the caller (e.g. `prodygs run`) set */
 
     pg_status st;
     pg_dataset *ds = NULL;
@@ -108,6 +108,8 @@ int cmd_prepare(int argc, char **argv)
         o.expect_frames = F;
         st = io_depth_load(depth_path, &o, &depth);
     }
+    /* Flow fields are kept only for the pictures; skip them when they would be large. */
+    if (popt.keep_flow && (double)F * W * H * 2 * sizeof(float) > 1024.0 * 1024 * 1024) popt.keep_flow = 0;
     if (!st) st = depth_prepare_run(&popt, frames, F, depth.data, &res);
     if (!st) {
         cJSON *src = cJSON_CreateObject();

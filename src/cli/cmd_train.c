@@ -44,6 +44,7 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
     cJSON_AddNumberToObject(root, "fps", ts->fps);
     cJSON_AddNumberToObject(root, "iterations", train_session_iteration(s));
     cJSON_AddNumberToObject(root, "gaussians", train_session_gaussians(s));
+    cJSON_AddNumberToObject(root, "static_gaussians", train_session_static_count(s));
     cJSON_AddNumberToObject(root, "seed", (double)cfg->seed);
     cJSON_AddNumberToObject(root, "coarse_iters", cfg->coarse_iters);
     if (test_psnr > 0) cJSON_AddNumberToObject(root, "test_psnr", test_psnr);
@@ -64,7 +65,7 @@ int cmd_train(int argc, char **argv)
     const char *out = NULL, *real_cams = NULL, *test_cams = NULL, *depth = NULL;
     int iters = 3000, coarse = -1, resume = 0, threads = 2, seed = 1, max_g = 200000, ck_every = 500;
     int init_points = 30000, frames = 0, width = 0, no_static = 0, no_cull = 0, sh = 3, real_every = 3;
-    int eval_train = 0;
+    int eval_train = 0, proxies = -1, deform_res = 0, deform_width = 0, static_check = 0;
     float lambda_depth = -1, lambda_dssim = -1;
     cli_option opts[] = {
         {"--out", CLI_STR, &out, "model directory to write (model.ckpt, train.json)"},
@@ -76,6 +77,7 @@ int cmd_train(int argc, char **argv)
         {"--max-gaussians", CLI_INT, &max_g, "cap on the number of Gaussians (200000)"},
         {"--init-points", CLI_INT, &init_points, "Gaussians after voxel downsampling of the depth (30000)"},
         {"--checkpoint-every", CLI_INT, &ck_every, "write a checkpoint every K iterations (500, 0 = end only)"},
+        {"--proxies", CLI_INT, &proxies, "training set: use N of the proxy views, evenly spaced (-1 = all)"},
         {"--real-cams", CLI_STR, &real_cams, "DyNeRF input: 'all' or a list like 0,1,2 of training cameras"},
         {"--test-cams", CLI_STR, &test_cams, "DyNeRF input: held-out cameras, e.g. 5,6"},
         {"--depth", CLI_STR, &depth, "DyNeRF input: depth .npy (F,H,W) of the first training camera"},
@@ -85,6 +87,9 @@ int cmd_train(int argc, char **argv)
         {"--real-every", CLI_INT, &real_every, "a real view at least every k iterations (3)"},
         {"--lambda-depth", CLI_FLOAT, &lambda_depth, "weight of the SSI depth loss (0.05)"},
         {"--lambda-dssim", CLI_FLOAT, &lambda_dssim, "weight of D-SSIM (0.2)"},
+        {"--deform-res", CLI_INT, &deform_res, "HexPlane spatial resolution of the coarse scale (64)"},
+        {"--deform-width", CLI_INT, &deform_width, "deformation MLP width (128)"},
+        {"--static-check-every", CLI_INT, &static_check, "learn static flags every K fine iterations (0 = off)"},
         {"--no-static", CLI_FLAG, &no_static, "send every Gaussian through the network"},
         {"--no-cull", CLI_FLAG, &no_cull, "no frustum culling before the network"},
         {"--eval-train", CLI_FLAG, &eval_train, "also report PSNR over all frames of the real views"},
@@ -103,6 +108,8 @@ int cmd_train(int argc, char **argv)
     if (max_g < 16) return cli_usage_error("train: --max-gaussians must be >= 16");
     if (threads < 1 || threads > 256) return cli_usage_error("train: --threads must be in 1..256");
     if (sh < 0 || sh > 3) return cli_usage_error("train: --sh-degree must be 0..3");
+    if (deform_res < 0 || deform_res > 1024 || deform_width < 0 || deform_width > 1024)
+        return cli_usage_error("train: --deform-res/--deform-width out of range");
     if (ck_every < 0) return cli_usage_error("train: --checkpoint-every must be >= 0");
     pg_set_threads(threads);
     cli_install_progress();
@@ -139,6 +146,7 @@ int cmd_train(int argc, char **argv)
                                "(poses_bounds.npy)", pos[0]);
     }
     if (st) return cli_fail(st);
+    train_set_limit_proxies(&ts, proxies);
 
     train_config cfg = train_default_config();
     cfg.iters = iters;
@@ -152,7 +160,11 @@ int cmd_train(int argc, char **argv)
     cfg.real_every = real_every;
     if (lambda_depth >= 0) cfg.lambda_depth = lambda_depth;
     if (lambda_dssim >= 0) cfg.lambda_dssim = lambda_dssim;
+    cfg.deform_res = deform_res;
+    cfg.deform_width = deform_width;
     cfg.use_static_flags = !no_static;
+    if (static_check < 0) return cli_usage_error("train: --static-check-every must be >= 0");
+    cfg.static_check_every = static_check;
     cfg.use_frustum_cull = !no_cull;
     const char *stop = getenv("PG_TEST_STOP_AT_ITER");
     if (stop) cfg.stop_at_iter = atoi(stop);
@@ -170,9 +182,9 @@ int cmd_train(int argc, char **argv)
         goto done;
     if (eval_train && (st = train_session_evaluate(s, TRAIN_ROLE_REAL, &train_psnr))) goto done;
     if ((st = write_summary(summary, &ts, &cfg, s, test_psnr, train_psnr, pg_time_seconds() - t0, source))) goto done;
-    printf("{\"iterations\": %d, \"gaussians\": %d, \"test_psnr\": %.3f, \"train_real_psnr\": %.3f, "
+    printf("{\"iterations\": %d, \"gaussians\": %d, \"static\": %d, \"test_psnr\": %.3f, \"train_real_psnr\": %.3f, "
            "\"seconds\": %.1f}\n",
-           train_session_iteration(s), train_session_gaussians(s), test_psnr, train_psnr, pg_time_seconds() - t0);
+           train_session_iteration(s), train_session_gaussians(s), train_session_static_count(s), test_psnr, train_psnr, pg_time_seconds() - t0);
 done:
     train_session_destroy(s);
     train_set_destroy(&ts);

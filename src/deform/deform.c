@@ -18,7 +18,9 @@ const int deform_head_offset[DEFORM_HEADS] = { DEFORM_OUT_POS, DEFORM_OUT_SCALE,
                                                DEFORM_OUT_SH };
 const int deform_head_dim[DEFORM_HEADS] = { 3, 3, 4, 1, 48 };
 
-#define DEFAULT_CHUNK 256
+#define DEFAULT_CHUNK 256     /* f32 BLAS path */
+#define DEFAULT_CHUNK_AMX 128 /* bf16 AMX path: measured ~5% faster than 256, 10% faster than 512 */
+#define HEX_PREFETCH_AHEAD 4 /* points */
 
 void deform_config_default(deform_config *c)
 {
@@ -33,6 +35,7 @@ void deform_config_default(deform_config *c)
     c->space_init_hi = 0.5f;
     c->head_init_scale = 0.0f;
     c->seed = 1;
+    c->bf16 = 1; /* used only where AMX exists; same fit quality in test_deform, ~2x faster */
 }
 
 pg_status deform_config_validate(const deform_config *c)
@@ -211,6 +214,7 @@ struct deform_ws {
 };
 
 int deform_ws_uses_amx(const deform_ws *ws) { return ws->amx; }
+int deform_ws_chunk(const deform_ws *ws) { return ws->chunk; }
 
 static size_t ws_scratch_floats(const deform_ws *ws)
 {
@@ -261,7 +265,7 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
 {
     *out = NULL;
     if (max_points < 0) return pg_fail(PG_ERR_ARG, "deform_ws_create: max_points %ld < 0", max_points);
-    if (chunk <= 0) chunk = DEFAULT_CHUNK;
+    if (chunk <= 0) chunk = net->cfg.bf16 && gemm_amx_available() ? DEFAULT_CHUNK_AMX : DEFAULT_CHUNK;
     deform_ws *ws = pg_calloc(1, sizeof(*ws), "deform workspace");
     if (!ws) return PG_ERR_NOMEM;
     ws->chunk = chunk;
@@ -421,8 +425,18 @@ static float *layer_out(const deform_ws *ws, float *acts, int l, int m)
 static void chunk_forward_hidden(const deform_network *net, deform_ws *ws, float *acts, long start, int m, int tid)
 {
     const int F = ws->F;
-    for (int i = 0; i < m; i++)
-        hex_sample_forward(acts + (size_t)i * F, &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
+    hex_point ring[HEX_PREFETCH_AHEAD + 1]; /* axes of points i .. i+AHEAD */
+    for (int i = 0; i < m && i < HEX_PREFETCH_AHEAD; i++)
+        hex_point_setup(&ring[i], &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
+    for (int i = 0; i < m; i++) {
+        int ahead = i + HEX_PREFETCH_AHEAD;
+        if (ahead < m) {
+            hex_point *hp = &ring[ahead % (HEX_PREFETCH_AHEAD + 1)];
+            hex_point_setup(hp, &net->grid, ws->means + 3 * point_row(ws, start + ahead), ws->t);
+            hex_prefetch_point(&net->grid, NULL, hp);
+        }
+        hex_sample_forward_point(acts + (size_t)i * F, &net->grid, &ring[i % (HEX_PREFETCH_AHEAD + 1)]);
+    }
     uint16_t *apack = (uint16_t *)(ws->scratch + (size_t)tid * ws->scratch_floats + ws->apack_off);
     for (int l = 0; l < net->num_layers; l++) {
         const deform_layer *L = &net->layers[l];
@@ -489,7 +503,7 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
     const int W = ws->W, W5 = DEFORM_HEADS * W, F = ws->F;
     long nchunks = (n + ws->chunk - 1) / ws->chunk;
     int nt = omp_get_max_threads();
-    if (nt > ws->nthreads) return pg_fail(PG_ERR_ARG, "deform_network_backward: thread count changed since forward");
+    if (nt > ws->nthreads) return pg_fail(PG_ERR_ARG, "deform_network_backward: more threads than the workspace was sized for at the forward");
     size_t mx = (size_t)(W > F ? W : F);
     int used_threads = 1;
     /* Parameter ranges a backward can write: spatial planes, the two time rows at t of each time
@@ -589,10 +603,21 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
                 dnext = dnext == dB ? dC : dB;
             }
             /* dcur = d features (m, F) */
+            hex_point ring[HEX_PREFETCH_AHEAD + 1];
+            for (int i = 0; i < m && i < HEX_PREFETCH_AHEAD; i++)
+                hex_point_setup(&ring[i], &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
             for (int i = 0; i < m; i++) {
+                int ahead = i + HEX_PREFETCH_AHEAD;
+                if (ahead < m) {
+                    long gn = point_row(ws, start + ahead);
+                    hex_point *hp = &ring[ahead % (HEX_PREFETCH_AHEAD + 1)];
+                    hex_point_setup(hp, &net->grid, ws->means + 3 * gn, ws->t);
+                    hex_prefetch_point(&net->grid, dplanes, hp);
+                    if (d_means) __builtin_prefetch(d_means + 3 * gn, 1, 3);
+                }
                 long gi = point_row(ws, start + i);
-                hex_sample_backward(dplanes, d_means ? d_means + 3 * gi : NULL, dcur + (size_t)i * F, &net->grid,
-                                    ws->means + 3 * gi, ws->t);
+                hex_sample_backward_point(dplanes, d_means ? d_means + 3 * gi : NULL, dcur + (size_t)i * F,
+                                          &net->grid, &ring[i % (HEX_PREFETCH_AHEAD + 1)]);
             }
         }
         if (ws->amx) /* this thread's transposed weight gradients -> its (out, in) gradient buffer */

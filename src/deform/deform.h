@@ -13,6 +13,7 @@
  * array (net->grads), so Adam runs over flat arrays. The planes come first:
  *     params[0, num_plane_params)            HexPlane planes (use the grid learning rate)
  *     params[num_plane_params, num_params)   MLP weights and biases (use the network learning rate)
+ * (planes and the total are padded to 16 floats for alignment; padding stays 0 with 0 gradient.)
  *
  *   deform_config cfg;
  *   deform_config_default(&cfg);
@@ -30,7 +31,9 @@
  * Threads: points are split into chunks; each OpenMP thread runs whole chunks (hexplane -> MLP ->
  * heads) with single-threaded BLAS calls (deform_ws_create sets OpenBLAS to 1 thread). Parameter
  * gradients go to per-thread buffers summed in thread order: results are identical for the same
- * inputs and thread count.
+ * inputs and thread count. Points are processed internally in Morton order (plane locality);
+ * outputs and gradients come back in the caller's order. By default the Linear layers run in bf16
+ * on Intel AMX where available (cfg.bf16, see below).
  */
 #ifndef PG_DEFORM_DEFORM_H
 #define PG_DEFORM_DEFORM_H
@@ -65,9 +68,10 @@ typedef struct {
     float space_init_hi;
     float head_init_scale; /* heads' last layers = scale * Xavier-uniform (default 0: identity) */
     uint64_t seed;         /* initialisation seed (default 1) */
-    int bf16;              /* 1: hidden Linear layers as bf16 GEMMs on Intel AMX when the CPU has it
-                            * (~5x faster GEMMs, ~0.4% relative rounding in products, f32 sums);
-                            * 0: f32 OpenBLAS (default). Not stored in blobs (a runtime choice). */
+    int bf16;              /* 1 (default): Linear layers as bf16 GEMMs on Intel AMX when the CPU has
+                            * it (~5x faster GEMMs, ~0.4% relative rounding in products, f32 sums;
+                            * plain f32 elsewhere); 0: f32 OpenBLAS everywhere (what the FD tests
+                            * check). Not stored in blobs (a runtime choice). */
 } deform_config;
 
 typedef struct {
@@ -103,12 +107,14 @@ void deform_network_zero_grad(deform_network *net);
 
 /* Workspace: per-thread chunk scratch, per-thread gradient buffers, and stored activations for up
  * to max_points points (forward calls with more points still work: the backward then recomputes
- * the activations of the chunks that were not kept). chunk = points per chunk (0: default 256). */
+ * the activations of the chunks that were not kept). chunk = points per chunk (0: default, 128 on the AMX path, else 256). */
 pg_status deform_ws_create(deform_ws **ws, const deform_network *net, long max_points);
 pg_status deform_ws_create_chunked(deform_ws **ws, const deform_network *net, long max_points, int chunk);
 void deform_ws_destroy(deform_ws *ws);
 /* 1 if this workspace runs the hidden layers in bf16 on AMX (cfg.bf16 and the CPU supports it). */
 int deform_ws_uses_amx(const deform_ws *ws);
+/* Points per chunk of this workspace. */
+int deform_ws_chunk(const deform_ws *ws);
 
 /* Evaluates the network for n points at time t: point i is means[idx[i]] (idx != NULL, e.g. only the
  * Gaussians that can move) or means[i] (idx == NULL). out (n, DEFORM_OUT_DIM), row i for point i.

@@ -100,9 +100,33 @@ typedef struct {
     uint8_t rows[16];
 } __attribute__((packed, aligned(64))) amx_tilecfg;
 
-__attribute__((target("amx-tile,amx-bf16"))) void gemm_amx_run(float *C, int ldc, const uint16_t *Ap,
-                                                                const uint16_t *Bp, int M, int N, int K,
-                                                                int accumulate)
+/* C block rows [i, i+mi), cols [j, j+nj): c = max(c + bias, 0) or c + bias, while it is in L1. */
+static inline void block_epilogue(float *C, int ldc, int i, int j, int mi, int nj, const float *bias, int relu)
+{
+    const float *bj = bias + j;
+    for (int r = 0; r < mi; r++) {
+        float *c = C + (size_t)(i + r) * ldc + j;
+        if (relu) {
+            #pragma omp simd
+            for (int q = 0; q < nj; q++) {
+                float v = c[q] + bj[q];
+                c[q] = v > 0.0f ? v : 0.0f;
+            }
+        } else {
+            #pragma omp simd
+            for (int q = 0; q < nj; q++) c[q] += bj[q];
+        }
+    }
+}
+
+void gemm_amx_run(float *C, int ldc, const uint16_t *Ap, const uint16_t *Bp, int M, int N, int K, int accumulate)
+{
+    gemm_amx_run_bias(C, ldc, Ap, Bp, M, N, K, accumulate, NULL, 0);
+}
+
+__attribute__((target("amx-tile,amx-bf16"))) void gemm_amx_run_bias(float *C, int ldc, const uint16_t *Ap,
+                                                                     const uint16_t *Bp, int M, int N, int K,
+                                                                     int accumulate, const float *bias, int relu)
 {
     const int Kp = gemm_amx_round(K), Np = gemm_amx_round(N), Mp = gemm_amx_round(M);
     amx_tilecfg cfg;
@@ -149,6 +173,7 @@ __attribute__((target("amx-tile,amx-bf16"))) void gemm_amx_run(float *C, int ldc
                 _tile_stored(1, cb + 16, c_stride);
                 _tile_stored(2, cb + (size_t)16 * ldc, c_stride);
                 _tile_stored(3, cb + (size_t)16 * ldc + 16, c_stride);
+                if (bias) block_epilogue(C, ldc, i, j, 32, 32, bias, relu);
                 continue;
             }
             _tile_stored(0, blk, 128);
@@ -166,11 +191,18 @@ __attribute__((target("amx-tile,amx-bf16"))) void gemm_amx_run(float *C, int ldc
                     memcpy(c, s, (size_t)nj * sizeof(float));
                 }
             }
+            if (bias) block_epilogue(C, ldc, i, j, mi, nj, bias, relu);
         }
     }
     _tile_release();
 }
 #else
+void gemm_amx_run_bias(float *C, int ldc, const uint16_t *Ap, const uint16_t *Bp, int M, int N, int K,
+                       int accumulate, const float *bias, int relu)
+{
+    (void)C; (void)ldc; (void)Ap; (void)Bp; (void)M; (void)N; (void)K; (void)accumulate; (void)bias; (void)relu;
+}
+
 void gemm_amx_run(float *C, int ldc, const uint16_t *Ap, const uint16_t *Bp, int M, int N, int K, int accumulate)
 {
     (void)C; (void)ldc; (void)Ap; (void)Bp; (void)M; (void)N; (void)K; (void)accumulate;

@@ -27,5 +27,8 @@ void gemm_amx_pack_b(uint16_t *dst, const float *src, long rs, long cs, int K, i
 /* C (row stride ldc) = Ap * Bp (accumulate = 0) or += (accumulate = 1). Only the M x N valid part of
  * C is written. */
 void gemm_amx_run(float *C, int ldc, const uint16_t *Ap, const uint16_t *Bp, int M, int N, int K, int accumulate);
+/* Same, then C = max(C + bias, 0) (relu) or C + bias per 32x32 block while it is hot; bias (N). */
+void gemm_amx_run_bias(float *C, int ldc, const uint16_t *Ap, const uint16_t *Bp, int M, int N, int K,
+                       int accumulate, const float *bias, int relu);
 
 #endif

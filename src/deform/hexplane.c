@@ -20,14 +20,8 @@ size_t hex_total_size(const hex_grid *g)
     return n;
 }
 
-/* Cell index, fractional weight and d(grid coord)/d(input) of one axis. */
-typedef struct {
-    int i0;
-    float w;
-    float dgdx; /* 0 where the coordinate was clamped */
-} hex_axis;
 
-static void hex_axis_setup(hex_axis *ax, float u, float du_dx, int res)
+static inline __attribute__((always_inline)) void hex_axis_setup(hex_axis *ax, float u, float du_dx, int res)
 {
     float dg = du_dx * (float)(res - 1);
     if (!(u > 0.0f)) { u = 0.0f; dg = 0.0f; } /* also catches NaN */
@@ -41,7 +35,8 @@ static void hex_axis_setup(hex_axis *ax, float u, float du_dx, int res)
 }
 
 /* Axis setup of all 4 coordinates for scale s. */
-static void hex_axes(hex_axis ax[4], const hex_grid *g, int s, const float *pos, float t)
+static inline __attribute__((always_inline)) void hex_axes(hex_axis ax[4], const hex_grid *g, int s, const float *pos,
+                                                            float t)
 {
     for (int d = 0; d < 3; d++) {
         float ext = g->aabb[3 + d] - g->aabb[d];
@@ -58,12 +53,41 @@ int hex_time_row(const hex_grid *g, float t)
     return ax.i0;
 }
 
-void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float t)
+void hex_point_setup(hex_point *hp, const hex_grid *g, const float *pos, float t)
+{
+    for (int s = 0; s < g->S; s++) hex_axes(hp->ax[s], g, s, pos, t);
+}
+
+void hex_prefetch_point(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_point *hp)
 {
     const int C = g->C;
     for (int s = 0; s < g->S; s++) {
-        hex_axis ax[4];
-        hex_axes(ax, g, s, pos, t);
+        const hex_axis *ax = hp->ax[s];
+        for (int p = 0; p < HEX_PLANES; p++) {
+            const hex_axis *A = &ax[hex_plane_axes[p][0]], *B = &ax[hex_plane_axes[p][1]];
+            size_t Wp = (size_t)hex_axis_res(g, s, hex_plane_axes[p][0]);
+            size_t off = ((size_t)B->i0 * Wp + A->i0) * C, row = Wp * C;
+            const float *t00 = g->planes[s][p] + off;
+            __builtin_prefetch(t00, 0, 3);
+            __builtin_prefetch(t00 + C, 0, 3);
+            __builtin_prefetch(t00 + row, 0, 3);
+            __builtin_prefetch(t00 + row + C, 0, 3);
+            if (d_planes) {
+                float *d00 = d_planes[s][p] + off;
+                __builtin_prefetch(d00, 1, 3);
+                __builtin_prefetch(d00 + C, 1, 3);
+                __builtin_prefetch(d00 + row, 1, 3);
+                __builtin_prefetch(d00 + row + C, 1, 3);
+            }
+        }
+    }
+}
+
+void hex_sample_forward_point(float *feat, const hex_grid *g, const hex_point *hp)
+{
+    const int C = g->C;
+    for (int s = 0; s < g->S; s++) {
+        const hex_axis *ax = hp->ax[s];
         float *f = feat + s * C;
         for (int c = 0; c < C; c++) f[c] = 1.0f;
         for (int p = 0; p < HEX_PLANES; p++) {
@@ -79,15 +103,14 @@ void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float 
     }
 }
 
-void hex_sample_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], float *d_pos, const float *d_feat,
-                         const hex_grid *g, const float *pos, float t)
+void hex_sample_backward_point(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], float *d_pos, const float *d_feat,
+                               const hex_grid *g, const hex_point *hp)
 {
     const int C = g->C;
     float v[HEX_PLANES][HEX_MAX_C]; /* per-plane samples */
     float pre[HEX_MAX_C], suf[HEX_PLANES][HEX_MAX_C];
     for (int s = 0; s < g->S; s++) {
-        hex_axis ax[4];
-        hex_axes(ax, g, s, pos, t);
+        const hex_axis *ax = hp->ax[s];
         const float *df = d_feat + s * C;
         const float *base[HEX_PLANES];
         int Wp[HEX_PLANES];
@@ -135,4 +158,26 @@ void hex_sample_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], floa
             }
         }
     }
+}
+
+void hex_prefetch(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const float *pos, float t)
+{
+    hex_point hp;
+    hex_point_setup(&hp, g, pos, t);
+    hex_prefetch_point(g, d_planes, &hp);
+}
+
+void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float t)
+{
+    hex_point hp;
+    hex_point_setup(&hp, g, pos, t);
+    hex_sample_forward_point(feat, g, &hp);
+}
+
+void hex_sample_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], float *d_pos, const float *d_feat,
+                         const hex_grid *g, const float *pos, float t)
+{
+    hex_point hp;
+    hex_point_setup(&hp, g, pos, t);
+    hex_sample_backward_point(d_planes, d_pos, d_feat, g, &hp);
 }

@@ -34,6 +34,18 @@ typedef struct {
     float *planes[HEX_MAX_SCALES][HEX_PLANES];  /* (res_b, res_a, C) views into the parameters */
 } hex_grid;
 
+/* Cell index, fractional weight and d(grid coord)/d(input) of one axis of one point. */
+typedef struct {
+    int i0;
+    float w;
+    float dgdx; /* 0 where the coordinate was clamped */
+} hex_axis;
+
+/* The per-scale axis setup of one point (shared by prefetch, forward and backward). */
+typedef struct {
+    hex_axis ax[HEX_MAX_SCALES][4];
+} hex_point;
+
 /* Resolution of coordinate axis d (0..3) at scale s. */
 static inline int hex_axis_res(const hex_grid *g, int s, int d) { return d == 3 ? g->T : g->R << s; }
 /* Number of floats of plane p at scale s. */
@@ -44,6 +56,18 @@ size_t hex_total_size(const hex_grid *g);
 /* First of the two time rows (of T) that a sample at t reads; the backward writes only rows
  * hex_time_row(g, t) and +1 of the time planes. */
 int hex_time_row(const hex_grid *g, float t);
+
+/* Prefetches the texels (and, if d_planes != NULL, their gradient lines) a sample at pos will
+ * touch; called a few points ahead hides the cache misses of the random plane accesses. */
+void hex_prefetch(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const float *pos, float t);
+
+/* The same three operations on a prepared point (hex_point_setup), so a caller that prefetches
+ * ahead computes the axes once per point. */
+void hex_point_setup(hex_point *hp, const hex_grid *g, const float *pos, float t);
+void hex_prefetch_point(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_point *hp);
+void hex_sample_forward_point(float *feat, const hex_grid *g, const hex_point *hp);
+void hex_sample_backward_point(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], float *d_pos, const float *d_feat,
+                               const hex_grid *g, const hex_point *hp);
 
 /* Samples one point: feat (S*C). pos (3) in world units, t in [0,1]. */
 void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float t);

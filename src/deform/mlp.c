@@ -61,8 +61,7 @@ void mlp_linear_forward_amx(float *y, int ldy, const float *x, int ldx, const ui
                             int M, int in, int out, int relu, uint16_t *a_pack)
 {
     gemm_amx_pack_a(a_pack, x, ldx, 1, M, in);
-    gemm_amx_run(y, ldy, a_pack, wt_pack, M, out, in, 0);
-    mlp_bias_act(y, ldy, b, M, out, relu);
+    gemm_amx_run_bias(y, ldy, a_pack, wt_pack, M, out, in, 0, b, relu); /* bias + ReLU fused per block */
 }
 
 void mlp_linear_backward_amx(float *d_x, int lddx, float *d_wt, float *d_b, float *d_y, int lddy, const float *y,

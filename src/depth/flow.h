@@ -19,7 +19,9 @@
 
 #include "core/image.h"
 
-/* Computes flow (H,W,2) from img0 to img1 (same size, 1 or 3 channels, values in [0,1]). */
+/* Computes flow (H,W,2) from img0 to img1 (same size, 1 or 3 channels, values in [0,1]).
+ * Must be safe to call concurrently from several threads (the depth stage computes the flows of
+ * different frames in parallel); on failure it records a message with pg_fail. */
 typedef pg_status (*depth_flow_fn)(void *ctx, const pg_image *img0, const pg_image *img1, float *flow);
 
 typedef struct {

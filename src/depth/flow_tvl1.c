@@ -69,8 +69,8 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
                     i1wx[k] = i1wy[k] = grad[k] = rhoc[k] = 0.0f;
                     continue;
                 }
-                float v = plane_sample_bicubic(i1, w, h, xs, ys);
-                float gx = plane_sample_bicubic(i1x, w, h, xs, ys), gy = plane_sample_bicubic(i1y, w, h, xs, ys);
+                float v = depth_plane_sample_bicubic(i1, w, h, xs, ys);
+                float gx = depth_plane_sample_bicubic(i1x, w, h, xs, ys), gy = depth_plane_sample_bicubic(i1y, w, h, xs, ys);
                 i1w[k] = v;
                 i1wx[k] = gx;
                 i1wy[k] = gy;
@@ -78,62 +78,78 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
                 rhoc[k] = v - gx * u1[k] - gy * u2[k] - i0[k];
             }
         }
+        /* Border handling without per-pixel branches (so the loops vectorise): the row above
+         * row 0 is a zero row, the row below the last row is the row itself (zero difference),
+         * and the last column is done separately. */
+        float *zero_row = tmp;
+        memset(zero_row, 0, sizeof(float) * w);
         for (int it = 0; it < prm->iterations; it++) {
             /* Divergence of the dual fields (adjoint of the forward-difference gradient). */
             #pragma omp parallel for schedule(static) if (PAR_OK)
             for (int y = 0; y < h; y++) {
-                for (int x = 0; x < w; x++) {
-                    size_t k = (size_t)y * w + x;
-                    float a1 = x < w - 1 ? p11[k] : 0.0f, b1 = x > 0 ? p11[k - 1] : 0.0f;
-                    float a2 = y < h - 1 ? p12[k] : 0.0f, b2 = y > 0 ? p12[k - w] : 0.0f;
-                    div1[k] = a1 - b1 + a2 - b2;
-                    a1 = x < w - 1 ? p21[k] : 0.0f; b1 = x > 0 ? p21[k - 1] : 0.0f;
-                    a2 = y < h - 1 ? p22[k] : 0.0f; b2 = y > 0 ? p22[k - w] : 0.0f;
-                    div2[k] = a1 - b1 + a2 - b2;
+                const size_t r = (size_t)y * w;
+                const float ylast = y < h - 1 ? 1.0f : 0.0f;
+                const float *q11 = p11 + r, *q12 = p12 + r, *q21 = p21 + r, *q22 = p22 + r;
+                const float *u12 = y > 0 ? p12 + r - w : zero_row, *u22 = y > 0 ? p22 + r - w : zero_row;
+                float *o1 = div1 + r, *o2 = div2 + r;
+                o1[0] = (w > 1 ? q11[0] : 0.0f) + ylast * q12[0] - u12[0];
+                o2[0] = (w > 1 ? q21[0] : 0.0f) + ylast * q22[0] - u22[0];
+                for (int x = 1; x < w - 1; x++) {
+                    o1[x] = q11[x] - q11[x - 1] + ylast * q12[x] - u12[x];
+                    o2[x] = q21[x] - q21[x - 1] + ylast * q22[x] - u22[x];
+                }
+                if (w > 1) {
+                    o1[w - 1] = -q11[w - 2] + ylast * q12[w - 1] - u12[w - 1];
+                    o2[w - 1] = -q21[w - 2] + ylast * q22[w - 1] - u22[w - 1];
                 }
             }
-            /* Data step (point-wise thresholding) then the primal update. */
+            /* Data step (point-wise thresholding, written as selects) then the primal update. */
             #pragma omp parallel for schedule(static) if (PAR_OK)
             for (int y = 0; y < h; y++) {
+                const size_t r = (size_t)y * w;
                 for (int x = 0; x < w; x++) {
-                    size_t k = (size_t)y * w + x;
+                    const size_t k = r + x;
                     float rho = rhoc[k] + i1wx[k] * u1[k] + i1wy[k] * u2[k];
-                    float d1 = 0.0f, d2 = 0.0f, g = grad[k];
-                    if (rho < -lt * g) {
-                        d1 = lt * i1wx[k];
-                        d2 = lt * i1wy[k];
-                    } else if (rho > lt * g) {
-                        d1 = -lt * i1wx[k];
-                        d2 = -lt * i1wy[k];
-                    } else if (g > 1e-10f) {
-                        float f = -rho / g;
-                        d1 = f * i1wx[k];
-                        d2 = f * i1wy[k];
-                    }
-                    u1[k] = u1[k] + d1 + theta * div1[k];
-                    u2[k] = u2[k] + d2 + theta * div2[k];
+                    float g = grad[k], t = lt * g;
+                    float gs = g > 1e-10f ? g : 1.0f;
+                    float f = g > 1e-10f ? -rho / gs : 0.0f;
+                    f = rho < -t ? lt : (rho > t ? -lt : f);
+                    u1[k] = u1[k] + f * i1wx[k] + theta * div1[k];
+                    u2[k] = u2[k] + f * i1wy[k] + theta * div2[k];
                 }
             }
             /* Dual update: Chambolle's projection with forward differences. */
             #pragma omp parallel for schedule(static) if (PAR_OK)
             for (int y = 0; y < h; y++) {
-                for (int x = 0; x < w; x++) {
-                    size_t k = (size_t)y * w + x;
-                    float u1x = x < w - 1 ? u1[k + 1] - u1[k] : 0.0f, u1y = y < h - 1 ? u1[k + w] - u1[k] : 0.0f;
-                    float u2x = x < w - 1 ? u2[k + 1] - u2[k] : 0.0f, u2y = y < h - 1 ? u2[k + w] - u2[k] : 0.0f;
-                    float n1 = 1.0f + taut * sqrtf(u1x * u1x + u1y * u1y);
-                    float n2 = 1.0f + taut * sqrtf(u2x * u2x + u2y * u2y);
-                    p11[k] = (p11[k] + taut * u1x) / n1;
-                    p12[k] = (p12[k] + taut * u1y) / n1;
-                    p21[k] = (p21[k] + taut * u2x) / n2;
-                    p22[k] = (p22[k] + taut * u2y) / n2;
+                const size_t r = (size_t)y * w;
+                const size_t rn = y < h - 1 ? r + w : r;
+                const float *a1 = u1 + r, *a2 = u2 + r, *b1 = u1 + rn, *b2 = u2 + rn;
+                float *q11 = p11 + r, *q12 = p12 + r, *q21 = p21 + r, *q22 = p22 + r;
+                for (int x = 0; x < w - 1; x++) {
+                    float u1x = a1[x + 1] - a1[x], u1y = b1[x] - a1[x];
+                    float u2x = a2[x + 1] - a2[x], u2y = b2[x] - a2[x];
+                    float i1 = 1.0f / (1.0f + taut * sqrtf(u1x * u1x + u1y * u1y));
+                    float i2 = 1.0f / (1.0f + taut * sqrtf(u2x * u2x + u2y * u2y));
+                    q11[x] = (q11[x] + taut * u1x) * i1;
+                    q12[x] = (q12[x] + taut * u1y) * i1;
+                    q21[x] = (q21[x] + taut * u2x) * i2;
+                    q22[x] = (q22[x] + taut * u2y) * i2;
+                }
+                {
+                    const int x = w - 1; /* no forward difference along x in the last column */
+                    float u1y = b1[x] - a1[x], u2y = b2[x] - a2[x];
+                    float n1 = 1.0f + taut * fabsf(u1y), n2 = 1.0f + taut * fabsf(u2y);
+                    q11[x] = q11[x] / n1;
+                    q12[x] = (q12[x] + taut * u1y) / n1;
+                    q21[x] = q21[x] / n2;
+                    q22[x] = (q22[x] + taut * u2y) / n2;
                 }
             }
         }
         if (prm->median) {
-            plane_median3(u1, w, h, tmp);
+            depth_plane_median3(u1, w, h, tmp);
             memcpy(u1, tmp, sizeof(float) * n);
-            plane_median3(u2, w, h, tmp);
+            depth_plane_median3(u2, w, h, tmp);
             memcpy(u2, tmp, sizeof(float) * n);
         }
     }
@@ -172,16 +188,16 @@ static pg_status tvl1_compute(void *ctx, const pg_image *img0, const pg_image *i
           *p22 = work + 5 * n0, *scratch = work + 6 * n0, *rs = work + 16 * n0;
 
     /* Level 0: light pre-smoothing against noise; coarser levels: anti-alias blur then resample. */
-    plane_from_image(img0, 255.0f, scratch);
-    plane_gaussian_blur(scratch, W, H, 0.5f, scratch + n0, pyr0);
-    plane_from_image(img1, 255.0f, scratch);
-    plane_gaussian_blur(scratch, W, H, 0.5f, scratch + n0, pyr1);
+    depth_plane_from_image(img0, 255.0f, scratch);
+    depth_plane_gaussian_blur(scratch, W, H, 0.5f, scratch + n0, pyr0);
+    depth_plane_from_image(img1, 255.0f, scratch);
+    depth_plane_gaussian_blur(scratch, W, H, 0.5f, scratch + n0, pyr1);
     const float sigma_down = 0.6f * sqrtf(3.0f); /* 0.6 sqrt(1/eta^2 - 1) for eta = 0.5 */
     for (int s = 1; s < L; s++) {
         for (int k = 0; k < 2; k++) {
             float *pyr = k ? pyr1 : pyr0;
-            plane_gaussian_blur(pyr + offs[s - 1], ws[s - 1], hs[s - 1], sigma_down, scratch, scratch + n0);
-            plane_resize(scratch + n0, ws[s - 1], hs[s - 1], pyr + offs[s], ws[s], hs[s]);
+            depth_plane_gaussian_blur(pyr + offs[s - 1], ws[s - 1], hs[s - 1], sigma_down, scratch, scratch + n0);
+            depth_plane_resize(scratch + n0, ws[s - 1], hs[s - 1], pyr + offs[s], ws[s], hs[s]);
         }
     }
 
@@ -194,7 +210,7 @@ static pg_status tvl1_compute(void *ctx, const pg_image *img0, const pg_image *i
         const int w2 = ws[s - 1], h2 = hs[s - 1];
         float *planes[6] = { u1, u2, p11, p12, p21, p22 };
         for (int q = 0; q < 6; q++) {
-            plane_resize(planes[q], w, h, rs, w2, h2);
+            depth_plane_resize(planes[q], w, h, rs, w2, h2);
             float f = q == 0 ? (float)w2 / w : (q == 1 ? (float)h2 / h : 1.0f);
             size_t n2 = (size_t)w2 * h2;
             for (size_t k = 0; k < n2; k++) planes[q][k] = rs[k] * f;

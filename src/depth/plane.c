@@ -9,7 +9,7 @@
 
 static inline int clampi(int v, int lo, int hi) { return v < lo ? lo : (v > hi ? hi : v); }
 
-void plane_from_image(const pg_image *img, float scale, float *gray)
+void depth_plane_from_image(const pg_image *img, float scale, float *gray)
 {
     const size_t n = (size_t)img->width * img->height;
     const int C = img->channels;
@@ -19,7 +19,7 @@ void plane_from_image(const pg_image *img, float scale, float *gray)
     }
 }
 
-void plane_gaussian_blur(const float *src, int w, int h, float sigma, float *tmp, float *dst)
+void depth_plane_gaussian_blur(const float *src, int w, int h, float sigma, float *tmp, float *dst)
 {
     if (sigma <= 0.0f) {
         if (dst != src) memcpy(dst, src, sizeof(float) * (size_t)w * h);
@@ -52,7 +52,7 @@ void plane_gaussian_blur(const float *src, int w, int h, float sigma, float *tmp
     }
 }
 
-float plane_sample_bilinear(const float *p, int w, int h, float x, float y)
+float depth_plane_sample_bilinear(const float *p, int w, int h, float x, float y)
 {
     if (x < 0.0f) x = 0.0f;
     if (y < 0.0f) y = 0.0f;
@@ -79,7 +79,7 @@ static inline void keys_weights(float t, float wt[4])
     wt[3] = 0.5f * t3 - 0.5f * t2;
 }
 
-float plane_sample_bicubic(const float *p, int w, int h, float x, float y)
+float depth_plane_sample_bicubic(const float *p, int w, int h, float x, float y)
 {
     if (x < 0.0f) x = 0.0f;
     if (y < 0.0f) y = 0.0f;
@@ -102,13 +102,13 @@ float plane_sample_bicubic(const float *p, int w, int h, float x, float y)
     return acc;
 }
 
-void plane_resize(const float *src, int w, int h, float *dst, int w2, int h2)
+void depth_plane_resize(const float *src, int w, int h, float *dst, int w2, int h2)
 {
     const float sx = (float)w / w2, sy = (float)h / h2;
     #pragma omp parallel for schedule(static) if (PAR_OK)
     for (int y = 0; y < h2; y++)
         for (int x = 0; x < w2; x++)
-            dst[(size_t)y * w2 + x] = plane_sample_bilinear(src, w, h, (x + 0.5f) * sx - 0.5f, (y + 0.5f) * sy - 0.5f);
+            dst[(size_t)y * w2 + x] = depth_plane_sample_bilinear(src, w, h, (x + 0.5f) * sx - 0.5f, (y + 0.5f) * sy - 0.5f);
 }
 
 static inline void sort9(float *v)
@@ -121,21 +121,56 @@ static inline void sort9(float *v)
     }
 }
 
-void plane_median3(const float *src, int w, int h, float *dst)
+/* Median of the clamped 3x3 neighbourhood by sorting (reference and border path). */
+static inline float median3_at(const float *src, int w, int h, int x, int y)
+{
+    float v[9];
+    int k = 0;
+    for (int dy = -1; dy <= 1; dy++)
+        for (int dx = -1; dx <= 1; dx++)
+            v[k++] = src[(size_t)clampi(y + dy, 0, h - 1) * w + clampi(x + dx, 0, w - 1)];
+    sort9(v);
+    return v[4];
+}
+
+void depth_plane_median3_ref(const float *src, int w, int h, float *dst)
+{
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) dst[(size_t)y * w + x] = median3_at(src, w, h, x, y);
+}
+
+/* Compare-exchange: a gets the smaller, b the larger (branch-free, vectorises). */
+#define CE(a, b) do { float lo_ = (a) < (b) ? (a) : (b), hi_ = (a) < (b) ? (b) : (a); (a) = lo_; (b) = hi_; } while (0)
+
+/* Interior pixels use the classic 19 compare-exchange median-of-9 network (same result as
+ * sorting for finite values), written so the compiler can vectorise across x. */
+void depth_plane_median3(const float *src, int w, int h, float *dst)
 {
     #pragma omp parallel for schedule(static) if (PAR_OK)
     for (int y = 0; y < h; y++) {
-        for (int x = 0; x < w; x++) {
-            float v[9];
-            int k = 0;
-            for (int dy = -1; dy <= 1; dy++)
-                for (int dx = -1; dx <= 1; dx++)
-                    v[k++] = src[(size_t)clampi(y + dy, 0, h - 1) * w + clampi(x + dx, 0, w - 1)];
-            sort9(v);
-            dst[(size_t)y * w + x] = v[4];
+        float *out = dst + (size_t)y * w;
+        if (y == 0 || y == h - 1 || w < 3) {
+            for (int x = 0; x < w; x++) out[x] = median3_at(src, w, h, x, y);
+            continue;
+        }
+        const float *r0 = src + (size_t)(y - 1) * w, *r1 = src + (size_t)y * w, *r2 = src + (size_t)(y + 1) * w;
+        out[0] = median3_at(src, w, h, 0, y);
+        out[w - 1] = median3_at(src, w, h, w - 1, y);
+        for (int x = 1; x < w - 1; x++) {
+            float p0 = r0[x - 1], p1 = r0[x], p2 = r0[x + 1], p3 = r1[x - 1], p4 = r1[x], p5 = r1[x + 1];
+            float p6 = r2[x - 1], p7 = r2[x], p8 = r2[x + 1];
+            CE(p1, p2); CE(p4, p5); CE(p7, p8);
+            CE(p0, p1); CE(p3, p4); CE(p6, p7);
+            CE(p1, p2); CE(p4, p5); CE(p7, p8);
+            CE(p0, p3); CE(p5, p8); CE(p4, p7);
+            CE(p3, p6); CE(p1, p4); CE(p2, p5);
+            CE(p4, p7); CE(p4, p2); CE(p6, p4);
+            CE(p4, p2);
+            out[x] = p4;
         }
     }
 }
+#undef CE
 
 /* Disc-shaped min/max filter; out-of-image pixels are ignored. */
 static void mask_morph(const unsigned char *src, int w, int h, int r, unsigned char *dst, int dilate)
@@ -160,5 +195,5 @@ static void mask_morph(const unsigned char *src, int w, int h, int r, unsigned c
     }
 }
 
-void mask_erode(const unsigned char *src, int w, int h, int r, unsigned char *dst) { mask_morph(src, w, h, r, dst, 0); }
-void mask_dilate(const unsigned char *src, int w, int h, int r, unsigned char *dst) { mask_morph(src, w, h, r, dst, 1); }
+void depth_mask_erode(const unsigned char *src, int w, int h, int r, unsigned char *dst) { mask_morph(src, w, h, r, dst, 0); }
+void depth_mask_dilate(const unsigned char *src, int w, int h, int r, unsigned char *dst) { mask_morph(src, w, h, r, dst, 1); }

@@ -12,19 +12,20 @@
 #define PLANE_PAR_MIN_PIXELS 200000
 
 /* Luma (Rec. 601) of an RGB or 1-channel image into gray (H,W), scaled by `scale`. */
-void plane_from_image(const pg_image *img, float scale, float *gray);
+void depth_plane_from_image(const pg_image *img, float scale, float *gray);
 /* Separable Gaussian blur (sigma in pixels, radius ceil(3 sigma)); tmp is (H,W) scratch. */
-void plane_gaussian_blur(const float *src, int w, int h, float sigma, float *tmp, float *dst);
+void depth_plane_gaussian_blur(const float *src, int w, int h, float sigma, float *tmp, float *dst);
 /* Bilinear resample of a (h,w) plane to (h2,w2) (centre-aligned). */
-void plane_resize(const float *src, int w, int h, float *dst, int w2, int h2);
+void depth_plane_resize(const float *src, int w, int h, float *dst, int w2, int h2);
 /* Bilinear sample at continuous coordinates in pixel-index units (centre of pixel i is i). */
-float plane_sample_bilinear(const float *p, int w, int h, float x, float y);
+float depth_plane_sample_bilinear(const float *p, int w, int h, float x, float y);
 /* Bicubic (Keys, a = -0.5) sample, same coordinates as above. */
-float plane_sample_bicubic(const float *p, int w, int h, float x, float y);
-/* 3x3 median filter (borders replicate). */
-void plane_median3(const float *src, int w, int h, float *dst);
+float depth_plane_sample_bicubic(const float *p, int w, int h, float x, float y);
+/* 3x3 median filter (borders replicate): a sorting network; _ref sorts (test oracle). */
+void depth_plane_median3(const float *src, int w, int h, float *dst);
+void depth_plane_median3_ref(const float *src, int w, int h, float *dst);
 /* Binary morphology on a (h,w) uint8 mask with a disc of radius r: erode or dilate. */
-void mask_erode(const unsigned char *src, int w, int h, int r, unsigned char *dst);
-void mask_dilate(const unsigned char *src, int w, int h, int r, unsigned char *dst);
+void depth_mask_erode(const unsigned char *src, int w, int h, int r, unsigned char *dst);
+void depth_mask_dilate(const unsigned char *src, int w, int h, int r, unsigned char *dst);
 
 #endif

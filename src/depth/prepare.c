@@ -134,7 +134,7 @@ static pg_status prepare_frames(const depth_prepare_options *opt, const pg_image
                 #pragma omp critical(prepare_progress)
                 {
                     done++;
-                    pg_progress_report("prepare", done, 2L * (F - 1), "flow frame %d", i);
+                    pg_progress_report("prepare", done, 2L * F, "flow frame %d", i);
                 }
             }
             free(work);
@@ -174,7 +174,7 @@ static pg_status prepare_frames(const depth_prepare_options *opt, const pg_image
         }
         if (valid[i]) depth_align_apply(refined + (size_t)i * n, n, fi->alpha, fi->beta, res->depth + (size_t)i * n);
         res->seconds_align += pg_time_seconds() - ta;
-        pg_progress_report("prepare", (F - 1) + (i + 1) * (F - 1) / F, 2L * (F - 1), "frame %d alpha=%.4f beta=%.4f static=%.1f%%",
+        pg_progress_report("prepare", (long)F + i + 1, 2L * F, "frame %d alpha=%.4f beta=%.4f static=%.1f%%",
                            i, fi->alpha, fi->beta, 100.0 * fi->static_pixels / n);
     }
 
@@ -362,6 +362,8 @@ pg_status depth_prepare_write(const char *dir, const depth_prepare_options *opt,
     PG_TRY(io_npy_save(path, res->depth, 3, shape));
     PG_TRY(pg_path_join(path, sizeof path, dir, "static_masks.npy"));
     PG_TRY(io_npy_save_u8(path, res->static_masks, 3, shape));
+    PG_TRY(pg_path_join(path, sizeof path, dir, "dynamic_prob.npy"));
+    PG_TRY(io_npy_save(path, res->dynamic_prob, 3, shape));
     PG_TRY(pg_path_join(path, sizeof path, dir, "prepare.json"));
     PG_TRY(write_json(path, opt, res, source_json));
 

@@ -14,9 +14,10 @@ void depth_refine_defaults(depth_refine_params *p)
     p->radius = 9;
     p->sigma_color = 0.08f;
     p->sigma_space = 4.0f;
-    p->edge_thresh = 0.025f;
+    p->edge_thresh = 0.03f;
     p->band_radius = 1;
     p->depth_weight = 0.15f;
+    p->guide_blur = 0.0f;
 }
 
 static const char *const refine_names[DEPTH_REFINE_COUNT] = { "none", "edge-snap", "bilateral" };
@@ -83,8 +84,8 @@ pg_status depth_refine_band(const depth_refine_params *p, const float *depth, in
         v[k] = ok ? 1.0f : 0.0f;
         lv[k] = ok ? logf(depth[k]) : 0.0f;
     }
-    plane_gaussian_blur(lv, W, H, 1.0f, tmp, lv);
-    plane_gaussian_blur(v, W, H, 1.0f, tmp, v);
+    depth_plane_gaussian_blur(lv, W, H, 1.0f, tmp, lv);
+    depth_plane_gaussian_blur(v, W, H, 1.0f, tmp, v);
     for (size_t k = 0; k < n; k++) ls[k] = v[k] > 0.5f ? lv[k] / v[k] : NAN;
     static const int dirs[4][2] = { { 2, 0 }, { 0, 2 }, { 2, 2 }, { 2, -2 } };
     #pragma omp parallel for schedule(static)
@@ -103,7 +104,7 @@ pg_status depth_refine_band(const depth_refine_params *p, const float *depth, in
             e8[k] = e > p->edge_thresh;
         }
     }
-    mask_dilate(e8, W, H, p->band_radius, band);
+    depth_mask_dilate(e8, W, H, p->band_radius, band);
     for (size_t k = 0; k < n; k++) band[k] = band[k] && depth_valid(depth[k]);
     free(buf);
     free(e8);
@@ -136,7 +137,26 @@ static pg_status refine_edge_snap(void *ctx, const pg_image *rgb, const float *d
         return PG_ERR_NOMEM;
     }
     pg_status st = depth_refine_band(&p, din, W, H, band);
+    /* Colour weights on a lightly blurred guide: render noise and video compression otherwise
+     * make single-pixel colour distances unreliable. */
+    pg_image guide = { 0 };
+    const pg_image *gp = rgb;
+    if (!st && p.guide_blur > 0.0f) {
+        st = pg_image_copy(&guide, rgb);
+        gp = &guide;
+    }
+    if (!st && p.guide_blur > 0.0f) {
+        float *plane = pg_malloc(sizeof(float) * n * 2, "refine guide");
+        if (!plane) st = PG_ERR_NOMEM;
+        for (int c = 0; c < guide.channels && !st; c++) {
+            for (size_t k = 0; k < n; k++) plane[k] = rgb->data[k * guide.channels + c];
+            depth_plane_gaussian_blur(plane, W, H, p.guide_blur, plane + n, plane);
+            for (size_t k = 0; k < n; k++) guide.data[k * guide.channels + c] = plane[k];
+        }
+        free(plane);
+    }
     if (st) {
+        pg_image_destroy(&guide);
         free(band);
         free(buf);
         return st;
@@ -144,7 +164,7 @@ static pg_status refine_edge_snap(void *ctx, const pg_image *rgb, const float *d
     /* Gradients of the lightly smoothed depth, only where the whole stencil is confident. */
     float *sm = buf, *tmp = buf + n, *gx = buf + 2 * n, *gy = buf + 3 * n;
     for (size_t k = 0; k < n; k++) sm[k] = depth_valid(din[k]) ? din[k] : 0.0f;
-    plane_gaussian_blur(sm, W, H, 1.0f, tmp, sm);
+    depth_plane_gaussian_blur(sm, W, H, 1.0f, tmp, sm);
     #pragma omp parallel for schedule(static)
     for (int y = 0; y < H; y++) {
         for (int x = 0; x < W; x++) {
@@ -195,7 +215,7 @@ static pg_status refine_edge_snap(void *ctx, const pg_image *rgb, const float *d
                         if (band[q] || !depth_valid(din[q])) continue;
                         float v = din[q] - gx[q] * dx - gy[q] * dy;
                         if (!depth_valid(v)) continue;
-                        float w = sw[dx + R] * sw[dy + R] * expf(-ic * color_dist2(rgb, k, q));
+                        float w = sw[dx + R] * sw[dy + R] * expf(-ic * color_dist2(gp, k, q));
                         pairs[m].v = v;
                         pairs[m].w = w;
                         total += w;
@@ -235,6 +255,7 @@ static pg_status refine_edge_snap(void *ctx, const pg_image *rgb, const float *d
         }
         free(pairs);
     }
+    pg_image_destroy(&guide);
     free(band);
     free(buf);
     if (failed) return pg_fail(PG_ERR_NOMEM, "edge-snap refinement: out of memory");

@@ -26,7 +26,8 @@ typedef enum {
     DEPTH_REFINE_COUNT
 } depth_refine_kind;
 
-/* depth_in, depth_out: (H,W) matching rgb; invalid pixels (<= 0, NaN) stay 0 in the output. */
+/* depth_in, depth_out: (H,W) matching rgb; invalid pixels (<= 0, NaN) stay 0 in the output.
+ * The depth stage calls it for one frame at a time (it may use threads inside). */
 typedef pg_status (*depth_refine_fn)(void *ctx, const pg_image *rgb, const float *depth_in, float *depth_out);
 
 typedef struct {
@@ -39,8 +40,9 @@ typedef struct {
     int radius;          /* search window radius in px (default 9) */
     float sigma_color;   /* RGB distance scale (default 0.08) */
     float sigma_space;   /* px (default 4) */
-    float edge_thresh;   /* log-depth second difference marking a blurred edge (default 0.025) */
+    float edge_thresh;   /* log-depth second difference marking a blurred edge (default 0.03) */
     int band_radius;     /* dilation of the detected edge pixels into the band (default 1) */
+    float guide_blur;    /* Gaussian sigma (px) on the RGB guide before colour weights (default 0) */
     float depth_weight;  /* width of the depth likelihood as a fraction of the local step (0.15; 0 = off) */
 } depth_refine_params;
 

@@ -49,8 +49,8 @@ pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i,
             a[k] = img_i->data[k * img_i->channels + c];
             b[k] = img_ref->data[k * img_ref->channels + c];
         }
-        plane_gaussian_blur(a, W, H, p->color_blur, tmp, a);
-        plane_gaussian_blur(b, W, H, p->color_blur, tmp, b);
+        depth_plane_gaussian_blur(a, W, H, p->color_blur, tmp, a);
+        depth_plane_gaussian_blur(b, W, H, p->color_blur, tmp, b);
         for (size_t k = 0; k < n; k++) diff[k] += fabsf(a[k] - b[k]) / (C >= 3 ? 3.0f : 1.0f);
     }
     unsigned char *dyn = m8, *tmp8 = m8 + n;
@@ -66,15 +66,15 @@ pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i,
     }
     /* Opening removes isolated dynamic specks, closing fills holes inside moving objects. */
     if (p->open_radius > 0) {
-        mask_erode(dyn, W, H, p->open_radius, tmp8);
-        mask_dilate(tmp8, W, H, p->open_radius, dyn);
+        depth_mask_erode(dyn, W, H, p->open_radius, tmp8);
+        depth_mask_dilate(tmp8, W, H, p->open_radius, dyn);
     }
     if (p->close_radius > 0) {
-        mask_dilate(dyn, W, H, p->close_radius, tmp8);
-        mask_erode(tmp8, W, H, p->close_radius, dyn);
+        depth_mask_dilate(dyn, W, H, p->close_radius, tmp8);
+        depth_mask_erode(tmp8, W, H, p->close_radius, dyn);
     }
     if (p->dilate_radius > 0) {
-        mask_dilate(dyn, W, H, p->dilate_radius, tmp8);
+        depth_mask_dilate(dyn, W, H, p->dilate_radius, tmp8);
         memcpy(dyn, tmp8, n);
     }
     for (size_t k = 0; k < n; k++) mask[k] = !dyn[k];

@@ -6,7 +6,7 @@
 
 /* Frustum limits of x/z (y/z) widened by 15% of the view width on each side: 1.3x the half-width
  * for a centred principal point. */
-static void frustum_limits(const pg_camera *cam, float lim[4])
+void splat_project_limits(const pg_camera *cam, float lim[4])
 {
     float x0 = -cam->cx / cam->fx, x1 = (cam->width - cam->cx) / cam->fx;
     float y0 = -cam->cy / cam->fy, y1 = (cam->height - cam->cy) / cam->fy;
@@ -30,21 +30,27 @@ static void cov3d_forward(const float log_scale[3], const float quat[4], float R
 }
 
 /* J (2x3, row-major) for camera point t; clamp flags say which of x/z, y/z hit the limits. */
-static void jacobian(const pg_camera *cam, const float t[3], float J[6], int clampflag[2], float uv_c[2])
+static void jacobian(const pg_camera *cam, const float lim[4], const float t[3], float J[6], int clampflag[2], float uv_c[2])
 {
-    float lim[4];
-    frustum_limits(cam, lim);
-    float z = t[2], u = t[0] / z, w = t[1] / z;
+    float z = t[2], iz = 1.0f / z, u = t[0] * iz, w = t[1] * iz;
     float uc = clampf(u, lim[0], lim[1]), wc = clampf(w, lim[2], lim[3]);
     clampflag[0] = uc != u;
     clampflag[1] = wc != w;
     uv_c[0] = uc; uv_c[1] = wc;
-    J[0] = cam->fx / z; J[1] = 0; J[2] = -cam->fx * uc / z;
-    J[3] = 0; J[4] = cam->fy / z; J[5] = -cam->fy * wc / z;
+    J[0] = cam->fx * iz; J[1] = 0; J[2] = -cam->fx * uc * iz;
+    J[3] = 0; J[4] = cam->fy * iz; J[5] = -cam->fy * wc * iz;
 }
 
 int splat_project_forward(const float mean[3], const float log_scale[3], const float quat[4],
                           const pg_camera *cam, float near_clip, splat_proj *p)
+{
+    float lim[4];
+    splat_project_limits(cam, lim);
+    return splat_project_forward_lim(mean, log_scale, quat, cam, lim, near_clip, p);
+}
+
+int splat_project_forward_lim(const float mean[3], const float log_scale[3], const float quat[4],
+                              const pg_camera *cam, const float lim[4], float near_clip, splat_proj *p)
 {
     float t[3];
     mat3_mul_vec(t, cam->R, mean);
@@ -53,7 +59,7 @@ int splat_project_forward(const float mean[3], const float log_scale[3], const f
     float Rq[9], s[3], M[9], cov[9], J[6], uvc[2];
     int cf[2];
     cov3d_forward(log_scale, quat, Rq, s, M, cov);
-    jacobian(cam, t, J, cf, uvc);
+    jacobian(cam, lim, t, J, cf, uvc);
     /* T = J W (2x3), Sigma2D = T cov T^T. */
     float Tm[6];
     for (int r = 0; r < 2; r++)
@@ -81,13 +87,23 @@ void splat_project_backward(const float mean[3], const float log_scale[3], const
                             const pg_camera *cam, const float d_xy[2], const float d_conic[3], float d_z,
                             float d_mean[3], float d_log_scale[3], float d_quat[4])
 {
+    float lim[4];
+    splat_project_limits(cam, lim);
+    splat_project_backward_lim(mean, log_scale, quat, cam, lim, d_xy, d_conic, d_z, d_mean, d_log_scale, d_quat);
+}
+
+void splat_project_backward_lim(const float mean[3], const float log_scale[3], const float quat[4],
+                                const pg_camera *cam, const float lim[4], const float d_xy[2],
+                                const float d_conic[3], float d_z, float d_mean[3], float d_log_scale[3],
+                                float d_quat[4])
+{
     float t[3];
     mat3_mul_vec(t, cam->R, mean);
     vec3_add(t, t, cam->t);
     float Rq[9], s[3], M[9], cov[9], J[6], uvc[2];
     int cf[2];
     cov3d_forward(log_scale, quat, Rq, s, M, cov);
-    jacobian(cam, t, J, cf, uvc);
+    jacobian(cam, lim, t, J, cf, uvc);
     float Tm[6];
     for (int r = 0; r < 2; r++)
         for (int j = 0; j < 3; j++)
@@ -113,18 +129,16 @@ void splat_project_backward(const float mean[3], const float log_scale[3], const
     for (int r = 0; r < 2; r++)
         for (int j = 0; j < 3; j++)
             dT[3*r+j] = 2 * (Gs[2*r] * TC[j] + Gs[2*r+1] * TC[3+j]);
+    /* dcov = T^T Gs T is symmetric, so d(M M^T)/dM gives dM = 2 dcov M. */
+    float u0[3], u1[3];
+    for (int j = 0; j < 3; j++) { u0[j] = Gs[0]*Tm[j] + Gs[1]*Tm[3+j]; u1[j] = Gs[2]*Tm[j] + Gs[3]*Tm[3+j]; }
     float dcov[9];
     for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            dcov[3*i+j] = Tm[i] * (Gs[0]*Tm[j] + Gs[1]*Tm[3+j]) + Tm[3+i] * (Gs[2]*Tm[j] + Gs[3]*Tm[3+j]);
-    /* cov = M M^T: dL/dM = (dcov + dcov^T) M. */
+        for (int j = i; j < 3; j++) dcov[3*i+j] = dcov[3*j+i] = Tm[i] * u0[j] + Tm[3+i] * u1[j];
     float dM[9];
     for (int i = 0; i < 3; i++)
-        for (int k = 0; k < 3; k++) {
-            float a = 0;
-            for (int j = 0; j < 3; j++) a += (dcov[3*i+j] + dcov[3*j+i]) * M[3*j+k];
-            dM[3*i+k] = a;
-        }
+        for (int k = 0; k < 3; k++)
+            dM[3*i+k] = 2 * (dcov[3*i]*M[k] + dcov[3*i+1]*M[3+k] + dcov[3*i+2]*M[6+k]);
     /* M = Rq diag(s). */
     float dR[9];
     for (int k = 0; k < 3; k++) {
@@ -135,7 +149,8 @@ void splat_project_backward(const float mean[3], const float log_scale[3], const
     /* R(q) for unit q = (w, x, y, z), then project out the normalisation. */
     float qn = sqrtf(quat[0]*quat[0] + quat[1]*quat[1] + quat[2]*quat[2] + quat[3]*quat[3]);
     if (qn > 0) {
-        float q[4] = { quat[0]/qn, quat[1]/qn, quat[2]/qn, quat[3]/qn };
+        float iq = 1.0f / qn;
+        float q[4] = { quat[0]*iq, quat[1]*iq, quat[2]*iq, quat[3]*iq };
         float w = q[0], x = q[1], y = q[2], z = q[3];
         float dq[4];
         dq[0] = 2 * (-z*dR[1] + y*dR[2] + z*dR[3] - x*dR[5] - y*dR[6] + x*dR[7]);
@@ -143,7 +158,7 @@ void splat_project_backward(const float mean[3], const float log_scale[3], const
         dq[2] = 2 * (-2*y*dR[0] + x*dR[1] + w*dR[2] + x*dR[3] + z*dR[5] - w*dR[6] + z*dR[7] - 2*y*dR[8]);
         dq[3] = 2 * (-2*z*dR[0] - w*dR[1] + x*dR[2] + w*dR[3] - 2*z*dR[4] + y*dR[5] + x*dR[6] + y*dR[7]);
         float dot = dq[0]*q[0] + dq[1]*q[1] + dq[2]*q[2] + dq[3]*q[3];
-        for (int i = 0; i < 4; i++) d_quat[i] += (dq[i] - dot * q[i]) / qn;
+        for (int i = 0; i < 4; i++) d_quat[i] += (dq[i] - dot * q[i]) * iq;
     }
     /* T = J W: dL/dJ = dT W^T. */
     const float *W = cam->R;
@@ -168,3 +183,281 @@ void splat_project_backward(const float mean[3], const float log_scale[3], const
     mat3_tmul_vec(dm, cam->R, dt);
     vec3_add(d_mean, d_mean, dm);
 }
+
+#if defined(__AVX512F__)
+#include <immintrin.h>
+
+/* exp(x) for |x| < 87 (2^n times a degree-6 polynomial, rel. error ~2e-7). */
+static inline __m512 exp16(__m512 x)
+{
+    x = _mm512_min_ps(_mm512_max_ps(x, _mm512_set1_ps(-87.0f)), _mm512_set1_ps(87.0f));
+    __m512 n = _mm512_roundscale_ps(_mm512_mul_ps(x, _mm512_set1_ps(1.44269504088896341f)),
+                                    _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+    __m512 f = _mm512_fmadd_ps(n, _mm512_set1_ps(-0.693359375f), x);
+    f = _mm512_fmadd_ps(n, _mm512_set1_ps(2.12194440e-4f), f);
+    __m512 p = _mm512_set1_ps(1.0f / 720.0f);
+    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 120.0f));
+    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 24.0f));
+    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 6.0f));
+    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(0.5f));
+    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f));
+    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f));
+    return _mm512_scalef_ps(p, n);
+}
+
+int splat_project_forward16(const float *means, const float *log_scales, const float *quats, int i0,
+                            const pg_camera *cam, const float lim[4], float near_clip, float out[9][16],
+                            unsigned *valid)
+{
+    const __m512i lane = _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0);
+    const __m512i i3 = _mm512_mullo_epi32(lane, _mm512_set1_epi32(3)), i4 = _mm512_slli_epi32(lane, 2);
+    const float *mb = means + 3 * (size_t)i0, *lb = log_scales + 3 * (size_t)i0, *qb = quats + 4 * (size_t)i0;
+    __m512 m[3], ls[3], q[4];
+    for (int c = 0; c < 3; c++) {
+        m[c] = _mm512_i32gather_ps(i3, mb + c, 4);
+        ls[c] = _mm512_i32gather_ps(i3, lb + c, 4);
+    }
+    for (int c = 0; c < 4; c++) q[c] = _mm512_i32gather_ps(i4, qb + c, 4);
+    const float *W = cam->R;
+    __m512 t[3];
+    for (int r = 0; r < 3; r++)
+        t[r] = _mm512_fmadd_ps(_mm512_set1_ps(W[3*r]), m[0],
+                               _mm512_fmadd_ps(_mm512_set1_ps(W[3*r+1]), m[1],
+                                               _mm512_fmadd_ps(_mm512_set1_ps(W[3*r+2]), m[2], _mm512_set1_ps(cam->t[r]))));
+    __mmask16 ok = _mm512_cmp_ps_mask(t[2], _mm512_set1_ps(near_clip), _CMP_GE_OQ);
+    /* rotation of the normalised quaternion (identity for a zero quaternion) */
+    __m512 qn2 = _mm512_fmadd_ps(q[0], q[0], _mm512_fmadd_ps(q[1], q[1], _mm512_fmadd_ps(q[2], q[2], _mm512_mul_ps(q[3], q[3]))));
+    __mmask16 nz = _mm512_cmp_ps_mask(qn2, _mm512_setzero_ps(), _CMP_GT_OQ);
+    __m512 inv = _mm512_maskz_div_ps(nz, _mm512_set1_ps(1.0f), _mm512_sqrt_ps(qn2));
+    __m512 w = _mm512_mask_blend_ps(nz, _mm512_set1_ps(1.0f), _mm512_mul_ps(q[0], inv));
+    __m512 x = _mm512_mul_ps(q[1], inv), y = _mm512_mul_ps(q[2], inv), z = _mm512_mul_ps(q[3], inv);
+    __m512 one = _mm512_set1_ps(1.0f), two = _mm512_set1_ps(2.0f);
+    __m512 R[9];
+    R[0] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(y, y, _mm512_mul_ps(z, z)), one);
+    R[1] = _mm512_mul_ps(two, _mm512_fmsub_ps(x, y, _mm512_mul_ps(w, z)));
+    R[2] = _mm512_mul_ps(two, _mm512_fmadd_ps(x, z, _mm512_mul_ps(w, y)));
+    R[3] = _mm512_mul_ps(two, _mm512_fmadd_ps(x, y, _mm512_mul_ps(w, z)));
+    R[4] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(x, x, _mm512_mul_ps(z, z)), one);
+    R[5] = _mm512_mul_ps(two, _mm512_fmsub_ps(y, z, _mm512_mul_ps(w, x)));
+    R[6] = _mm512_mul_ps(two, _mm512_fmsub_ps(x, z, _mm512_mul_ps(w, y)));
+    R[7] = _mm512_mul_ps(two, _mm512_fmadd_ps(y, z, _mm512_mul_ps(w, x)));
+    R[8] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(x, x, _mm512_mul_ps(y, y)), one);
+    __m512 s[3] = { exp16(ls[0]), exp16(ls[1]), exp16(ls[2]) };
+    __m512 M[9];
+    for (int i = 0; i < 3; i++)
+        for (int k = 0; k < 3; k++) M[3*i+k] = _mm512_mul_ps(R[3*i+k], s[k]);
+    /* cov = M M^T (symmetric, 6 entries) */
+    __m512 C[9];
+    for (int i = 0; i < 3; i++)
+        for (int j = i; j < 3; j++)
+            C[3*i+j] = C[3*j+i] = _mm512_fmadd_ps(M[3*i], M[3*j], _mm512_fmadd_ps(M[3*i+1], M[3*j+1], _mm512_mul_ps(M[3*i+2], M[3*j+2])));
+    /* Jacobian with the clamped x/z, y/z */
+    __m512 iz = _mm512_div_ps(one, t[2]);
+    __m512 uc = _mm512_min_ps(_mm512_max_ps(_mm512_mul_ps(t[0], iz), _mm512_set1_ps(lim[0])), _mm512_set1_ps(lim[1]));
+    __m512 wc = _mm512_min_ps(_mm512_max_ps(_mm512_mul_ps(t[1], iz), _mm512_set1_ps(lim[2])), _mm512_set1_ps(lim[3]));
+    __m512 fx = _mm512_set1_ps(cam->fx), fy = _mm512_set1_ps(cam->fy);
+    __m512 J00 = _mm512_mul_ps(fx, iz), J02 = _mm512_sub_ps(_mm512_setzero_ps(), _mm512_mul_ps(_mm512_mul_ps(fx, uc), iz));
+    __m512 J11 = _mm512_mul_ps(fy, iz), J12 = _mm512_sub_ps(_mm512_setzero_ps(), _mm512_mul_ps(_mm512_mul_ps(fy, wc), iz));
+    __m512 T0[3], T1[3];
+    for (int j = 0; j < 3; j++) {
+        T0[j] = _mm512_fmadd_ps(J00, _mm512_set1_ps(W[j]), _mm512_mul_ps(J02, _mm512_set1_ps(W[6+j])));
+        T1[j] = _mm512_fmadd_ps(J11, _mm512_set1_ps(W[3+j]), _mm512_mul_ps(J12, _mm512_set1_ps(W[6+j])));
+    }
+    __m512 TC0[3], TC1[3];
+    for (int j = 0; j < 3; j++) {
+        TC0[j] = _mm512_fmadd_ps(T0[0], C[j], _mm512_fmadd_ps(T0[1], C[3+j], _mm512_mul_ps(T0[2], C[6+j])));
+        TC1[j] = _mm512_fmadd_ps(T1[0], C[j], _mm512_fmadd_ps(T1[1], C[3+j], _mm512_mul_ps(T1[2], C[6+j])));
+    }
+    __m512 lp = _mm512_set1_ps(SPLAT_LOWPASS);
+    __m512 sxx = _mm512_add_ps(_mm512_fmadd_ps(TC0[0], T0[0], _mm512_fmadd_ps(TC0[1], T0[1], _mm512_mul_ps(TC0[2], T0[2]))), lp);
+    __m512 sxy = _mm512_fmadd_ps(TC0[0], T1[0], _mm512_fmadd_ps(TC0[1], T1[1], _mm512_mul_ps(TC0[2], T1[2])));
+    __m512 syy = _mm512_add_ps(_mm512_fmadd_ps(TC1[0], T1[0], _mm512_fmadd_ps(TC1[1], T1[1], _mm512_mul_ps(TC1[2], T1[2]))), lp);
+    __m512 det = _mm512_fmsub_ps(sxx, syy, _mm512_mul_ps(sxy, sxy));
+    ok &= _mm512_cmp_ps_mask(det, _mm512_setzero_ps(), _CMP_GT_OQ);
+    __m512 id = _mm512_div_ps(one, det);
+    _mm512_storeu_ps(out[0], _mm512_fmadd_ps(_mm512_mul_ps(fx, t[0]), iz, _mm512_set1_ps(cam->cx)));
+    _mm512_storeu_ps(out[1], _mm512_fmadd_ps(_mm512_mul_ps(fy, t[1]), iz, _mm512_set1_ps(cam->cy)));
+    _mm512_storeu_ps(out[2], t[2]);
+    _mm512_storeu_ps(out[3], sxx);
+    _mm512_storeu_ps(out[4], sxy);
+    _mm512_storeu_ps(out[5], syy);
+    _mm512_storeu_ps(out[6], _mm512_mul_ps(syy, id));
+    _mm512_storeu_ps(out[7], _mm512_sub_ps(_mm512_setzero_ps(), _mm512_mul_ps(sxy, id)));
+    _mm512_storeu_ps(out[8], _mm512_mul_ps(sxx, id));
+    *valid = ok;
+    return 1;
+}
+
+/* Vector twin of splat_project_backward_lim for Gaussians i0 .. i0+15 (lanes in `mask`). */
+int splat_project_backward16(const float *means, const float *log_scales, const float *quats, int i0,
+                             const pg_camera *cam, const float lim[4], const float d_xy[2][16],
+                             const float d_conic[3][16], const float d_z[16], unsigned mask,
+                             float *d_means, float *d_log_scales, float *d_quats)
+{
+    const __m512i lane = _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0);
+    const __m512i i3 = _mm512_mullo_epi32(lane, _mm512_set1_epi32(3)), i4 = _mm512_slli_epi32(lane, 2);
+    const __mmask16 km = (__mmask16)mask;
+    const size_t b3 = 3 * (size_t)i0, b4 = 4 * (size_t)i0;
+    const __m512 zero = _mm512_setzero_ps(), one = _mm512_set1_ps(1.0f), two = _mm512_set1_ps(2.0f);
+    __m512 m[3], ls[3], q[4];
+    for (int c = 0; c < 3; c++) {
+        m[c] = _mm512_mask_i32gather_ps(zero, km, i3, means + b3 + c, 4);
+        ls[c] = _mm512_mask_i32gather_ps(zero, km, i3, log_scales + b3 + c, 4);
+    }
+    for (int c = 0; c < 4; c++) q[c] = _mm512_mask_i32gather_ps(one, km, i4, quats + b4 + c, 4);
+    const float *W = cam->R;
+    __m512 t[3];
+    for (int r = 0; r < 3; r++)
+        t[r] = _mm512_fmadd_ps(_mm512_set1_ps(W[3*r]), m[0],
+                               _mm512_fmadd_ps(_mm512_set1_ps(W[3*r+1]), m[1],
+                                               _mm512_fmadd_ps(_mm512_set1_ps(W[3*r+2]), m[2], _mm512_set1_ps(cam->t[r]))));
+    t[2] = _mm512_mask_blend_ps(km, one, t[2]); /* unused lanes: keep the arithmetic tame */
+    __m512 qn2 = _mm512_fmadd_ps(q[0], q[0], _mm512_fmadd_ps(q[1], q[1], _mm512_fmadd_ps(q[2], q[2], _mm512_mul_ps(q[3], q[3]))));
+    __mmask16 nz = _mm512_cmp_ps_mask(qn2, zero, _CMP_GT_OQ);
+    __m512 iq = _mm512_maskz_div_ps(nz, one, _mm512_sqrt_ps(qn2));
+    __m512 w = _mm512_mask_blend_ps(nz, one, _mm512_mul_ps(q[0], iq));
+    __m512 x = _mm512_mul_ps(q[1], iq), y = _mm512_mul_ps(q[2], iq), z = _mm512_mul_ps(q[3], iq);
+    __m512 R[9];
+    R[0] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(y, y, _mm512_mul_ps(z, z)), one);
+    R[1] = _mm512_mul_ps(two, _mm512_fmsub_ps(x, y, _mm512_mul_ps(w, z)));
+    R[2] = _mm512_mul_ps(two, _mm512_fmadd_ps(x, z, _mm512_mul_ps(w, y)));
+    R[3] = _mm512_mul_ps(two, _mm512_fmadd_ps(x, y, _mm512_mul_ps(w, z)));
+    R[4] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(x, x, _mm512_mul_ps(z, z)), one);
+    R[5] = _mm512_mul_ps(two, _mm512_fmsub_ps(y, z, _mm512_mul_ps(w, x)));
+    R[6] = _mm512_mul_ps(two, _mm512_fmsub_ps(x, z, _mm512_mul_ps(w, y)));
+    R[7] = _mm512_mul_ps(two, _mm512_fmadd_ps(y, z, _mm512_mul_ps(w, x)));
+    R[8] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(x, x, _mm512_mul_ps(y, y)), one);
+    __m512 sc[3] = { exp16(ls[0]), exp16(ls[1]), exp16(ls[2]) };
+    __m512 M[9], C[9];
+    for (int i = 0; i < 3; i++)
+        for (int k = 0; k < 3; k++) M[3*i+k] = _mm512_mul_ps(R[3*i+k], sc[k]);
+    for (int i = 0; i < 3; i++)
+        for (int j = i; j < 3; j++)
+            C[3*i+j] = C[3*j+i] = _mm512_fmadd_ps(M[3*i], M[3*j], _mm512_fmadd_ps(M[3*i+1], M[3*j+1], _mm512_mul_ps(M[3*i+2], M[3*j+2])));
+    __m512 iz = _mm512_div_ps(one, t[2]), iz2 = _mm512_mul_ps(iz, iz);
+    __m512 u = _mm512_mul_ps(t[0], iz), v = _mm512_mul_ps(t[1], iz);
+    __m512 uc = _mm512_min_ps(_mm512_max_ps(u, _mm512_set1_ps(lim[0])), _mm512_set1_ps(lim[1]));
+    __m512 vc = _mm512_min_ps(_mm512_max_ps(v, _mm512_set1_ps(lim[2])), _mm512_set1_ps(lim[3]));
+    __mmask16 cfx = _mm512_cmp_ps_mask(uc, u, _CMP_NEQ_UQ), cfy = _mm512_cmp_ps_mask(vc, v, _CMP_NEQ_UQ);
+    __m512 fx = _mm512_set1_ps(cam->fx), fy = _mm512_set1_ps(cam->fy);
+    __m512 J00 = _mm512_mul_ps(fx, iz), J02 = _mm512_sub_ps(zero, _mm512_mul_ps(_mm512_mul_ps(fx, uc), iz));
+    __m512 J11 = _mm512_mul_ps(fy, iz), J12 = _mm512_sub_ps(zero, _mm512_mul_ps(_mm512_mul_ps(fy, vc), iz));
+    __m512 T0[3], T1[3], TC0[3], TC1[3];
+    for (int j = 0; j < 3; j++) {
+        T0[j] = _mm512_fmadd_ps(J00, _mm512_set1_ps(W[j]), _mm512_mul_ps(J02, _mm512_set1_ps(W[6+j])));
+        T1[j] = _mm512_fmadd_ps(J11, _mm512_set1_ps(W[3+j]), _mm512_mul_ps(J12, _mm512_set1_ps(W[6+j])));
+    }
+    for (int j = 0; j < 3; j++) {
+        TC0[j] = _mm512_fmadd_ps(T0[0], C[j], _mm512_fmadd_ps(T0[1], C[3+j], _mm512_mul_ps(T0[2], C[6+j])));
+        TC1[j] = _mm512_fmadd_ps(T1[0], C[j], _mm512_fmadd_ps(T1[1], C[3+j], _mm512_mul_ps(T1[2], C[6+j])));
+    }
+    __m512 lp = _mm512_set1_ps(SPLAT_LOWPASS);
+    __m512 sxx = _mm512_add_ps(_mm512_fmadd_ps(TC0[0], T0[0], _mm512_fmadd_ps(TC0[1], T0[1], _mm512_mul_ps(TC0[2], T0[2]))), lp);
+    __m512 sxy = _mm512_fmadd_ps(TC0[0], T1[0], _mm512_fmadd_ps(TC0[1], T1[1], _mm512_mul_ps(TC0[2], T1[2])));
+    __m512 syy = _mm512_add_ps(_mm512_fmadd_ps(TC1[0], T1[0], _mm512_fmadd_ps(TC1[1], T1[1], _mm512_mul_ps(TC1[2], T1[2]))), lp);
+    __m512 id = _mm512_div_ps(one, _mm512_fmsub_ps(sxx, syy, _mm512_mul_ps(sxy, sxy)));
+    /* dL/dSigma2D = -Q Gq Q, Gq = [[da, db/2], [db/2, dc]] */
+    __m512 Qa = _mm512_mul_ps(syy, id), Qb = _mm512_sub_ps(zero, _mm512_mul_ps(sxy, id)), Qc = _mm512_mul_ps(sxx, id);
+    __m512 ga = _mm512_loadu_ps(d_conic[0]), gb = _mm512_mul_ps(_mm512_set1_ps(0.5f), _mm512_loadu_ps(d_conic[1]));
+    __m512 gc = _mm512_loadu_ps(d_conic[2]);
+    __m512 QG00 = _mm512_fmadd_ps(Qa, ga, _mm512_mul_ps(Qb, gb)), QG01 = _mm512_fmadd_ps(Qa, gb, _mm512_mul_ps(Qb, gc));
+    __m512 QG10 = _mm512_fmadd_ps(Qb, ga, _mm512_mul_ps(Qc, gb)), QG11 = _mm512_fmadd_ps(Qb, gb, _mm512_mul_ps(Qc, gc));
+    __m512 G00 = _mm512_sub_ps(zero, _mm512_fmadd_ps(QG00, Qa, _mm512_mul_ps(QG01, Qb)));
+    __m512 G01 = _mm512_sub_ps(zero, _mm512_fmadd_ps(QG00, Qb, _mm512_mul_ps(QG01, Qc)));
+    __m512 G10 = _mm512_sub_ps(zero, _mm512_fmadd_ps(QG10, Qa, _mm512_mul_ps(QG11, Qb)));
+    __m512 G11 = _mm512_sub_ps(zero, _mm512_fmadd_ps(QG10, Qb, _mm512_mul_ps(QG11, Qc)));
+    __m512 dT0[3], dT1[3], u0[3], u1[3];
+    for (int j = 0; j < 3; j++) {
+        dT0[j] = _mm512_mul_ps(two, _mm512_fmadd_ps(G00, TC0[j], _mm512_mul_ps(G01, TC1[j])));
+        dT1[j] = _mm512_mul_ps(two, _mm512_fmadd_ps(G10, TC0[j], _mm512_mul_ps(G11, TC1[j])));
+        u0[j] = _mm512_fmadd_ps(G00, T0[j], _mm512_mul_ps(G01, T1[j]));
+        u1[j] = _mm512_fmadd_ps(G10, T0[j], _mm512_mul_ps(G11, T1[j]));
+    }
+    __m512 dC[9];
+    for (int i = 0; i < 3; i++)
+        for (int j = i; j < 3; j++) dC[3*i+j] = dC[3*j+i] = _mm512_fmadd_ps(T0[i], u0[j], _mm512_mul_ps(T1[i], u1[j]));
+    __m512 dR[9], dls[3];
+    for (int k = 0; k < 3; k++) {
+        __m512 ds = zero;
+        for (int i = 0; i < 3; i++) {
+            __m512 dM = _mm512_mul_ps(two, _mm512_fmadd_ps(dC[3*i], M[k], _mm512_fmadd_ps(dC[3*i+1], M[3+k], _mm512_mul_ps(dC[3*i+2], M[6+k]))));
+            ds = _mm512_fmadd_ps(dM, R[3*i+k], ds);
+            dR[3*i+k] = _mm512_mul_ps(dM, sc[k]);
+        }
+        dls[k] = _mm512_mul_ps(ds, sc[k]);
+    }
+    __m512 dq[4];
+    dq[0] = _mm512_mul_ps(two, _mm512_add_ps(_mm512_add_ps(_mm512_fmsub_ps(y, dR[2], _mm512_mul_ps(z, dR[1])),
+                                                           _mm512_fmsub_ps(z, dR[3], _mm512_mul_ps(x, dR[5]))),
+                                             _mm512_fmsub_ps(x, dR[7], _mm512_mul_ps(y, dR[6]))));
+    dq[1] = _mm512_mul_ps(two, _mm512_add_ps(_mm512_add_ps(_mm512_fmadd_ps(y, _mm512_add_ps(dR[1], dR[3]), _mm512_mul_ps(z, _mm512_add_ps(dR[2], dR[6]))),
+                                                           _mm512_mul_ps(w, _mm512_sub_ps(dR[7], dR[5]))),
+                                             _mm512_mul_ps(_mm512_mul_ps(two, x), _mm512_sub_ps(zero, _mm512_add_ps(dR[4], dR[8])))));
+    dq[2] = _mm512_mul_ps(two, _mm512_add_ps(_mm512_add_ps(_mm512_fmadd_ps(x, _mm512_add_ps(dR[1], dR[3]), _mm512_mul_ps(z, _mm512_add_ps(dR[5], dR[7]))),
+                                                           _mm512_mul_ps(w, _mm512_sub_ps(dR[2], dR[6]))),
+                                             _mm512_mul_ps(_mm512_mul_ps(two, y), _mm512_sub_ps(zero, _mm512_add_ps(dR[0], dR[8])))));
+    dq[3] = _mm512_mul_ps(two, _mm512_add_ps(_mm512_add_ps(_mm512_fmadd_ps(x, _mm512_add_ps(dR[2], dR[6]), _mm512_mul_ps(y, _mm512_add_ps(dR[5], dR[7]))),
+                                                           _mm512_mul_ps(w, _mm512_sub_ps(dR[3], dR[1]))),
+                                             _mm512_mul_ps(_mm512_mul_ps(two, z), _mm512_sub_ps(zero, _mm512_add_ps(dR[0], dR[4])))));
+    __m512 qq[4] = { w, x, y, z };
+    __m512 dot = _mm512_fmadd_ps(dq[0], w, _mm512_fmadd_ps(dq[1], x, _mm512_fmadd_ps(dq[2], y, _mm512_mul_ps(dq[3], z))));
+    /* dL/dJ (only the non-zero entries) and then dt */
+    __m512 dJ00 = zero, dJ02 = zero, dJ11 = zero, dJ12 = zero;
+    for (int j = 0; j < 3; j++) {
+        dJ00 = _mm512_fmadd_ps(dT0[j], _mm512_set1_ps(W[j]), dJ00);
+        dJ02 = _mm512_fmadd_ps(dT0[j], _mm512_set1_ps(W[6+j]), dJ02);
+        dJ11 = _mm512_fmadd_ps(dT1[j], _mm512_set1_ps(W[3+j]), dJ11);
+        dJ12 = _mm512_fmadd_ps(dT1[j], _mm512_set1_ps(W[6+j]), dJ12);
+    }
+    __m512 dxy0 = _mm512_loadu_ps(d_xy[0]), dxy1 = _mm512_loadu_ps(d_xy[1]);
+    __m512 fxi2 = _mm512_mul_ps(fx, iz2), fyi2 = _mm512_mul_ps(fy, iz2);
+    __m512 dt0 = _mm512_mul_ps(_mm512_mul_ps(fx, iz), dxy0), dt1 = _mm512_mul_ps(_mm512_mul_ps(fy, iz), dxy1);
+    __m512 dt2 = _mm512_sub_ps(_mm512_loadu_ps(d_z), _mm512_fmadd_ps(fxi2, dJ00, _mm512_mul_ps(fyi2, dJ11)));
+    dt2 = _mm512_sub_ps(dt2, _mm512_fmadd_ps(_mm512_mul_ps(fxi2, t[0]), dxy0, _mm512_mul_ps(_mm512_mul_ps(fyi2, t[1]), dxy1)));
+    /* x: clamped -> J02 = -fx uc / z (uc constant); free -> J02 = -fx x / z^2 */
+    dt2 = _mm512_mask_add_ps(dt2, cfx, dt2, _mm512_mul_ps(_mm512_mul_ps(fxi2, uc), dJ02));
+    dt0 = _mm512_mask3_fnmadd_ps(fxi2, dJ02, dt0, (__mmask16)~cfx);
+    dt2 = _mm512_mask_add_ps(dt2, (__mmask16)~cfx, dt2,
+                             _mm512_mul_ps(_mm512_mul_ps(_mm512_mul_ps(two, fxi2), _mm512_mul_ps(t[0], iz)), dJ02));
+    dt2 = _mm512_mask_add_ps(dt2, cfy, dt2, _mm512_mul_ps(_mm512_mul_ps(fyi2, vc), dJ12));
+    dt1 = _mm512_mask3_fnmadd_ps(fyi2, dJ12, dt1, (__mmask16)~cfy);
+    dt2 = _mm512_mask_add_ps(dt2, (__mmask16)~cfy, dt2,
+                             _mm512_mul_ps(_mm512_mul_ps(_mm512_mul_ps(two, fyi2), _mm512_mul_ps(t[1], iz)), dJ12));
+    __m512 dt[3] = { dt0, dt1, dt2 };
+    /* accumulate into the gradient rows of the lanes in mask */
+    for (int k = 0; k < 3; k++) {
+        __m512 dm = _mm512_fmadd_ps(_mm512_set1_ps(W[k]), dt[0],
+                                    _mm512_fmadd_ps(_mm512_set1_ps(W[3+k]), dt[1], _mm512_mul_ps(_mm512_set1_ps(W[6+k]), dt[2])));
+        __m512 old = _mm512_mask_i32gather_ps(zero, km, i3, d_means + b3 + k, 4);
+        _mm512_mask_i32scatter_ps(d_means + b3 + k, km, i3, _mm512_add_ps(old, dm), 4);
+        old = _mm512_mask_i32gather_ps(zero, km, i3, d_log_scales + b3 + k, 4);
+        _mm512_mask_i32scatter_ps(d_log_scales + b3 + k, km, i3, _mm512_add_ps(old, dls[k]), 4);
+    }
+    __mmask16 kq = km & nz;
+    for (int c = 0; c < 4; c++) {
+        __m512 g = _mm512_mul_ps(_mm512_fnmadd_ps(dot, qq[c], dq[c]), iq);
+        __m512 old = _mm512_mask_i32gather_ps(zero, kq, i4, d_quats + b4 + c, 4);
+        _mm512_mask_i32scatter_ps(d_quats + b4 + c, kq, i4, _mm512_add_ps(old, g), 4);
+    }
+    return 1;
+}
+#else
+int splat_project_forward16(const float *means, const float *log_scales, const float *quats, int i0,
+                            const pg_camera *cam, const float lim[4], float near_clip, float out[9][16],
+                            unsigned *valid)
+{
+    (void)means; (void)log_scales; (void)quats; (void)i0; (void)cam; (void)lim; (void)near_clip; (void)out;
+    *valid = 0;
+    return 0;
+}
+
+int splat_project_backward16(const float *means, const float *log_scales, const float *quats, int i0,
+                             const pg_camera *cam, const float lim[4], const float d_xy[2][16],
+                             const float d_conic[3][16], const float d_z[16], unsigned mask,
+                             float *d_means, float *d_log_scales, float *d_quats)
+{
+    (void)means; (void)log_scales; (void)quats; (void)i0; (void)cam; (void)lim; (void)d_xy; (void)d_conic;
+    (void)d_z; (void)mask; (void)d_means; (void)d_log_scales; (void)d_quats;
+    return 0;
+}
+#endif

@@ -29,4 +29,27 @@ void splat_project_backward(const float mean[3], const float log_scale[3], const
                             const pg_camera *cam, const float d_xy[2], const float d_conic[3], float d_z,
                             float d_mean[3], float d_log_scale[3], float d_quat[4]);
 
+/* The same with the frustum-clamp limits precomputed by splat_project_limits (hot loops). */
+void splat_project_limits(const pg_camera *cam, float lim[4]);
+int splat_project_forward_lim(const float mean[3], const float log_scale[3], const float quat[4],
+                              const pg_camera *cam, const float lim[4], float near_clip, splat_proj *p);
+void splat_project_backward_lim(const float mean[3], const float log_scale[3], const float quat[4],
+                                const pg_camera *cam, const float lim[4], const float d_xy[2],
+                                const float d_conic[3], float d_z, float d_mean[3], float d_log_scale[3],
+                                float d_quat[4]);
+/* Gaussians i0 .. i0+15 at once (AVX-512 builds; returns 0 and does nothing otherwise).
+ * out rows: x, y, z, Sigma2D xx, xy, yy, conic a, b, c (16 lanes each); valid bit l set when
+ * Gaussian i0+l was kept. Float results differ from the scalar path by rounding only (exp is
+ * a polynomial here). */
+int splat_project_forward16(const float *means, const float *log_scales, const float *quats, int i0,
+                            const pg_camera *cam, const float lim[4], float near_clip, float out[9][16],
+                            unsigned *valid);
+/* Adds the gradients of Gaussians i0 .. i0+15 whose bit is set in mask (AVX-512 builds;
+ * returns 0 and does nothing otherwise). Inputs as in splat_project_backward, one row per
+ * quantity with 16 lanes. */
+int splat_project_backward16(const float *means, const float *log_scales, const float *quats, int i0,
+                             const pg_camera *cam, const float lim[4], const float d_xy[2][16],
+                             const float d_conic[3][16], const float d_z[16], unsigned mask,
+                             float *d_means, float *d_log_scales, float *d_quats);
+
 #endif

@@ -34,7 +34,7 @@ struct splat_raster {
     /* Per-tile workspace. */
     int cap_tiles;
     int *tile_start;            /* (tiles + 1) offsets into isect */
-    int *tcount;                /* (threads, tiles) per-thread tile counts, then cursors */
+    int *tcount;                /* (2, threads, tiles) per-thread tile counts, then write cursors */
     size_t cap_tcount;
     /* Per-intersection workspace, capacity cap_m. */
     size_t cap_m, cap_slots;
@@ -48,6 +48,8 @@ struct splat_raster {
     int valid, n, width, height, tiles_x, tiles_y, sh_degree, visible;
     size_t m;
     float bg[3];
+    float lim[4];               /* frustum clamp limits of the camera */
+    float cam_center[3];
 };
 
 pg_render_settings splat_default_settings(void)
@@ -139,40 +141,36 @@ static pg_status ensure_tiles(splat_raster *r, int tiles)
 
 static float sigmoidf(float x) { return 1.0f / (1.0f + expf(-x)); }
 
-/* Projects Gaussian i, evaluates its colour and opacity-aware box; fills r->rec[i] and
- * r->ntiles[i] (0 when culled). */
-static void preprocess_one(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
-                           const pg_render_settings *s, int deg, int i)
+/* Given the projection of Gaussian i, evaluates its opacity-aware box and colour; fills
+ * r->rec[i], r->rect[i], r->clamp[i] and r->ntiles[i] (0 when culled). */
+static void finish_one(splat_raster *r, const pg_gaussians *g, const pg_camera *cam, int deg, int i,
+                       const splat_proj *p)
 {
     r->ntiles[i] = 0;
-    splat_proj p;
-    if (!splat_project_forward(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, s->near_clip, &p))
-        return;
     float o = sigmoidf(g->opacity[i]);
     if (!(o >= SPLAT_ALPHA_MIN)) return;
     /* alpha = o exp(-sigma) >= 1/255 inside sigma <= ln(255 o); along x that reaches
      * sqrt(2 ln(255 o) Sigma_xx). */
     float lim = logf(255.0f * o);
     float e = fminf(3.33f, sqrtf(2.0f * fmaxf(lim, 0.0f)));
-    float rx = ceilf(e * sqrtf(p.cov2d[0])), ry = ceilf(e * sqrtf(p.cov2d[2]));
+    float rx = ceilf(e * sqrtf(p->cov2d[0])), ry = ceilf(e * sqrtf(p->cov2d[2]));
     /* Pixel i is covered when |i + 0.5 - x| <= rx. Compare in float before any int cast. */
-    float fxmin = ceilf(p.xy[0] - rx - 0.5f), fxmax = floorf(p.xy[0] + rx - 0.5f);
-    float fymin = ceilf(p.xy[1] - ry - 0.5f), fymax = floorf(p.xy[1] + ry - 0.5f);
+    float fxmin = ceilf(p->xy[0] - rx - 0.5f), fxmax = floorf(p->xy[0] + rx - 0.5f);
+    float fymin = ceilf(p->xy[1] - ry - 0.5f), fymax = floorf(p->xy[1] + ry - 0.5f);
     if (!(fxmax >= 0 && fymax >= 0 && fxmin <= cam->width - 1 && fymin <= cam->height - 1)) return;
     int xmin = fxmin < 0 ? 0 : (int)fxmin, xmax = fxmax > cam->width - 1 ? cam->width - 1 : (int)fxmax;
     int ymin = fymin < 0 ? 0 : (int)fymin, ymax = fymax > cam->height - 1 ? cam->height - 1 : (int)fymax;
     if (xmin > xmax || ymin > ymax) return;
     splat_rec *rc = &r->rec[i];
-    rc->x = p.xy[0]; rc->y = p.xy[1];
-    rc->ca = p.conic[0]; rc->cb = p.conic[1]; rc->cc = p.conic[2];
-    rc->o = o; rc->z = p.z;
-    rc->thr = lim + 1e-3f;
+    rc->x = p->xy[0]; rc->y = p->xy[1];
+    rc->ha = 0.5f * p->conic[0]; rc->cb = p->conic[1]; rc->hc = 0.5f * p->conic[2];
+    rc->o = o; rc->z = p->z;
+    rc->thr = lim; /* sigma <= ln(255 o) is exactly o exp(-sigma) >= 1/255, without rounding doubts */
     rc->ymin = ymin; rc->ymax = ymax;
     rc->tx0 = xmin / SPLAT_TILE;
     rc->tw = xmax / SPLAT_TILE - rc->tx0 + 1;
-    float C[3], dir[3];
-    pg_camera_center(cam, C);
-    vec3_sub(dir, g->means + 3*i, C);
+    float dir[3];
+    vec3_sub(dir, g->means + 3*i, r->cam_center);
     int cl[3];
     splat_sh_forward(deg, g->sh + (size_t)48 * i, dir, rc->col, cl);
     r->clamp[i] = (unsigned char)(cl[0] | cl[1] << 1 | cl[2] << 2);
@@ -180,6 +178,32 @@ static void preprocess_one(splat_raster *r, const pg_gaussians *g, const pg_came
     uint16_t *bx = r->rect + 4 * (size_t)i;
     bx[0] = (uint16_t)rc->tx0; bx[1] = (uint16_t)(ymin / SPLAT_TILE);
     bx[2] = (uint16_t)(xmax / SPLAT_TILE); bx[3] = (uint16_t)(ymax / SPLAT_TILE);
+}
+
+/* Preprocesses Gaussians i0 .. i1-1: projection 16 at a time where SIMD is compiled in. */
+static void preprocess_range(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
+                             const pg_render_settings *s, int deg, int i0, int i1)
+{
+    int i = i0;
+    float pr[9][16];
+    unsigned valid;
+    for (; i + 16 <= i1; i += 16) {
+        if (!splat_project_forward16(g->means, g->log_scales, g->quats, i, cam, r->lim, s->near_clip, pr, &valid))
+            break;
+        for (int l = 0; l < 16; l++) {
+            if (!(valid >> l & 1)) { r->ntiles[i + l] = 0; continue; }
+            splat_proj p = { { pr[0][l], pr[1][l] }, pr[2][l], { pr[3][l], pr[4][l], pr[5][l] },
+                             { pr[6][l], pr[7][l], pr[8][l] } };
+            finish_one(r, g, cam, deg, i + l, &p);
+        }
+    }
+    for (; i < i1; i++) {
+        splat_proj p;
+        if (splat_project_forward_lim(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, r->lim, s->near_clip, &p))
+            finish_one(r, g, cam, deg, i, &p);
+        else
+            r->ntiles[i] = 0;
+    }
 }
 
 /* Stable LSD radix sort of (key, value) pairs by 32-bit key, 8 bits per pass. */
@@ -246,12 +270,12 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     PG_TRY(ensure_tiles(r, tx * ty));
     r->n = n; r->width = W; r->height = H; r->tiles_x = tx; r->tiles_y = ty; r->sh_degree = deg;
     for (int c = 0; c < 3; c++) r->bg[c] = s->background[c];
+    splat_project_limits(cam, r->lim);
+    pg_camera_center(cam, r->cam_center);
 
-    #pragma omp parallel for schedule(static, 1024)
-    for (int i = 0; i < n; i++) preprocess_one(r, g, cam, s, deg, i);
-
-    /* Gradient slot offsets (Gaussian-major) and the visible list in index order: per-thread
-     * chunk sums, then each chunk fills its part (same result for any thread count). */
+    /* Preprocess, then gradient slot offsets (Gaussian-major) and the visible list in index
+     * order: each thread takes a contiguous chunk, chunk sums are prefixed, then each chunk
+     * fills its part (same result for any thread count; one parallel region, one barrier). */
     int nth = pg_get_threads();
     if (nth < 1) nth = 1;
     if (nth > SPLAT_MAX_THREADS) nth = SPLAT_MAX_THREADS;
@@ -260,18 +284,27 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     #pragma omp parallel num_threads(nth)
     {
         int t = omp_get_thread_num(), T = omp_get_num_threads();
-        int i0 = (int)((long)n * t / T), i1 = (int)((long)n * (t + 1) / T);
+        /* chunk edges on multiples of 16, so every Gaussian takes the same (vector or scalar
+         * tail) projection path whatever the thread count */
+        int i0 = (int)((long)n * t / T) & ~15, i1 = t == T - 1 ? n : (int)((long)n * (t + 1) / T) & ~15;
         size_t mm = 0;
         int vv = 0;
-        for (int i = i0; i < i1; i++) { mm += (size_t)r->ntiles[i]; vv += r->ntiles[i] > 0; }
+        preprocess_range(r, g, cam, s, deg, i0, i1);
+        for (int i = i0; i < i1; i++) {
+            mm += (size_t)r->ntiles[i];
+            vv += r->ntiles[i] > 0;
+        }
         part_m[t + 1] = mm;
         part_v[t + 1] = vv;
         #pragma omp barrier
-        #pragma omp single
-        for (int q = 0; q < T; q++) { part_m[q + 1] += part_m[q]; part_v[q + 1] += part_v[q]; }
-        mm = part_m[t];
-        vv = part_v[t];
-        if (part_m[T] <= INT_MAX)
+        /* every thread prefixes the chunk sums itself: no second barrier */
+        mm = 0;
+        vv = 0;
+        for (int q = 0; q < t; q++) { mm += part_m[q + 1]; vv += part_v[q + 1]; }
+        size_t total = 0;
+        int total_v = 0;
+        for (int q = 0; q < T; q++) { total += part_m[q + 1]; total_v += part_v[q + 1]; }
+        if (total <= INT_MAX)
             for (int i = i0; i < i1; i++) {
                 r->rec[i].slot_base = (int)mm;
                 if (r->ntiles[i] > 0) {
@@ -281,10 +314,10 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
                     r->order[vv++] = i;
                 }
             }
-        if (t == 0) { part_m[SPLAT_MAX_THREADS] = part_m[T]; part_v[SPLAT_MAX_THREADS] = part_v[T]; }
+        if (t == T - 1) { part_m[0] = total; part_v[0] = total_v; } /* slot 0 is read by nobody else */
     }
-    size_t m = part_m[SPLAT_MAX_THREADS];
-    int vis = part_v[SPLAT_MAX_THREADS];
+    size_t m = part_m[0];
+    int vis = part_v[0];
     if (m > INT_MAX) return pg_fail(PG_ERR_SIZE, "rasterizer: %zu tile intersections (limit %d)", m, INT_MAX);
     r->m = m;
     r->visible = vis;
@@ -298,7 +331,7 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     r->cap_m = capm;
     int ntile = tx * ty;
     size_t capc = r->cap_tcount;
-    PG_TRY(grow((void **)&r->tcount, &capc, (size_t)nth * ntile, sizeof(int), "tile counts"));
+    PG_TRY(grow((void **)&r->tcount, &capc, (size_t)2 * nth * ntile, sizeof(int), "tile counts"));
     r->cap_tcount = capc;
     #pragma omp parallel num_threads(nth)
     {
@@ -312,24 +345,23 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
                 for (int xx = bx[0]; xx <= bx[2]; xx++) cnt[yy * tx + xx]++;
         }
         #pragma omp barrier
-        #pragma omp single
-        {
-            int run = 0;
-            for (int tile = 0; tile < ntile; tile++) {
-                r->tile_start[tile] = run;
-                for (int q = 0; q < T; q++) {
-                    int c = r->tcount[(size_t)q * ntile + tile];
-                    r->tcount[(size_t)q * ntile + tile] = run;
-                    run += c;
-                }
+        /* each thread derives its own write cursors from all counts (thread 0 also publishes
+         * the tile ranges): no second barrier */
+        int *cur = r->tcount + (size_t)(T + t) * ntile;
+        int run = 0;
+        for (int tile = 0; tile < ntile; tile++) {
+            if (t == 0) r->tile_start[tile] = run;
+            for (int q = 0; q < T; q++) {
+                if (q == t) cur[tile] = run;
+                run += r->tcount[(size_t)q * ntile + tile];
             }
-            r->tile_start[ntile] = run;
         }
+        if (t == 0) r->tile_start[ntile] = run;
         for (int v = v0; v < v1; v++) {
             int id = r->order[v];
             const uint16_t *bx = r->rect + 4 * (size_t)id;
             for (int yy = bx[1]; yy <= bx[3]; yy++)
-                for (int xx = bx[0]; xx <= bx[2]; xx++) r->isect[cnt[yy * tx + xx]++] = id;
+                for (int xx = bx[0]; xx <= bx[2]; xx++) r->isect[cur[yy * tx + xx]++] = id;
         }
     }
     double t1 = pg_time_seconds();
@@ -378,35 +410,56 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
     }
 
     /* Per-Gaussian fixed-order reduction of the slots, then the chain through SH and projection. */
-    float C[3];
+    float C[3], lim[4];
     pg_camera_center(cam, C);
+    splat_project_limits(cam, lim);
     int deg = r->sh_degree, n = g->count;
     float half_w = 0.5f * cam->width, half_h = 0.5f * cam->height;
-    #pragma omp parallel for schedule(static, 256)
-    for (int i = 0; i < n; i++) {
-        if (r->ntiles[i] == 0) continue;
-        const splat_rec *rc = &r->rec[i];
-        double acc[SPLAT_GRAD_STRIDE] = { 0 };
-        const float *sl = r->slots + (size_t)SPLAT_GRAD_STRIDE * rc->slot_base;
-        for (int k = 0; k < r->ntiles[i]; k++)
-            for (int c = 0; c < SPLAT_GRAD_STRIDE; c++) acc[c] += sl[SPLAT_GRAD_STRIDE * k + c];
-        float d_xy[2] = { (float)acc[0], (float)acc[1] };
-        float d_conic[3] = { (float)acc[2], (float)acc[3], (float)acc[4] };
-        float d_rgb3[3] = { (float)acc[6], (float)acc[7], (float)acc[8] };
-        float d_z = (float)acc[9];
-        /* opacity = sigmoid(logit) */
-        grad->opacity[i] += (float)acc[5] * rc->o * (1.0f - rc->o);
-        float dir[3], d_dir[3] = { 0, 0, 0 };
-        vec3_sub(dir, g->means + 3*i, C);
-        int cl[3] = { r->clamp[i] & 1, (r->clamp[i] >> 1) & 1, (r->clamp[i] >> 2) & 1 };
-        splat_sh_backward(deg, g->sh + (size_t)48 * i, dir, cl, d_rgb3, grad->sh + (size_t)48 * i, d_dir);
-        vec3_add(grad->means + 3*i, grad->means + 3*i, d_dir);
-        splat_project_backward(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, d_xy, d_conic, d_z,
-                               grad->means + 3*i, grad->log_scales + 3*i, grad->quats + 4*i);
-        if (viewspace_grad_norm) {
-            /* In NDC units (x pixels * 2/W) like 3DGS, so its 2e-4 densification threshold applies. */
-            float gx = d_xy[0] * half_w, gy = d_xy[1] * half_h;
-            viewspace_grad_norm[i] += sqrtf(gx * gx + gy * gy);
+    /* Blocks of 16 Gaussians: slot sums, opacity and SH per Gaussian, then the projection
+     * backward 16 at a time (same blocks for any thread count, so results stay identical). */
+    int nblk = (n + 15) / 16;
+    #pragma omp parallel for schedule(static, 16)
+    for (int b = 0; b < nblk; b++) {
+        int i0 = 16 * b, cnt = n - i0 < 16 ? n - i0 : 16;
+        float d_xy[2][16], d_conic[3][16], d_z[16];
+        unsigned mask = 0;
+        for (int l = 0; l < cnt; l++) {
+            int i = i0 + l;
+            d_xy[0][l] = d_xy[1][l] = d_conic[0][l] = d_conic[1][l] = d_conic[2][l] = d_z[l] = 0;
+            if (r->ntiles[i] == 0) continue;
+            mask |= 1u << l;
+            const splat_rec *rc = &r->rec[i];
+            double acc[SPLAT_GRAD_STRIDE] = { 0 };
+            const float *sl = r->slots + (size_t)SPLAT_GRAD_STRIDE * rc->slot_base;
+            for (int k = 0; k < r->ntiles[i]; k++)
+                for (int c = 0; c < SPLAT_GRAD_STRIDE; c++) acc[c] += sl[SPLAT_GRAD_STRIDE * k + c];
+            d_xy[0][l] = (float)acc[0]; d_xy[1][l] = (float)acc[1];
+            d_conic[0][l] = (float)acc[2]; d_conic[1][l] = (float)acc[3]; d_conic[2][l] = (float)acc[4];
+            d_z[l] = (float)acc[9];
+            float d_rgb3[3] = { (float)acc[6], (float)acc[7], (float)acc[8] };
+            /* opacity = sigmoid(logit) */
+            grad->opacity[i] += (float)acc[5] * rc->o * (1.0f - rc->o);
+            float dir[3], d_dir[3] = { 0, 0, 0 };
+            vec3_sub(dir, g->means + 3*i, C);
+            int cl[3] = { r->clamp[i] & 1, (r->clamp[i] >> 1) & 1, (r->clamp[i] >> 2) & 1 };
+            splat_sh_backward(deg, g->sh + (size_t)48 * i, dir, cl, d_rgb3, grad->sh + (size_t)48 * i, d_dir);
+            vec3_add(grad->means + 3*i, grad->means + 3*i, d_dir);
+            if (viewspace_grad_norm) {
+                /* In NDC units (x pixels * 2/W) like 3DGS, so its 2e-4 densification threshold applies. */
+                float gx = d_xy[0][l] * half_w, gy = d_xy[1][l] * half_h;
+                viewspace_grad_norm[i] += sqrtf(gx * gx + gy * gy);
+            }
+        }
+        if (!mask) continue;
+        if (cnt == 16 && splat_project_backward16(g->means, g->log_scales, g->quats, i0, cam, lim, d_xy, d_conic, d_z,
+                                                  mask, grad->means, grad->log_scales, grad->quats))
+            continue;
+        for (int l = 0; l < cnt; l++) {
+            if (!(mask >> l & 1)) continue;
+            int i = i0 + l;
+            float dxy[2] = { d_xy[0][l], d_xy[1][l] }, dcon[3] = { d_conic[0][l], d_conic[1][l], d_conic[2][l] };
+            splat_project_backward_lim(g->means + 3*i, g->log_scales + 3*i, g->quats + 4*i, cam, lim, dxy, dcon, d_z[l],
+                                       grad->means + 3*i, grad->log_scales + 3*i, grad->quats + 4*i);
         }
     }
     return PG_OK;

@@ -42,7 +42,10 @@ void splat_raster_destroy(splat_raster *r);
 pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
                                const pg_render_settings *s, pg_render_output *out);
 /* Accumulates (+=) gradients w.r.t. every Gaussian parameter into grad (same count as g).
- * viewspace_grad_norm (N), if not NULL, gets += |dL/d(mean2D)| per Gaussian (densification). */
+ * viewspace_grad_norm (N), if not NULL, gets += |dL/d(mean2D)| per Gaussian (densification),
+ * measured in NDC units (pixel gradient * (W/2, H/2)) like 3DGS, so its 2e-4 threshold applies;
+ * Gaussians culled in the forward get nothing. Deterministic: the same bytes for any thread
+ * count. Fails (PG_ERR_ARG) if the latest forward was not of the same Gaussian count and size. */
 pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
                                 const pg_render_settings *s, const float *d_rgb, const float *d_depth,
                                 const float *d_alpha, pg_gaussians *grad, float *viewspace_grad_norm);

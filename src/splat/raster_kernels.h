@@ -16,11 +16,11 @@
 /* What the tile kernels read per Gaussian: 64 bytes, one cache line. */
 typedef struct {
     float x, y;          /* projected mean, pixels */
-    float ca, cb, cc;    /* conic: sigma = 0.5 (ca dx^2 + cc dy^2) + cb dx dy */
+    float ha, cb, hc;    /* half conic: sigma = ha dx^2 + cb dx dy + hc dy^2 (ha = a/2, hc = c/2) */
     float o;             /* opacity (activated) */
     float col[3];        /* SH colour */
     float z;             /* camera depth */
-    float thr;           /* ln(255 o) + margin: sigma above it gives alpha < 1/255 */
+    float thr;           /* ln(255 o): the Gaussian counts at a pixel iff sigma <= thr (alpha >= 1/255) */
     int ymin, ymax;      /* pixel rows the opacity-aware box covers (clamped to the image) */
     int slot_base;       /* first gradient slot of this Gaussian */
     int tx0, tw;         /* first tile column of the box, tile columns in the box */

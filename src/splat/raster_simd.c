@@ -1,4 +1,5 @@
-/* raster_simd.c - AVX-512 tile kernels: one 16-pixel tile row per vector, Gaussian-major loops.
+/* raster_simd.c - AVX-512 tile kernels: one 16-pixel tile row per vector (AVX2-only builds use
+ * raster_avx2.c; builds without either fall back to the scalar kernels).
  *
  * Per pixel the kernels do exactly the operations of the scalar reference (raster_tile.c) in
  * the same order, with fused multiply-adds in the same places, so the forward matches it bit for
@@ -13,18 +14,20 @@
 #if defined(__AVX512F__)
 #include <immintrin.h>
 
-#define SPLAT_PREFETCH 6
-
 int splat_simd_available(void) { return 1; }
 const char *splat_simd_name(void) { return "avx512"; }
 
-/* Vector twin of splat_exp_poly. */
-static inline __m512 exp_poly16(__m512 x)
+/* exp(-s): the vector twin of splat_exp_poly(-s), with the negation folded into the range
+ * reduction (bit-identical: every step is the exact negative of the scalar one). Lanes outside
+ * a Gaussian's reach carry huge s; their results are masked off, but denormal intermediates
+ * would still cost microcode assists (several times slower for small Gaussians). Used lanes
+ * have s <= ln(255), so the clamp at 20 never changes them. */
+static inline __m512 exp_neg16(__m512 s)
 {
-    /* no clamp at -87 as in the scalar twin: only lanes with x >= -ln(255) - 1e-3 are used */
-    __m512 n = _mm512_roundscale_ps(_mm512_mul_ps(x, _mm512_set1_ps(1.44269504088896341f)),
+    s = _mm512_min_ps(s, _mm512_set1_ps(20.0f));
+    __m512 n = _mm512_roundscale_ps(_mm512_mul_ps(s, _mm512_set1_ps(-1.44269504088896341f)),
                                     _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-    __m512 f = _mm512_fmadd_ps(n, _mm512_set1_ps(-0.693359375f), x);
+    __m512 f = _mm512_fnmsub_ps(n, _mm512_set1_ps(0.693359375f), s); /* -n ln2_hi - s */
     f = _mm512_fmadd_ps(n, _mm512_set1_ps(2.12194440e-4f), f);
     __m512 p = _mm512_set1_ps(1.0f / 720.0f);
     p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 120.0f));
@@ -34,6 +37,32 @@ static inline __m512 exp_poly16(__m512 x)
     p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f));
     p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f));
     return _mm512_scalef_ps(p, n); /* exact p * 2^n, like the scalar exponent-bits product */
+}
+
+/* Lane sums of ten vectors at once (about a third of the shuffles of ten separate
+ * reductions): pairs fold their 256-bit halves, quads fold 128-bit blocks, then each block
+ * is summed in place. out[i] = sum of the lanes of v[i]. */
+static inline void hsum10(const __m512 v[10], float out[10])
+{
+    __m512 z = _mm512_setzero_ps();
+    __m512 p[6];
+    for (int i = 0; i < 5; i++) {
+        __m512 a = v[2 * i], b = v[2 * i + 1];
+        p[i] = _mm512_add_ps(_mm512_shuffle_f32x4(a, b, _MM_SHUFFLE(1, 0, 1, 0)),
+                             _mm512_shuffle_f32x4(a, b, _MM_SHUFFLE(3, 2, 3, 2)));
+    }
+    p[5] = z;
+    float tmp[48] __attribute__((aligned(64)));
+    for (int i = 0; i < 3; i++) {
+        __m512 x = p[2 * i], y = p[2 * i + 1];
+        __m512 q = _mm512_add_ps(_mm512_shuffle_f32x4(x, y, _MM_SHUFFLE(2, 0, 2, 0)),
+                                 _mm512_shuffle_f32x4(x, y, _MM_SHUFFLE(3, 1, 3, 1)));
+        q = _mm512_add_ps(q, _mm512_permute_ps(q, _MM_SHUFFLE(1, 0, 3, 2)));
+        q = _mm512_add_ps(q, _mm512_permute_ps(q, _MM_SHUFFLE(2, 3, 0, 1)));
+        _mm512_store_ps(tmp + 16 * i, q);
+    }
+    /* after the two folds, block b of fold g holds the sum of vector 4g + b */
+    for (int i = 0; i < 10; i++) out[i] = tmp[16 * (i / 4) + 4 * (i % 4)];
 }
 
 static inline __m512 lane_centres(int x0)
@@ -67,7 +96,7 @@ void splat_tile_forward_simd(const splat_tile_job *j)
     __mmask16 active[SPLAT_TILE];
     const __m512 px = lane_centres(j->x0);
     const __m512 one = _mm512_set1_ps(1.0f), amax = _mm512_set1_ps(SPLAT_ALPHA_MAX);
-    const __m512 amin = _mm512_set1_ps(SPLAT_ALPHA_MIN), teps = _mm512_set1_ps(SPLAT_T_EPS);
+    const __m512 teps = _mm512_set1_ps(SPLAT_T_EPS);
     const __m512 zero = _mm512_setzero_ps();
     const __mmask16 lanes = (__mmask16)((1u << j->w) - 1u);
     for (int row = 0; row < SPLAT_TILE; row++) {
@@ -95,7 +124,7 @@ void splat_tile_forward_simd(const splat_tile_job *j)
             __mmask16 act0 = active[row], act1 = active[row + 1];
             if (!(act0 | act1)) continue;
             int gy = j->y0 + row;
-            float fy0 = gy + 0.5f, fy1 = (gy + 1) + 0.5f;
+            const __m512 fy0 = _mm512_set1_ps(gy + 0.5f), fy1 = _mm512_set1_ps((gy + 1) + 0.5f);
             /* indices of the chunk's Gaussians whose box covers either row, in depth order */
             int cnt = 0;
             const __m512i gy0v = _mm512_set1_epi32(gy), gy1v = _mm512_set1_epi32(gy + 1);
@@ -118,24 +147,26 @@ void splat_tile_forward_simd(const splat_tile_job *j)
                 /* rows outside the box are skipped exactly as in the scalar kernel */
                 __mmask16 in0 = (gy >= r->ymin && gy <= r->ymax) ? lanes : 0;
                 __mmask16 in1 = (gy + 1 <= r->ymax && gy + 1 >= r->ymin) ? lanes : 0;
-                float dy0 = fy0 - r->y, dy1 = fy1 - r->y;
-                /* sigma = fmaf(dx, fmaf(ha, dx, b dy), 0.5 c dy dy) as in the scalar kernel */
+                /* sigma = fmaf(dx, fmaf(ha, dx, b dy), (hc dy) dy) as in the scalar kernel, with
+                 * memory-broadcast operands (no scalar work or register broadcasts per row) */
                 __m512 dx = _mm512_sub_ps(px, _mm512_set1_ps(r->x));
-                __m512 ha = _mm512_set1_ps(0.5f * r->ca), thr = _mm512_set1_ps(r->thr);
-                __m512 s0 = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(ha, dx, _mm512_set1_ps(r->cb * dy0)),
-                                            _mm512_set1_ps(0.5f * r->cc * dy0 * dy0));
-                __m512 s1 = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(ha, dx, _mm512_set1_ps(r->cb * dy1)),
-                                            _mm512_set1_ps(0.5f * r->cc * dy1 * dy1));
-                /* branch on the box test alone: it resolves early, unlike one that waits on the
-                 * previous Gaussian's transmittance through the active masks */
+                __m512 yb = _mm512_set1_ps(r->y), cbv = _mm512_set1_ps(r->cb), hcv = _mm512_set1_ps(r->hc);
+                __m512 ha = _mm512_set1_ps(r->ha), thr = _mm512_set1_ps(r->thr);
+                __m512 dy0 = _mm512_sub_ps(fy0, yb), dy1 = _mm512_sub_ps(fy1, yb);
+                __m512 hdx = _mm512_fmadd_ps(ha, dx, _mm512_mul_ps(cbv, dy0));
+                __m512 s0 = _mm512_fmadd_ps(dx, hdx, _mm512_mul_ps(_mm512_mul_ps(hcv, dy0), dy0));
+                hdx = _mm512_fmadd_ps(ha, dx, _mm512_mul_ps(cbv, dy1));
+                __m512 s1 = _mm512_fmadd_ps(dx, hdx, _mm512_mul_ps(_mm512_mul_ps(hcv, dy1), dy1));
+                /* sigma <= ln(255 o) is the alpha >= 1/255 test. Branch on it alone: it resolves
+                 * early, unlike one that waits on the previous Gaussian through the active masks */
                 __mmask16 m0 = _mm512_mask_cmp_ps_mask(in0, s0, thr, _CMP_LE_OQ);
                 __mmask16 m1 = _mm512_mask_cmp_ps_mask(in1, s1, thr, _CMP_LE_OQ);
                 if (!(m0 | m1)) continue;
                 __m512 op = _mm512_set1_ps(r->o);
-                __m512 a0 = _mm512_min_ps(_mm512_mul_ps(op, exp_poly16(_mm512_sub_ps(zero, s0))), amax);
-                __m512 a1 = _mm512_min_ps(_mm512_mul_ps(op, exp_poly16(_mm512_sub_ps(zero, s1))), amax);
-                m0 = _mm512_mask_cmp_ps_mask(m0 & act0, a0, amin, _CMP_GE_OQ);
-                m1 = _mm512_mask_cmp_ps_mask(m1 & act1, a1, amin, _CMP_GE_OQ);
+                __m512 a0 = _mm512_min_ps(_mm512_mul_ps(op, exp_neg16(s0)), amax);
+                __m512 a1 = _mm512_min_ps(_mm512_mul_ps(op, exp_neg16(s1)), amax);
+                m0 &= act0;
+                m1 &= act1;
                 __m512 t0 = _mm512_mul_ps(T0, _mm512_sub_ps(one, a0));
                 __m512 t1 = _mm512_mul_ps(T1, _mm512_sub_ps(one, a1));
                 __mmask16 f0 = _mm512_mask_cmp_ps_mask(m0, t0, teps, _CMP_LT_OQ);
@@ -166,6 +197,8 @@ void splat_tile_forward_simd(const splat_tile_job *j)
             active[row + 1] = act1;
         }
     }
+    const __m512i idx3 = _mm512_mullo_epi32(_mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0),
+                                            _mm512_set1_epi32(3));
     for (int row = 0; row < j->h; row++) {
         size_t p0 = (size_t)(j->y0 + row) * j->width + j->x0;
         __m512 T = _mm512_load_ps(sT[row]);
@@ -173,12 +206,10 @@ void splat_tile_forward_simd(const splat_tile_job *j)
         _mm512_mask_storeu_ps(j->alpha + p0, lanes, _mm512_sub_ps(one, T));
         _mm512_mask_storeu_ps(j->tfinal + p0, lanes, T);
         _mm512_mask_storeu_epi32(j->last + p0, lanes, _mm512_load_si512((const void *)sL[row]));
-        for (int i = 0; i < j->w; i++) {
-            size_t p = p0 + i;
-            j->rgb[3*p] = fmaf(sT[row][i], j->bg[0], sR[row][i]);
-            j->rgb[3*p+1] = fmaf(sT[row][i], j->bg[1], sG[row][i]);
-            j->rgb[3*p+2] = fmaf(sT[row][i], j->bg[2], sB[row][i]);
-        }
+        float *b = j->rgb + 3 * p0;
+        _mm512_mask_i32scatter_ps(b, lanes, idx3, _mm512_fmadd_ps(T, _mm512_set1_ps(j->bg[0]), _mm512_load_ps(sR[row])), 4);
+        _mm512_mask_i32scatter_ps(b + 1, lanes, idx3, _mm512_fmadd_ps(T, _mm512_set1_ps(j->bg[1]), _mm512_load_ps(sG[row])), 4);
+        _mm512_mask_i32scatter_ps(b + 2, lanes, idx3, _mm512_fmadd_ps(T, _mm512_set1_ps(j->bg[2]), _mm512_load_ps(sB[row])), 4);
     }
 }
 
@@ -196,26 +227,39 @@ void splat_tile_backward_simd(const splat_tile_job *j)
     splat_rec loc[CHUNK] __attribute__((aligned(64)));
     int rowmax[SPLAT_TILE];
     int kmax = -1;
+    const __mmask16 lanes = (__mmask16)((1u << j->w) - 1u);
+    const __m512i idx3 = _mm512_mullo_epi32(_mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0),
+                                            _mm512_set1_epi32(3));
     for (int row = 0; row < SPLAT_TILE; row++) {
-        rowmax[row] = -1;
-        for (int i = 0; i < SPLAT_TILE; i++) {
-            int t = row * 16 + i;
-            if (row >= j->h || i >= j->w) {
-                T[t] = Q[t] = Dr[t] = Dg[t] = Db[t] = Dd[t] = 0;
-                last[t] = -1;
-                continue;
-            }
-            size_t p = (size_t)(j->y0 + row) * j->width + j->x0 + i;
-            float dl[3] = { 0, 0, 0 }, dd = j->d_depth ? j->d_depth[p] : 0.0f;
-            if (j->d_rgb) for (int c = 0; c < 3; c++) dl[c] = j->d_rgb[3*p + c];
-            float da = j->d_alpha ? j->d_alpha[p] : 0.0f;
-            float bgdot = fmaf(j->bg[2], dl[2], fmaf(j->bg[1], dl[1], j->bg[0] * dl[0]));
-            T[t] = j->tfinal[p];
-            Q[t] = -(T[t] * (da - bgdot));
-            Dr[t] = dl[0]; Dg[t] = dl[1]; Db[t] = dl[2]; Dd[t] = dd;
-            last[t] = j->last[p];
-            if (last[t] > rowmax[row]) rowmax[row] = last[t];
+        int t = row * 16;
+        if (row >= j->h) {
+            _mm512_store_ps(T + t, _mm512_setzero_ps()); _mm512_store_ps(Q + t, _mm512_setzero_ps());
+            _mm512_store_ps(Dr + t, _mm512_setzero_ps()); _mm512_store_ps(Dg + t, _mm512_setzero_ps());
+            _mm512_store_ps(Db + t, _mm512_setzero_ps()); _mm512_store_ps(Dd + t, _mm512_setzero_ps());
+            _mm512_store_si512((void *)(last + t), _mm512_set1_epi32(-1));
+            rowmax[row] = -1;
+            continue;
         }
+        /* the same per-pixel set-up as the scalar kernel, 16 pixels at a time */
+        size_t p0 = (size_t)(j->y0 + row) * j->width + j->x0;
+        __m512 z = _mm512_setzero_ps(), dr = z, dg = z, db = z, dd = z, da = z;
+        if (j->d_rgb) {
+            const float *b = j->d_rgb + 3 * p0;
+            dr = _mm512_mask_i32gather_ps(z, lanes, idx3, b, 4);
+            dg = _mm512_mask_i32gather_ps(z, lanes, idx3, b + 1, 4);
+            db = _mm512_mask_i32gather_ps(z, lanes, idx3, b + 2, 4);
+        }
+        if (j->d_depth) dd = _mm512_maskz_loadu_ps(lanes, j->d_depth + p0);
+        if (j->d_alpha) da = _mm512_maskz_loadu_ps(lanes, j->d_alpha + p0);
+        __m512 bgdot = _mm512_fmadd_ps(_mm512_set1_ps(j->bg[2]), db,
+                                       _mm512_fmadd_ps(_mm512_set1_ps(j->bg[1]), dg, _mm512_mul_ps(_mm512_set1_ps(j->bg[0]), dr)));
+        __m512 Tf = _mm512_maskz_loadu_ps(lanes, j->tfinal + p0);
+        __m512i L = _mm512_mask_loadu_epi32(_mm512_set1_epi32(-1), lanes, j->last + p0);
+        _mm512_store_ps(T + t, Tf);
+        _mm512_store_ps(Q + t, _mm512_sub_ps(z, _mm512_mul_ps(Tf, _mm512_sub_ps(da, bgdot))));
+        _mm512_store_ps(Dr + t, dr); _mm512_store_ps(Dg + t, dg); _mm512_store_ps(Db + t, db); _mm512_store_ps(Dd + t, dd);
+        _mm512_store_si512((void *)(last + t), L);
+        rowmax[row] = _mm512_reduce_max_epi32(L);
         if (rowmax[row] > kmax) kmax = rowmax[row];
     }
     for (int k = kmax + 1; k < j->n; k++)
@@ -223,7 +267,7 @@ void splat_tile_backward_simd(const splat_tile_job *j)
                SPLAT_GRAD_STRIDE * sizeof(float));
     const __m512 px = lane_centres(j->x0);
     const __m512 one = _mm512_set1_ps(1.0f), amax = _mm512_set1_ps(SPLAT_ALPHA_MAX);
-    const __m512 amin = _mm512_set1_ps(SPLAT_ALPHA_MIN), zero = _mm512_setzero_ps();
+    const __m512 zero = _mm512_setzero_ps();
     for (int kc = (kmax / CHUNK) * CHUNK; kc >= 0 && kmax >= 0; kc -= CHUNK) {
         int kend = kc + CHUNK - 1 < kmax ? kc + CHUNK - 1 : kmax;
         for (int k = kend; k >= kc; k--) {
@@ -232,30 +276,31 @@ void splat_tile_backward_simd(const splat_tile_job *j)
         }
         for (int k = kend; k >= kc; k--) {
             const splat_rec *r = &loc[k - kc];
-            __m512 a_m1 = zero, a_m2 = zero, a_xx = zero, a_xy = zero, a_yy = zero, a_o = zero;
+            __m512 g0 = zero, g1 = zero, g2 = zero; /* per lane: sum gs, sum gs dy, sum gs dy^2 */
             __m512 a_r = zero, a_g = zero, a_b = zero, a_z = zero;
             int r0 = r->ymin - j->y0, r1 = r->ymax - j->y0;
             if (r0 < 0) r0 = 0;
             if (r1 > j->h - 1) r1 = j->h - 1;
             const __m512 dx = _mm512_sub_ps(px, _mm512_set1_ps(r->x));
-            const __m512 ha = _mm512_set1_ps(0.5f * r->ca);
+            const __m512 ha = _mm512_set1_ps(r->ha), cbv = _mm512_set1_ps(r->cb), hcv = _mm512_set1_ps(r->hc);
+            const __m512 yb = _mm512_set1_ps(r->y);
             const __m512 thr = _mm512_set1_ps(r->thr), op = _mm512_set1_ps(r->o);
             const __m512 cr = _mm512_set1_ps(r->col[0]), cg = _mm512_set1_ps(r->col[1]), cb = _mm512_set1_ps(r->col[2]);
             const __m512 cz = _mm512_set1_ps(r->z);
             const __m512i kv = _mm512_set1_epi32(k);
             const __m512 dx2 = _mm512_mul_ps(dx, dx);
-            for (int row = r0; row <= r1; row++) {
+            __m512 fy = _mm512_set1_ps((j->y0 + r0) + 0.5f); /* exact: small integers + 0.5 */
+            for (int row = r0; row <= r1; row++, fy = _mm512_add_ps(fy, one)) {
                 if (rowmax[row] < k) continue;
                 __mmask16 m = _mm512_cmp_epi32_mask(kv, _mm512_load_si512((const void *)(last + row * 16)), _MM_CMPINT_LE);
-                float dy = (j->y0 + row + 0.5f) - r->y;
-                float bdy = r->cb * dy, cdy = 0.5f * r->cc * dy * dy;
-                __m512 sig = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(ha, dx, _mm512_set1_ps(bdy)), _mm512_set1_ps(cdy));
-                m = _mm512_mask_cmp_ps_mask(m, sig, thr, _CMP_LE_OQ);
+                __m512 dyv = _mm512_sub_ps(fy, yb);
+                __m512 bdyv = _mm512_mul_ps(cbv, dyv);
+                __m512 sig = _mm512_fmadd_ps(dx, _mm512_fmadd_ps(ha, dx, bdyv), _mm512_mul_ps(_mm512_mul_ps(hcv, dyv), dyv));
+                m = _mm512_mask_cmp_ps_mask(m, sig, thr, _CMP_LE_OQ); /* alpha >= 1/255 */
                 if (!m) continue;
-                __m512 G = exp_poly16(_mm512_sub_ps(zero, sig));
+                __m512 G = exp_neg16(sig);
                 __m512 oG = _mm512_mul_ps(op, G);
                 __m512 a = _mm512_min_ps(oG, amax);
-                m = _mm512_mask_cmp_ps_mask(m, a, amin, _CMP_GE_OQ);
                 /* 1 / (1 - a) by rcp14 + one Newton step (rel. error ~1e-8; 1 - a >= 0.01) */
                 __m512 oma = _mm512_sub_ps(one, a);
                 __m512 inv = _mm512_rcp14_ps(oma);
@@ -281,33 +326,32 @@ void splat_tile_backward_simd(const splat_tile_job *j)
                 a_z = _mm512_mask3_fmadd_ps(w, dd, a_z, m);
                 m = _mm512_mask_cmp_ps_mask(m, oG, amax, _CMP_LT_OQ); /* clamped alpha: no gradient */
                 __m512 gs = _mm512_maskz_mul_ps(m, dLda, a);           /* -dL/dsigma */
-                __m512 dyv = _mm512_set1_ps(dy);
-                a_o = _mm512_mask3_fmadd_ps(dLda, G, a_o, m);
-                __m512 gdx = _mm512_mul_ps(gs, dx);
-                a_m1 = _mm512_add_ps(a_m1, gdx);
-                a_m2 = _mm512_fmadd_ps(gs, dyv, a_m2);
-                a_xx = _mm512_fmadd_ps(gs, dx2, a_xx);
-                a_xy = _mm512_fmadd_ps(gdx, dyv, a_xy);
-                a_yy = _mm512_fmadd_ps(gs, _mm512_set1_ps(dy * dy), a_yy);
+                __m512 gdy = _mm512_mul_ps(gs, dyv);
+                g0 = _mm512_add_ps(g0, gs);
+                g1 = _mm512_add_ps(g1, gdy);
+                g2 = _mm512_fmadd_ps(gdy, dyv, g2);
             }
-            /* dsigma/dx_mean = -(ca dx + cb dy), dsigma/dy_mean = -(cb dx + cc dy); gs = -dL/dsigma */
-            float s1 = _mm512_reduce_add_ps(a_m1), s2 = _mm512_reduce_add_ps(a_m2);
+            /* dx is fixed per lane, so the dx moments come from g0, g1 after the row loop:
+             * sum gs dx = dx g0, sum gs dx^2 = dx^2 g0, sum gs dx dy = dx g1. With alpha = o G
+             * (unclamped lanes only), sum dL/dalpha G = sum gs / o. dsigma/dx_mean =
+             * -(ca dx + cb dy), dsigma/dy_mean = -(cb dx + cc dy); gs = -dL/dsigma. */
+            __m512 acc[10] = { _mm512_mul_ps(dx, g0), g1, _mm512_mul_ps(dx2, g0), _mm512_mul_ps(dx, g1), g2, g0,
+                               a_r, a_g, a_b, a_z };
+            float sum[10];
+            hsum10(acc, sum);
             float *slot = j->grad_slots + (size_t)SPLAT_GRAD_STRIDE * splat_slot(r, j->tx, j->ty);
-            slot[0] = r->ca * s1 + r->cb * s2;
-            slot[1] = r->cb * s1 + r->cc * s2;
-            slot[2] = -0.5f * _mm512_reduce_add_ps(a_xx);
-            slot[3] = -_mm512_reduce_add_ps(a_xy);
-            slot[4] = -0.5f * _mm512_reduce_add_ps(a_yy);
-            slot[5] = _mm512_reduce_add_ps(a_o);
-            slot[6] = _mm512_reduce_add_ps(a_r);
-            slot[7] = _mm512_reduce_add_ps(a_g);
-            slot[8] = _mm512_reduce_add_ps(a_b);
-            slot[9] = _mm512_reduce_add_ps(a_z);
+            slot[0] = (2.0f * r->ha) * sum[0] + r->cb * sum[1];
+            slot[1] = r->cb * sum[0] + (2.0f * r->hc) * sum[1];
+            slot[2] = -0.5f * sum[2];
+            slot[3] = -sum[3];
+            slot[4] = -0.5f * sum[4];
+            slot[5] = sum[5] / r->o;
+            for (int c = 6; c < 10; c++) slot[c] = sum[c];
         }
     }
 }
 
-#else /* no AVX-512 at compile time: the scalar kernels stand in */
+#elif !(defined(__AVX2__) && defined(__FMA__)) /* no SIMD at compile time: scalar kernels */
 
 int splat_simd_available(void) { return 0; }
 const char *splat_simd_name(void) { return "scalar"; }

@@ -19,13 +19,12 @@ void splat_tile_forward_scalar(const splat_tile_job *j)
                 const splat_rec *r = &j->rec[j->list[k]];
                 if (gy < r->ymin || gy > r->ymax) continue;
                 float dx = fx - r->x, dy = fy - r->y;
-                float ha = 0.5f * r->ca, bdy = r->cb * dy, cdy = 0.5f * r->cc * dy * dy;
-                float sig = fmaf(dx, fmaf(ha, dx, bdy), cdy);
-                if (!(sig <= r->thr)) continue;
+                float bdy = r->cb * dy, cdy = (r->hc * dy) * dy;
+                float sig = fmaf(dx, fmaf(r->ha, dx, bdy), cdy);
+                if (!(sig <= r->thr)) continue; /* alpha < 1/255 */
                 float G = splat_exp_poly(-sig);
                 float oG = r->o * G;
                 float a = oG < SPLAT_ALPHA_MAX ? oG : SPLAT_ALPHA_MAX;
-                if (!(a >= SPLAT_ALPHA_MIN)) continue;
                 float tT = T * (1.0f - a);
                 if (tT < SPLAT_T_EPS) break;
                 float w = a * T;
@@ -69,13 +68,12 @@ void splat_tile_backward_scalar(const splat_tile_job *j)
                 const splat_rec *r = &j->rec[j->list[k]];
                 if (gy < r->ymin || gy > r->ymax) continue;
                 float dx = fx - r->x, dy = fy - r->y;
-                float ha = 0.5f * r->ca, bdy = r->cb * dy, cdy = 0.5f * r->cc * dy * dy;
-                float sig = fmaf(dx, fmaf(ha, dx, bdy), cdy);
-                if (!(sig <= r->thr)) continue;
+                float bdy = r->cb * dy, cdy = (r->hc * dy) * dy;
+                float sig = fmaf(dx, fmaf(r->ha, dx, bdy), cdy);
+                if (!(sig <= r->thr)) continue; /* alpha < 1/255 */
                 float G = splat_exp_poly(-sig);
                 float oG = r->o * G;
                 float a = oG < SPLAT_ALPHA_MAX ? oG : SPLAT_ALPHA_MAX;
-                if (!(a >= SPLAT_ALPHA_MIN)) continue;
                 float inv = 1.0f / (1.0f - a);
                 float Ti = T * inv;
                 float q = fmaf(dd, r->z, fmaf(dl[2], r->col[2], fmaf(dl[1], r->col[1], dl[0] * r->col[0])));
@@ -91,8 +89,8 @@ void splat_tile_backward_scalar(const splat_tile_job *j)
                 if (oG < SPLAT_ALPHA_MAX) {
                     float dLds = -(dLda * a);
                     s[5] = fmaf(dLda, G, s[5]);
-                    s[0] = fmaf(dLds, -fmaf(r->ca, dx, bdy), s[0]);
-                    s[1] = fmaf(dLds, -fmaf(r->cb, dx, r->cc * dy), s[1]);
+                    s[0] = fmaf(dLds, -fmaf(2.0f * r->ha, dx, bdy), s[0]);
+                    s[1] = fmaf(dLds, -fmaf(r->cb, dx, (2.0f * r->hc) * dy), s[1]);
                     s[2] = fmaf(dLds, 0.5f * dx * dx, s[2]);
                     s[3] = fmaf(dLds, dx * dy, s[3]);
                     s[4] = fmaf(dLds, 0.5f * dy * dy, s[4]);

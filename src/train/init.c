@@ -103,6 +103,56 @@ static pg_status points_from_frustum(train_session *s, point_list *pts, int n)
     return PG_OK;
 }
 
+/* Views without depth (e.g. the other real cameras of a dataset) may see parts of the scene no
+ * depth map covers. Blocks of their frame 0 that no point projects into get random points along
+ * the pixel rays between near and far (uniform in inverse depth), coloured from the pixel;
+ * multi-view training sorts out their depth. Dynamic when the pixel's colour changes. */
+static pg_status points_fill_uncovered(train_session *s, point_list *pts)
+{
+    const train_set *ts = s->ts;
+    const int B = 8, per_block = 6;
+    int W = ts->width, H = ts->height, bw = (W + B - 1) / B, bh = (H + B - 1) / B;
+    size_t px = (size_t)W * H;
+    float zn = ts->near_z > 0 ? ts->near_z : 0.5f, zf = ts->far_z > zn ? ts->far_z : zn * 20;
+    uint8_t *cov = pg_malloc((size_t)bw * bh, "init coverage");
+    if (!cov) return PG_ERR_NOMEM;
+    size_t n0 = pts->n;
+    pg_status st = PG_OK;
+    for (int vi = 0; vi < ts->num_views && !st; vi++) {
+        const train_view *v = &ts->views[vi];
+        if (v->role == TRAIN_ROLE_TEST || v->depth) continue;
+        memset(cov, 0, (size_t)bw * bh);
+        for (size_t i = 0; i < n0; i++) {
+            float uv[2];
+            if (pg_camera_project(&v->cam, pts->xyz + 3 * i, uv) <= 0) continue;
+            int bx = (int)floorf(uv[0] / B), by = (int)floorf(uv[1] / B);
+            if (bx >= 0 && bx < bw && by >= 0 && by < bh) cov[by * bw + bx] = 1;
+        }
+        for (int by = 0; by < bh && !st; by++)
+            for (int bx = 0; bx < bw && !st; bx++) {
+                if (cov[by * bw + bx]) continue;
+                for (int k = 0; k < per_block && !st; k++) {
+                    float u = (bx + (float)pg_rng_uniform(&s->rng)) * B, w = (by + (float)pg_rng_uniform(&s->rng)) * B;
+                    if (u >= W) u = W - 0.5f;
+                    if (w >= H) w = H - 0.5f;
+                    float inv = 1.0f / zf + (float)pg_rng_uniform(&s->rng) * (1.0f / zn - 1.0f / zf);
+                    float X[3], c[3];
+                    pg_camera_unproject(&v->cam, u, w, 1.0f / inv, X);
+                    size_t q = (size_t)(int)w * W + (int)u;
+                    for (int j = 0; j < 3; j++) c[j] = v->rgb[q * 3 + j] / 255.0f;
+                    int dyn = 0;
+                    for (int f = 1; f < ts->frames && !dyn; f++) {
+                        const uint8_t *cf = v->rgb + ((size_t)f * px + q) * 3, *c0 = v->rgb + q * 3;
+                        dyn = abs(cf[0] - c0[0]) + abs(cf[1] - c0[1]) + abs(cf[2] - c0[2]) > 3 * 25;
+                    }
+                    st = points_push(pts, X, c, dyn);
+                }
+            }
+    }
+    free(cov);
+    return st;
+}
+
 static uint64_t voxel_key(const float x[3], const float lo[3], float vox)
 {
     uint64_t k = 0;
@@ -167,6 +217,7 @@ pg_status train_init_gaussians(train_session *s)
     for (int i = 0; i < ts->num_views && !st; i++)
         if (ts->views[i].depth && ts->views[i].role != TRAIN_ROLE_TEST) st = points_from_depth(ts, i, stride, &pts);
     if (!st && pts.n < (size_t)target / 4) st = points_from_frustum(s, &pts, target - (int)pts.n);
+    if (!st && pts.n > 0) st = points_fill_uncovered(s, &pts);
     if (st) goto done;
     if (pts.n == 0) {
         st = pg_fail(PG_ERR_ARG, "init: no points to start from");

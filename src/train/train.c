@@ -18,7 +18,8 @@
 #include "core/mathx.h"
 #include "core/parallel.h"
 #include "core/progress.h"
-#include "train/train_loss.h"
+#include "optim/loss_depth.h"
+#include "optim/loss_image.h"
 
 #define ADAM_B1 0.9f
 #define ADAM_B2 0.999f
@@ -71,6 +72,17 @@ train_config train_default_config(void)
 
 int train_session_iteration(const train_session *s) { return s->iter; }
 int train_session_gaussians(const train_session *s) { return s->g.count; }
+int train_session_static_count(const train_session *s)
+{
+    int n = 0;
+    for (int i = 0; i < s->g.count; i++) n += s->is_static[i] != 0;
+    return n;
+}
+void train_session_last(const train_session *s, double *loss, double *real_psnr)
+{
+    if (loss) *loss = s->last_loss;
+    if (real_psnr) *real_psnr = s->last_psnr;
+}
 void train_session_timing(const train_session *s, train_timing *t) { *t = s->timing; }
 
 void train_session_destroy(train_session *s)
@@ -94,6 +106,8 @@ void train_session_destroy(train_session *s)
     pg_image_destroy(&s->target);
     free(s->mask);
     free(s->depth_t);
+    free(s->depth_mask);
+    optim_ssim_destroy(s->ssim);
     free(s->d_rgb);
     free(s->d_depth);
     free(s);
@@ -183,9 +197,11 @@ pg_status train_session_create(train_session **out, const train_set *ts, const t
     if ((st = pg_image_create(&s->target, ts->width, ts->height, 3))) goto fail;
     s->mask = pg_malloc(px * sizeof(float), "training mask");
     s->depth_t = pg_malloc(px * sizeof(float), "training depth");
+    s->depth_mask = pg_malloc(px * sizeof(float), "training depth mask");
+    if ((st = optim_ssim_create(&s->ssim, ts->height, ts->width, 3))) goto fail;
     s->d_rgb = pg_malloc(px * 3 * sizeof(float), "rgb gradient");
     s->d_depth = pg_malloc(px * sizeof(float), "depth gradient");
-    if (!s->mask || !s->depth_t || !s->d_rgb || !s->d_depth) {
+    if (!s->mask || !s->depth_t || !s->depth_mask || !s->d_rgb || !s->d_depth) {
         st = PG_ERR_NOMEM;
         goto fail;
     }
@@ -217,19 +233,32 @@ static float lr_exp(float lr0, float lr1, float u)
     return expf(logf(lr0) * (1 - u) + logf(lr1) * u);
 }
 
-/* One Adam update of n parameters (eps 1e-15 as in 3DGS). */
-static void adam_update(float *p, const float *g, float *m, float *v, size_t n, float lr, float bc1, float bc2)
+/* One Adam update of n parameters (eps 1e-15 as in 3DGS); element-wise, so the result does not
+ * depend on the thread count. */
+static inline void adam_span(float *restrict p, const float *restrict g, float *restrict m, float *restrict v, long n,
+                             float lr, float bc1, float bc2)
 {
-    if (lr == 0) return;
-    long nn = (long)n;
-#pragma omp parallel for schedule(static)
-    for (long i = 0; i < nn; i++) {
+    float a = lr / bc1, ib2 = 1.0f / bc2;
+#pragma omp simd
+    for (long i = 0; i < n; i++) {
         float gi = g[i];
         float mi = ADAM_B1 * m[i] + (1 - ADAM_B1) * gi;
         float vi = ADAM_B2 * v[i] + (1 - ADAM_B2) * gi * gi;
         m[i] = mi;
         v[i] = vi;
-        p[i] -= lr * (mi / bc1) / (sqrtf(vi / bc2) + ADAM_EPS);
+        p[i] -= a * mi / (sqrtf(vi * ib2) + ADAM_EPS);
+    }
+}
+
+static void adam_update(float *p, const float *g, float *m, float *v, size_t n, float lr, float bc1, float bc2)
+{
+    if (lr == 0 || n == 0) return;
+    const long block = 16384;
+    long nb = ((long)n + block - 1) / block;
+#pragma omp parallel for schedule(static)
+    for (long b = 0; b < nb; b++) {
+        long o = b * block, len = (long)n - o < block ? (long)n - o : block;
+        adam_span(p + o, g + o, m + o, v + o, len, lr, bc1, bc2);
     }
 }
 
@@ -244,20 +273,18 @@ static void adam_gaussians(train_session *s, float stage_u)
                 bc2);
     adam_update(s->g.quats, s->gg.quats, s->m.quats, s->v.quats, n * 4, s->cfg.lr_quats, bc1, bc2);
     adam_update(s->g.opacity, s->gg.opacity, s->m.opacity, s->v.opacity, n, s->cfg.lr_opacity, bc1, bc2);
-    /* SH: DC (first 3 floats of each row) and the rest have their own rates */
+    /* SH: the DC (first 3 floats of each row) and the rest have their own rates; the degree only
+     * grows, so coefficients above it have always had zero gradient and moments: skipping them
+     * is exact */
+    int deg = s->g.sh_degree, used = (deg + 1) * (deg + 1) * 3;
     long nn = (long)n;
+    float lr_dc = s->cfg.lr_sh_dc, lr_rest = s->cfg.lr_sh_rest;
 #pragma omp parallel for schedule(static)
     for (long i = 0; i < nn; i++) {
         size_t o = (size_t)i * PG_SH_COEFFS * 3;
-        for (int k = 0; k < PG_SH_COEFFS * 3; k++) {
-            float lr = k < 3 ? s->cfg.lr_sh_dc : s->cfg.lr_sh_rest;
-            float gi = s->gg.sh[o + k];
-            float mi = ADAM_B1 * s->m.sh[o + k] + (1 - ADAM_B1) * gi;
-            float vi = ADAM_B2 * s->v.sh[o + k] + (1 - ADAM_B2) * gi * gi;
-            s->m.sh[o + k] = mi;
-            s->v.sh[o + k] = vi;
-            s->g.sh[o + k] -= lr * (mi / bc1) / (sqrtf(vi / bc2) + ADAM_EPS);
-        }
+        adam_span(s->g.sh + o, s->gg.sh + o, s->m.sh + o, s->v.sh + o, 3, lr_dc, bc1, bc2);
+        int rest = used - 3;
+        if (rest > 0) adam_span(s->g.sh + o + 3, s->gg.sh + o + 3, s->m.sh + o + 3, s->v.sh + o + 3, rest, lr_rest, bc1, bc2);
     }
 }
 
@@ -352,6 +379,87 @@ static pg_status deform_all(train_session *s, const pg_camera *cam, float t, int
     return train_net_forward(s->net, &s->g, s->idx, n, t, &s->d);
 }
 
+/* lambda_d * scale-and-shift-invariant L2 of the rendered depth against the target, divided by
+ * the target's variance on valid pixels so the weight does not depend on the depth units. */
+static double depth_loss(train_session *s, const float *depth, int W, int H)
+{
+    size_t px = (size_t)W * H;
+    double n = 0, sum = 0, sum2 = 0;
+    for (size_t i = 0; i < px; i++) {
+        /* invalid target pixels are excluded through the mask */
+        s->depth_mask[i] = (s->depth_t[i] > 0 && s->mask[i] > 0.5f) ? 1.0f : 0.0f;
+        if (s->depth_mask[i] > 0) {
+            n += 1;
+            sum += s->depth_t[i];
+            sum2 += (double)s->depth_t[i] * s->depth_t[i];
+        }
+    }
+    if (n < 16) return 0;
+    double var = sum2 / n - (sum / n) * (sum / n);
+    if (!(var > 1e-12)) return 0;
+    optim_ssi_depth fit;
+    double l = optim_ssi_depth_forward(&fit, depth, s->depth_t, s->depth_mask, (long)px);
+    float w = (float)(s->cfg.lambda_depth / var);
+    optim_ssi_depth_backward(s->d_depth, w, &fit, depth, s->depth_t, s->depth_mask, (long)px);
+    return w * l;
+}
+
+/* Learned static flags: evaluates the network for every movable Gaussian at 5 times; those
+ * whose predicted deltas hardly change over time (position by < static_eps * extent, the other
+ * attributes by < 0.02) get the mean delta baked into their canonical parameters and are
+ * flagged static, so they skip the network from now on. */
+static pg_status check_static(train_session *s)
+{
+    int n = 0;
+    for (int i = 0; i < s->g.count; i++)
+        if (!s->is_static[i]) s->idx[n++] = i;
+    if (n == 0) return PG_OK;
+    size_t N = (size_t)s->g.count;
+    enum { K = 5 };
+    float *lo = pg_malloc((size_t)n * 59 * sizeof(float), "static check");
+    float *hi = pg_malloc((size_t)n * 59 * sizeof(float), "static check");
+    float *mean = pg_calloc((size_t)n * 59, sizeof(float), "static check");
+    pg_status st = (lo && hi && mean) ? PG_OK : PG_ERR_NOMEM;
+    for (int k = 0; k < K && !st; k++) {
+        copy_gaussians(&s->d, &s->g);
+        if ((st = train_net_forward(s->net, &s->g, s->idx, n, (float)k / (K - 1), &s->d))) break;
+        for (int j = 0; j < n; j++) {
+            int i = s->idx[j];
+            float dl[59];
+            for (int a = 0; a < 3; a++) dl[a] = s->d.means[3 * i + a] - s->g.means[3 * i + a];
+            for (int a = 0; a < 3; a++) dl[3 + a] = s->d.log_scales[3 * i + a] - s->g.log_scales[3 * i + a];
+            for (int a = 0; a < 4; a++) dl[6 + a] = s->d.quats[4 * i + a] - s->g.quats[4 * i + a];
+            dl[10] = s->d.opacity[i] - s->g.opacity[i];
+            for (int a = 0; a < 48; a++) dl[11 + a] = s->d.sh[(size_t)i * 48 + a] - s->g.sh[(size_t)i * 48 + a];
+            for (int a = 0; a < 59; a++) {
+                size_t o = (size_t)j * 59 + a;
+                lo[o] = k ? fminf(lo[o], dl[a]) : dl[a];
+                hi[o] = k ? fmaxf(hi[o], dl[a]) : dl[a];
+                mean[o] += dl[a] / K;
+            }
+        }
+    }
+    float pos_tol = s->cfg.static_eps * s->extent;
+    for (int j = 0; j < n && !st; j++) {
+        size_t o = (size_t)j * 59;
+        int ok = 1;
+        for (int a = 0; a < 59 && ok; a++) ok = hi[o + a] - lo[o + a] < (a < 3 ? pos_tol : 0.02f);
+        if (!ok) continue;
+        int i = s->idx[j];
+        for (int a = 0; a < 3; a++) s->g.means[3 * i + a] += mean[o + a];
+        for (int a = 0; a < 3; a++) s->g.log_scales[3 * i + a] += mean[o + 3 + a];
+        for (int a = 0; a < 4; a++) s->g.quats[4 * i + a] += mean[o + 6 + a];
+        s->g.opacity[i] += mean[o + 10];
+        for (int a = 0; a < 48; a++) s->g.sh[(size_t)i * 48 + a] += mean[o + 11 + a];
+        s->is_static[i] = 1;
+    }
+    (void)N;
+    free(lo);
+    free(hi);
+    free(mean);
+    return st;
+}
+
 pg_status train_session_step(train_session *s)
 {
     const train_set *ts = s->ts;
@@ -395,9 +503,15 @@ pg_status train_session_step(train_session *s)
     memset(s->d_rgb, 0, px * 3 * sizeof(float));
     memset(s->d_depth, 0, px * sizeof(float));
     int any_mask = ts->views[vi].mask != NULL;
-    double loss = train_l1_forward_backward(out.rgb, s->target.data, any_mask ? s->mask : NULL, W, H, 1.0f, s->d_rgb);
-    if (has_depth && c->lambda_depth > 0)
-        loss += train_ssi_depth_forward_backward(out.depth, s->depth_t, s->mask, W, H, c->lambda_depth, s->d_depth);
+    const float *mk = any_mask ? s->mask : NULL;
+    double loss = optim_l1_forward(out.rgb, s->target.data, mk, H, W, 3);
+    optim_l1_backward(s->d_rgb, 1.0f, out.rgb, s->target.data, mk, H, W, 3);
+    if (c->lambda_dssim > 0) {
+        float ssim = optim_ssim_forward(s->ssim, out.rgb, s->target.data, mk, H, W, 3);
+        optim_ssim_backward(s->ssim, s->d_rgb, -c->lambda_dssim, out.rgb, s->target.data, mk, H, W, 3);
+        loss += c->lambda_dssim * (1.0 - ssim);
+    }
+    if (has_depth && c->lambda_depth > 0) loss += depth_loss(s, out.depth, W, H);
     if (ts->views[vi].role == TRAIN_ROLE_REAL) {
         pg_image rendered = {W, H, 3, out.rgb};
         s->last_psnr = pg_image_psnr(&rendered, &s->target, any_mask ? s->mask : NULL);
@@ -420,14 +534,16 @@ pg_status train_session_step(train_session *s)
     if (s->fine) {
         train_net_zero_grad(s->net);
         if (nd > 0) PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, &s->dg, &s->gg));
+        double tr = pg_time_seconds();
         loss += train_net_regularize(s->net, c->reg_tv, c->reg_time, c->reg_l1);
+        s->timing.regularize = (pg_time_seconds() - tr) * 1e3;
         int fine_len = c->iters - c->coarse_iters;
         stage_u = fine_len > 0 ? (float)(s->iter - c->coarse_iters) / (float)fine_len : 1.0f;
     } else {
         stage_u = c->coarse_iters > 0 ? (float)s->iter / (float)c->coarse_iters : 1.0f;
     }
     t1 = pg_time_seconds();
-    s->timing.deform_backward = (t1 - t0) * 1e3;
+    s->timing.deform_backward = (t1 - t0) * 1e3 - s->timing.regularize;
     t0 = t1;
 
     adam_gaussians(s, stage_u);
@@ -436,13 +552,12 @@ pg_status train_session_step(train_session *s)
     s->timing.optimizer = (t1 - t0) * 1e3;
     t0 = t1;
 
-    /* density statistics: view-space gradient (converted to 3DGS's NDC units) of visible ones */
-    float ndc = 0.5f * (float)(W > H ? W : H);
+    /* density statistics: view-space gradient (the rasterizer gives it in 3DGS's NDC units) */
     for (int i = 0; i < s->d.count; i++) {
         float uv[2];
         float z = pg_camera_project(cam, s->d.means + 3 * i, uv);
         if (z > 0.01f && uv[0] >= 0 && uv[0] < W && uv[1] >= 0 && uv[1] < H) {
-            s->grad_accum[i] += s->vs_grad[i] * ndc;
+            s->grad_accum[i] += s->vs_grad[i];
             s->grad_denom[i] += 1;
         }
     }
@@ -453,6 +568,10 @@ pg_status train_session_step(train_session *s)
     if (c->sh_ramp_every > 0 && it % c->sh_ramp_every == 0 && s->g.sh_degree < c->sh_max_degree) s->g.sh_degree++;
     if (it < c->densify_until && it >= c->densify_from && c->densify_every > 0 && it % c->densify_every == 0)
         PG_TRY(train_densify_and_prune(s, 1));
+    int fine_it = it - c->coarse_iters;
+    if (s->fine && c->static_check_every > 0 && fine_it >= 2 * c->static_check_every &&
+        fine_it % c->static_check_every == 0 && c->use_static_flags)
+        PG_TRY(check_static(s));
     if (c->opacity_reset_every > 0 && it < c->densify_until && it % c->opacity_reset_every == 0) train_reset_opacity(s);
     s->timing.other = (pg_time_seconds() - t0) * 1e3;
     return PG_OK;

@@ -69,10 +69,14 @@ pg_status train_session_evaluate(train_session *s, train_role role, double *psnr
 pg_status train_session_save(train_session *s, const char *path);
 int train_session_iteration(const train_session *s);
 int train_session_gaussians(const train_session *s);
+/* Gaussians flagged static (never sent through the network). */
+int train_session_static_count(const train_session *s);
+/* Loss and real-view PSNR of the latest iteration that used a real view. */
+void train_session_last(const train_session *s, double *loss, double *real_psnr);
 
 /* Per-phase timings of the last step in milliseconds (bench iteration). */
 typedef struct {
-    double deform_forward, deform_backward, raster_forward, raster_backward, loss, optimizer, other;
+    double deform_forward, deform_backward, regularize, raster_forward, raster_backward, loss, optimizer, other;
     int deformed; /* Gaussians sent through the network */
 } train_timing;
 void train_session_timing(const train_session *s, train_timing *t);

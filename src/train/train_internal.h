@@ -4,6 +4,7 @@
 
 #include "core/image.h"
 #include "core/rng.h"
+#include "optim/loss_image.h"
 #include "splat/raster.h"
 #include "train/model.h"
 #include "train/train.h"
@@ -41,6 +42,8 @@ struct train_session {
     pg_image target;     /* (H, W, 3) */
     float *mask;         /* (H, W) */
     float *depth_t;      /* (H, W) */
+    float *depth_mask;   /* (H, W) valid target depth */
+    optim_ssim_ws *ssim;
     float *d_rgb;        /* (H, W, 3) */
     float *d_depth;      /* (H, W) */
 

@@ -2,26 +2,17 @@
  *
  * The network predicts additive deltas for the five Gaussian attributes; the adapter applies
  * them to the selected rows and maps the rasterizer's gradients back (the identity part of
- * canon + delta is already in the caller's canonical gradient). Until src/deform exists in the
- * tree this compiles to an identity deformation with no parameters.
+ * canon + delta is already in the caller's canonical gradient).
  */
 #include "train/model.h"
 
 #include <stdlib.h>
 #include <string.h>
 
-#if defined(__has_include)
-#if __has_include("deform/deform.h")
-#define TRAIN_HAVE_DEFORM 1
-#endif
-#endif
-
-#define SH_ROW (PG_SH_COEFFS * 3)
-
-#ifdef TRAIN_HAVE_DEFORM
 #include "deform/deform.h"
 
 #define WS_MAX_POINTS 32768
+#define SH_ROW (PG_SH_COEFFS * 3)
 
 struct train_net {
     train_net_config cfg;
@@ -130,46 +121,5 @@ float train_net_regularize(train_net *t, float w_tv, float w_time, float w_l1)
     return deform_network_regularize(t->net, w_tv, w_time, w_l1);
 }
 
-#else /* no src/deform yet: identity deformation */
-
-struct train_net {
-    train_net_config cfg;
-};
-
-pg_status train_net_create(train_net **n, const train_net_config *cfg)
-{
-    *n = pg_calloc(1, sizeof **n, "deformation network");
-    if (!*n) return PG_ERR_NOMEM;
-    (*n)->cfg = *cfg;
-    return PG_OK;
-}
-
-void train_net_destroy(train_net *n) { free(n); }
-size_t train_net_num_params(const train_net *n) { (void)n; return 0; }
-float *train_net_params(train_net *n) { (void)n; return NULL; }
-float *train_net_grads(train_net *n) { (void)n; return NULL; }
-size_t train_net_grid_end(const train_net *n) { (void)n; return 0; }
-void train_net_zero_grad(train_net *n) { (void)n; }
-
-pg_status train_net_forward(train_net *net, const pg_gaussians *g, const int *idx, int n, float t, pg_gaussians *out)
-{
-    (void)net; (void)g; (void)idx; (void)n; (void)t; (void)out;
-    return PG_OK;
-}
-
-pg_status train_net_backward(train_net *net, const pg_gaussians *g, const int *idx, int n, float t,
-                             const pg_gaussians *d_out, pg_gaussians *d_canon)
-{
-    (void)net; (void)g; (void)idx; (void)n; (void)t; (void)d_out; (void)d_canon;
-    return PG_OK;
-}
-
-float train_net_regularize(train_net *net, float w_tv, float w_time, float w_l1)
-{
-    (void)net; (void)w_tv; (void)w_time; (void)w_l1;
-    return 0.0f;
-}
-
-#endif
 
 void train_net_config_of(const train_net *n, train_net_config *cfg) { *cfg = n->cfg; }

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "core/fileutil.h"
+#include "io/dataset.h"
 #include "io/image_io.h"
 #include "io/npy.h"
 
@@ -76,6 +77,32 @@ pg_status train_set_add_view(train_set *ts, const char *name, train_role role, c
     }
     if (index) *index = ts->num_views - 1;
     return PG_OK;
+}
+
+void train_set_limit_proxies(train_set *ts, int n)
+{
+    int P = train_set_count_role(ts, TRAIN_ROLE_PROXY);
+    if (n < 0 || n >= P) return;
+    int k = 0, w = 0, next = 0;
+    for (int i = 0; i < ts->num_views; i++) {
+        train_view *v = &ts->views[i];
+        int keep = 1;
+        if (v->role == TRAIN_ROLE_PROXY) {
+            /* keep proxy k when it is the next of the n evenly spaced picks */
+            keep = next < n && k == (int)((long)next * P / n);
+            if (keep) next++;
+            k++;
+        }
+        if (!keep) {
+            free(v->rgb);
+            free(v->mask);
+            free(v->depth);
+            continue;
+        }
+        if (w != i) ts->views[w] = *v;
+        w++;
+    }
+    ts->num_views = w;
 }
 
 /* Stores a float image (any size equal to the set's) as uint8 frame f of view v. */
@@ -271,12 +298,6 @@ done:
 
 /* ---------- DyNeRF dataset (real cameras) ---------- */
 
-#if defined(__has_include)
-#if __has_include("io/dataset.h")
-#define TS_HAVE_DATASET 1
-#include "io/dataset.h"
-#endif
-#endif
 
 train_set_dynerf_options train_set_dynerf_defaults(void)
 {
@@ -316,7 +337,6 @@ static pg_status store_depth(train_set *ts, int vi, const char *path)
     return st;
 }
 
-#ifdef TS_HAVE_DATASET
 pg_status train_set_from_dynerf(const char *dir, const train_set_dynerf_options *opt, train_set *ts)
 {
     memset(ts, 0, sizeof *ts);
@@ -380,168 +400,3 @@ done:
     if (st) train_set_destroy(ts);
     return st;
 }
-#else
-
-
-/* Converts one LLFF poses_bounds row (3x5 [down right back | C | hwf], near, far) to OpenCV. */
-static void llff_row_to_camera(const float *row, pg_camera *cam)
-{
-    float col[5][3];
-    for (int j = 0; j < 5; j++)
-        for (int i = 0; i < 3; i++) col[j][i] = row[i * 5 + j];
-    memset(cam, 0, sizeof *cam);
-    cam->height = (int)lrintf(col[4][0]);
-    cam->width = (int)lrintf(col[4][1]);
-    cam->fx = cam->fy = col[4][2];
-    cam->cx = cam->width * 0.5f;
-    cam->cy = cam->height * 0.5f;
-    /* world-to-camera rows: x = right (col1), y = down (col0), z = forward (-back) */
-    for (int i = 0; i < 3; i++) {
-        cam->R[0 * 3 + i] = col[1][i];
-        cam->R[1 * 3 + i] = col[0][i];
-        cam->R[2 * 3 + i] = -col[2][i];
-    }
-    for (int r = 0; r < 3; r++)
-        cam->t[r] = -(cam->R[r * 3] * col[3][0] + cam->R[r * 3 + 1] * col[3][1] + cam->R[r * 3 + 2] * col[3][2]);
-}
-
-
-/* Counts consecutive frames camXX/images/NNNN.png starting at 0 (or 1). */
-static int count_frames(const char *imgdir, int *first)
-{
-    char path[4400];
-    for (*first = 0; *first <= 1; (*first)++) {
-        int n = 0;
-        for (;; n++) {
-            snprintf(path, sizeof path, "%s/%04d.png", imgdir, (n + *first) % 100000);
-            if (!pg_path_exists(path)) break;
-        }
-        if (n > 0) return n;
-    }
-    *first = 0;
-    return 0;
-}
-
-pg_status train_set_from_dynerf(const char *dir, const train_set_dynerf_options *opt, train_set *ts)
-{
-    memset(ts, 0, sizeof *ts);
-    char path[4096];
-    PG_TRY(pg_path_join(path, sizeof path, dir, "poses_bounds.npy"));
-    pg_array pb = {0};
-    PG_TRY(io_npy_load(path, &pb));
-    pg_status st = PG_OK;
-    pg_image img = {0}, small = {0};
-    pg_array dep = {0};
-    if (pb.ndim != 2 || pb.shape[1] != 17 || pb.shape[0] < 1) {
-        st = pg_fail(PG_ERR_FORMAT, "%s: expected shape (N, 17)", path);
-        goto done;
-    }
-    int ncam = (int)pb.shape[0];
-    int frames = -1, first = 0;
-    float near_min = 1e30f, far_max = 0;
-    for (int c = 0; c < ncam; c++) {
-        int is_test = in_list(opt->test_cams, opt->num_test, c);
-        int is_real = opt->all_real ? !is_test : in_list(opt->real_cams, opt->num_real, c);
-        if (!is_test && !is_real) continue;
-        char imgdir[4200];
-        snprintf(imgdir, sizeof imgdir, "%s/cam%02d/images", dir, c);
-        int fst, n = count_frames(imgdir, &fst);
-        if (n == 0) {
-            st = pg_fail(PG_ERR_IO, "%s: no frames 0000.png... (video datasets need the frames extracted)", imgdir);
-            goto done;
-        }
-        if (frames < 0 || n < frames) frames = n;
-        first = fst;
-        const float *row = pb.data + (size_t)c * 17;
-        if (row[15] > 0 && row[15] < near_min) near_min = row[15];
-        if (row[16] > far_max) far_max = row[16];
-    }
-    if (frames < 1) {
-        st = pg_fail(PG_ERR_ARG, "%s: no cameras selected", dir);
-        goto done;
-    }
-    if (opt->max_frames > 0 && frames > opt->max_frames) frames = opt->max_frames;
-    ts->frames = frames;
-    ts->fps = 30;
-    int added_real = 0;
-    for (int c = 0; c < ncam; c++) {
-        int is_test = in_list(opt->test_cams, opt->num_test, c);
-        int is_real = opt->all_real ? !is_test : in_list(opt->real_cams, opt->num_real, c);
-        if (!is_test && !is_real) continue;
-        pg_camera cam;
-        llff_row_to_camera(pb.data + (size_t)c * 17, &cam);
-        char imgdir[4200];
-        snprintf(imgdir, sizeof imgdir, "%s/cam%02d/images", dir, c);
-        for (int f = 0; f < frames; f++) {
-            char fp[4300];
-            snprintf(fp, sizeof fp, "%s/%04d.png", imgdir, f + first);
-            if ((st = io_image_load(fp, &img))) goto done;
-            if (ts->width == 0) {
-                int w = opt->width > 0 ? opt->width : img.width;
-                int h = opt->width > 0 ? (int)lrintf((float)img.height * w / img.width) : img.height;
-                ts->width = w;
-                ts->height = h;
-            }
-            if (f == 0) {
-                /* intrinsics follow the actual image size */
-                if (cam.width != img.width || cam.height != img.height) {
-                    float s = (float)img.width / (float)cam.width;
-                    cam.fx *= s;
-                    cam.fy *= s;
-                    cam.width = img.width;
-                    cam.height = img.height;
-                    cam.cx = img.width * 0.5f;
-                    cam.cy = img.height * 0.5f;
-                }
-                pg_camera_resize(&cam, ts->width, ts->height);
-                char name[64];
-                snprintf(name, sizeof name, "cam%02d", c);
-                int want_depth = is_real && added_real == 0 && opt->depth_path;
-                if ((st = train_set_add_view(ts, name, is_test ? TRAIN_ROLE_TEST : TRAIN_ROLE_REAL, &cam, 0,
-                                             want_depth, NULL)))
-                    goto done;
-                if (is_real) added_real++;
-            }
-            const pg_image *use = &img;
-            if (img.width != ts->width || img.height != ts->height) {
-                if ((st = pg_image_resize(&small, &img, ts->width, ts->height))) goto done;
-                use = &small;
-            }
-            store_rgb(ts, ts->num_views - 1, f, use);
-            pg_image_destroy(&img);
-            pg_image_destroy(&small);
-        }
-    }
-    if (opt->depth_path) {
-        int vi = -1;
-        for (int i = 0; i < ts->num_views; i++)
-            if (ts->views[i].depth) vi = i;
-        if (vi >= 0) {
-            if ((st = io_npy_load(opt->depth_path, &dep))) goto done;
-            if (dep.ndim != 3 || dep.shape[0] < (size_t)frames) {
-                st = pg_fail(PG_ERR_SIZE, "%s: depth must be (F>=%d, H, W)", opt->depth_path, frames);
-                goto done;
-            }
-            int dh = (int)dep.shape[1], dw = (int)dep.shape[2];
-            size_t px = (size_t)ts->width * ts->height;
-            for (int f = 0; f < frames; f++)
-                for (int y = 0; y < ts->height; y++)
-                    for (int x = 0; x < ts->width; x++) {
-                        int sx = (int)((x + 0.5f) * dw / ts->width), sy = (int)((y + 0.5f) * dh / ts->height);
-                        float d = dep.data[((size_t)f * dh + sy) * dw + sx];
-                        ts->views[vi].depth[(size_t)f * px + (size_t)y * ts->width + x] = (isfinite(d) && d > 0) ? d : 0;
-                    }
-        }
-    }
-    ts->has_scene = 0;
-    ts->near_z = near_min < 1e30f ? near_min : 0;
-    ts->far_z = far_max;
-done:
-    pg_image_destroy(&img);
-    pg_image_destroy(&small);
-    pg_array_destroy(&pb);
-    pg_array_destroy(&dep);
-    if (st) train_set_destroy(ts);
-    return st;
-}
-#endif

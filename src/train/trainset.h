@@ -71,6 +71,9 @@ int train_set_count_role(const train_set *ts, train_role role);
 /* Frame f of view v as a float (H, W, 3) image (img must be created with the set's size). */
 void train_set_frame_rgb(const train_set *ts, int v, int f, pg_image *img);
 
+/* Keeps n of the proxy views (evenly spaced in their order; n < 0 keeps all), frees the rest. */
+void train_set_limit_proxies(train_set *ts, int n);
+
 /* Appends an empty view with allocated rgb (and mask/depth if asked); returns its index. */
 pg_status train_set_add_view(train_set *ts, const char *name, train_role role, const pg_camera *cam,
                              int with_mask, int with_depth, int *index);
