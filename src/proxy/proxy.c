@@ -141,15 +141,29 @@ static pg_status process_frame(const proxy_job *j, const char *dir, const char *
     }
     const float *d = j->depth + (size_t)f * npix;
     for (size_t i = 0; i < npix; i++) w->depth[i] = d[i] * j->pose_scale;
-    st = proxy_model_init(w->model, &j->real, frame.data, w->depth);
+    int empty = 1;
+    for (size_t i = 0; i < npix && empty; i++) empty = !(w->depth[i] > 0);
+    /* A frame without any valid depth gives empty proxies (all masked out) instead of failing the
+     * run: the trainer then simply gets no proxy pixels for that frame. */
+    if (!empty) {
+        st = proxy_model_init(w->model, &j->real, frame.data, w->depth);
+        if (!st) st = proxy_model_fit(w->model);
+    }
     pg_image_destroy(&frame);
-    if (!st) st = proxy_model_fit(w->model);
     if (st) return pg_fail_context(st, "frame %d: ", f);
-    w->psnr_sum += proxy_model_get_stats(w->model)->source_psnr;
-    w->frames++;
+    if (!empty) {
+        w->psnr_sum += proxy_model_get_stats(w->model)->source_psnr;
+        w->frames++;
+    }
     for (int k = 0; k < j->num_proxies; k++) {
-        float valid;
-        PG_TRY(proxy_model_render(w->model, &j->proxies[k], w->rgb, w->depth, w->mask, &valid));
+        float valid = 0;
+        if (empty) {
+            memset(w->rgb, 0, npix * 3 * sizeof(float));
+            memset(w->depth, 0, npix * sizeof(float));
+            memset(w->mask, 0, npix);
+        } else {
+            PG_TRY(proxy_model_render(w->model, &j->proxies[k], w->rgb, w->depth, w->mask, &valid));
+        }
         w->valid_sum += valid;
         w->views++;
         double t0 = pg_time_seconds();
