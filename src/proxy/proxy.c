@@ -291,6 +291,7 @@ pg_status proxy_generate(const proxy_options *opt_in, const proxy_job *j, const 
     worker *workers = pg_calloc((size_t)threads, sizeof(worker), "proxy workers");
     if (!workers) { free(todo); return PG_ERR_NOMEM; }
     pg_status first_err = PG_OK;
+    int stop_flag = 0; /* set (atomically) once first_err is: the other workers skip their frames */
     char err_msg[512] = "";
     int done = 0;
     pg_progress_report("proxies", res->frames_skipped, j->frames, "starting %d frames on %d workers", ntodo, threads);
@@ -302,14 +303,19 @@ pg_status proxy_generate(const proxy_options *opt_in, const proxy_job *j, const 
             pg_status st = worker_init(w, &o, j);
             if (st) {
 #pragma omp critical(proxy_error)
-                if (!first_err) { first_err = st; snprintf(err_msg, sizeof err_msg, "%s", pg_last_error()); }
+                if (!first_err) {
+                    first_err = st;
+                    snprintf(err_msg, sizeof err_msg, "%s", pg_last_error());
+#pragma omp atomic write
+                    stop_flag = 1;
+                }
             }
 #pragma omp barrier
 #pragma omp for schedule(dynamic, 1)
             for (int i = 0; i < ntodo; i++) {
                 int stop;
 #pragma omp atomic read
-                stop = first_err;
+                stop = stop_flag;
                 if (stop) continue;
                 pg_status fs = process_frame(j, dir, hash_hex, w, todo[i]);
 #pragma omp critical(proxy_error)
@@ -317,6 +323,8 @@ pg_status proxy_generate(const proxy_options *opt_in, const proxy_job *j, const 
                     if (fs && !first_err) {
                         first_err = fs;
                         snprintf(err_msg, sizeof err_msg, "%s", pg_last_error());
+#pragma omp atomic write
+                        stop_flag = 1;
                     }
                     if (!fs) {
                         done++;
