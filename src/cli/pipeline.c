@@ -164,6 +164,7 @@ int pipeline_run_stages(const pipeline_options *o, cJSON *seconds)
     args_addf(&a, "--poses", "%s", o->poses);
     if (o->proxies >= 0) args_addf(&a, "--num", "%d", o->proxies);
     if (o->max_angle > 0) args_addf(&a, "--max-angle", "%g", o->max_angle);
+    if (o->fov > 0) args_addf(&a, "--fov", "%g", o->fov);
     if (o->train_cam) args_addf(&a, "--train-cam", "%s", o->train_cam);
     if (o->test_cams) args_addf(&a, "--test-cams", "%s", o->test_cams);
     if (o->pose_scale > 0) args_addf(&a, "--pose-scale", "%g", o->pose_scale);
@@ -226,6 +227,7 @@ int pipeline_cli_options(pipeline_options *o, const char **proxies_text, cli_opt
         { "--proxies", CLI_STR, proxies_text, "number of proxy cameras, or all (0 = real view only)" },
         { "--poses", CLI_STR, &o->poses, "proxy poses: hemisphere or dataset (default: dataset with --test-cams)" },
         { "--max-angle", CLI_FLOAT, &o->max_angle, "hemisphere cap angle in degrees (default 20)" },
+        { "--fov", CLI_FLOAT, &o->fov, "single video: horizontal field of view in degrees (default 60)" },
         { "--no-refine", CLI_FLAG, &o->no_refine, "skip edge-aware depth refinement (ablation)" },
         { "--no-align", CLI_FLAG, &o->no_align, "skip temporal scale/shift alignment (ablation)" },
         { "--depth-kind", CLI_STR, &o->depth_kind, "depth (default) or disparity" },
