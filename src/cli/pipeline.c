@@ -73,11 +73,19 @@ static void args_addf(arg_list *a, const char *flag, const char *fmt, ...)
     args_add(a, buf);
 }
 
-static void args_join(const arg_list *a, char *out, size_t size)
+/* The stage's arguments as one string, with the output directory written as "$OUT" so a
+ * finished stage still counts after the directory is moved or copied. */
+static void args_join(const arg_list *a, const char *out_dir, char *out, size_t size)
 {
     out[0] = '\0';
+    size_t n = strlen(out_dir);
     for (int i = 0; i < a->argc; i++) {
-        strncat(out, a->argv[i], size - strlen(out) - 1);
+        const char *arg = a->argv[i];
+        if (strncmp(arg, out_dir, n) == 0 && (arg[n] == '/' || arg[n] == '\0')) {
+            strncat(out, "$OUT", size - strlen(out) - 1);
+            arg += n;
+        }
+        strncat(out, arg, size - strlen(out) - 1);
         strncat(out, " ", size - strlen(out) - 1);
     }
 }
@@ -114,7 +122,7 @@ static int run_stage(const pipeline_options *o, const char *stage, int (*fn)(int
                      cJSON *seconds, int *rerun_rest)
 {
     char joined[8192];
-    args_join(a, joined, sizeof joined);
+    args_join(a, o->out, joined, sizeof joined);
     if (!*rerun_rest && stage_done(o->out, stage, joined, seconds)) {
         fprintf(stderr, "prodygs: %s: already done, skipping (delete %s/%s.done to redo)\n", stage, o->out, stage);
         return 0;
