@@ -73,11 +73,19 @@ static void args_addf(arg_list *a, const char *flag, const char *fmt, ...)
     args_add(a, buf);
 }
 
-static void args_join(const arg_list *a, char *out, size_t size)
+/* The stage's arguments as one string, with the output directory written as "$OUT" so a
+ * finished stage still counts after the directory is moved or copied. */
+static void args_join(const arg_list *a, const char *out_dir, char *out, size_t size)
 {
     out[0] = '\0';
+    size_t n = strlen(out_dir);
     for (int i = 0; i < a->argc; i++) {
-        strncat(out, a->argv[i], size - strlen(out) - 1);
+        const char *arg = a->argv[i];
+        if (strncmp(arg, out_dir, n) == 0 && (arg[n] == '/' || arg[n] == '\0')) {
+            strncat(out, "$OUT", size - strlen(out) - 1);
+            arg += n;
+        }
+        strncat(out, arg, size - strlen(out) - 1);
         strncat(out, " ", size - strlen(out) - 1);
     }
 }
@@ -114,7 +122,7 @@ static int run_stage(const pipeline_options *o, const char *stage, int (*fn)(int
                      cJSON *seconds, int *rerun_rest)
 {
     char joined[8192];
-    args_join(a, joined, sizeof joined);
+    args_join(a, o->out, joined, sizeof joined);
     if (!*rerun_rest && stage_done(o->out, stage, joined, seconds)) {
         fprintf(stderr, "prodygs: %s: already done, skipping (delete %s/%s.done to redo)\n", stage, o->out, stage);
         return 0;
@@ -164,6 +172,7 @@ int pipeline_run_stages(const pipeline_options *o, cJSON *seconds)
     args_addf(&a, "--poses", "%s", o->poses);
     if (o->proxies >= 0) args_addf(&a, "--num", "%d", o->proxies);
     if (o->max_angle > 0) args_addf(&a, "--max-angle", "%g", o->max_angle);
+    if (o->fov > 0) args_addf(&a, "--fov", "%g", o->fov);
     if (o->train_cam) args_addf(&a, "--train-cam", "%s", o->train_cam);
     if (o->test_cams) args_addf(&a, "--test-cams", "%s", o->test_cams);
     if (o->pose_scale > 0) args_addf(&a, "--pose-scale", "%g", o->pose_scale);
@@ -226,6 +235,7 @@ int pipeline_cli_options(pipeline_options *o, const char **proxies_text, cli_opt
         { "--proxies", CLI_STR, proxies_text, "number of proxy cameras, or all (0 = real view only)" },
         { "--poses", CLI_STR, &o->poses, "proxy poses: hemisphere or dataset (default: dataset with --test-cams)" },
         { "--max-angle", CLI_FLOAT, &o->max_angle, "hemisphere cap angle in degrees (default 20)" },
+        { "--fov", CLI_FLOAT, &o->fov, "single video: horizontal field of view in degrees (default 60)" },
         { "--no-refine", CLI_FLAG, &o->no_refine, "skip edge-aware depth refinement (ablation)" },
         { "--no-align", CLI_FLAG, &o->no_align, "skip temporal scale/shift alignment (ablation)" },
         { "--depth-kind", CLI_STR, &o->depth_kind, "depth (default) or disparity" },

@@ -24,6 +24,7 @@ typedef struct {
     const char *poses;       /* "hemisphere" or "dataset" (NULL: dataset when test_cams given) */
     int proxies;             /* number of proxy cameras; -1 = preset default / all */
     float max_angle;         /* hemisphere cap angle (0 = default) */
+    float fov;               /* single video: horizontal field of view in degrees (0 = default) */
     int no_refine, no_align;
     int frames;              /* 0 = all */
     const char *size;        /* "WxH" or NULL (preset default) */
