@@ -3,6 +3,7 @@
 #include "cli/cli.h"
 #include "core/fileutil.h"
 #include "core/parallel.h"
+#include "io/dataset.h"
 #include "io/json.h"
 
 #include <stdarg.h>
@@ -14,16 +15,33 @@
 
 typedef struct {
     const char *name;
-    int iters, coarse_iters;
+    int iters;
     int proxies;
-    const char *size; /* NULL: keep the input size */
+    int max_side; /* shrink larger inputs so the longer side is at most this */
 } preset;
 
-/* fast: minutes on 2 cores for a 160x120 clip; quality: the input size and 4x the iterations. */
+/* fast: a few minutes on 2 cores for a short clip; quality: 4x the iterations at up to 640 px. */
 static const preset presets[] = {
-    { "fast", 3000, 600, 8, NULL },
-    { "quality", 12000, 2000, -1, NULL },
+    { "fast", 3000, 8, 320 },
+    { "quality", 12000, -1, 640 },
 };
+
+/* Picks an even WxH with the input's aspect ratio and the longer side at most max_side;
+ * leaves o->size unset when the input is already small enough or cannot be probed (the
+ * stages then report the real problem with the input). */
+static void pick_size(pipeline_options *o, int max_side)
+{
+    pg_dataset *ds = NULL;
+    io_dataset_options opt = io_dataset_defaults();
+    if (io_dataset_open(o->input, &opt, &ds) != PG_OK) return;
+    int w = io_dataset_width(ds), h = io_dataset_height(ds);
+    io_dataset_close(ds);
+    int side = w > h ? w : h;
+    if (side <= max_side || side <= 0) return;
+    int nw = (int)((double)w * max_side / side + 0.5) & ~1, nh = (int)((double)h * max_side / side + 0.5) & ~1;
+    snprintf(o->size_buf, sizeof o->size_buf, "%dx%d", nw, nh);
+    o->size = o->size_buf;
+}
 
 int pipeline_apply_preset(pipeline_options *o)
 {
@@ -32,7 +50,7 @@ int pipeline_apply_preset(pipeline_options *o)
         if (strcmp(o->preset, presets[i].name) != 0) continue;
         if (o->iters <= 0) o->iters = presets[i].iters;
         if (o->proxies < 0 && presets[i].proxies >= 0 && !o->test_cams) o->proxies = presets[i].proxies;
-        if (!o->size) o->size = presets[i].size;
+        if (!o->size) pick_size(o, presets[i].max_side);
         if (!o->poses) o->poses = o->test_cams ? "dataset" : "hemisphere";
         return 0;
     }

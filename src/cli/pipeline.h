@@ -28,6 +28,7 @@ typedef struct {
     int no_refine, no_align;
     int frames;              /* 0 = all */
     const char *size;        /* "WxH" or NULL (preset default) */
+    char size_buf[32];       /* storage for a size the preset picked */
     int iters;               /* 0 = preset default */
     int threads, seed;
     float pose_scale;        /* 0 = fit */
