@@ -18,15 +18,9 @@
 
 enum { W = 96, H = 72, F = 6, NC = 7 };
 
-static int cmp_f(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 static float median(float *v, size_t n)
 {
-    qsort(v, n, sizeof(float), cmp_f);
+    qsort(v, n, sizeof(float), pg_cmp_float);
     return n ? v[n / 2] : 0;
 }
 

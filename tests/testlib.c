@@ -51,6 +51,15 @@ double test_rel_err(double a, double b, double floor)
     return fabs(a - b) / m;
 }
 
+double test_grad_err(const float *g, const double *fd, size_t n)
+{
+    double mx = 0;
+    for (size_t i = 0; i < n; i++) mx = fmax(mx, fabs(fd[i]));
+    double worst = 0;
+    for (size_t i = 0; i < n; i++) worst = fmax(worst, test_rel_err(g[i], fd[i], 1e-2 * mx + 1e-30));
+    return worst;
+}
+
 int test_shared_data(const char *name, char *out, size_t size)
 {
     snprintf(out, size, "%s/data/%s", PG_SHARED_DIR, name);

@@ -2,6 +2,7 @@
 #include "depth/prepare.h"
 
 #include "core/fileutil.h"
+#include "core/mathx.h"
 #include "core/parallel.h"
 #include "core/progress.h"
 #include "io/image_io.h"
@@ -256,12 +257,6 @@ void depth_to_color(const float *depth, int W, int H, float lo, float hi, pg_ima
     }
 }
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* 1st and 99th percentile of valid depth over a subsample of all frames (shared colour range). */
 static void depth_range(const float *d, size_t count, float *lo, float *hi)
 {
@@ -273,7 +268,7 @@ static void depth_range(const float *d, size_t count, float *lo, float *hi)
     for (size_t k = 0; k < count; k += step)
         if (depth_valid(d[k])) v[m++] = d[k];
     if (m > 10) {
-        qsort(v, m, sizeof(float), cmp_float);
+        qsort(v, m, sizeof(float), pg_cmp_float);
         *lo = v[m / 100];
         *hi = v[m - 1 - m / 100];
         if (!(*hi > *lo)) *hi = *lo * 1.01f + 1e-6f;

@@ -1,14 +1,9 @@
 /* colormap.c - a perceptually ordered blue-to-yellow ramp for depth maps. */
 #include "render/colormap.h"
+#include "core/mathx.h"
 
 #include <math.h>
 #include <stdlib.h>
-
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
 
 /* Piecewise-linear ramp through dark blue, purple, orange and yellow (viridis/inferno-like). */
 static void ramp(float s, float rgb[3])
@@ -34,7 +29,7 @@ pg_status render_depth_colormap(const float *depth, int width, int height, float
         for (size_t i = 0; i < n; i++)
             if (depth[i] > 0 && isfinite(depth[i])) valid[m++] = depth[i];
         if (m > 0) {
-            qsort(valid, m, sizeof(float), cmp_float);
+            qsort(valid, m, sizeof(float), pg_cmp_float);
             lo = valid[m / 50];
             hi = valid[m - 1 - m / 50];
         }

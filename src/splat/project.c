@@ -41,6 +41,34 @@ static void jacobian(const pg_camera *cam, const float lim[4], const float t[3],
     J[3] = 0; J[4] = cam->fy * iz; J[5] = -cam->fy * wc * iz;
 }
 
+/* Everything the forward computes on the way to Sigma2D, kept for the backward. */
+typedef struct {
+    float Rq[9], s[3], M[9], cov[9]; /* 3D covariance factors (cov3d_forward) */
+    float J[6], uvc[2];              /* projection Jacobian and clamped x/z, y/z */
+    int cf[2];                       /* which of x/z, y/z were clamped */
+    float Tm[6], TC[6];              /* T = J W (2x3) and T cov (2x3) */
+    float sxx, sxy, syy;             /* Sigma2D = T cov T^T plus the low-pass term */
+} sigma2d_state;
+
+/* Sigma2D of a Gaussian whose mean is at camera point t (shared by forward and backward). */
+static void sigma2d_forward(const float log_scale[3], const float quat[4], const pg_camera *cam, const float lim[4],
+                            const float t[3], sigma2d_state *S)
+{
+    cov3d_forward(log_scale, quat, S->Rq, S->s, S->M, S->cov);
+    jacobian(cam, lim, t, S->J, S->cf, S->uvc);
+    const float *J = S->J, *cov = S->cov;
+    float *Tm = S->Tm, *TC = S->TC;
+    for (int r = 0; r < 2; r++)
+        for (int j = 0; j < 3; j++)
+            Tm[3*r+j] = J[3*r]*cam->R[j] + J[3*r+1]*cam->R[3+j] + J[3*r+2]*cam->R[6+j];
+    for (int r = 0; r < 2; r++)
+        for (int j = 0; j < 3; j++)
+            TC[3*r+j] = Tm[3*r]*cov[j] + Tm[3*r+1]*cov[3+j] + Tm[3*r+2]*cov[6+j];
+    S->sxx = TC[0]*Tm[0] + TC[1]*Tm[1] + TC[2]*Tm[2] + SPLAT_LOWPASS;
+    S->sxy = TC[0]*Tm[3] + TC[1]*Tm[4] + TC[2]*Tm[5];
+    S->syy = TC[3]*Tm[3] + TC[4]*Tm[4] + TC[5]*Tm[5] + SPLAT_LOWPASS;
+}
+
 int splat_project_forward(const float mean[3], const float log_scale[3], const float quat[4],
                           const pg_camera *cam, float near_clip, splat_proj *p)
 {
@@ -56,22 +84,9 @@ int splat_project_forward_lim(const float mean[3], const float log_scale[3], con
     mat3_mul_vec(t, cam->R, mean);
     vec3_add(t, t, cam->t);
     if (!(t[2] >= near_clip)) return 0;
-    float Rq[9], s[3], M[9], cov[9], J[6], uvc[2];
-    int cf[2];
-    cov3d_forward(log_scale, quat, Rq, s, M, cov);
-    jacobian(cam, lim, t, J, cf, uvc);
-    /* T = J W (2x3), Sigma2D = T cov T^T. */
-    float Tm[6];
-    for (int r = 0; r < 2; r++)
-        for (int j = 0; j < 3; j++)
-            Tm[3*r+j] = J[3*r]*cam->R[j] + J[3*r+1]*cam->R[3+j] + J[3*r+2]*cam->R[6+j];
-    float TC[6];
-    for (int r = 0; r < 2; r++)
-        for (int j = 0; j < 3; j++)
-            TC[3*r+j] = Tm[3*r]*cov[j] + Tm[3*r+1]*cov[3+j] + Tm[3*r+2]*cov[6+j];
-    float sxx = TC[0]*Tm[0] + TC[1]*Tm[1] + TC[2]*Tm[2] + SPLAT_LOWPASS;
-    float sxy = TC[0]*Tm[3] + TC[1]*Tm[4] + TC[2]*Tm[5];
-    float syy = TC[3]*Tm[3] + TC[4]*Tm[4] + TC[5]*Tm[5] + SPLAT_LOWPASS;
+    sigma2d_state S;
+    sigma2d_forward(log_scale, quat, cam, lim, t, &S);
+    float sxx = S.sxx, sxy = S.sxy, syy = S.syy;
     float det = sxx * syy - sxy * sxy;
     if (!(det > 0)) return 0;
     float id = 1.0f / det;
@@ -100,21 +115,11 @@ void splat_project_backward_lim(const float mean[3], const float log_scale[3], c
     float t[3];
     mat3_mul_vec(t, cam->R, mean);
     vec3_add(t, t, cam->t);
-    float Rq[9], s[3], M[9], cov[9], J[6], uvc[2];
-    int cf[2];
-    cov3d_forward(log_scale, quat, Rq, s, M, cov);
-    jacobian(cam, lim, t, J, cf, uvc);
-    float Tm[6];
-    for (int r = 0; r < 2; r++)
-        for (int j = 0; j < 3; j++)
-            Tm[3*r+j] = J[3*r]*cam->R[j] + J[3*r+1]*cam->R[3+j] + J[3*r+2]*cam->R[6+j];
-    float TC[6];
-    for (int r = 0; r < 2; r++)
-        for (int j = 0; j < 3; j++)
-            TC[3*r+j] = Tm[3*r]*cov[j] + Tm[3*r+1]*cov[3+j] + Tm[3*r+2]*cov[6+j];
-    float sxx = TC[0]*Tm[0] + TC[1]*Tm[1] + TC[2]*Tm[2] + SPLAT_LOWPASS;
-    float sxy = TC[0]*Tm[3] + TC[1]*Tm[4] + TC[2]*Tm[5];
-    float syy = TC[3]*Tm[3] + TC[4]*Tm[4] + TC[5]*Tm[5] + SPLAT_LOWPASS;
+    sigma2d_state S;
+    sigma2d_forward(log_scale, quat, cam, lim, t, &S);
+    const float *Rq = S.Rq, *s = S.s, *M = S.M, *Tm = S.Tm, *TC = S.TC, *uvc = S.uvc;
+    const int *cf = S.cf;
+    float sxx = S.sxx, sxy = S.sxy, syy = S.syy;
     float id = 1.0f / (sxx * syy - sxy * sxy);
     /* Conic Q = Sigma2D^-1 as a symmetric matrix; the off-diagonal b appears twice in
      * 0.5 d^T Q d, so dL/dQ01 = dL/db / 2. dL/dSigma2D = -Q G Q. */
