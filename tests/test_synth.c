@@ -7,6 +7,7 @@
 #include "core/mathx.h"
 #include "io/dataset.h"
 #include "io/image_io.h"
+#include "io/json.h"
 #include "io/npy.h"
 #include "io/video.h"
 #include "synth/synth.h"
@@ -284,12 +285,9 @@ static void test_dynerf_files(const char *dir)
     pg_array_destroy(&dm);
 
     /* scene.json parses and names the cameras */
-    char *text = NULL;
-    size_t len = 0;
+    cJSON *root = NULL;
     snprintf(path, sizeof path, "%s/scene.json", dir);
-    CHECK_OK(pg_read_file(path, 1 << 24, &text, &len));
-    cJSON *root = text ? cJSON_Parse(text) : NULL;
-    CHECK(root != NULL, "scene.json does not parse");
+    CHECK_OK(io_json_load(path, &root));
     if (root) {
         cJSON *cams = cJSON_GetObjectItem(root, "cameras"), *dmj = cJSON_GetObjectItem(root, "depth_mono");
         CHECK(cJSON_GetArraySize(cams) == NC, "scene.json has %d cameras", cJSON_GetArraySize(cams));
@@ -297,7 +295,6 @@ static void test_dynerf_files(const char *dir)
         CHECK(cJSON_GetArraySize(fs) == F, "depth_mono.frame_scale has %d entries", cJSON_GetArraySize(fs));
         cJSON_Delete(root);
     }
-    free(text);
 }
 
 /* Visibility: cam00's own surface points are visible from cam00; points pushed further along
@@ -379,12 +376,9 @@ static void test_panoptic(const char *dir)
     synth_scene sc;
     synth_scene_default(&sc, 1);
     char path[4096];
-    char *text = NULL;
-    size_t len = 0;
+    cJSON *root = NULL;
     snprintf(path, sizeof path, "%s/train_meta.json", dir);
-    CHECK_OK(pg_read_file(path, 1 << 24, &text, &len));
-    cJSON *root = text ? cJSON_Parse(text) : NULL;
-    CHECK(root != NULL, "train_meta.json does not parse");
+    CHECK_OK(io_json_load(path, &root));
     if (root) {
         cJSON *k = cJSON_GetObjectItem(root, "k"), *w2c = cJSON_GetObjectItem(root, "w2c");
         cJSON *fn = cJSON_GetObjectItem(root, "fn"), *cid = cJSON_GetObjectItem(root, "cam_id");
@@ -415,7 +409,6 @@ static void test_panoptic(const char *dir)
         CHECK(worst < 1e-5, "meta camera differs from synth camera by %g", worst);
         cJSON_Delete(root);
     }
-    free(text);
     snprintf(path, sizeof path, "%s/test_meta.json", dir);
     CHECK(pg_path_exists(path), "test_meta.json missing");
 
