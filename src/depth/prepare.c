@@ -247,13 +247,7 @@ void depth_to_color(const float *depth, int W, int H, float lo, float hi, pg_ima
             px[0] = px[1] = px[2] = 0.0f;
             continue;
         }
-        float t = (1.0f / depth[k] - ilo) / (ihi - ilo);
-        t = t < 0 ? 0 : (t > 1 ? 1 : t);
-        float s = t * 5.0f;
-        int j = (int)s;
-        if (j > 4) j = 4;
-        float a = s - j;
-        for (int c = 0; c < 3; c++) px[c] = ramp[j][c] * (1 - a) + ramp[j + 1][c] * a;
+        pg_color_ramp(ramp, 6, (1.0f / depth[k] - ilo) / (ihi - ilo), px);
     }
 }
 

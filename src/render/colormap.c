@@ -6,18 +6,9 @@
 #include <stdlib.h>
 
 /* Piecewise-linear ramp through dark blue, purple, orange and yellow (viridis/inferno-like). */
-static void ramp(float s, float rgb[3])
-{
-    static const float stops[5][3] = {
-        { 0.05f, 0.03f, 0.35f }, { 0.45f, 0.10f, 0.55f }, { 0.85f, 0.30f, 0.35f }, { 0.98f, 0.65f, 0.15f }, { 0.99f, 0.98f, 0.60f },
-    };
-    s = s < 0 ? 0 : (s > 1 ? 1 : s);
-    float x = s * 4.0f;
-    int i = (int)x;
-    if (i > 3) i = 3;
-    float f = x - i;
-    for (int c = 0; c < 3; c++) rgb[c] = stops[i][c] * (1 - f) + stops[i + 1][c] * f;
-}
+static const float STOPS[5][3] = {
+    { 0.05f, 0.03f, 0.35f }, { 0.45f, 0.10f, 0.55f }, { 0.85f, 0.30f, 0.35f }, { 0.98f, 0.65f, 0.15f }, { 0.99f, 0.98f, 0.60f },
+};
 
 pg_status render_depth_colormap(const float *depth, int width, int height, float lo, float hi, pg_image *rgb)
 {
@@ -41,7 +32,7 @@ pg_status render_depth_colormap(const float *depth, int width, int height, float
         float d = depth[i];
         float *out = rgb->data + 3 * i;
         if (!(d > 0) || !isfinite(d)) { out[0] = out[1] = out[2] = 0; continue; }
-        ramp(1.0f - (d - lo) / (hi - lo), out); /* near is bright */
+        pg_color_ramp(STOPS, 5, 1.0f - (d - lo) / (hi - lo), out); /* near is bright */
     }
     return PG_OK;
 }
