@@ -25,21 +25,6 @@ static float median(float *v, size_t n)
     return n ? v[n / 2] : 0;
 }
 
-static int files_equal(const char *a, const char *b)
-{
-    char *da = NULL, *db = NULL;
-    size_t na = 0, nb = 0;
-    if (pg_read_file(a, 1 << 26, &da, &na) || pg_read_file(b, 1 << 26, &db, &nb)) {
-        free(da);
-        free(db);
-        return 0;
-    }
-    int eq = na == nb && memcmp(da, db, na) == 0;
-    free(da);
-    free(db);
-    return eq;
-}
-
 /* Same seed -> same pixels and depth; another seed -> different. */
 static void test_determinism(void)
 {
@@ -469,7 +454,7 @@ int main(void)
         char a[4096], b[4096];
         snprintf(a, sizeof a, "%s/%s", dir, files[i]);
         snprintf(b, sizeof b, "%s/%s", dir2, files[i]);
-        CHECK(files_equal(a, b), "%s differs between two runs (2 threads vs 1)", files[i]);
+        CHECK(test_files_equal(a, b), "%s differs between two runs (2 threads vs 1)", files[i]);
     }
     test_dynerf_files(dir);
 

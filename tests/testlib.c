@@ -65,3 +65,14 @@ int test_shared_data(const char *name, char *out, size_t size)
     snprintf(out, size, "%s/data/%s", PG_SHARED_DIR, name);
     return pg_path_is_dir(out);
 }
+
+int test_files_equal(const char *a, const char *b)
+{
+    char *da = NULL, *db = NULL;
+    size_t na = 0, nb = 0;
+    int eq = !pg_read_file(a, (size_t)1 << 30, &da, &na) && !pg_read_file(b, (size_t)1 << 30, &db, &nb) && na == nb &&
+             memcmp(da, db, na) == 0;
+    free(da);
+    free(db);
+    return eq;
+}

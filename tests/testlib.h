@@ -46,5 +46,7 @@ double test_rel_err(double a, double b, double floor);
 double test_grad_err(const float *g, const double *fd, size_t n);
 /* 1 if the shared sample data directory (../shared/data/NAME) exists. */
 int test_shared_data(const char *name, char *out, size_t size);
+/* 1 if both files can be read (up to 1 GB each) and hold the same bytes. */
+int test_files_equal(const char *a, const char *b);
 
 #endif
