@@ -8,6 +8,7 @@
 #include "core/image.h"
 #include "core/mathx.h"
 #include "core/parallel.h"
+#include "optim/adam.h"
 #include "optim/loss_image.h"
 #include "splat/gaussians.h"
 #include "splat/raster.h"
@@ -18,7 +19,7 @@ struct proxy_frame_model {
     int W, H;              /* source frame size */
     proxy_fit_options opt;
     pg_gaussians g, grad;  /* parameters and their gradients (N) */
-    float *m, *v;          /* Adam moments, (N, 10): mean 3, log-scale 3, opacity 1, SH DC 3 */
+    optim_adam *adam;      /* shared Adam over the groups of fit_groups (N rows), rebuilt per frame */
     splat_raster *raster;
     optim_ssim_ws *ssim;   /* SSIM workspace at the source size */
     float *vmask;          /* (H, W) 1 where the source depth is valid (loss mask) */
@@ -33,6 +34,12 @@ struct proxy_frame_model {
     float median_depth;
     int valid_pixels;
     proxy_model_stats stats;
+};
+
+/* The parameter groups the fit optimises (rotations and SH beyond DC stay fixed). */
+enum { FIT_MEANS, FIT_SCALES, FIT_OPACITY, FIT_DC, FIT_GROUPS };
+static const optim_group_desc fit_groups[FIT_GROUPS] = {
+    { "means", 3, 0, 3 }, { "log_scales", 3, 0, 3 }, { "opacity", 1, 0, 1 }, { "sh_dc", PG_SH_COEFFS * 3, 0, 3 },
 };
 
 proxy_fit_options proxy_default_fit_options(void)
@@ -62,8 +69,7 @@ void proxy_model_destroy(proxy_frame_model *m)
     splat_raster_destroy(m->raster);
     optim_ssim_destroy(m->ssim);
     free(m->vmask);
-    free(m->m);
-    free(m->v);
+    optim_adam_destroy(m->adam);
     free(m->rgb);
     free(m->depth);
     free(m->d_rgb);
@@ -93,15 +99,13 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
     if (!st) st = splat_raster_create(&m->raster);
     if (!st) st = optim_ssim_create(&m->ssim, height, width, 3);
     if (st) { proxy_model_destroy(m); return st; }
-    m->m = pg_calloc(ng * 10, sizeof(float), "proxy Adam m");
-    m->v = pg_calloc(ng * 10, sizeof(float), "proxy Adam v");
     m->rgb = pg_malloc(npix * 3 * sizeof(float), "proxy source rgb");
     m->depth = pg_malloc(npix * sizeof(float), "proxy source depth");
     m->d_rgb = pg_malloc(npix * 3 * sizeof(float), "proxy d_rgb");
     m->d_depth = pg_malloc(npix * sizeof(float), "proxy d_depth");
     m->d_alpha = pg_malloc(npix * sizeof(float), "proxy d_alpha");
     m->vmask = pg_malloc(npix * sizeof(float), "proxy loss mask");
-    if (!m->vmask || !m->m || !m->v || !m->rgb || !m->depth || !m->d_rgb || !m->d_depth || !m->d_alpha) {
+    if (!m->vmask || !m->rgb || !m->depth || !m->d_rgb || !m->d_depth || !m->d_alpha) {
         proxy_model_destroy(m);
         return PG_ERR_NOMEM;
     }
@@ -247,8 +251,10 @@ pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const flo
     g->sh_degree = 0;
     PG_TRY(splat_gaussians_resize(&m->grad, n));
     m->grad.sh_degree = 0;
-    memset(m->m, 0, (size_t)n * 10 * sizeof(float));
-    memset(m->v, 0, (size_t)n * 10 * sizeof(float));
+    /* Fresh moments and step counts for every frame. */
+    optim_adam_destroy(m->adam);
+    m->adam = NULL;
+    PG_TRY(optim_adam_create(&m->adam, fit_groups, FIT_GROUPS, n, 1e-15f));
     m->median_depth = (float)(dsum / n);
     m->stats.gaussians = n;
     m->stats.init_s += pg_time_seconds() - t0;
@@ -261,37 +267,6 @@ static pg_render_settings model_settings(void)
     s.background[0] = s.background[1] = s.background[2] = 0;
     s.sh_degree = 0;
     return s;
-}
-
-/* One Adam update of x (n values) with gradient g, moments at mom/vel with stride 10 per Gaussian. */
-static void adam_group(float *x, const float *g, float *mom, float *vel, int count, int dim, int off, float lr,
-                       float bc1, float bc2)
-{
-    const float b1 = 0.9f, b2 = 0.999f, eps = 1e-15f;
-    for (int i = 0; i < count; i++) {
-        for (int d = 0; d < dim; d++) {
-            float gi = g[(size_t)i * dim + d];
-            float *mi = &mom[(size_t)i * 10 + off + d], *vi = &vel[(size_t)i * 10 + off + d];
-            *mi = b1 * *mi + (1 - b1) * gi;
-            *vi = b2 * *vi + (1 - b2) * gi * gi;
-            x[(size_t)i * dim + d] -= lr * (*mi / bc1) / (sqrtf(*vi / bc2) + eps);
-        }
-    }
-}
-
-/* Same for the SH DC coefficients, which sit at stride 48 inside the SH array. */
-static void adam_dc(float *sh, const float *gsh, float *mom, float *vel, int count, float lr, float bc1, float bc2)
-{
-    const float b1 = 0.9f, b2 = 0.999f, eps = 1e-15f;
-    for (int i = 0; i < count; i++) {
-        for (int c = 0; c < 3; c++) {
-            float gi = gsh[(size_t)i * PG_SH_COEFFS * 3 + c];
-            float *mi = &mom[(size_t)i * 10 + 7 + c], *vi = &vel[(size_t)i * 10 + 7 + c];
-            *mi = b1 * *mi + (1 - b1) * gi;
-            *vi = b2 * *vi + (1 - b2) * gi * gi;
-            sh[(size_t)i * PG_SH_COEFFS * 3 + c] -= lr * (*mi / bc1) / (sqrtf(*vi / bc2) + eps);
-        }
-    }
 }
 
 /* Loss on the source view and its gradient w.r.t. the rendered rgb/depth/alpha:
@@ -348,7 +323,6 @@ pg_status proxy_model_fit(proxy_frame_model *m)
     pg_render_settings s = model_settings();
     pg_render_output out;
     pg_gaussians *g = &m->g, *gr = &m->grad;
-    int n = g->count;
     /* Fewer steps than the reference 100 get proportionally larger steps (at most 2x): 50 steps
      * at 2x lost ~0.25 dB of proxy PSNR against 100 at 1x on the sample scene, 50 at 1x ~1 dB. */
     const float boost = m->opt.steps > 0 ? clampf(100.0f / m->opt.steps, 1.0f, 2.0f) : 1.0f;
@@ -362,11 +336,10 @@ pg_status proxy_model_fit(proxy_frame_model *m)
         m->stats.last_loss = loss;
         zero_grads(gr);
         PG_TRY(splat_render_backward(m->raster, g, &m->cam, &s, m->d_rgb, m->d_depth, m->d_alpha, gr, NULL));
-        float bc1 = 1.0f - powf(0.9f, (float)(it + 1)), bc2 = 1.0f - powf(0.999f, (float)(it + 1));
-        adam_group(g->means, gr->means, m->m, m->v, n, 3, 0, lr_mean, bc1, bc2);
-        adam_group(g->log_scales, gr->log_scales, m->m, m->v, n, 3, 3, lr_scales, bc1, bc2);
-        adam_group(g->opacity, gr->opacity, m->m, m->v, n, 1, 6, lr_opacity, bc1, bc2);
-        adam_dc(g->sh, gr->sh, m->m, m->v, n, lr_color, bc1, bc2);
+        if (lr_mean > 0) PG_TRY(optim_adam_step_group(m->adam, FIT_MEANS, g->means, gr->means, lr_mean));
+        PG_TRY(optim_adam_step_group(m->adam, FIT_SCALES, g->log_scales, gr->log_scales, lr_scales));
+        PG_TRY(optim_adam_step_group(m->adam, FIT_OPACITY, g->opacity, gr->opacity, lr_opacity));
+        PG_TRY(optim_adam_step_group(m->adam, FIT_DC, g->sh, gr->sh, lr_color));
     }
     /* Final quality at the source view (for reports). */
     PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));
