@@ -20,6 +20,8 @@ struct proxy_frame_model {
     proxy_fit_options opt;
     pg_gaussians g, grad;  /* parameters and their gradients (N) */
     optim_adam *adam;      /* shared Adam over the groups of fit_groups (N rows), rebuilt per frame */
+    float *dc, *d_dc;      /* (N, 3) compact SH DC colour and its gradient: the optimised copy of the
+                            * stride-48 DC entries of g.sh / grad.sh (contiguous, so Adam vectorises) */
     splat_raster *raster;
     optim_ssim_ws *ssim;   /* SSIM workspace at the source size */
     float *vmask;          /* (H, W) 1 where the source depth is valid (loss mask) */
@@ -39,7 +41,7 @@ struct proxy_frame_model {
 /* The parameter groups the fit optimises (rotations and SH beyond DC stay fixed). */
 enum { FIT_MEANS, FIT_SCALES, FIT_OPACITY, FIT_DC, FIT_GROUPS };
 static const optim_group_desc fit_groups[FIT_GROUPS] = {
-    { "means", 3, 0, 3 }, { "log_scales", 3, 0, 3 }, { "opacity", 1, 0, 1 }, { "sh_dc", PG_SH_COEFFS * 3, 0, 3 },
+    { "means", 3, 0, 3 }, { "log_scales", 3, 0, 3 }, { "opacity", 1, 0, 1 }, { "sh_dc", 3, 0, 3 },
 };
 
 proxy_fit_options proxy_default_fit_options(void)
@@ -70,6 +72,8 @@ void proxy_model_destroy(proxy_frame_model *m)
     optim_ssim_destroy(m->ssim);
     free(m->vmask);
     optim_adam_destroy(m->adam);
+    free(m->dc);
+    free(m->d_dc);
     free(m->rgb);
     free(m->depth);
     free(m->d_rgb);
@@ -99,13 +103,15 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
     if (!st) st = splat_raster_create(&m->raster);
     if (!st) st = optim_ssim_create(&m->ssim, height, width, 3);
     if (st) { proxy_model_destroy(m); return st; }
+    m->dc = pg_malloc(ng * 3 * sizeof(float), "proxy colour");
+    m->d_dc = pg_malloc(ng * 3 * sizeof(float), "proxy colour gradient");
     m->rgb = pg_malloc(npix * 3 * sizeof(float), "proxy source rgb");
     m->depth = pg_malloc(npix * sizeof(float), "proxy source depth");
     m->d_rgb = pg_malloc(npix * 3 * sizeof(float), "proxy d_rgb");
     m->d_depth = pg_malloc(npix * sizeof(float), "proxy d_depth");
     m->d_alpha = pg_malloc(npix * sizeof(float), "proxy d_alpha");
     m->vmask = pg_malloc(npix * sizeof(float), "proxy loss mask");
-    if (!m->vmask || !m->rgb || !m->depth || !m->d_rgb || !m->d_depth || !m->d_alpha) {
+    if (!m->vmask || !m->dc || !m->d_dc || !m->rgb || !m->depth || !m->d_rgb || !m->d_depth || !m->d_alpha) {
         proxy_model_destroy(m);
         return PG_ERR_NOMEM;
     }
@@ -251,6 +257,11 @@ pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const flo
     g->sh_degree = 0;
     PG_TRY(splat_gaussians_resize(&m->grad, n));
     m->grad.sh_degree = 0;
+    for (int i = 0; i < n; i++)
+        for (int c = 0; c < 3; c++) m->dc[(size_t)i * 3 + c] = g->sh[(size_t)i * PG_SH_COEFFS * 3 + c];
+    /* The fit never reads these gradients: zeroed once per frame instead of every step. */
+    memset(m->grad.quats, 0, (size_t)n * 4 * sizeof(float));
+    for (int i = 0; i < n; i++) memset(m->grad.sh + (size_t)i * PG_SH_COEFFS * 3, 0, 3 * sizeof(float));
     /* Fresh moments and step counts for every frame. */
     optim_adam_destroy(m->adam);
     m->adam = NULL;
@@ -302,18 +313,36 @@ static float source_loss(proxy_frame_model *m, const pg_render_output *out)
     return loss + (float)(wd * ld * inv_v);
 }
 
-/* Zeroes the gradients the fit reads. The SH rows beyond DC stay untouched: the model renders at
- * SH degree 0, and zeroing all 48 coefficients per Gaussian every step cost 4 % of the fit. */
+/* Zeroes the gradients the fit reads. Rotations are fixed and the model renders at SH degree 0:
+ * the quaternion gradients (zeroed per frame) and SH rows beyond DC are never read; the DC
+ * gradients are moved out and zeroed by colour_grads. */
 static void zero_grads(pg_gaussians *gr)
 {
     size_t n = (size_t)gr->count;
     memset(gr->means, 0, n * 3 * sizeof(float));
     memset(gr->log_scales, 0, n * 3 * sizeof(float));
-    memset(gr->quats, 0, n * 4 * sizeof(float));
     memset(gr->opacity, 0, n * sizeof(float));
-    for (size_t i = 0; i < n; i++) {
-        float *dc = gr->sh + i * PG_SH_COEFFS * 3;
-        dc[0] = dc[1] = dc[2] = 0;
+}
+
+/* Moves the DC gradients (stride 48 in grad.sh) into the compact d_dc (N,3), zeroing them. */
+static void colour_grads(proxy_frame_model *m)
+{
+    int n = m->grad.count;
+    for (int i = 0; i < n; i++) {
+        float *src = m->grad.sh + (size_t)i * PG_SH_COEFFS * 3, *dst = m->d_dc + (size_t)i * 3;
+        dst[0] = src[0]; dst[1] = src[1]; dst[2] = src[2];
+        src[0] = src[1] = src[2] = 0;
+    }
+}
+
+/* Copies the compact colours back into the DC entries the rasterizer reads. */
+static void colour_scatter(proxy_frame_model *m)
+{
+    int n = m->g.count;
+    for (int i = 0; i < n; i++) {
+        float *dst = m->g.sh + (size_t)i * PG_SH_COEFFS * 3;
+        const float *src = m->dc + (size_t)i * 3;
+        dst[0] = src[0]; dst[1] = src[1]; dst[2] = src[2];
     }
 }
 
@@ -339,7 +368,9 @@ pg_status proxy_model_fit(proxy_frame_model *m)
         if (lr_mean > 0) PG_TRY(optim_adam_step_group(m->adam, FIT_MEANS, g->means, gr->means, lr_mean));
         PG_TRY(optim_adam_step_group(m->adam, FIT_SCALES, g->log_scales, gr->log_scales, lr_scales));
         PG_TRY(optim_adam_step_group(m->adam, FIT_OPACITY, g->opacity, gr->opacity, lr_opacity));
-        PG_TRY(optim_adam_step_group(m->adam, FIT_DC, g->sh, gr->sh, lr_color));
+        colour_grads(m);
+        PG_TRY(optim_adam_step_group(m->adam, FIT_DC, m->dc, m->d_dc, lr_color));
+        colour_scatter(m);
     }
     /* Final quality at the source view (for reports). */
     PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));

@@ -55,7 +55,7 @@ static unsigned long long settings_hash(const proxy_options *o, const proxy_job 
 {
     unsigned long long h = 1469598103934665603ULL;
     const proxy_fit_options *f = &o->fit;
-    h = hash_int(h, 2); /* format version of the cache */
+    h = hash_int(h, 3); /* format version of the cache (3: shared Adam) */
     h = hash_int(h, f->block);
     h = hash_int(h, f->steps);
     h = hash_int(h, f->surfels);
