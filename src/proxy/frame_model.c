@@ -50,6 +50,7 @@ proxy_fit_options proxy_default_fit_options(void)
     o.block = 1;
     o.steps = 100;
     o.ssim_weight = 0.2f;
+    o.ssim_every = 2;
     o.depth_weight = 0.1f;
     o.init_opacity = 0.8f;
     o.scale_mult = 0.6f;
@@ -90,6 +91,7 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
         return pg_fail(PG_ERR_SIZE, "proxy model: frame size %dx%d out of range", width, height);
     proxy_fit_options opt = o ? *o : proxy_default_fit_options();
     if (opt.block < 1 || opt.block > 64) return pg_fail(PG_ERR_ARG, "proxy model: block %d not in 1..64", opt.block);
+    if (opt.ssim_every < 1) return pg_fail(PG_ERR_ARG, "proxy model: ssim_every %d < 1", opt.ssim_every);
     if (opt.steps < 0) return pg_fail(PG_ERR_ARG, "proxy model: negative step count %d", opt.steps);
     proxy_frame_model *m = pg_calloc(1, sizeof *m, "proxy model");
     if (!m) return PG_ERR_NOMEM;
@@ -282,12 +284,13 @@ static pg_render_settings model_settings(void)
 
 /* Loss on the source view and its gradient w.r.t. the rendered rgb/depth/alpha:
  * (1 - w) L1 + w D-SSIM on pixels with valid depth (the others have no Gaussian behind them),
- * plus depth_weight * mean |depth/alpha - D| / D. Returns the loss. */
-static float source_loss(proxy_frame_model *m, const pg_render_output *out)
+ * plus depth_weight * mean |depth/alpha - D| / D. Without with_ssim the D-SSIM term (and its
+ * gradient) is left out. Returns the loss. */
+static float source_loss(proxy_frame_model *m, const pg_render_output *out, int with_ssim)
 {
     int W = m->W, H = m->H;
     size_t npix = (size_t)W * H;
-    const float ws = m->opt.ssim_weight, wl1 = 1.0f - ws, wd = m->opt.depth_weight;
+    const float ws = with_ssim ? m->opt.ssim_weight : 0, wl1 = 1.0f - m->opt.ssim_weight, wd = m->opt.depth_weight;
     const float inv_v = 1.0f / m->valid_pixels;
     memset(m->d_rgb, 0, npix * 3 * sizeof(float));
     memset(m->d_depth, 0, npix * sizeof(float));
@@ -360,7 +363,9 @@ pg_status proxy_model_fit(proxy_frame_model *m)
     const float lr_color = m->opt.lr_color * boost;
     for (int it = 0; it < m->opt.steps; it++) {
         PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));
-        float loss = source_loss(m, &out);
+        /* D-SSIM is ~20 % of a step and changes slowly: every ssim_every-th step and the last. */
+        int with_ssim = it % m->opt.ssim_every == 0 || it == m->opt.steps - 1;
+        float loss = source_loss(m, &out, with_ssim);
         if (it == 0) m->stats.first_loss = loss;
         m->stats.last_loss = loss;
         zero_grads(gr);
