@@ -50,7 +50,7 @@ proxy_fit_options proxy_default_fit_options(void)
     o.block = 1;
     o.steps = 100;
     o.ssim_weight = 0.2f;
-    o.ssim_every = 2;
+    o.ssim_every = 4;
     o.depth_weight = 0.1f;
     o.init_opacity = 0.8f;
     o.scale_mult = 0.6f;
@@ -285,8 +285,9 @@ static pg_render_settings model_settings(void)
 /* Loss on the source view and its gradient w.r.t. the rendered rgb/depth/alpha:
  * (1 - w) L1 + w D-SSIM on pixels with valid depth (the others have no Gaussian behind them),
  * plus depth_weight * mean |depth/alpha - D| / D. Without with_ssim the D-SSIM term (and its
- * gradient) is left out. Returns the loss. */
-static float source_loss(proxy_frame_model *m, const pg_render_output *out, int with_ssim)
+ * gradient) is left out. Returns the loss; its L1 part only with want_value (the gradient
+ * alone is enough for the steps whose loss nobody reads). */
+static float source_loss(proxy_frame_model *m, const pg_render_output *out, int with_ssim, int want_value)
 {
     int W = m->W, H = m->H;
     size_t npix = (size_t)W * H;
@@ -295,7 +296,7 @@ static float source_loss(proxy_frame_model *m, const pg_render_output *out, int 
     memset(m->d_rgb, 0, npix * 3 * sizeof(float));
     memset(m->d_depth, 0, npix * sizeof(float));
     memset(m->d_alpha, 0, npix * sizeof(float));
-    float loss = wl1 * optim_l1_forward(out->rgb, m->rgb, m->vmask, H, W, 3);
+    float loss = want_value ? wl1 * optim_l1_forward(out->rgb, m->rgb, m->vmask, H, W, 3) : 0;
     optim_l1_backward(m->d_rgb, wl1, out->rgb, m->rgb, m->vmask, H, W, 3);
     if (ws > 0) {
         loss += ws * (1.0f - optim_ssim_forward(m->ssim, out->rgb, m->rgb, m->vmask, H, W, 3));
@@ -349,6 +350,23 @@ static void colour_scatter(proxy_frame_model *m)
     }
 }
 
+/* PSNR of a source-view render over the pixels with valid depth, into the stats. The fit uses the
+ * render of its last step (before that step's update) rather than paying one more forward. */
+static void source_psnr(proxy_frame_model *m, const pg_render_output *out)
+{
+    double se = 0;
+    size_t cnt = 0;
+    for (size_t i = 0; i < (size_t)m->W * m->H; i++) {
+        if (!(m->depth[i] > 0)) continue;
+        for (int c = 0; c < 3; c++) {
+            double d = out->rgb[i * 3 + c] - m->rgb[i * 3 + c];
+            se += d * d;
+        }
+        cnt += 3;
+    }
+    m->stats.source_psnr = cnt ? (float)(-10.0 * log10(fmax(se / cnt, 1e-12))) : 0;
+}
+
 pg_status proxy_model_fit(proxy_frame_model *m)
 {
     double t0 = pg_time_seconds();
@@ -365,9 +383,13 @@ pg_status proxy_model_fit(proxy_frame_model *m)
         PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));
         /* D-SSIM is ~20 % of a step and changes slowly: every ssim_every-th step and the last. */
         int with_ssim = it % m->opt.ssim_every == 0 || it == m->opt.steps - 1;
-        float loss = source_loss(m, &out, with_ssim);
+        int last = it == m->opt.steps - 1;
+        float loss = source_loss(m, &out, with_ssim, it == 0 || last);
         if (it == 0) m->stats.first_loss = loss;
-        m->stats.last_loss = loss;
+        if (last) {
+            m->stats.last_loss = loss;
+            source_psnr(m, &out);
+        }
         zero_grads(gr);
         PG_TRY(splat_render_backward(m->raster, g, &m->cam, &s, m->d_rgb, m->d_depth, m->d_alpha, gr, NULL));
         if (lr_mean > 0) PG_TRY(optim_adam_step_group(m->adam, FIT_MEANS, g->means, gr->means, lr_mean));
@@ -377,19 +399,10 @@ pg_status proxy_model_fit(proxy_frame_model *m)
         PG_TRY(optim_adam_step_group(m->adam, FIT_DC, m->dc, m->d_dc, lr_color));
         colour_scatter(m);
     }
-    /* Final quality at the source view (for reports). */
-    PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));
-    double se = 0;
-    size_t cnt = 0;
-    for (size_t i = 0; i < (size_t)m->W * m->H; i++) {
-        if (!(m->depth[i] > 0)) continue;
-        for (int c = 0; c < 3; c++) {
-            double d = out.rgb[i * 3 + c] - m->rgb[i * 3 + c];
-            se += d * d;
-        }
-        cnt += 3;
+    if (m->opt.steps == 0) { /* no step rendered the source view: report the initial model */
+        PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));
+        source_psnr(m, &out);
     }
-    m->stats.source_psnr = cnt ? (float)(-10.0 * log10(fmax(se / cnt, 1e-12))) : 0;
     m->stats.fit_s += pg_time_seconds() - t0;
     return PG_OK;
 }
