@@ -50,7 +50,7 @@ proxy_fit_options proxy_default_fit_options(void)
     o.block = 1;
     o.steps = 100;
     o.ssim_weight = 0.2f;
-    o.ssim_every = 4;
+    o.ssim_every = 8;
     o.depth_weight = 0.1f;
     o.init_opacity = 0.8f;
     o.scale_mult = 0.6f;
@@ -294,8 +294,10 @@ static float source_loss(proxy_frame_model *m, const pg_render_output *out, int 
     const float ws = with_ssim ? m->opt.ssim_weight : 0, wl1 = 1.0f - m->opt.ssim_weight, wd = m->opt.depth_weight;
     const float inv_v = 1.0f / m->valid_pixels;
     memset(m->d_rgb, 0, npix * 3 * sizeof(float));
-    memset(m->d_depth, 0, npix * sizeof(float));
-    memset(m->d_alpha, 0, npix * sizeof(float));
+    if (!(wd > 0)) { /* otherwise the depth loop below writes every pixel */
+        memset(m->d_depth, 0, npix * sizeof(float));
+        memset(m->d_alpha, 0, npix * sizeof(float));
+    }
     float loss = want_value ? wl1 * optim_l1_forward(out->rgb, m->rgb, m->vmask, H, W, 3) : 0;
     optim_l1_backward(m->d_rgb, wl1, out->rgb, m->rgb, m->vmask, H, W, 3);
     if (ws > 0) {
@@ -306,7 +308,10 @@ static float source_loss(proxy_frame_model *m, const pg_render_output *out, int 
     if (wd > 0) {
         for (size_t i = 0; i < npix; i++) {
             float D = m->depth[i], a = out->alpha[i];
-            if (!(D > 0) || a <= 0.05f) continue;
+            if (!(D > 0) || a <= 0.05f) {
+                m->d_depth[i] = m->d_alpha[i] = 0;
+                continue;
+            }
             float dn = out->depth[i] / a, e = (dn - D) / D;
             ld += fabsf(e);
             float gdn = wd * inv_v * (float)((e > 0) - (e < 0)) / D;
