@@ -272,7 +272,7 @@ int pipeline_cli_options(pipeline_options *o, const char **proxies_text, cli_opt
     return n;
 }
 
-int pipeline_parse_proxies(pipeline_options *o, const char *text)
+static int parse_proxies(pipeline_options *o, const char *text)
 {
     if (!text) return 0;
     if (strcmp(text, "all") == 0) {
@@ -283,5 +283,19 @@ int pipeline_parse_proxies(pipeline_options *o, const char *text)
     long v = strtol(text, &end, 10);
     if (*end || end == text || v < 0 || v > 1000) return cli_usage_error("--proxies expects a count or 'all', got '%s'", text);
     o->proxies = (int)v;
+    return 0;
+}
+
+int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pipeline_options *o, const char **proxies_text)
+{
+    const char *pos[1];
+    int rc = cli_parse(spec, argc, argv, pos, NULL);
+    if (rc) return rc;
+    const char *verb = strchr(spec->command, ' ') ? strchr(spec->command, ' ') + 1 : spec->command;
+    if (!o->depth || !o->out) return cli_usage_error("%s: --depth and --out are required", verb);
+    o->input = pos[0];
+    if ((rc = parse_proxies(o, *proxies_text))) return rc;
+    if ((rc = pipeline_apply_preset(o))) return rc;
+    if (o->threads > 0) pg_set_threads(o->threads);
     return 0;
 }
