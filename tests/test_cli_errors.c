@@ -223,6 +223,7 @@ int main(void)
     expect_error("info @/negcount.ply", "negcount.ply");
     expect_error("info @/garbled.ply", "garbled.ply");
     expect_error("info @/m_empty", "m_empty");
+    expect_error("info @/m_garb/model.ckpt", "m_garb/model.ckpt");
 
     /* synth */
     expect_error("synth", "usage");
