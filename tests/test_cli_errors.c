@@ -190,6 +190,13 @@ static void make_fixtures(void)
     CHECK_OK(pg_mkdir_p(sub));
     write_bytes("m_garb/model.ckpt", NULL, 4000);
     write_text("bad.json", "{\"version\": 1, \"cameras\": [");
+
+    /* a depth folder whose frames disagree in size */
+    snprintf(sub, sizeof sub, "%s/dfold", dir);
+    CHECK_OK(pg_mkdir_p(sub));
+    write_npy("dfold/0000.npy", 1, 12, 16, 2.0f);
+    write_npy("dfold/0001.npy", 1, 6, 8, 2.0f);
+    write_npy("dfold/0002.npy", 1, 12, 16, 2.0f);
 }
 
 int main(void)
@@ -223,6 +230,7 @@ int main(void)
     expect_error("info @/negcount.ply", "negcount.ply");
     expect_error("info @/garbled.ply", "garbled.ply");
     expect_error("info @/m_empty", "m_empty");
+    expect_error("info @/dfold", "dfold/0001.npy");
     expect_error("info @/m_garb/model.ckpt", "m_garb/model.ckpt");
 
     /* synth */
@@ -246,6 +254,7 @@ int main(void)
     expect_error("prepare @/ds --depth @/huge.npy --out @/p", "huge.npy");
     expect_error("prepare @/ds --depth @/wrongshape.npy --out @/p", "wrongshape.npy");
     expect_error("prepare @/ds --depth @/wrongframes.npy --out @/p", "wrongframes.npy");
+    expect_error("prepare @/ds --depth @/dfold --out @/p", "dfold/0001.npy");
     expect_error("prepare @/ds --depth @/nan.npy --out @/p", "valid depth"); /* does not name the file yet */
     expect_error("prepare @/garbled.mp4 --depth @/good.npy --out @/p", "garbled.mp4");
     expect_error("prepare @/frames_bad --depth @/good.npy --out @/p", "0002.png");

@@ -121,7 +121,7 @@ int cli_parse_int_list(const char *text, int *out, int n)
         char *end;
         errno = 0;
         long v = strtol(p, &end, 10);
-        if (end == p || errno || count >= n) return -1;
+        if (end == p || errno || count >= n || v < -2147483647L || v > 2147483647L) return -1;
         out[count++] = (int)v;
         p = end;
         if (*p == ',') p++;
