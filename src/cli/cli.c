@@ -24,6 +24,13 @@ static void print_help(const cli_spec *spec)
     printf("  %-24s %s\n", "--help", "show this help");
 }
 
+/* "prodygs info" -> "info": errors are already prefixed with "prodygs: ". */
+static const char *short_name(const cli_spec *spec)
+{
+    const char *c = spec->command;
+    return strncmp(c, "prodygs ", 8) == 0 ? c + 8 : c;
+}
+
 int cli_usage_error(const char *fmt, ...)
 {
     va_list ap;
@@ -52,14 +59,14 @@ static int parse_value(const cli_spec *spec, const cli_option *o, const char *te
     case CLI_INT: {
         long v = strtol(text, &end, 10);
         if (errno || !end || *end || end == text || v < -2147483647L || v > 2147483647L)
-            return cli_usage_error("%s: %s expects an integer, got '%s'", spec->command, o->name, text);
+            return cli_usage_error("%s: %s expects an integer, got '%s'", short_name(spec), o->name, text);
         *(int *)o->dest = (int)v;
         return 0;
     }
     case CLI_FLOAT: {
         float v = strtof(text, &end);
-        if (errno || !end || *end || end == text || v != v)
-            return cli_usage_error("%s: %s expects a number, got '%s'", spec->command, o->name, text);
+        if (errno || !end || *end || end == text || v != v || v - v != 0) /* NaN or inf */
+            return cli_usage_error("%s: %s expects a number, got '%s'", short_name(spec), o->name, text);
         *(float *)o->dest = v;
         return 0;
     }
@@ -86,22 +93,22 @@ int cli_parse(const cli_spec *spec, int argc, char **argv, const char **position
             for (int k = 0; k < spec->num_options; k++)
                 if (strlen(spec->options[k].name) == len && strncmp(spec->options[k].name, a, len) == 0)
                     o = &spec->options[k];
-            if (!o) return cli_usage_error("%s: unknown option '%.*s' (see --help)", spec->command, (int)len, a);
+            if (!o) return cli_usage_error("%s: unknown option '%.*s' (see --help)", short_name(spec), (int)len, a);
             const char *val = NULL;
             if (o->kind != CLI_FLAG) {
                 if (eq) val = eq + 1;
                 else if (i + 1 < argc) val = argv[++i];
-                else return cli_usage_error("%s: option %s needs a value", spec->command, o->name);
+                else return cli_usage_error("%s: option %s needs a value", short_name(spec), o->name);
             }
             if (parse_value(spec, o, val)) return 2;
         } else {
             if (npos >= spec->max_positional)
-                return cli_usage_error("%s: unexpected argument '%s' (see --help)", spec->command, a);
+                return cli_usage_error("%s: unexpected argument '%s' (see --help)", short_name(spec), a);
             positional[npos++] = a;
         }
     }
     if (npos < spec->min_positional)
-        return cli_usage_error("%s: missing argument; usage: %s %s", spec->command, spec->command, spec->usage);
+        return cli_usage_error("%s: missing argument; usage: %s %s", short_name(spec), spec->command, spec->usage);
     if (num_positional) *num_positional = npos;
     return 0;
 }
@@ -114,7 +121,7 @@ int cli_parse_int_list(const char *text, int *out, int n)
         char *end;
         errno = 0;
         long v = strtol(p, &end, 10);
-        if (end == p || errno || count >= n) return -1;
+        if (end == p || errno || count >= n || v < -2147483647L || v > 2147483647L) return -1;
         out[count++] = (int)v;
         p = end;
         if (*p == ',') p++;

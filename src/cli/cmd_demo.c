@@ -28,8 +28,10 @@ int cmd_demo(int argc, char **argv)
                             options, (int)(sizeof options / sizeof options[0]), 0, 0 };
     int rc = cli_parse(&spec, argc, argv, NULL, NULL);
     if (rc) return rc < 0 ? 0 : rc;
-    if (threads > 0) pg_set_threads(threads);
     if (frames < 0 || frames > 1000) return cli_usage_error("demo: --frames %d is out of range", frames);
+    if (iters < 0) return cli_usage_error("demo: --iters must be >= 1 (got %d)", iters);
+    if (threads < 0 || threads > 256) return cli_usage_error("demo: --threads must be in 1..256 (got %d)", threads);
+    if (threads > 0) pg_set_threads(threads);
 
     char scene_dir[4096], depth[4200], marker[4200];
     snprintf(scene_dir, sizeof scene_dir, "%s/scene", out);

@@ -48,6 +48,12 @@ int cmd_export(int argc, char **argv)
     if (!out) return cli_usage_error("export: --out DIR is required");
     if ((times_text != NULL) + (frames_text != NULL) + all_frames > 1)
         return cli_usage_error("export: give only one of --times, --frames, --all-frames");
+    if (times_text) { /* check the list before the (slow) model load */
+        float *check = malloc(EXPORT_MAX_TIMES * sizeof(float));
+        int nt = check ? parse_times(times_text, check, EXPORT_MAX_TIMES) : 0;
+        free(check);
+        if (nt <= 0) return cli_usage_error("export: --times must be comma-separated numbers in [0, 1], got '%s'", times_text);
+    }
 
     render_model *rm = NULL;
     pg_status st = render_model_open(pos[0], &rm);

@@ -9,6 +9,7 @@
 #include "io/json.h"
 #include "io/ply.h"
 #include "io/video.h"
+#include "train/model.h"
 
 #include <dirent.h>
 #include <math.h>
@@ -192,6 +193,33 @@ static int info_image(const char *path, int json, pg_status *st_out)
     return 0;
 }
 
+/* A training checkpoint (model.ckpt from `prodygs train`). */
+static int info_checkpoint(const char *path, int json, pg_status *st_out)
+{
+    train_model m;
+    memset(&m, 0, sizeof m);
+    pg_status st = train_model_load(path, &m);
+    *st_out = st;
+    if (st) return -1;
+    int count = m.g.count, frames = m.frames, deform = m.net != NULL;
+    long statics = 0;
+    for (int i = 0; m.is_static && i < count; i++) statics += m.is_static[i] != 0;
+    train_model_destroy(&m);
+    if (json) {
+        cJSON *root = cJSON_CreateObject();
+        cJSON_AddStringToObject(root, "path", path);
+        cJSON_AddStringToObject(root, "type", "checkpoint");
+        cJSON_AddNumberToObject(root, "gaussians", count);
+        cJSON_AddNumberToObject(root, "static", (double)statics);
+        cJSON_AddNumberToObject(root, "frames", frames);
+        cJSON_AddBoolToObject(root, "deformation", deform);
+        return print_json(root);
+    }
+    printf("%s: trained model, %d Gaussians (%ld static), %d frames, deformation network %s\n", path, count, statics,
+           frames, deform ? "yes" : "no (coarse stage only)");
+    return 0;
+}
+
 /* A training-set directory (docs/FORMATS.md): DIR/trainset.json. */
 static int info_trainset(const char *dir, const char *path, int json, pg_status *st_out)
 {
@@ -263,7 +291,8 @@ int cmd_info(int argc, char **argv)
     int json = 0;
     cli_option opts[] = { { "--json", CLI_FLAG, &json, "print JSON instead of text" } };
     cli_spec spec = { "prodygs info", "PATH [--json]",
-                      "Describe a video, frame folder, dataset (DyNeRF/Panoptic), training set, depth file/folder or Gaussian PLY.",
+                      "Describe a video, frame folder, dataset (DyNeRF/Panoptic), training set, depth file/folder,\n"
+                      "Gaussian PLY or training checkpoint (.ckpt).",
                       opts, 1, 1, 1 };
     const char *pos[1];
     int npos = 0;
@@ -289,6 +318,7 @@ int cmd_info(int argc, char **argv)
     else if (!is_dir && (!strcasecmp(x, ".png") || !strcasecmp(x, ".jpg") || !strcasecmp(x, ".jpeg")))
         rc = info_image(path, json, &st);
     else if (!is_dir && !strcasecmp(x, ".ply")) rc = info_ply(path, json, &st);
+    else if (!is_dir && !strcasecmp(x, ".ckpt")) rc = info_checkpoint(path, json, &st);
     else rc = info_dataset(path, json, &st);
     if (rc < 0) return cli_fail(st);
     return rc;

@@ -37,7 +37,6 @@ int cmd_render(int argc, char **argv)
     int rc = cli_parse(&spec, argc, argv, pos, NULL);
     if (rc) return rc < 0 ? 0 : rc;
     if (!out) return cli_usage_error("render: --out DIR is required");
-    if (threads > 0) pg_set_threads(threads);
 
     render_video_options vo = {0};
     int use_dataset_cam = strcmp(path_name, "dataset-cam") == 0;
@@ -49,6 +48,13 @@ int cmd_render(int argc, char **argv)
     }
     if (time < 0 || time > 1) return cli_usage_error("render: --time must be in [0, 1], got %g", time);
     if (steps < 0 || steps > 100000) return cli_usage_error("render: --steps %d is out of range", steps);
+    if (fps < 0 || fps > 1000) return cli_usage_error("render: --fps must be in (0, 1000], got %g", fps);
+    if (angle < 0 || angle > 89) return cli_usage_error("render: --angle must be in [0, 89] degrees, got %g", angle);
+    if (yaw < -89 || yaw > 89 || pitch < -89 || pitch > 89)
+        return cli_usage_error("render: --yaw/--pitch must be in [-89, 89] degrees, got %g/%g", yaw, pitch);
+    if (threads < 0) return cli_usage_error("render: --threads must be >= 0, got %d", threads);
+
+    if (threads > 0) pg_set_threads(threads);
 
     scene_cameras *sc = pg_malloc(sizeof *sc, "cameras");
     if (!sc) return cli_fail(PG_ERR_NOMEM);

@@ -48,6 +48,7 @@ int cmd_synth(int argc, char **argv)
     o.seed = (uint64_t)seed;
     o.spp = spp;
     o.fps = fps;
+    if (threads < 0) return cli_usage_error("synth: --threads must be >= 0 (got %d)", threads);
     if (threads > 0) pg_set_threads(threads);
     cli_install_progress();
     double t0 = pg_time_seconds();

@@ -43,8 +43,35 @@ static void pick_size(pipeline_options *o, int max_side)
     o->size = o->size_buf;
 }
 
+/* Rejects bad numbers and names before any stage runs, so a typo fails at once with one line
+ * instead of after minutes of depth preparation (0 means "default" for the numeric fields). */
+static int validate_options(const pipeline_options *o)
+{
+    if (o->iters < 0) return cli_usage_error("--iters must be >= 1 (got %d)", o->iters);
+    if (o->frames < 0) return cli_usage_error("--frames must be >= 1 (got %d)", o->frames);
+    if (o->threads < 0 || o->threads > 256) return cli_usage_error("--threads must be in 1..256 (got %d)", o->threads);
+    if (o->seed < 0) return cli_usage_error("--seed must be >= 0 (got %d)", o->seed);
+    if (o->depth_scale < 0) return cli_usage_error("--depth-scale must be > 0 (got %g)", o->depth_scale);
+    if (o->pose_scale < 0) return cli_usage_error("--pose-scale must be > 0 (got %g)", o->pose_scale);
+    if (o->max_angle < 0 || o->max_angle >= 90)
+        return cli_usage_error("--max-angle must be in (0, 90) degrees (got %g)", o->max_angle);
+    if (o->poses && strcmp(o->poses, "hemisphere") != 0 && strcmp(o->poses, "dataset") != 0)
+        return cli_usage_error("--poses must be hemisphere or dataset (got '%s')", o->poses);
+    if (o->depth_kind && strcmp(o->depth_kind, "depth") != 0 && strcmp(o->depth_kind, "disparity") != 0)
+        return cli_usage_error("--depth-kind must be depth or disparity (got '%s')", o->depth_kind);
+    if (o->size) {
+        int w = -1, h = -1;
+        char tail = 0;
+        if (sscanf(o->size, "%dx%d%c", &w, &h, &tail) != 2 || w < 0 || h < 0 || w > 8192 || h > 8192 || (w == 0 && h == 0))
+            return cli_usage_error("--size expects WxH with sides up to 8192 (0 keeps the aspect), got '%s'", o->size);
+    }
+    return 0;
+}
+
 int pipeline_apply_preset(pipeline_options *o)
 {
+    int rc = validate_options(o);
+    if (rc) return rc;
     if (!o->preset) o->preset = "fast";
     for (size_t i = 0; i < sizeof presets / sizeof presets[0]; i++) {
         if (strcmp(o->preset, presets[i].name) != 0) continue;
@@ -152,7 +179,8 @@ static int run_stage(const pipeline_options *o, const char *stage, int (*fn)(int
     double t0 = pg_time_seconds();
     int rc = fn(a->argc, a->argv);
     if (rc) {
-        fprintf(stderr, "prodygs: stage %s failed (exit %d); rerun the same command to continue\n", stage, rc);
+        /* bad input (2) already printed its one line; rerunning only helps after other failures */
+        if (rc != 2) fprintf(stderr, "prodygs: stage %s failed (exit %d); rerun the same command to continue\n", stage, rc);
         return rc;
     }
     double secs = pg_time_seconds() - t0;

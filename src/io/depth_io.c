@@ -577,8 +577,9 @@ static pg_status load_stack(const char *path, const io_depth_options *o, io_dept
     else if (arr.ndim == 4 && arr.shape[3] == 1) { F = arr.shape[0]; H = arr.shape[1]; W = arr.shape[2]; }
     else if (arr.ndim == 4 && arr.shape[1] == 1) { F = arr.shape[0]; H = arr.shape[2]; W = arr.shape[3]; } /* torch (F,1,H,W) */
     else {
+        int ndim = arr.ndim; /* read before destroy, which clears the array */
         pg_array_destroy(&arr);
-        return pg_fail(PG_ERR_SIZE, "%s: depth must have shape (F,H,W), (H,W), (F,H,W,1) or (F,1,H,W); got %d dimensions", path, arr.ndim);
+        return pg_fail(PG_ERR_SIZE, "%s: depth must have shape (F,H,W), (H,W), (F,H,W,1) or (F,1,H,W); got %d dimensions", path, ndim);
     }
     if (H == 0 || W == 0 || F == 0 || H > PG_MAX_IMAGE_SIDE || W > PG_MAX_IMAGE_SIDE) {
         pg_array_destroy(&arr);
