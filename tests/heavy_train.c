@@ -47,8 +47,8 @@ int main(void)
     train_set ts;
     CHECK_OK(train_set_load(data, &ts));
     int ns0, nt0, ns1, nt1;
-    double p_static = run(&ts, 240, 240, 0, &ns0, &nt0);
-    double p_dyn = run(&ts, 80, 240, 40, &ns1, &nt1);
+    double p_static = run(&ts, 160, 160, 0, &ns0, &nt0);
+    double p_dyn = run(&ts, 50, 160, 30, &ns1, &nt1);
     fprintf(stderr, "real-view PSNR over all frames: static %.2f dB, 4D %.2f dB; static flags %d of %d\n", p_static,
             p_dyn, ns1, nt1);
     CHECK(p_dyn > p_static + 1.0, "4D model %.2f dB should beat static Gaussians %.2f dB", p_dyn, p_static);

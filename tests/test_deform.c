@@ -20,15 +20,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-static double grad_err(const float *g, const double *fd, size_t n)
-{
-    double mx = 0;
-    for (size_t i = 0; i < n; i++) mx = fmax(mx, fabs(fd[i]));
-    double worst = 0;
-    for (size_t i = 0; i < n; i++) worst = fmax(worst, test_rel_err(g[i], fd[i], 1e-2 * mx + 1e-30));
-    return worst;
-}
-
 /* ---------------------------------------------------------------------------------------------- */
 /* double reference of the network, reading parameters from a double copy laid out like net->params */
 
@@ -198,7 +189,7 @@ static void test_hexplane(void)
         pd[i] = v;
         fd[i] = (L[0] - L[1]) / (2 * h);
     }
-    double e_plane = grad_err(gp, fd, P);
+    double e_plane = test_grad_err(gp, fd, P);
     CHECK(e_plane < 1e-3, "hexplane d/dplanes rel err %g", e_plane);
     /* gradient w.r.t. positions */
     double e_pos = 0;
@@ -215,7 +206,7 @@ static void test_hexplane(void)
             }
             fdp[d] = (L[0] - L[1]) / (2 * h);
         }
-        e_pos = fmax(e_pos, grad_err(dpos[k], fdp, 3));
+        e_pos = fmax(e_pos, test_grad_err(dpos[k], fdp, 3));
     }
     CHECK(e_pos < 1e-3, "hexplane d/dpos rel err %g", e_pos);
     /* outside the AABB: border clamp, zero position gradient */
@@ -283,7 +274,7 @@ static void test_linear(void)
                 vars[v][i] = s0;
                 fd[i] = (L[0] - L[1]) / 2e-6;
             }
-            double e = grad_err(an[v], fd, nv[v]);
+            double e = test_grad_err(an[v], fd, nv[v]);
             CHECK(e < 1e-3, "linear d/d%s rel err %g (relu %d)", nm[v], e, relu);
             printf("linear (relu %d): d/d%s rel err %.2e\n", relu, nm[v], e);
         }
@@ -347,8 +338,8 @@ static void test_network_fd(void)
         pd[k] = v;
         fd[k] = (L[0] - L[1]) / (2 * h);
     }
-    double e_planes = grad_err(net->grads, fd, net->num_plane_params);
-    double e_mlp = grad_err(net->grads + net->num_plane_params, fd + net->num_plane_params, P - net->num_plane_params);
+    double e_planes = test_grad_err(net->grads, fd, net->num_plane_params);
+    double e_mlp = test_grad_err(net->grads + net->num_plane_params, fd + net->num_plane_params, P - net->num_plane_params);
     CHECK(e_planes < 1e-3, "network d/dplanes rel err %g", e_planes);
     CHECK(e_mlp < 1e-3, "network d/dmlp rel err %g", e_mlp);
     /* positions */
@@ -366,7 +357,7 @@ static void test_network_fd(void)
         }
         fdm[i] = (L[0] - L[1]) / (2 * h);
     }
-    double e_pos = grad_err(dmeans, fdm, N * 3);
+    double e_pos = test_grad_err(dmeans, fdm, N * 3);
     CHECK(e_pos < 1e-3, "network d/dmeans rel err %g", e_pos);
     CHECK(dmeans[6] == 0 && dmeans[15] == 0, "static points got position gradients");
     printf("network: forward %.2e, d/dplanes %.2e, d/dmlp %.2e, d/dmeans %.2e (%zu params)\n", worst_out, e_planes,

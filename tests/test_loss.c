@@ -18,16 +18,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Max relative error between analytic (float) and FD (double) gradients, with the floor above. */
-static double grad_err(const float *g, const double *fd, size_t n)
-{
-    double mx = 0;
-    for (size_t i = 0; i < n; i++) mx = fmax(mx, fabs(fd[i]));
-    double worst = 0;
-    for (size_t i = 0; i < n; i++) worst = fmax(worst, test_rel_err(g[i], fd[i], 1e-2 * mx + 1e-30));
-    return worst;
-}
-
 /* ---------------------------------------------------------------------------------------------- */
 /* double references                                                                               */
 
@@ -106,7 +96,7 @@ static void test_l1(int use_mask)
         xd[i] = s;
         fd[i] = 1.5 * (lp - lm) / (2 * h);
     }
-    double e = grad_err(g, fd, n);
+    double e = test_grad_err(g, fd, n);
     CHECK(e < 1e-3, "l1 gradient rel err %g (mask %d)", e, use_mask);
     printf("l1 (mask %d): loss %.6f ref %.6f, grad rel err %.2e\n", use_mask, l, lr, e);
 }
@@ -143,7 +133,7 @@ static void test_ssim(int use_mask, int H, int W)
         xd[i] = v;
         fd[i] = -0.2 * (lp - lm) / (2 * h);
     }
-    double e = grad_err(g, fd, n);
+    double e = test_grad_err(g, fd, n);
     CHECK(e < 1e-3, "ssim gradient rel err %g (mask %d, %dx%d)", e, use_mask, H, W);
     printf("ssim (mask %d, %dx%d): %.6f ref %.6f, grad rel err %.2e\n", use_mask, H, W, s, sr, e);
     optim_ssim_destroy(ws);
@@ -220,7 +210,7 @@ static void test_ssi_depth(void)
         pd[i] = v;
         fd[i] = 2.0 * (lp - lm) / (2 * h);
     }
-    double e = grad_err(g, fd, n);
+    double e = test_grad_err(g, fd, n);
     CHECK(e < 1e-3, "ssi depth gradient rel err %g", e);
     printf("ssi depth: loss %.6f ref %.6f s=%.4f b=%.4f M=%ld, grad rel err %.2e\n", l, lr, fit.scale, fit.shift,
            fit.valid, e);
@@ -291,7 +281,7 @@ static void test_reg(const char *name, reg_ref_fn ref, float (*fwd)(const float 
         pd[i] = v;
         fd[i] = 0.5 * (lp - lm) / (2 * h);
     }
-    double e = grad_err(g, fd, n);
+    double e = test_grad_err(g, fd, n);
     CHECK(e < 1e-3, "%s gradient rel err %g", name, e);
     printf("%s: %.6f ref %.6f, grad rel err %.2e\n", name, l, lr, e);
 }

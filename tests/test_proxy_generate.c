@@ -8,6 +8,7 @@
 
 #include "core/fileutil.h"
 #include "core/parallel.h"
+#include "io/image_io.h"
 #include "io/npy.h"
 #include "proxy/poses.h"
 #include "proxy/procedural.h"
@@ -171,6 +172,19 @@ int main(void)
     job.pose_scale = scale;
     job.num_proxies = -1;
     CHECK(proxy_generate(&o, &job, dir, &res) == PG_ERR_ARG, "negative proxy count accepted");
+    /* A frame without valid depth: empty (fully masked) proxies, the run goes on. */
+    memset(depth + (size_t)1 * W * H, 0, sizeof(float) * W * H);
+    snprintf(path, sizeof path, "%s/nodepth", base);
+    job.num_proxies = M;
+    CHECK_OK(proxy_generate(&o, &job, path, &res));
+    CHECK(res.frames_done == F, "frames with an empty depth map: done %d", res.frames_done);
+    snprintf(path, sizeof path, "%s/nodepth/proxy00/mask/0001.png", base);
+    pg_image mk = { 0 };
+    CHECK_OK(io_image_load(path, &mk));
+    float mmax = 0;
+    for (size_t i = 0; i < (size_t)mk.width * mk.height * 3; i++) mmax = fmaxf(mmax, mk.data[i]);
+    CHECK(mk.data && mmax == 0, "mask of a frame without depth is not empty (max %g)", mmax);
+    pg_image_destroy(&mk);
     /* No proxies: the real view (and test cameras) only. */
     job.proxies = NULL;
     job.num_proxies = 0;

@@ -7,6 +7,7 @@
 #include "core/mathx.h"
 #include "io/dataset.h"
 #include "io/image_io.h"
+#include "io/json.h"
 #include "io/npy.h"
 #include "io/video.h"
 #include "synth/synth.h"
@@ -18,31 +19,10 @@
 
 enum { W = 96, H = 72, F = 6, NC = 7 };
 
-static int cmp_f(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 static float median(float *v, size_t n)
 {
-    qsort(v, n, sizeof(float), cmp_f);
+    qsort(v, n, sizeof(float), pg_cmp_float);
     return n ? v[n / 2] : 0;
-}
-
-static int files_equal(const char *a, const char *b)
-{
-    char *da = NULL, *db = NULL;
-    size_t na = 0, nb = 0;
-    if (pg_read_file(a, 1 << 26, &da, &na) || pg_read_file(b, 1 << 26, &db, &nb)) {
-        free(da);
-        free(db);
-        return 0;
-    }
-    int eq = na == nb && memcmp(da, db, na) == 0;
-    free(da);
-    free(db);
-    return eq;
 }
 
 /* Same seed -> same pixels and depth; another seed -> different. */
@@ -290,12 +270,9 @@ static void test_dynerf_files(const char *dir)
     pg_array_destroy(&dm);
 
     /* scene.json parses and names the cameras */
-    char *text = NULL;
-    size_t len = 0;
+    cJSON *root = NULL;
     snprintf(path, sizeof path, "%s/scene.json", dir);
-    CHECK_OK(pg_read_file(path, 1 << 24, &text, &len));
-    cJSON *root = text ? cJSON_Parse(text) : NULL;
-    CHECK(root != NULL, "scene.json does not parse");
+    CHECK_OK(io_json_load(path, &root));
     if (root) {
         cJSON *cams = cJSON_GetObjectItem(root, "cameras"), *dmj = cJSON_GetObjectItem(root, "depth_mono");
         CHECK(cJSON_GetArraySize(cams) == NC, "scene.json has %d cameras", cJSON_GetArraySize(cams));
@@ -303,7 +280,6 @@ static void test_dynerf_files(const char *dir)
         CHECK(cJSON_GetArraySize(fs) == F, "depth_mono.frame_scale has %d entries", cJSON_GetArraySize(fs));
         cJSON_Delete(root);
     }
-    free(text);
 }
 
 /* Visibility: cam00's own surface points are visible from cam00; points pushed further along
@@ -385,12 +361,9 @@ static void test_panoptic(const char *dir)
     synth_scene sc;
     synth_scene_default(&sc, 1);
     char path[4096];
-    char *text = NULL;
-    size_t len = 0;
+    cJSON *root = NULL;
     snprintf(path, sizeof path, "%s/train_meta.json", dir);
-    CHECK_OK(pg_read_file(path, 1 << 24, &text, &len));
-    cJSON *root = text ? cJSON_Parse(text) : NULL;
-    CHECK(root != NULL, "train_meta.json does not parse");
+    CHECK_OK(io_json_load(path, &root));
     if (root) {
         cJSON *k = cJSON_GetObjectItem(root, "k"), *w2c = cJSON_GetObjectItem(root, "w2c");
         cJSON *fn = cJSON_GetObjectItem(root, "fn"), *cid = cJSON_GetObjectItem(root, "cam_id");
@@ -421,7 +394,6 @@ static void test_panoptic(const char *dir)
         CHECK(worst < 1e-5, "meta camera differs from synth camera by %g", worst);
         cJSON_Delete(root);
     }
-    free(text);
     snprintf(path, sizeof path, "%s/test_meta.json", dir);
     CHECK(pg_path_exists(path), "test_meta.json missing");
 
@@ -482,7 +454,7 @@ int main(void)
         char a[4096], b[4096];
         snprintf(a, sizeof a, "%s/%s", dir, files[i]);
         snprintf(b, sizeof b, "%s/%s", dir2, files[i]);
-        CHECK(files_equal(a, b), "%s differs between two runs (2 threads vs 1)", files[i]);
+        CHECK(test_files_equal(a, b), "%s differs between two runs (2 threads vs 1)", files[i]);
     }
     test_dynerf_files(dir);
 

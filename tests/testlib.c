@@ -51,8 +51,28 @@ double test_rel_err(double a, double b, double floor)
     return fabs(a - b) / m;
 }
 
+double test_grad_err(const float *g, const double *fd, size_t n)
+{
+    double mx = 0;
+    for (size_t i = 0; i < n; i++) mx = fmax(mx, fabs(fd[i]));
+    double worst = 0;
+    for (size_t i = 0; i < n; i++) worst = fmax(worst, test_rel_err(g[i], fd[i], 1e-2 * mx + 1e-30));
+    return worst;
+}
+
 int test_shared_data(const char *name, char *out, size_t size)
 {
     snprintf(out, size, "%s/data/%s", PG_SHARED_DIR, name);
     return pg_path_is_dir(out);
+}
+
+int test_files_equal(const char *a, const char *b)
+{
+    char *da = NULL, *db = NULL;
+    size_t na = 0, nb = 0;
+    int eq = !pg_read_file(a, (size_t)1 << 30, &da, &na) && !pg_read_file(b, (size_t)1 << 30, &db, &nb) && na == nb &&
+             memcmp(da, db, na) == 0;
+    free(da);
+    free(db);
+    return eq;
 }

@@ -41,7 +41,12 @@ void test_tmpdir(const char *name, char *out, size_t size);
 int test_run_cli(const char *args, char *err, size_t size);
 /* Relative error |a - b| / max(|a|, |b|, floor). */
 double test_rel_err(double a, double b, double floor);
+/* Worst test_rel_err over n analytic (float) vs finite-difference (double) gradient entries,
+ * with the floor at 1% of the largest |fd| so near-zero entries do not dominate. */
+double test_grad_err(const float *g, const double *fd, size_t n);
 /* 1 if the shared sample data directory (../shared/data/NAME) exists. */
 int test_shared_data(const char *name, char *out, size_t size);
+/* 1 if both files can be read (up to 1 GB each) and hold the same bytes. */
+int test_files_equal(const char *a, const char *b);
 
 #endif

@@ -43,6 +43,7 @@ int cmd_eval(int argc, char **argv)
     const char *proxies_text;
     cli_option options[40];
     int n = pipeline_cli_options(&o, &proxies_text, options, 38);
+    o.test_cams = "5,6";
     options[n++] = (cli_option){ "--test-cams", CLI_STR, &o.test_cams, "held-out cameras, comma-separated indices or names (default 5,6)" };
     const cli_spec spec = { "prodygs eval", "DATASET --depth PATH --out DIR [options]",
                             "DyNeRF protocol: trains on one real camera (--train-cam, default the first) plus\n"
@@ -50,15 +51,8 @@ int cmd_eval(int argc, char **argv)
                             "frame of the test cameras. Writes DIR/metrics.json, DIR/report.md and side-by-side\n"
                             "PNGs (truth | render | error). Rerunning continues from the last finished stage.",
                             options, n, 1, 1 };
-    const char *pos[1];
-    int rc = cli_parse(&spec, argc, argv, pos, NULL);
+    int rc = pipeline_cli_parse(&spec, argc, argv, &o, &proxies_text);
     if (rc) return rc < 0 ? 0 : rc;
-    if (!o.depth || !o.out) return cli_usage_error("eval: --depth and --out are required");
-    o.input = pos[0];
-    if (!o.test_cams) o.test_cams = "5,6";
-    if ((rc = pipeline_parse_proxies(&o, proxies_text))) return rc;
-    if ((rc = pipeline_apply_preset(&o))) return rc;
-    if (o.threads > 0) pg_set_threads(o.threads);
     cJSON *seconds = cJSON_CreateObject();
     rc = pipeline_run_stages(&o, seconds);
     if (rc == 0) rc = pipeline_evaluate(&o, seconds);

@@ -77,14 +77,8 @@ int cmd_run(int argc, char **argv)
                             "(DIR/renders: fixed.mp4 with fixed_compare.mp4, orbit.mp4, spiral.mp4, *_depth.mp4).\n"
                             "Rerunning the same command continues from the last finished stage or checkpoint.",
                             options, n, 1, 1 };
-    const char *pos[1];
-    int rc = cli_parse(&spec, argc, argv, pos, NULL);
+    int rc = pipeline_cli_parse(&spec, argc, argv, &o, &proxies_text);
     if (rc) return rc < 0 ? 0 : rc;
-    if (!o.depth || !o.out) return cli_usage_error("run: --depth and --out are required");
-    o.input = pos[0];
-    if ((rc = pipeline_parse_proxies(&o, proxies_text))) return rc;
-    if ((rc = pipeline_apply_preset(&o))) return rc;
-    if (o.threads > 0) pg_set_threads(o.threads);
     cJSON *seconds = cJSON_CreateObject();
     rc = pipeline_run_stages(&o, seconds);
     if (rc == 0) rc = pipeline_render_videos(&o, seconds);

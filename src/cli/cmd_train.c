@@ -45,6 +45,10 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
     cJSON_AddNumberToObject(root, "iterations", train_session_iteration(s));
     cJSON_AddNumberToObject(root, "gaussians", train_session_gaussians(s));
     cJSON_AddNumberToObject(root, "static_gaussians", train_session_static_count(s));
+    double md, mm;
+    train_session_deform_stats(s, &md, &mm);
+    cJSON_AddNumberToObject(root, "mean_deformed_per_iteration", md);
+    cJSON_AddNumberToObject(root, "mean_movable_per_iteration", mm);
     cJSON_AddNumberToObject(root, "seed", (double)cfg->seed);
     cJSON_AddNumberToObject(root, "coarse_iters", cfg->coarse_iters);
     if (test_psnr > 0) cJSON_AddNumberToObject(root, "test_psnr", test_psnr);

@@ -3,6 +3,7 @@
 #include "cli/cli.h"
 #include "core/fileutil.h"
 #include "core/parallel.h"
+#include "io/dataset.h"
 #include "io/json.h"
 
 #include <stdarg.h>
@@ -14,15 +15,15 @@
 
 typedef struct {
     const char *name;
-    int iters, coarse_iters;
+    int iters;
     int proxies;
-    const char *size; /* NULL: keep the input size */
+    int max_side; /* shrink larger inputs so the longer side is at most this */
 } preset;
 
-/* fast: minutes on 2 cores for a 160x120 clip; quality: the input size and 4x the iterations. */
+/* fast: a few minutes on 2 cores for a short clip; quality: 4x the iterations at up to 640 px. */
 static const preset presets[] = {
-    { "fast", 3000, 600, 8, NULL },
-    { "quality", 12000, 2000, -1, NULL },
+    { "fast", 3000, 8, 320 },
+    { "quality", 12000, -1, 640 },
 };
 
 /* Rejects bad numbers and names before any stage runs, so a typo fails at once with one line
@@ -50,6 +51,23 @@ static int validate_options(const pipeline_options *o)
     return 0;
 }
 
+/* Picks an even WxH with the input's aspect ratio and the longer side at most max_side;
+ * leaves o->size unset when the input is already small enough or cannot be probed (the
+ * stages then report the real problem with the input). */
+static void pick_size(pipeline_options *o, int max_side)
+{
+    pg_dataset *ds = NULL;
+    io_dataset_options opt = io_dataset_defaults();
+    if (io_dataset_open(o->input, &opt, &ds) != PG_OK) return;
+    int w = io_dataset_width(ds), h = io_dataset_height(ds);
+    io_dataset_close(ds);
+    int side = w > h ? w : h;
+    if (side <= max_side || side <= 0) return;
+    int nw = (int)((double)w * max_side / side + 0.5) & ~1, nh = (int)((double)h * max_side / side + 0.5) & ~1;
+    snprintf(o->size_buf, sizeof o->size_buf, "%dx%d", nw, nh);
+    o->size = o->size_buf;
+}
+
 int pipeline_apply_preset(pipeline_options *o)
 {
     int rc = validate_options(o);
@@ -59,7 +77,7 @@ int pipeline_apply_preset(pipeline_options *o)
         if (strcmp(o->preset, presets[i].name) != 0) continue;
         if (o->iters <= 0) o->iters = presets[i].iters;
         if (o->proxies < 0 && presets[i].proxies >= 0 && !o->test_cams) o->proxies = presets[i].proxies;
-        if (!o->size) o->size = presets[i].size;
+        if (!o->size) pick_size(o, presets[i].max_side);
         if (!o->poses) o->poses = o->test_cams ? "dataset" : "hemisphere";
         return 0;
     }
@@ -100,11 +118,19 @@ static void args_addf(arg_list *a, const char *flag, const char *fmt, ...)
     args_add(a, buf);
 }
 
-static void args_join(const arg_list *a, char *out, size_t size)
+/* The stage's arguments as one string, with the output directory written as "$OUT" so a
+ * finished stage still counts after the directory is moved or copied. */
+static void args_join(const arg_list *a, const char *out_dir, char *out, size_t size)
 {
     out[0] = '\0';
+    size_t n = strlen(out_dir);
     for (int i = 0; i < a->argc; i++) {
-        strncat(out, a->argv[i], size - strlen(out) - 1);
+        const char *arg = a->argv[i];
+        if (strncmp(arg, out_dir, n) == 0 && (arg[n] == '/' || arg[n] == '\0')) {
+            strncat(out, "$OUT", size - strlen(out) - 1);
+            arg += n;
+        }
+        strncat(out, arg, size - strlen(out) - 1);
         strncat(out, " ", size - strlen(out) - 1);
     }
 }
@@ -141,7 +167,7 @@ static int run_stage(const pipeline_options *o, const char *stage, int (*fn)(int
                      cJSON *seconds, int *rerun_rest)
 {
     char joined[8192];
-    args_join(a, joined, sizeof joined);
+    args_join(a, o->out, joined, sizeof joined);
     if (!*rerun_rest && stage_done(o->out, stage, joined, seconds)) {
         fprintf(stderr, "prodygs: %s: already done, skipping (delete %s/%s.done to redo)\n", stage, o->out, stage);
         return 0;
@@ -192,6 +218,7 @@ int pipeline_run_stages(const pipeline_options *o, cJSON *seconds)
     args_addf(&a, "--poses", "%s", o->poses);
     if (o->proxies >= 0) args_addf(&a, "--num", "%d", o->proxies);
     if (o->max_angle > 0) args_addf(&a, "--max-angle", "%g", o->max_angle);
+    if (o->fov > 0) args_addf(&a, "--fov", "%g", o->fov);
     if (o->train_cam) args_addf(&a, "--train-cam", "%s", o->train_cam);
     if (o->test_cams) args_addf(&a, "--test-cams", "%s", o->test_cams);
     if (o->pose_scale > 0) args_addf(&a, "--pose-scale", "%g", o->pose_scale);
@@ -254,6 +281,7 @@ int pipeline_cli_options(pipeline_options *o, const char **proxies_text, cli_opt
         { "--proxies", CLI_STR, proxies_text, "number of proxy cameras, or all (0 = real view only)" },
         { "--poses", CLI_STR, &o->poses, "proxy poses: hemisphere or dataset (default: dataset with --test-cams)" },
         { "--max-angle", CLI_FLOAT, &o->max_angle, "hemisphere cap angle in degrees (default 20)" },
+        { "--fov", CLI_FLOAT, &o->fov, "single video: horizontal field of view in degrees (default 60)" },
         { "--no-refine", CLI_FLAG, &o->no_refine, "skip edge-aware depth refinement (ablation)" },
         { "--no-align", CLI_FLAG, &o->no_align, "skip temporal scale/shift alignment (ablation)" },
         { "--depth-kind", CLI_STR, &o->depth_kind, "depth (default) or disparity" },
@@ -272,7 +300,7 @@ int pipeline_cli_options(pipeline_options *o, const char **proxies_text, cli_opt
     return n;
 }
 
-int pipeline_parse_proxies(pipeline_options *o, const char *text)
+static int parse_proxies(pipeline_options *o, const char *text)
 {
     if (!text) return 0;
     if (strcmp(text, "all") == 0) {
@@ -283,5 +311,19 @@ int pipeline_parse_proxies(pipeline_options *o, const char *text)
     long v = strtol(text, &end, 10);
     if (*end || end == text || v < 0 || v > 1000) return cli_usage_error("--proxies expects a count or 'all', got '%s'", text);
     o->proxies = (int)v;
+    return 0;
+}
+
+int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pipeline_options *o, const char **proxies_text)
+{
+    const char *pos[1];
+    int rc = cli_parse(spec, argc, argv, pos, NULL);
+    if (rc) return rc;
+    const char *verb = strchr(spec->command, ' ') ? strchr(spec->command, ' ') + 1 : spec->command;
+    if (!o->depth || !o->out) return cli_usage_error("%s: --depth and --out are required", verb);
+    o->input = pos[0];
+    if ((rc = parse_proxies(o, *proxies_text))) return rc;
+    if ((rc = pipeline_apply_preset(o))) return rc;
+    if (o->threads > 0) pg_set_threads(o->threads);
     return 0;
 }

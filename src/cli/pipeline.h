@@ -24,9 +24,11 @@ typedef struct {
     const char *poses;       /* "hemisphere" or "dataset" (NULL: dataset when test_cams given) */
     int proxies;             /* number of proxy cameras; -1 = preset default / all */
     float max_angle;         /* hemisphere cap angle (0 = default) */
+    float fov;               /* single video: horizontal field of view in degrees (0 = default) */
     int no_refine, no_align;
     int frames;              /* 0 = all */
     const char *size;        /* "WxH" or NULL (preset default) */
+    char size_buf[32];       /* storage for a size the preset picked */
     int iters;               /* 0 = preset default */
     int threads, seed;
     float pose_scale;        /* 0 = fit */
@@ -41,8 +43,9 @@ void pipeline_paths(const pipeline_options *o, char *prepare_dir, char *proxies_
 /* Fills opts with the options `run` and `eval` share (bound to o's fields, which it
  * initialises to defaults, with *proxies_text for --proxies); returns how many it wrote. */
 int pipeline_cli_options(pipeline_options *o, const char **proxies_text, cli_option *opts, int max);
-/* Interprets --proxies (a number or "all") after parsing; returns 2 on a bad value. */
-int pipeline_parse_proxies(pipeline_options *o, const char *text);
+/* Parses argv with spec (one positional: INPUT), checks --depth/--out, interprets --proxies,
+ * applies the preset and the thread count. Returns 0, -1 after --help, or an exit code. */
+int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pipeline_options *o, const char **proxies_text);
 /* After the stages: novel-view videos into OUT/renders (cmd_run.c). */
 int pipeline_render_videos(const pipeline_options *o, cJSON *seconds);
 /* After the stages: the DyNeRF protocol scores into OUT (cmd_eval.c). */

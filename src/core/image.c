@@ -97,3 +97,13 @@ double pg_image_psnr(const pg_image *a, const pg_image *b, const float *mask)
     if (mse < 1e-12) mse = 1e-12;
     return -10.0 * log10(mse);
 }
+
+void pg_color_ramp(const float (*stops)[3], int n, float s, float rgb[3])
+{
+    s = s < 0 ? 0 : (s > 1 ? 1 : s);
+    float x = s * (float)(n - 1);
+    int i = (int)x;
+    if (i > n - 2) i = n - 2;
+    float f = x - i;
+    for (int c = 0; c < 3; c++) rgb[c] = stops[i][c] * (1 - f) + stops[i + 1][c] * f;
+}

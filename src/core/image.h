@@ -25,5 +25,7 @@ static inline float *pg_image_at(const pg_image *img, int x, int y)
 pg_status pg_image_resize(pg_image *dst, const pg_image *src, int width, int height);
 /* Peak signal-to-noise ratio over all channels (pixels with mask <= 0.5 skipped if mask given). */
 double pg_image_psnr(const pg_image *a, const pg_image *b, const float *mask);
+/* Piecewise-linear colour ramp through n >= 2 evenly spaced RGB stops, at s in [0, 1] (clamped). */
+void pg_color_ramp(const float (*stops)[3], int n, float s, float rgb[3]);
 
 #endif

@@ -97,6 +97,25 @@ static inline void mat3_axis_angle(float m[9], const float axis[3], float angle)
     quat_to_mat3(m, q);
 }
 
+/* 1 if the rows of m are orthonormal within tol (|m m^T - I| <= tol entrywise, summed in double). */
+static inline int mat3_is_orthonormal(const float m[9], double tol)
+{
+    for (int a = 0; a < 3; a++)
+        for (int b = 0; b < 3; b++) {
+            double d = 0;
+            for (int k = 0; k < 3; k++) d += (double)m[a * 3 + k] * m[b * 3 + k];
+            if (fabs(d - (a == b)) > tol) return 0;
+        }
+    return 1;
+}
+
+/* qsort comparator: ascending floats. */
+static inline int pg_cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
 static inline float clampf(float x, float lo, float hi) { return x < lo ? lo : (x > hi ? hi : x); }
 static inline int clampi(int x, int lo, int hi) { return x < lo ? lo : (x > hi ? hi : x); }
 

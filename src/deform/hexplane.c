@@ -160,13 +160,6 @@ void hex_sample_backward_point(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES]
     }
 }
 
-void hex_prefetch(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const float *pos, float t)
-{
-    hex_point hp;
-    hex_point_setup(&hp, g, pos, t);
-    hex_prefetch_point(g, d_planes, &hp);
-}
-
 void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float t)
 {
     hex_point hp;

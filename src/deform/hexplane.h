@@ -57,12 +57,10 @@ size_t hex_total_size(const hex_grid *g);
  * hex_time_row(g, t) and +1 of the time planes. */
 int hex_time_row(const hex_grid *g, float t);
 
-/* Prefetches the texels (and, if d_planes != NULL, their gradient lines) a sample at pos will
- * touch; called a few points ahead hides the cache misses of the random plane accesses. */
-void hex_prefetch(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const float *pos, float t);
-
-/* The same three operations on a prepared point (hex_point_setup), so a caller that prefetches
- * ahead computes the axes once per point. */
+/* Sampling on a prepared point (hex_point_setup), so a caller that prefetches ahead computes the
+ * axes once per point. hex_prefetch_point prefetches the texels (and, if d_planes != NULL, their
+ * gradient lines) the point will touch; called a few points ahead it hides the cache misses of
+ * the random plane accesses. */
 void hex_point_setup(hex_point *hp, const hex_grid *g, const float *pos, float t);
 void hex_prefetch_point(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_point *hp);
 void hex_sample_forward_point(float *feat, const hex_grid *g, const hex_point *hp);

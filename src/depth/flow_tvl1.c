@@ -10,6 +10,7 @@
  */
 #include "depth/flow.h"
 #include "depth/plane.h"
+#include "core/mathx.h"
 
 #define PAR_OK ((size_t)w * h >= PLANE_PAR_MIN_PIXELS)
 
@@ -286,12 +287,6 @@ double depth_flow_epe(const float *flow, const float *truth, int width, int heig
     return cnt ? sum / cnt : 0.0;
 }
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 void depth_flow_to_color(const float *flow, int width, int height, float max_mag, pg_image *out)
 {
     const size_t n = (size_t)width * height;
@@ -299,7 +294,7 @@ void depth_flow_to_color(const float *flow, int width, int height, float max_mag
         float *mags = malloc(n * sizeof(float));
         if (mags) {
             for (size_t k = 0; k < n; k++) mags[k] = hypotf(flow[2 * k], flow[2 * k + 1]);
-            qsort(mags, n, sizeof(float), cmp_float);
+            qsort(mags, n, sizeof(float), pg_cmp_float);
             max_mag = mags[(size_t)(0.99 * (n - 1))];
             free(mags);
         }

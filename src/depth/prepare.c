@@ -2,6 +2,7 @@
 #include "depth/prepare.h"
 
 #include "core/fileutil.h"
+#include "core/mathx.h"
 #include "core/parallel.h"
 #include "core/progress.h"
 #include "io/image_io.h"
@@ -246,20 +247,8 @@ void depth_to_color(const float *depth, int W, int H, float lo, float hi, pg_ima
             px[0] = px[1] = px[2] = 0.0f;
             continue;
         }
-        float t = (1.0f / depth[k] - ilo) / (ihi - ilo);
-        t = t < 0 ? 0 : (t > 1 ? 1 : t);
-        float s = t * 5.0f;
-        int j = (int)s;
-        if (j > 4) j = 4;
-        float a = s - j;
-        for (int c = 0; c < 3; c++) px[c] = ramp[j][c] * (1 - a) + ramp[j + 1][c] * a;
+        pg_color_ramp(ramp, 6, (1.0f / depth[k] - ilo) / (ihi - ilo), px);
     }
-}
-
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
 }
 
 /* 1st and 99th percentile of valid depth over a subsample of all frames (shared colour range). */
@@ -273,7 +262,7 @@ static void depth_range(const float *d, size_t count, float *lo, float *hi)
     for (size_t k = 0; k < count; k += step)
         if (depth_valid(d[k])) v[m++] = d[k];
     if (m > 10) {
-        qsort(v, m, sizeof(float), cmp_float);
+        qsort(v, m, sizeof(float), pg_cmp_float);
         *lo = v[m / 100];
         *hi = v[m - 1 - m / 100];
         if (!(*hi > *lo)) *hi = *lo * 1.01f + 1e-6f;

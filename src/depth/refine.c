@@ -137,8 +137,8 @@ static pg_status refine_edge_snap(void *ctx, const pg_image *rgb, const float *d
         return PG_ERR_NOMEM;
     }
     pg_status st = depth_refine_band(&p, din, W, H, band);
-    /* Colour weights on a lightly blurred guide: render noise and video compression otherwise
-     * make single-pixel colour distances unreliable. */
+    /* Optionally compute colour weights on a blurred guide (against render noise or video
+     * compression; off by default: it did not help on the sample data). */
     pg_image guide = { 0 };
     const pg_image *gp = rgb;
     if (!st && p.guide_blur > 0.0f) {

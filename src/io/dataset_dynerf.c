@@ -10,6 +10,7 @@
  */
 #include "io/dataset_internal.h"
 #include "core/fileutil.h"
+#include "core/mathx.h"
 #include "io/npy.h"
 
 #include <ctype.h>
@@ -164,16 +165,10 @@ pg_status ds_open_dynerf(pg_dataset *ds)
         if (!c->cams) { st = PG_ERR_NOMEM; break; }
         c->num_cams = 1;
         io_llff_to_camera(row, c->cams);
-        for (int a = 0; a < 3 && st == PG_OK; a++)
-            for (int b = 0; b < 3; b++) {
-                double d = 0;
-                for (int k = 0; k < 3; k++) d += (double)c->cams->R[a * 3 + k] * c->cams->R[b * 3 + k];
-                if (fabs(d - (a == b)) > 1e-2) {
-                    st = pg_fail(PG_ERR_FORMAT, "%s: row %d rotation is not orthonormal", pb, i);
-                    break;
-                }
-            }
-        if (st) break;
+        if (!mat3_is_orthonormal(c->cams->R, 1e-2)) {
+            st = pg_fail(PG_ERR_FORMAT, "%s: row %d rotation is not orthonormal", pb, i);
+            break;
+        }
         c->near_z = row[15];
         c->far_z = row[16];
         snprintf(c->source, sizeof c->source, "%s", srcs[i]);

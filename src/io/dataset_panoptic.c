@@ -8,6 +8,7 @@
  */
 #include "io/dataset_internal.h"
 #include "core/fileutil.h"
+#include "core/mathx.h"
 #include "io/json.h"
 
 #include <math.h>
@@ -74,12 +75,7 @@ static pg_status camera_from_meta(const meta_file *m, int t, int c, pg_camera *c
         for (int k = 0; k < 3; k++) cam->R[r * 3 + k] = M[r * 4 + k];
         cam->t[r] = M[r * 4 + 3];
     }
-    for (int a = 0; a < 3; a++)
-        for (int b = 0; b < 3; b++) {
-            double d = 0;
-            for (int k = 0; k < 3; k++) d += (double)cam->R[a * 3 + k] * cam->R[b * 3 + k];
-            if (fabs(d - (a == b)) > 1e-2) return pg_fail(PG_ERR_FORMAT, "%s: w2c rotation is not orthonormal", what);
-        }
+    if (!mat3_is_orthonormal(cam->R, 1e-2)) return pg_fail(PG_ERR_FORMAT, "%s: w2c rotation is not orthonormal", what);
     return PG_OK;
 }
 

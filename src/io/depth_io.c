@@ -1,6 +1,7 @@
 /* depth_io.c - depth inputs: .npy stacks, per-frame .npy/.pfm/.png/.exr folders, PFM output,
  * and a small OpenEXR scanline reader (no external EXR library). */
 #include "io/depth_io.h"
+#include "io/npy.h"
 #include "io/video.h"
 #include "core/fileutil.h"
 #include "core/image.h"
@@ -242,23 +243,6 @@ typedef struct {
 static uint32_t rd32(const uint8_t *p) { return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24; }
 static uint64_t rd64(const uint8_t *p) { return (uint64_t)rd32(p) | (uint64_t)rd32(p + 4) << 32; }
 
-static float exr_half(uint16_t h)
-{
-    uint32_t sign = (uint32_t)(h >> 15) << 31, exp = (h >> 10) & 0x1f, mant = h & 0x3ff, bits;
-    if (exp == 0) {
-        if (mant == 0) bits = sign;
-        else {
-            exp = 113;
-            while (!(mant & 0x400)) { mant <<= 1; exp--; }
-            bits = sign | (exp << 23) | ((mant & 0x3ff) << 13);
-        }
-    } else if (exp == 31) bits = sign | 0x7f800000u | (mant << 13);
-    else bits = sign | ((exp + 112) << 23) | (mant << 13);
-    float f;
-    memcpy(&f, &bits, 4);
-    return f;
-}
-
 /* Undoes the ZIP/RLE pre-filter: a byte-delta predictor, then the two-halves byte split. */
 static void exr_unfilter(uint8_t *buf, uint8_t *tmp, size_t n)
 {
@@ -419,7 +403,7 @@ pg_status io_exr_load(const char *path, pg_array *arr)
             const uint8_t *q = block + line_bytes * l + chan_off;
             float *dst = arr->data + (size_t)(row0 + l) * w;
             for (int x = 0; x < w; x++) {
-                if (ch[pick].type == EXR_HALF) dst[x] = exr_half((uint16_t)(q[2 * x] | q[2 * x + 1] << 8));
+                if (ch[pick].type == EXR_HALF) dst[x] = io_half_to_float((uint16_t)(q[2 * x] | q[2 * x + 1] << 8));
                 else if (ch[pick].type == EXR_UINT) dst[x] = (float)rd32(q + 4 * x);
                 else { uint32_t b = rd32(q + 4 * x); memcpy(&dst[x], &b, 4); }
             }

@@ -2,6 +2,7 @@
 #include "io/json.h"
 #include "core/fileutil.h"
 #include "core/image.h"
+#include "core/mathx.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -158,11 +159,6 @@ pg_status io_json_to_camera(const cJSON *obj, const char *what, pg_camera *cam, 
     cam->cy = (float)cy;
     PG_TRY(io_json_get_floats(obj, "R", what, cam->R, 9));
     PG_TRY(io_json_get_floats(obj, "t", what, cam->t, 3));
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++) {
-            double d = 0;
-            for (int k = 0; k < 3; k++) d += (double)cam->R[i * 3 + k] * cam->R[j * 3 + k];
-            if (fabs(d - (i == j)) > 1e-3) return pg_fail(PG_ERR_FORMAT, "%s: camera R is not a rotation", what);
-        }
+    if (!mat3_is_orthonormal(cam->R, 1e-3)) return pg_fail(PG_ERR_FORMAT, "%s: camera R is not a rotation", what);
     return PG_OK;
 }

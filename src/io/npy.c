@@ -68,7 +68,7 @@ static int parse_shape(const char *h, pg_array *arr)
     return 0;
 }
 
-static float half_to_float(uint16_t h)
+float io_half_to_float(uint16_t h)
 {
     uint32_t sign = (uint32_t)(h >> 15) << 31, exp = (h >> 10) & 0x1f, mant = h & 0x3ff, bits;
     if (exp == 0) {
@@ -93,7 +93,7 @@ static float convert_one(const uint8_t *src, const npy_dtype *dt)
     case 'f':
         if (dt->bytes == 4) { float f; memcpy(&f, b, 4); return f; }
         if (dt->bytes == 8) { double d; memcpy(&d, b, 8); return (float)d; }
-        { uint16_t h; memcpy(&h, b, 2); return half_to_float(h); }
+        { uint16_t h; memcpy(&h, b, 2); return io_half_to_float(h); }
     case 'u':
         if (dt->bytes == 1) return b[0];
         if (dt->bytes == 2) { uint16_t v; memcpy(&v, b, 2); return v; }

@@ -7,6 +7,7 @@
 #define PG_NPY_H
 
 #include <stddef.h>
+#include <stdint.h>
 #include "core/status.h"
 
 #define PG_NPY_MAX_DIMS 4
@@ -26,5 +27,7 @@ pg_status io_npy_save(const char *path, const float *data, int ndim, const size_
 /* Saves uint8 data of the given shape atomically (masks). */
 pg_status io_npy_save_u8(const char *path, const unsigned char *data, int ndim, const size_t *shape);
 void pg_array_destroy(pg_array *arr);
+/* IEEE half (binary16) to float, exactly (subnormals, inf and NaN included); also used by EXR. */
+float io_half_to_float(uint16_t h);
 
 #endif

@@ -349,7 +349,12 @@ pg_status proxy_model_fit(proxy_frame_model *m)
     pg_render_output out;
     pg_gaussians *g = &m->g, *gr = &m->grad;
     int n = g->count;
+    /* Fewer steps than the reference 100 get proportionally larger steps (at most 2x): 50 steps
+     * at 2x lost ~0.25 dB of proxy PSNR against 100 at 1x on the sample scene, 50 at 1x ~1 dB. */
+    const float boost = m->opt.steps > 0 ? clampf(100.0f / m->opt.steps, 1.0f, 2.0f) : 1.0f;
     const float lr_mean = m->opt.lr_means * m->median_depth;
+    const float lr_scales = m->opt.lr_scales * boost, lr_opacity = m->opt.lr_opacity * boost;
+    const float lr_color = m->opt.lr_color * boost;
     for (int it = 0; it < m->opt.steps; it++) {
         PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));
         float loss = source_loss(m, &out);
@@ -359,9 +364,9 @@ pg_status proxy_model_fit(proxy_frame_model *m)
         PG_TRY(splat_render_backward(m->raster, g, &m->cam, &s, m->d_rgb, m->d_depth, m->d_alpha, gr, NULL));
         float bc1 = 1.0f - powf(0.9f, (float)(it + 1)), bc2 = 1.0f - powf(0.999f, (float)(it + 1));
         adam_group(g->means, gr->means, m->m, m->v, n, 3, 0, lr_mean, bc1, bc2);
-        adam_group(g->log_scales, gr->log_scales, m->m, m->v, n, 3, 3, m->opt.lr_scales, bc1, bc2);
-        adam_group(g->opacity, gr->opacity, m->m, m->v, n, 1, 6, m->opt.lr_opacity, bc1, bc2);
-        adam_dc(g->sh, gr->sh, m->m, m->v, n, m->opt.lr_color, bc1, bc2);
+        adam_group(g->log_scales, gr->log_scales, m->m, m->v, n, 3, 3, lr_scales, bc1, bc2);
+        adam_group(g->opacity, gr->opacity, m->m, m->v, n, 1, 6, lr_opacity, bc1, bc2);
+        adam_dc(g->sh, gr->sh, m->m, m->v, n, lr_color, bc1, bc2);
     }
     /* Final quality at the source view (for reports). */
     PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));

@@ -141,15 +141,29 @@ static pg_status process_frame(const proxy_job *j, const char *dir, const char *
     }
     const float *d = j->depth + (size_t)f * npix;
     for (size_t i = 0; i < npix; i++) w->depth[i] = d[i] * j->pose_scale;
-    st = proxy_model_init(w->model, &j->real, frame.data, w->depth);
+    int empty = 1;
+    for (size_t i = 0; i < npix && empty; i++) empty = !(w->depth[i] > 0);
+    /* A frame without any valid depth gives empty proxies (all masked out) instead of failing the
+     * run: the trainer then simply gets no proxy pixels for that frame. */
+    if (!empty) {
+        st = proxy_model_init(w->model, &j->real, frame.data, w->depth);
+        if (!st) st = proxy_model_fit(w->model);
+    }
     pg_image_destroy(&frame);
-    if (!st) st = proxy_model_fit(w->model);
     if (st) return pg_fail_context(st, "frame %d: ", f);
-    w->psnr_sum += proxy_model_get_stats(w->model)->source_psnr;
-    w->frames++;
+    if (!empty) {
+        w->psnr_sum += proxy_model_get_stats(w->model)->source_psnr;
+        w->frames++;
+    }
     for (int k = 0; k < j->num_proxies; k++) {
-        float valid;
-        PG_TRY(proxy_model_render(w->model, &j->proxies[k], w->rgb, w->depth, w->mask, &valid));
+        float valid = 0;
+        if (empty) {
+            memset(w->rgb, 0, npix * 3 * sizeof(float));
+            memset(w->depth, 0, npix * sizeof(float));
+            memset(w->mask, 0, npix);
+        } else {
+            PG_TRY(proxy_model_render(w->model, &j->proxies[k], w->rgb, w->depth, w->mask, &valid));
+        }
         w->valid_sum += valid;
         w->views++;
         double t0 = pg_time_seconds();
@@ -277,6 +291,7 @@ pg_status proxy_generate(const proxy_options *opt_in, const proxy_job *j, const 
     worker *workers = pg_calloc((size_t)threads, sizeof(worker), "proxy workers");
     if (!workers) { free(todo); return PG_ERR_NOMEM; }
     pg_status first_err = PG_OK;
+    int stop_flag = 0; /* set (atomically) once first_err is: the other workers skip their frames */
     char err_msg[512] = "";
     int done = 0;
     pg_progress_report("proxies", res->frames_skipped, j->frames, "starting %d frames on %d workers", ntodo, threads);
@@ -288,14 +303,19 @@ pg_status proxy_generate(const proxy_options *opt_in, const proxy_job *j, const 
             pg_status st = worker_init(w, &o, j);
             if (st) {
 #pragma omp critical(proxy_error)
-                if (!first_err) { first_err = st; snprintf(err_msg, sizeof err_msg, "%s", pg_last_error()); }
+                if (!first_err) {
+                    first_err = st;
+                    snprintf(err_msg, sizeof err_msg, "%s", pg_last_error());
+#pragma omp atomic write
+                    stop_flag = 1;
+                }
             }
 #pragma omp barrier
 #pragma omp for schedule(dynamic, 1)
             for (int i = 0; i < ntodo; i++) {
                 int stop;
 #pragma omp atomic read
-                stop = first_err;
+                stop = stop_flag;
                 if (stop) continue;
                 pg_status fs = process_frame(j, dir, hash_hex, w, todo[i]);
 #pragma omp critical(proxy_error)
@@ -303,6 +323,8 @@ pg_status proxy_generate(const proxy_options *opt_in, const proxy_job *j, const 
                     if (fs && !first_err) {
                         first_err = fs;
                         snprintf(err_msg, sizeof err_msg, "%s", pg_last_error());
+#pragma omp atomic write
+                        stop_flag = 1;
                     }
                     if (!fs) {
                         done++;

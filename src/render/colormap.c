@@ -1,28 +1,14 @@
 /* colormap.c - a perceptually ordered blue-to-yellow ramp for depth maps. */
 #include "render/colormap.h"
+#include "core/mathx.h"
 
 #include <math.h>
 #include <stdlib.h>
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* Piecewise-linear ramp through dark blue, purple, orange and yellow (viridis/inferno-like). */
-static void ramp(float s, float rgb[3])
-{
-    static const float stops[5][3] = {
-        { 0.05f, 0.03f, 0.35f }, { 0.45f, 0.10f, 0.55f }, { 0.85f, 0.30f, 0.35f }, { 0.98f, 0.65f, 0.15f }, { 0.99f, 0.98f, 0.60f },
-    };
-    s = s < 0 ? 0 : (s > 1 ? 1 : s);
-    float x = s * 4.0f;
-    int i = (int)x;
-    if (i > 3) i = 3;
-    float f = x - i;
-    for (int c = 0; c < 3; c++) rgb[c] = stops[i][c] * (1 - f) + stops[i + 1][c] * f;
-}
+static const float STOPS[5][3] = {
+    { 0.05f, 0.03f, 0.35f }, { 0.45f, 0.10f, 0.55f }, { 0.85f, 0.30f, 0.35f }, { 0.98f, 0.65f, 0.15f }, { 0.99f, 0.98f, 0.60f },
+};
 
 pg_status render_depth_colormap(const float *depth, int width, int height, float lo, float hi, pg_image *rgb)
 {
@@ -34,7 +20,7 @@ pg_status render_depth_colormap(const float *depth, int width, int height, float
         for (size_t i = 0; i < n; i++)
             if (depth[i] > 0 && isfinite(depth[i])) valid[m++] = depth[i];
         if (m > 0) {
-            qsort(valid, m, sizeof(float), cmp_float);
+            qsort(valid, m, sizeof(float), pg_cmp_float);
             lo = valid[m / 50];
             hi = valid[m - 1 - m / 50];
         }
@@ -46,7 +32,7 @@ pg_status render_depth_colormap(const float *depth, int width, int height, float
         float d = depth[i];
         float *out = rgb->data + 3 * i;
         if (!(d > 0) || !isfinite(d)) { out[0] = out[1] = out[2] = 0; continue; }
-        ramp(1.0f - (d - lo) / (hi - lo), out); /* near is bright */
+        pg_color_ramp(STOPS, 5, 1.0f - (d - lo) / (hi - lo), out); /* near is bright */
     }
     return PG_OK;
 }

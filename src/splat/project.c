@@ -41,6 +41,34 @@ static void jacobian(const pg_camera *cam, const float lim[4], const float t[3],
     J[3] = 0; J[4] = cam->fy * iz; J[5] = -cam->fy * wc * iz;
 }
 
+/* Everything the forward computes on the way to Sigma2D, kept for the backward. */
+typedef struct {
+    float Rq[9], s[3], M[9], cov[9]; /* 3D covariance factors (cov3d_forward) */
+    float J[6], uvc[2];              /* projection Jacobian and clamped x/z, y/z */
+    int cf[2];                       /* which of x/z, y/z were clamped */
+    float Tm[6], TC[6];              /* T = J W (2x3) and T cov (2x3) */
+    float sxx, sxy, syy;             /* Sigma2D = T cov T^T plus the low-pass term */
+} sigma2d_state;
+
+/* Sigma2D of a Gaussian whose mean is at camera point t (shared by forward and backward). */
+static void sigma2d_forward(const float log_scale[3], const float quat[4], const pg_camera *cam, const float lim[4],
+                            const float t[3], sigma2d_state *S)
+{
+    cov3d_forward(log_scale, quat, S->Rq, S->s, S->M, S->cov);
+    jacobian(cam, lim, t, S->J, S->cf, S->uvc);
+    const float *J = S->J, *cov = S->cov;
+    float *Tm = S->Tm, *TC = S->TC;
+    for (int r = 0; r < 2; r++)
+        for (int j = 0; j < 3; j++)
+            Tm[3*r+j] = J[3*r]*cam->R[j] + J[3*r+1]*cam->R[3+j] + J[3*r+2]*cam->R[6+j];
+    for (int r = 0; r < 2; r++)
+        for (int j = 0; j < 3; j++)
+            TC[3*r+j] = Tm[3*r]*cov[j] + Tm[3*r+1]*cov[3+j] + Tm[3*r+2]*cov[6+j];
+    S->sxx = TC[0]*Tm[0] + TC[1]*Tm[1] + TC[2]*Tm[2] + SPLAT_LOWPASS;
+    S->sxy = TC[0]*Tm[3] + TC[1]*Tm[4] + TC[2]*Tm[5];
+    S->syy = TC[3]*Tm[3] + TC[4]*Tm[4] + TC[5]*Tm[5] + SPLAT_LOWPASS;
+}
+
 int splat_project_forward(const float mean[3], const float log_scale[3], const float quat[4],
                           const pg_camera *cam, float near_clip, splat_proj *p)
 {
@@ -56,22 +84,9 @@ int splat_project_forward_lim(const float mean[3], const float log_scale[3], con
     mat3_mul_vec(t, cam->R, mean);
     vec3_add(t, t, cam->t);
     if (!(t[2] >= near_clip)) return 0;
-    float Rq[9], s[3], M[9], cov[9], J[6], uvc[2];
-    int cf[2];
-    cov3d_forward(log_scale, quat, Rq, s, M, cov);
-    jacobian(cam, lim, t, J, cf, uvc);
-    /* T = J W (2x3), Sigma2D = T cov T^T. */
-    float Tm[6];
-    for (int r = 0; r < 2; r++)
-        for (int j = 0; j < 3; j++)
-            Tm[3*r+j] = J[3*r]*cam->R[j] + J[3*r+1]*cam->R[3+j] + J[3*r+2]*cam->R[6+j];
-    float TC[6];
-    for (int r = 0; r < 2; r++)
-        for (int j = 0; j < 3; j++)
-            TC[3*r+j] = Tm[3*r]*cov[j] + Tm[3*r+1]*cov[3+j] + Tm[3*r+2]*cov[6+j];
-    float sxx = TC[0]*Tm[0] + TC[1]*Tm[1] + TC[2]*Tm[2] + SPLAT_LOWPASS;
-    float sxy = TC[0]*Tm[3] + TC[1]*Tm[4] + TC[2]*Tm[5];
-    float syy = TC[3]*Tm[3] + TC[4]*Tm[4] + TC[5]*Tm[5] + SPLAT_LOWPASS;
+    sigma2d_state S;
+    sigma2d_forward(log_scale, quat, cam, lim, t, &S);
+    float sxx = S.sxx, sxy = S.sxy, syy = S.syy;
     float det = sxx * syy - sxy * sxy;
     if (!(det > 0)) return 0;
     float id = 1.0f / det;
@@ -100,21 +115,11 @@ void splat_project_backward_lim(const float mean[3], const float log_scale[3], c
     float t[3];
     mat3_mul_vec(t, cam->R, mean);
     vec3_add(t, t, cam->t);
-    float Rq[9], s[3], M[9], cov[9], J[6], uvc[2];
-    int cf[2];
-    cov3d_forward(log_scale, quat, Rq, s, M, cov);
-    jacobian(cam, lim, t, J, cf, uvc);
-    float Tm[6];
-    for (int r = 0; r < 2; r++)
-        for (int j = 0; j < 3; j++)
-            Tm[3*r+j] = J[3*r]*cam->R[j] + J[3*r+1]*cam->R[3+j] + J[3*r+2]*cam->R[6+j];
-    float TC[6];
-    for (int r = 0; r < 2; r++)
-        for (int j = 0; j < 3; j++)
-            TC[3*r+j] = Tm[3*r]*cov[j] + Tm[3*r+1]*cov[3+j] + Tm[3*r+2]*cov[6+j];
-    float sxx = TC[0]*Tm[0] + TC[1]*Tm[1] + TC[2]*Tm[2] + SPLAT_LOWPASS;
-    float sxy = TC[0]*Tm[3] + TC[1]*Tm[4] + TC[2]*Tm[5];
-    float syy = TC[3]*Tm[3] + TC[4]*Tm[4] + TC[5]*Tm[5] + SPLAT_LOWPASS;
+    sigma2d_state S;
+    sigma2d_forward(log_scale, quat, cam, lim, t, &S);
+    const float *Rq = S.Rq, *s = S.s, *M = S.M, *Tm = S.Tm, *TC = S.TC, *uvc = S.uvc;
+    const int *cf = S.cf;
+    float sxx = S.sxx, sxy = S.sxy, syy = S.syy;
     float id = 1.0f / (sxx * syy - sxy * sxy);
     /* Conic Q = Sigma2D^-1 as a symmetric matrix; the off-diagonal b appears twice in
      * 0.5 d^T Q d, so dL/dQ01 = dL/db / 2. dL/dSigma2D = -Q G Q. */
@@ -205,6 +210,80 @@ static inline __m512 exp16(__m512 x)
     return _mm512_scalef_ps(p, n);
 }
 
+/* t = W m + t_cam for 16 means (one vector per coordinate). */
+static inline void cam_point16(const pg_camera *cam, const __m512 m[3], __m512 t[3])
+{
+    const float *W = cam->R;
+    for (int r = 0; r < 3; r++)
+        t[r] = _mm512_fmadd_ps(_mm512_set1_ps(W[3*r]), m[0],
+                               _mm512_fmadd_ps(_mm512_set1_ps(W[3*r+1]), m[1],
+                                               _mm512_fmadd_ps(_mm512_set1_ps(W[3*r+2]), m[2], _mm512_set1_ps(cam->t[r]))));
+}
+
+/* What forward16 and backward16 both compute on the way to Sigma2D (vector twin of sigma2d_state). */
+typedef struct {
+    __m512 w, x, y, z, iq;        /* normalised quaternion (identity where zero) and 1/|q| (0 there) */
+    __mmask16 nz;                 /* lanes with a non-zero quaternion */
+    __m512 R[9], sc[3], M[9];     /* R(q), exp(log_scale), M = R diag(sc) */
+    __m512 fx, fy, iz, u, v, uc, vc; /* focal lengths, 1/z, x/z and y/z before and after the clamp */
+    __m512 T0[3], T1[3], TC0[3], TC1[3]; /* rows of T = J W and of T cov */
+    __m512 sxx, sxy, syy;         /* Sigma2D plus the low-pass term */
+} sigma16;
+
+static inline void sigma2d16(const pg_camera *cam, const float lim[4], const __m512 t[3], const __m512 ls[3],
+                             const __m512 q[4], sigma16 *S)
+{
+    const float *W = cam->R;
+    const __m512 zero = _mm512_setzero_ps(), one = _mm512_set1_ps(1.0f), two = _mm512_set1_ps(2.0f);
+    /* rotation of the normalised quaternion (identity for a zero quaternion) */
+    __m512 qn2 = _mm512_fmadd_ps(q[0], q[0], _mm512_fmadd_ps(q[1], q[1], _mm512_fmadd_ps(q[2], q[2], _mm512_mul_ps(q[3], q[3]))));
+    S->nz = _mm512_cmp_ps_mask(qn2, zero, _CMP_GT_OQ);
+    S->iq = _mm512_maskz_div_ps(S->nz, one, _mm512_sqrt_ps(qn2));
+    __m512 w = S->w = _mm512_mask_blend_ps(S->nz, one, _mm512_mul_ps(q[0], S->iq));
+    __m512 x = S->x = _mm512_mul_ps(q[1], S->iq), y = S->y = _mm512_mul_ps(q[2], S->iq), z = S->z = _mm512_mul_ps(q[3], S->iq);
+    __m512 *R = S->R;
+    R[0] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(y, y, _mm512_mul_ps(z, z)), one);
+    R[1] = _mm512_mul_ps(two, _mm512_fmsub_ps(x, y, _mm512_mul_ps(w, z)));
+    R[2] = _mm512_mul_ps(two, _mm512_fmadd_ps(x, z, _mm512_mul_ps(w, y)));
+    R[3] = _mm512_mul_ps(two, _mm512_fmadd_ps(x, y, _mm512_mul_ps(w, z)));
+    R[4] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(x, x, _mm512_mul_ps(z, z)), one);
+    R[5] = _mm512_mul_ps(two, _mm512_fmsub_ps(y, z, _mm512_mul_ps(w, x)));
+    R[6] = _mm512_mul_ps(two, _mm512_fmsub_ps(x, z, _mm512_mul_ps(w, y)));
+    R[7] = _mm512_mul_ps(two, _mm512_fmadd_ps(y, z, _mm512_mul_ps(w, x)));
+    R[8] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(x, x, _mm512_mul_ps(y, y)), one);
+    for (int k = 0; k < 3; k++) S->sc[k] = exp16(ls[k]);
+    __m512 *M = S->M, C[9];
+    for (int i = 0; i < 3; i++)
+        for (int k = 0; k < 3; k++) M[3*i+k] = _mm512_mul_ps(R[3*i+k], S->sc[k]);
+    /* cov = M M^T (symmetric, 6 entries) */
+    for (int i = 0; i < 3; i++)
+        for (int j = i; j < 3; j++)
+            C[3*i+j] = C[3*j+i] = _mm512_fmadd_ps(M[3*i], M[3*j], _mm512_fmadd_ps(M[3*i+1], M[3*j+1], _mm512_mul_ps(M[3*i+2], M[3*j+2])));
+    /* Jacobian with the clamped x/z, y/z */
+    S->iz = _mm512_div_ps(one, t[2]);
+    S->u = _mm512_mul_ps(t[0], S->iz);
+    S->v = _mm512_mul_ps(t[1], S->iz);
+    S->uc = _mm512_min_ps(_mm512_max_ps(S->u, _mm512_set1_ps(lim[0])), _mm512_set1_ps(lim[1]));
+    S->vc = _mm512_min_ps(_mm512_max_ps(S->v, _mm512_set1_ps(lim[2])), _mm512_set1_ps(lim[3]));
+    S->fx = _mm512_set1_ps(cam->fx);
+    S->fy = _mm512_set1_ps(cam->fy);
+    __m512 J00 = _mm512_mul_ps(S->fx, S->iz), J02 = _mm512_sub_ps(zero, _mm512_mul_ps(_mm512_mul_ps(S->fx, S->uc), S->iz));
+    __m512 J11 = _mm512_mul_ps(S->fy, S->iz), J12 = _mm512_sub_ps(zero, _mm512_mul_ps(_mm512_mul_ps(S->fy, S->vc), S->iz));
+    __m512 *T0 = S->T0, *T1 = S->T1, *TC0 = S->TC0, *TC1 = S->TC1;
+    for (int j = 0; j < 3; j++) {
+        T0[j] = _mm512_fmadd_ps(J00, _mm512_set1_ps(W[j]), _mm512_mul_ps(J02, _mm512_set1_ps(W[6+j])));
+        T1[j] = _mm512_fmadd_ps(J11, _mm512_set1_ps(W[3+j]), _mm512_mul_ps(J12, _mm512_set1_ps(W[6+j])));
+    }
+    for (int j = 0; j < 3; j++) {
+        TC0[j] = _mm512_fmadd_ps(T0[0], C[j], _mm512_fmadd_ps(T0[1], C[3+j], _mm512_mul_ps(T0[2], C[6+j])));
+        TC1[j] = _mm512_fmadd_ps(T1[0], C[j], _mm512_fmadd_ps(T1[1], C[3+j], _mm512_mul_ps(T1[2], C[6+j])));
+    }
+    __m512 lp = _mm512_set1_ps(SPLAT_LOWPASS);
+    S->sxx = _mm512_add_ps(_mm512_fmadd_ps(TC0[0], T0[0], _mm512_fmadd_ps(TC0[1], T0[1], _mm512_mul_ps(TC0[2], T0[2]))), lp);
+    S->sxy = _mm512_fmadd_ps(TC0[0], T1[0], _mm512_fmadd_ps(TC0[1], T1[1], _mm512_mul_ps(TC0[2], T1[2])));
+    S->syy = _mm512_add_ps(_mm512_fmadd_ps(TC1[0], T1[0], _mm512_fmadd_ps(TC1[1], T1[1], _mm512_mul_ps(TC1[2], T1[2]))), lp);
+}
+
 int splat_project_forward16(const float *means, const float *log_scales, const float *quats, int i0,
                             const pg_camera *cam, const float lim[4], float near_clip, float out[9][16],
                             unsigned *valid)
@@ -218,60 +297,12 @@ int splat_project_forward16(const float *means, const float *log_scales, const f
         ls[c] = _mm512_i32gather_ps(i3, lb + c, 4);
     }
     for (int c = 0; c < 4; c++) q[c] = _mm512_i32gather_ps(i4, qb + c, 4);
-    const float *W = cam->R;
     __m512 t[3];
-    for (int r = 0; r < 3; r++)
-        t[r] = _mm512_fmadd_ps(_mm512_set1_ps(W[3*r]), m[0],
-                               _mm512_fmadd_ps(_mm512_set1_ps(W[3*r+1]), m[1],
-                                               _mm512_fmadd_ps(_mm512_set1_ps(W[3*r+2]), m[2], _mm512_set1_ps(cam->t[r]))));
+    cam_point16(cam, m, t);
     __mmask16 ok = _mm512_cmp_ps_mask(t[2], _mm512_set1_ps(near_clip), _CMP_GE_OQ);
-    /* rotation of the normalised quaternion (identity for a zero quaternion) */
-    __m512 qn2 = _mm512_fmadd_ps(q[0], q[0], _mm512_fmadd_ps(q[1], q[1], _mm512_fmadd_ps(q[2], q[2], _mm512_mul_ps(q[3], q[3]))));
-    __mmask16 nz = _mm512_cmp_ps_mask(qn2, _mm512_setzero_ps(), _CMP_GT_OQ);
-    __m512 inv = _mm512_maskz_div_ps(nz, _mm512_set1_ps(1.0f), _mm512_sqrt_ps(qn2));
-    __m512 w = _mm512_mask_blend_ps(nz, _mm512_set1_ps(1.0f), _mm512_mul_ps(q[0], inv));
-    __m512 x = _mm512_mul_ps(q[1], inv), y = _mm512_mul_ps(q[2], inv), z = _mm512_mul_ps(q[3], inv);
-    __m512 one = _mm512_set1_ps(1.0f), two = _mm512_set1_ps(2.0f);
-    __m512 R[9];
-    R[0] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(y, y, _mm512_mul_ps(z, z)), one);
-    R[1] = _mm512_mul_ps(two, _mm512_fmsub_ps(x, y, _mm512_mul_ps(w, z)));
-    R[2] = _mm512_mul_ps(two, _mm512_fmadd_ps(x, z, _mm512_mul_ps(w, y)));
-    R[3] = _mm512_mul_ps(two, _mm512_fmadd_ps(x, y, _mm512_mul_ps(w, z)));
-    R[4] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(x, x, _mm512_mul_ps(z, z)), one);
-    R[5] = _mm512_mul_ps(two, _mm512_fmsub_ps(y, z, _mm512_mul_ps(w, x)));
-    R[6] = _mm512_mul_ps(two, _mm512_fmsub_ps(x, z, _mm512_mul_ps(w, y)));
-    R[7] = _mm512_mul_ps(two, _mm512_fmadd_ps(y, z, _mm512_mul_ps(w, x)));
-    R[8] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(x, x, _mm512_mul_ps(y, y)), one);
-    __m512 s[3] = { exp16(ls[0]), exp16(ls[1]), exp16(ls[2]) };
-    __m512 M[9];
-    for (int i = 0; i < 3; i++)
-        for (int k = 0; k < 3; k++) M[3*i+k] = _mm512_mul_ps(R[3*i+k], s[k]);
-    /* cov = M M^T (symmetric, 6 entries) */
-    __m512 C[9];
-    for (int i = 0; i < 3; i++)
-        for (int j = i; j < 3; j++)
-            C[3*i+j] = C[3*j+i] = _mm512_fmadd_ps(M[3*i], M[3*j], _mm512_fmadd_ps(M[3*i+1], M[3*j+1], _mm512_mul_ps(M[3*i+2], M[3*j+2])));
-    /* Jacobian with the clamped x/z, y/z */
-    __m512 iz = _mm512_div_ps(one, t[2]);
-    __m512 uc = _mm512_min_ps(_mm512_max_ps(_mm512_mul_ps(t[0], iz), _mm512_set1_ps(lim[0])), _mm512_set1_ps(lim[1]));
-    __m512 wc = _mm512_min_ps(_mm512_max_ps(_mm512_mul_ps(t[1], iz), _mm512_set1_ps(lim[2])), _mm512_set1_ps(lim[3]));
-    __m512 fx = _mm512_set1_ps(cam->fx), fy = _mm512_set1_ps(cam->fy);
-    __m512 J00 = _mm512_mul_ps(fx, iz), J02 = _mm512_sub_ps(_mm512_setzero_ps(), _mm512_mul_ps(_mm512_mul_ps(fx, uc), iz));
-    __m512 J11 = _mm512_mul_ps(fy, iz), J12 = _mm512_sub_ps(_mm512_setzero_ps(), _mm512_mul_ps(_mm512_mul_ps(fy, wc), iz));
-    __m512 T0[3], T1[3];
-    for (int j = 0; j < 3; j++) {
-        T0[j] = _mm512_fmadd_ps(J00, _mm512_set1_ps(W[j]), _mm512_mul_ps(J02, _mm512_set1_ps(W[6+j])));
-        T1[j] = _mm512_fmadd_ps(J11, _mm512_set1_ps(W[3+j]), _mm512_mul_ps(J12, _mm512_set1_ps(W[6+j])));
-    }
-    __m512 TC0[3], TC1[3];
-    for (int j = 0; j < 3; j++) {
-        TC0[j] = _mm512_fmadd_ps(T0[0], C[j], _mm512_fmadd_ps(T0[1], C[3+j], _mm512_mul_ps(T0[2], C[6+j])));
-        TC1[j] = _mm512_fmadd_ps(T1[0], C[j], _mm512_fmadd_ps(T1[1], C[3+j], _mm512_mul_ps(T1[2], C[6+j])));
-    }
-    __m512 lp = _mm512_set1_ps(SPLAT_LOWPASS);
-    __m512 sxx = _mm512_add_ps(_mm512_fmadd_ps(TC0[0], T0[0], _mm512_fmadd_ps(TC0[1], T0[1], _mm512_mul_ps(TC0[2], T0[2]))), lp);
-    __m512 sxy = _mm512_fmadd_ps(TC0[0], T1[0], _mm512_fmadd_ps(TC0[1], T1[1], _mm512_mul_ps(TC0[2], T1[2])));
-    __m512 syy = _mm512_add_ps(_mm512_fmadd_ps(TC1[0], T1[0], _mm512_fmadd_ps(TC1[1], T1[1], _mm512_mul_ps(TC1[2], T1[2]))), lp);
+    sigma16 S;
+    sigma2d16(cam, lim, t, ls, q, &S);
+    __m512 one = _mm512_set1_ps(1.0f), fx = S.fx, fy = S.fy, iz = S.iz, sxx = S.sxx, sxy = S.sxy, syy = S.syy;
     __m512 det = _mm512_fmsub_ps(sxx, syy, _mm512_mul_ps(sxy, sxy));
     ok &= _mm512_cmp_ps_mask(det, _mm512_setzero_ps(), _CMP_GT_OQ);
     __m512 id = _mm512_div_ps(one, det);
@@ -307,54 +338,16 @@ int splat_project_backward16(const float *means, const float *log_scales, const 
     for (int c = 0; c < 4; c++) q[c] = _mm512_mask_i32gather_ps(one, km, i4, quats + b4 + c, 4);
     const float *W = cam->R;
     __m512 t[3];
-    for (int r = 0; r < 3; r++)
-        t[r] = _mm512_fmadd_ps(_mm512_set1_ps(W[3*r]), m[0],
-                               _mm512_fmadd_ps(_mm512_set1_ps(W[3*r+1]), m[1],
-                                               _mm512_fmadd_ps(_mm512_set1_ps(W[3*r+2]), m[2], _mm512_set1_ps(cam->t[r]))));
+    cam_point16(cam, m, t);
     t[2] = _mm512_mask_blend_ps(km, one, t[2]); /* unused lanes: keep the arithmetic tame */
-    __m512 qn2 = _mm512_fmadd_ps(q[0], q[0], _mm512_fmadd_ps(q[1], q[1], _mm512_fmadd_ps(q[2], q[2], _mm512_mul_ps(q[3], q[3]))));
-    __mmask16 nz = _mm512_cmp_ps_mask(qn2, zero, _CMP_GT_OQ);
-    __m512 iq = _mm512_maskz_div_ps(nz, one, _mm512_sqrt_ps(qn2));
-    __m512 w = _mm512_mask_blend_ps(nz, one, _mm512_mul_ps(q[0], iq));
-    __m512 x = _mm512_mul_ps(q[1], iq), y = _mm512_mul_ps(q[2], iq), z = _mm512_mul_ps(q[3], iq);
-    __m512 R[9];
-    R[0] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(y, y, _mm512_mul_ps(z, z)), one);
-    R[1] = _mm512_mul_ps(two, _mm512_fmsub_ps(x, y, _mm512_mul_ps(w, z)));
-    R[2] = _mm512_mul_ps(two, _mm512_fmadd_ps(x, z, _mm512_mul_ps(w, y)));
-    R[3] = _mm512_mul_ps(two, _mm512_fmadd_ps(x, y, _mm512_mul_ps(w, z)));
-    R[4] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(x, x, _mm512_mul_ps(z, z)), one);
-    R[5] = _mm512_mul_ps(two, _mm512_fmsub_ps(y, z, _mm512_mul_ps(w, x)));
-    R[6] = _mm512_mul_ps(two, _mm512_fmsub_ps(x, z, _mm512_mul_ps(w, y)));
-    R[7] = _mm512_mul_ps(two, _mm512_fmadd_ps(y, z, _mm512_mul_ps(w, x)));
-    R[8] = _mm512_fnmadd_ps(two, _mm512_fmadd_ps(x, x, _mm512_mul_ps(y, y)), one);
-    __m512 sc[3] = { exp16(ls[0]), exp16(ls[1]), exp16(ls[2]) };
-    __m512 M[9], C[9];
-    for (int i = 0; i < 3; i++)
-        for (int k = 0; k < 3; k++) M[3*i+k] = _mm512_mul_ps(R[3*i+k], sc[k]);
-    for (int i = 0; i < 3; i++)
-        for (int j = i; j < 3; j++)
-            C[3*i+j] = C[3*j+i] = _mm512_fmadd_ps(M[3*i], M[3*j], _mm512_fmadd_ps(M[3*i+1], M[3*j+1], _mm512_mul_ps(M[3*i+2], M[3*j+2])));
-    __m512 iz = _mm512_div_ps(one, t[2]), iz2 = _mm512_mul_ps(iz, iz);
-    __m512 u = _mm512_mul_ps(t[0], iz), v = _mm512_mul_ps(t[1], iz);
-    __m512 uc = _mm512_min_ps(_mm512_max_ps(u, _mm512_set1_ps(lim[0])), _mm512_set1_ps(lim[1]));
-    __m512 vc = _mm512_min_ps(_mm512_max_ps(v, _mm512_set1_ps(lim[2])), _mm512_set1_ps(lim[3]));
-    __mmask16 cfx = _mm512_cmp_ps_mask(uc, u, _CMP_NEQ_UQ), cfy = _mm512_cmp_ps_mask(vc, v, _CMP_NEQ_UQ);
-    __m512 fx = _mm512_set1_ps(cam->fx), fy = _mm512_set1_ps(cam->fy);
-    __m512 J00 = _mm512_mul_ps(fx, iz), J02 = _mm512_sub_ps(zero, _mm512_mul_ps(_mm512_mul_ps(fx, uc), iz));
-    __m512 J11 = _mm512_mul_ps(fy, iz), J12 = _mm512_sub_ps(zero, _mm512_mul_ps(_mm512_mul_ps(fy, vc), iz));
-    __m512 T0[3], T1[3], TC0[3], TC1[3];
-    for (int j = 0; j < 3; j++) {
-        T0[j] = _mm512_fmadd_ps(J00, _mm512_set1_ps(W[j]), _mm512_mul_ps(J02, _mm512_set1_ps(W[6+j])));
-        T1[j] = _mm512_fmadd_ps(J11, _mm512_set1_ps(W[3+j]), _mm512_mul_ps(J12, _mm512_set1_ps(W[6+j])));
-    }
-    for (int j = 0; j < 3; j++) {
-        TC0[j] = _mm512_fmadd_ps(T0[0], C[j], _mm512_fmadd_ps(T0[1], C[3+j], _mm512_mul_ps(T0[2], C[6+j])));
-        TC1[j] = _mm512_fmadd_ps(T1[0], C[j], _mm512_fmadd_ps(T1[1], C[3+j], _mm512_mul_ps(T1[2], C[6+j])));
-    }
-    __m512 lp = _mm512_set1_ps(SPLAT_LOWPASS);
-    __m512 sxx = _mm512_add_ps(_mm512_fmadd_ps(TC0[0], T0[0], _mm512_fmadd_ps(TC0[1], T0[1], _mm512_mul_ps(TC0[2], T0[2]))), lp);
-    __m512 sxy = _mm512_fmadd_ps(TC0[0], T1[0], _mm512_fmadd_ps(TC0[1], T1[1], _mm512_mul_ps(TC0[2], T1[2])));
-    __m512 syy = _mm512_add_ps(_mm512_fmadd_ps(TC1[0], T1[0], _mm512_fmadd_ps(TC1[1], T1[1], _mm512_mul_ps(TC1[2], T1[2]))), lp);
+    sigma16 S;
+    sigma2d16(cam, lim, t, ls, q, &S);
+    __mmask16 nz = S.nz;
+    __m512 iq = S.iq, w = S.w, x = S.x, y = S.y, z = S.z, fx = S.fx, fy = S.fy, iz = S.iz, uc = S.uc, vc = S.vc;
+    const __m512 *R = S.R, *sc = S.sc, *M = S.M, *T0 = S.T0, *T1 = S.T1, *TC0 = S.TC0, *TC1 = S.TC1;
+    __m512 sxx = S.sxx, sxy = S.sxy, syy = S.syy;
+    __m512 iz2 = _mm512_mul_ps(iz, iz);
+    __mmask16 cfx = _mm512_cmp_ps_mask(uc, S.u, _CMP_NEQ_UQ), cfy = _mm512_cmp_ps_mask(vc, S.v, _CMP_NEQ_UQ);
     __m512 id = _mm512_div_ps(one, _mm512_fmsub_ps(sxx, syy, _mm512_mul_ps(sxy, sxy)));
     /* dL/dSigma2D = -Q Gq Q, Gq = [[da, db/2], [db/2, dc]] */
     __m512 Qa = _mm512_mul_ps(syy, id), Qb = _mm512_sub_ps(zero, _mm512_mul_ps(sxy, id)), Qc = _mm512_mul_ps(sxx, id);

@@ -5,6 +5,29 @@
 
 #include <string.h>
 
+/* One Gaussian at one pixel: offsets, the Gaussian G, o*G and the clamped alpha. */
+typedef struct {
+    float dx, dy, bdy, G, oG, a;
+} tile_hit;
+
+/* Evaluates Gaussian r at pixel centre (fx, fy) of row gy; 0 when the row is outside its box
+ * or alpha < 1/255 (the forward and backward skip the same Gaussians). */
+static inline int tile_eval(const splat_rec *r, int gy, float fx, float fy, tile_hit *h)
+{
+    if (gy < r->ymin || gy > r->ymax) return 0;
+    float dx = fx - r->x, dy = fy - r->y;
+    float bdy = r->cb * dy, cdy = (r->hc * dy) * dy;
+    float sig = fmaf(dx, fmaf(r->ha, dx, bdy), cdy);
+    if (!(sig <= r->thr)) return 0;
+    h->dx = dx;
+    h->dy = dy;
+    h->bdy = bdy;
+    h->G = splat_exp_poly(-sig);
+    h->oG = r->o * h->G;
+    h->a = h->oG < SPLAT_ALPHA_MAX ? h->oG : SPLAT_ALPHA_MAX;
+    return 1;
+}
+
 void splat_tile_forward_scalar(const splat_tile_job *j)
 {
     for (int py = 0; py < j->h; py++) {
@@ -17,14 +40,9 @@ void splat_tile_forward_scalar(const splat_tile_job *j)
             int last = -1;
             for (int k = 0; k < j->n; k++) {
                 const splat_rec *r = &j->rec[j->list[k]];
-                if (gy < r->ymin || gy > r->ymax) continue;
-                float dx = fx - r->x, dy = fy - r->y;
-                float bdy = r->cb * dy, cdy = (r->hc * dy) * dy;
-                float sig = fmaf(dx, fmaf(r->ha, dx, bdy), cdy);
-                if (!(sig <= r->thr)) continue; /* alpha < 1/255 */
-                float G = splat_exp_poly(-sig);
-                float oG = r->o * G;
-                float a = oG < SPLAT_ALPHA_MAX ? oG : SPLAT_ALPHA_MAX;
+                tile_hit h;
+                if (!tile_eval(r, gy, fx, fy, &h)) continue;
+                float a = h.a;
                 float tT = T * (1.0f - a);
                 if (tT < SPLAT_T_EPS) break;
                 float w = a * T;
@@ -66,14 +84,9 @@ void splat_tile_backward_scalar(const splat_tile_job *j)
             float Q = -(T * (da - bgdot));
             for (int k = j->last[p]; k >= 0; k--) {
                 const splat_rec *r = &j->rec[j->list[k]];
-                if (gy < r->ymin || gy > r->ymax) continue;
-                float dx = fx - r->x, dy = fy - r->y;
-                float bdy = r->cb * dy, cdy = (r->hc * dy) * dy;
-                float sig = fmaf(dx, fmaf(r->ha, dx, bdy), cdy);
-                if (!(sig <= r->thr)) continue; /* alpha < 1/255 */
-                float G = splat_exp_poly(-sig);
-                float oG = r->o * G;
-                float a = oG < SPLAT_ALPHA_MAX ? oG : SPLAT_ALPHA_MAX;
+                tile_hit h;
+                if (!tile_eval(r, gy, fx, fy, &h)) continue;
+                float dx = h.dx, dy = h.dy, bdy = h.bdy, G = h.G, oG = h.oG, a = h.a;
                 float inv = 1.0f / (1.0f - a);
                 float Ti = T * inv;
                 float q = fmaf(dd, r->z, fmaf(dl[2], r->col[2], fmaf(dl[1], r->col[1], dl[0] * r->col[0])));

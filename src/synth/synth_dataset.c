@@ -16,6 +16,7 @@
 #include "core/progress.h"
 #include "core/rng.h"
 #include "io/image_io.h"
+#include "io/json.h"
 #include "io/npy.h"
 #include "io/video.h"
 
@@ -174,15 +175,11 @@ static cJSON *jcamera(const pg_camera *c, const char *name)
     return o;
 }
 
+/* Writes root atomically and frees it. */
 static pg_status write_json(const char *path, cJSON *root)
 {
-    char *text = cJSON_Print(root);
+    pg_status st = io_json_write_atomic(path, root);
     cJSON_Delete(root);
-    if (!text) return pg_fail(PG_ERR_NOMEM, "%s: cannot format JSON", path);
-    size_t n = strlen(text);
-    text[n] = '\n'; /* cJSON_Print's buffer has the terminator; replace it and write n + 1 bytes */
-    pg_status st = pg_write_file_atomic(path, text, n + 1);
-    cJSON_free(text);
     return st;
 }
 
@@ -296,12 +293,6 @@ static pg_status write_scene_json(const char *path, const synth_scene *sc, const
 
 /* ---------------------------------------------------------------- poses_bounds */
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* near, far = 0.1 / 99.9 percentiles of the valid depths of one (H, W) map. */
 static void depth_bounds(const float *depth, size_t n, float *scratch, float *near, float *far)
 {
@@ -313,7 +304,7 @@ static void depth_bounds(const float *depth, size_t n, float *scratch, float *ne
         *far = 100.0f;
         return;
     }
-    qsort(scratch, m, sizeof(float), cmp_float);
+    qsort(scratch, m, sizeof(float), pg_cmp_float);
     *near = scratch[(size_t)(0.001 * (m - 1))];
     *far = scratch[(size_t)(0.999 * (m - 1))];
 }

@@ -78,6 +78,12 @@ int train_session_static_count(const train_session *s)
     for (int i = 0; i < s->g.count; i++) n += s->is_static[i] != 0;
     return n;
 }
+void train_session_deform_stats(const train_session *s, double *mean_deformed, double *mean_movable)
+{
+    *mean_deformed = s->fine_steps ? s->sum_deformed / (double)s->fine_steps : 0;
+    *mean_movable = s->fine_steps ? s->sum_movable / (double)s->fine_steps : 0;
+}
+
 void train_session_last(const train_session *s, double *loss, double *real_psnr)
 {
     if (loss) *loss = s->last_loss;
@@ -478,6 +484,13 @@ pg_status train_session_step(train_session *s)
     int nd = 0;
     PG_TRY(deform_all(s, cam, t, &nd));
     s->timing.deformed = nd;
+    if (s->fine) {
+        int movable = 0;
+        for (int i = 0; i < s->g.count; i++) movable += !s->is_static[i];
+        s->sum_deformed += nd;
+        s->sum_movable += movable;
+        s->fine_steps++;
+    }
     if (s->fine && nd > 0) {
         float md = s->max_disp;
         for (int k = 0; k < nd; k++) {

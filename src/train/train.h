@@ -69,6 +69,9 @@ pg_status train_session_evaluate(train_session *s, train_role role, double *psnr
 pg_status train_session_save(train_session *s, const char *path);
 int train_session_iteration(const train_session *s);
 int train_session_gaussians(const train_session *s);
+/* Mean number of Gaussians sent through the network per fine iteration (after static flags and
+ * culling) and mean number of movable ones (this process only, not across --resume). */
+void train_session_deform_stats(const train_session *s, double *mean_deformed, double *mean_movable);
 /* Gaussians flagged static (never sent through the network). */
 int train_session_static_count(const train_session *s);
 /* Loss and real-view PSNR of the latest iteration that used a real view. */

@@ -51,6 +51,8 @@ struct train_session {
     double last_loss, last_psnr, t_start;
     int it_start;
     train_timing timing;
+    double sum_deformed, sum_movable; /* per fine iteration, for the speed report */
+    long fine_steps;
 };
 
 /* init.c */
