@@ -203,6 +203,8 @@ int main(void)
     if (getenv("PG_PROXY_LR_COLOR")) o.lr_color = (float)atof(getenv("PG_PROXY_LR_COLOR"));
     if (getenv("PG_PROXY_LR_OPACITY")) o.lr_opacity = (float)atof(getenv("PG_PROXY_LR_OPACITY"));
     if (getenv("PG_PROXY_SSIM")) o.ssim_weight = (float)atof(getenv("PG_PROXY_SSIM"));
+    if (getenv("PG_PROXY_SSIM_EVERY")) o.ssim_every = atoi(getenv("PG_PROXY_SSIM_EVERY"));
+    if (getenv("PG_PROXY_LR_MEANS")) o.lr_means = (float)atof(getenv("PG_PROXY_LR_MEANS"));
     if (getenv("PG_PROXY_OPACITY")) o.init_opacity = (float)atof(getenv("PG_PROXY_OPACITY"));
     if (getenv("PG_PROXY_DEPTH_TOL")) o.mask.depth_tol = (float)atof(getenv("PG_PROXY_DEPTH_TOL"));
     if (getenv("PG_PROXY_EDGE_REL")) o.mask.edge_rel = (float)atof(getenv("PG_PROXY_EDGE_REL"));

@@ -75,6 +75,12 @@ static void run(int block, int steps, double min_psnr, double min_cov)
 int main(void)
 {
     pg_set_threads(2);
+    {
+        proxy_fit_options o = proxy_default_fit_options();
+        proxy_frame_model *m = NULL;
+        o.ssim_every = 0;
+        CHECK(proxy_model_create(&m, W, H, &o) == PG_ERR_ARG && !m, "ssim_every 0 accepted");
+    }
     run(1, 40, 25.0, 0.85);
     run(2, 10, 20.0, 0.80);
     return test_summary("test_proxy_model");

@@ -26,6 +26,23 @@ static const preset presets[] = {
     { "quality", 12000, -1, 640 },
 };
 
+/* Picks an even WxH with the input's aspect ratio and the longer side at most max_side;
+ * leaves o->size unset when the input is already small enough or cannot be probed (the
+ * stages then report the real problem with the input). */
+static void pick_size(pipeline_options *o, int max_side)
+{
+    pg_dataset *ds = NULL;
+    io_dataset_options opt = io_dataset_defaults();
+    if (io_dataset_open(o->input, &opt, &ds) != PG_OK) return;
+    int w = io_dataset_width(ds), h = io_dataset_height(ds);
+    io_dataset_close(ds);
+    int side = w > h ? w : h;
+    if (side <= max_side || side <= 0) return;
+    int nw = (int)((double)w * max_side / side + 0.5) & ~1, nh = (int)((double)h * max_side / side + 0.5) & ~1;
+    snprintf(o->size_buf, sizeof o->size_buf, "%dx%d", nw, nh);
+    o->size = o->size_buf;
+}
+
 /* Rejects bad numbers and names before any stage runs, so a typo fails at once with one line
  * instead of after minutes of depth preparation (0 means "default" for the numeric fields). */
 static int validate_options(const pipeline_options *o)
@@ -49,23 +66,6 @@ static int validate_options(const pipeline_options *o)
             return cli_usage_error("--size expects WxH with sides up to 8192 (0 keeps the aspect), got '%s'", o->size);
     }
     return 0;
-}
-
-/* Picks an even WxH with the input's aspect ratio and the longer side at most max_side;
- * leaves o->size unset when the input is already small enough or cannot be probed (the
- * stages then report the real problem with the input). */
-static void pick_size(pipeline_options *o, int max_side)
-{
-    pg_dataset *ds = NULL;
-    io_dataset_options opt = io_dataset_defaults();
-    if (io_dataset_open(o->input, &opt, &ds) != PG_OK) return;
-    int w = io_dataset_width(ds), h = io_dataset_height(ds);
-    io_dataset_close(ds);
-    int side = w > h ? w : h;
-    if (side <= max_side || side <= 0) return;
-    int nw = (int)((double)w * max_side / side + 0.5) & ~1, nh = (int)((double)h * max_side / side + 0.5) & ~1;
-    snprintf(o->size_buf, sizeof o->size_buf, "%dx%d", nw, nh);
-    o->size = o->size_buf;
 }
 
 int pipeline_apply_preset(pipeline_options *o)

@@ -107,6 +107,20 @@ pg_status optim_adam_step_group(optim_adam *opt, int gi, float *param, const flo
     double c1 = 1.0 - pow(b1, g->step), c2 = 1.0 - pow(b2, g->step);
     float step_size = (float)(lr / c1), inv_sqrt_c2 = (float)(1.0 / sqrt(c2));
     int rows = opt->rows, stride = g->d.row_stride, col0 = g->d.col0, cols = g->d.cols;
+    if (stride == cols) {
+        /* Contiguous group: one flat, vectorisable run (the same arithmetic per element). */
+        long n = (long)rows * cols;
+        float *p = param + col0, *m = g->m, *v = g->v;
+        const float *gr = grad + col0;
+        #pragma omp parallel for simd schedule(static) if (n > 65536)
+        for (long i = 0; i < n; i++) {
+            float gv = gr[i];
+            m[i] = b1 * m[i] + (1.0f - b1) * gv;
+            v[i] = b2 * v[i] + (1.0f - b2) * gv * gv;
+            p[i] -= step_size * m[i] / (sqrtf(v[i]) * inv_sqrt_c2 + eps);
+        }
+        return PG_OK;
+    }
     #pragma omp parallel for schedule(static) if ((long)rows * cols > 65536)
     for (int r = 0; r < rows; r++) {
         float *p = param + (size_t)r * stride + col0;

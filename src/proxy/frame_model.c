@@ -8,6 +8,7 @@
 #include "core/image.h"
 #include "core/mathx.h"
 #include "core/parallel.h"
+#include "optim/adam.h"
 #include "optim/loss_image.h"
 #include "splat/gaussians.h"
 #include "splat/raster.h"
@@ -18,7 +19,9 @@ struct proxy_frame_model {
     int W, H;              /* source frame size */
     proxy_fit_options opt;
     pg_gaussians g, grad;  /* parameters and their gradients (N) */
-    float *m, *v;          /* Adam moments, (N, 10): mean 3, log-scale 3, opacity 1, SH DC 3 */
+    optim_adam *adam;      /* shared Adam over the groups of fit_groups (N rows), rebuilt per frame */
+    float *dc, *d_dc;      /* (N, 3) compact SH DC colour and its gradient: the optimised copy of the
+                            * stride-48 DC entries of g.sh / grad.sh (contiguous, so Adam vectorises) */
     splat_raster *raster;
     optim_ssim_ws *ssim;   /* SSIM workspace at the source size */
     float *vmask;          /* (H, W) 1 where the source depth is valid (loss mask) */
@@ -35,12 +38,19 @@ struct proxy_frame_model {
     proxy_model_stats stats;
 };
 
+/* The parameter groups the fit optimises (rotations and SH beyond DC stay fixed). */
+enum { FIT_MEANS, FIT_SCALES, FIT_OPACITY, FIT_DC, FIT_GROUPS };
+static const optim_group_desc fit_groups[FIT_GROUPS] = {
+    { "means", 3, 0, 3 }, { "log_scales", 3, 0, 3 }, { "opacity", 1, 0, 1 }, { "sh_dc", 3, 0, 3 },
+};
+
 proxy_fit_options proxy_default_fit_options(void)
 {
     proxy_fit_options o;
     o.block = 1;
     o.steps = 100;
     o.ssim_weight = 0.2f;
+    o.ssim_every = 8;
     o.depth_weight = 0.1f;
     o.init_opacity = 0.8f;
     o.scale_mult = 0.6f;
@@ -62,8 +72,9 @@ void proxy_model_destroy(proxy_frame_model *m)
     splat_raster_destroy(m->raster);
     optim_ssim_destroy(m->ssim);
     free(m->vmask);
-    free(m->m);
-    free(m->v);
+    optim_adam_destroy(m->adam);
+    free(m->dc);
+    free(m->d_dc);
     free(m->rgb);
     free(m->depth);
     free(m->d_rgb);
@@ -80,6 +91,7 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
         return pg_fail(PG_ERR_SIZE, "proxy model: frame size %dx%d out of range", width, height);
     proxy_fit_options opt = o ? *o : proxy_default_fit_options();
     if (opt.block < 1 || opt.block > 64) return pg_fail(PG_ERR_ARG, "proxy model: block %d not in 1..64", opt.block);
+    if (opt.ssim_every < 1) return pg_fail(PG_ERR_ARG, "proxy model: ssim_every %d < 1", opt.ssim_every);
     if (opt.steps < 0) return pg_fail(PG_ERR_ARG, "proxy model: negative step count %d", opt.steps);
     proxy_frame_model *m = pg_calloc(1, sizeof *m, "proxy model");
     if (!m) return PG_ERR_NOMEM;
@@ -93,15 +105,15 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
     if (!st) st = splat_raster_create(&m->raster);
     if (!st) st = optim_ssim_create(&m->ssim, height, width, 3);
     if (st) { proxy_model_destroy(m); return st; }
-    m->m = pg_calloc(ng * 10, sizeof(float), "proxy Adam m");
-    m->v = pg_calloc(ng * 10, sizeof(float), "proxy Adam v");
+    m->dc = pg_malloc(ng * 3 * sizeof(float), "proxy colour");
+    m->d_dc = pg_malloc(ng * 3 * sizeof(float), "proxy colour gradient");
     m->rgb = pg_malloc(npix * 3 * sizeof(float), "proxy source rgb");
     m->depth = pg_malloc(npix * sizeof(float), "proxy source depth");
     m->d_rgb = pg_malloc(npix * 3 * sizeof(float), "proxy d_rgb");
     m->d_depth = pg_malloc(npix * sizeof(float), "proxy d_depth");
     m->d_alpha = pg_malloc(npix * sizeof(float), "proxy d_alpha");
     m->vmask = pg_malloc(npix * sizeof(float), "proxy loss mask");
-    if (!m->vmask || !m->m || !m->v || !m->rgb || !m->depth || !m->d_rgb || !m->d_depth || !m->d_alpha) {
+    if (!m->vmask || !m->dc || !m->d_dc || !m->rgb || !m->depth || !m->d_rgb || !m->d_depth || !m->d_alpha) {
         proxy_model_destroy(m);
         return PG_ERR_NOMEM;
     }
@@ -247,8 +259,15 @@ pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const flo
     g->sh_degree = 0;
     PG_TRY(splat_gaussians_resize(&m->grad, n));
     m->grad.sh_degree = 0;
-    memset(m->m, 0, (size_t)n * 10 * sizeof(float));
-    memset(m->v, 0, (size_t)n * 10 * sizeof(float));
+    for (int i = 0; i < n; i++)
+        for (int c = 0; c < 3; c++) m->dc[(size_t)i * 3 + c] = g->sh[(size_t)i * PG_SH_COEFFS * 3 + c];
+    /* The fit never reads these gradients: zeroed once per frame instead of every step. */
+    memset(m->grad.quats, 0, (size_t)n * 4 * sizeof(float));
+    for (int i = 0; i < n; i++) memset(m->grad.sh + (size_t)i * PG_SH_COEFFS * 3, 0, 3 * sizeof(float));
+    /* Fresh moments and step counts for every frame. */
+    optim_adam_destroy(m->adam);
+    m->adam = NULL;
+    PG_TRY(optim_adam_create(&m->adam, fit_groups, FIT_GROUPS, n, 1e-15f));
     m->median_depth = (float)(dsum / n);
     m->stats.gaussians = n;
     m->stats.init_s += pg_time_seconds() - t0;
@@ -263,50 +282,23 @@ static pg_render_settings model_settings(void)
     return s;
 }
 
-/* One Adam update of x (n values) with gradient g, moments at mom/vel with stride 10 per Gaussian. */
-static void adam_group(float *x, const float *g, float *mom, float *vel, int count, int dim, int off, float lr,
-                       float bc1, float bc2)
-{
-    const float b1 = 0.9f, b2 = 0.999f, eps = 1e-15f;
-    for (int i = 0; i < count; i++) {
-        for (int d = 0; d < dim; d++) {
-            float gi = g[(size_t)i * dim + d];
-            float *mi = &mom[(size_t)i * 10 + off + d], *vi = &vel[(size_t)i * 10 + off + d];
-            *mi = b1 * *mi + (1 - b1) * gi;
-            *vi = b2 * *vi + (1 - b2) * gi * gi;
-            x[(size_t)i * dim + d] -= lr * (*mi / bc1) / (sqrtf(*vi / bc2) + eps);
-        }
-    }
-}
-
-/* Same for the SH DC coefficients, which sit at stride 48 inside the SH array. */
-static void adam_dc(float *sh, const float *gsh, float *mom, float *vel, int count, float lr, float bc1, float bc2)
-{
-    const float b1 = 0.9f, b2 = 0.999f, eps = 1e-15f;
-    for (int i = 0; i < count; i++) {
-        for (int c = 0; c < 3; c++) {
-            float gi = gsh[(size_t)i * PG_SH_COEFFS * 3 + c];
-            float *mi = &mom[(size_t)i * 10 + 7 + c], *vi = &vel[(size_t)i * 10 + 7 + c];
-            *mi = b1 * *mi + (1 - b1) * gi;
-            *vi = b2 * *vi + (1 - b2) * gi * gi;
-            sh[(size_t)i * PG_SH_COEFFS * 3 + c] -= lr * (*mi / bc1) / (sqrtf(*vi / bc2) + eps);
-        }
-    }
-}
-
 /* Loss on the source view and its gradient w.r.t. the rendered rgb/depth/alpha:
  * (1 - w) L1 + w D-SSIM on pixels with valid depth (the others have no Gaussian behind them),
- * plus depth_weight * mean |depth/alpha - D| / D. Returns the loss. */
-static float source_loss(proxy_frame_model *m, const pg_render_output *out)
+ * plus depth_weight * mean |depth/alpha - D| / D. Without with_ssim the D-SSIM term (and its
+ * gradient) is left out. Returns the loss; its L1 part only with want_value (the gradient
+ * alone is enough for the steps whose loss nobody reads). */
+static float source_loss(proxy_frame_model *m, const pg_render_output *out, int with_ssim, int want_value)
 {
     int W = m->W, H = m->H;
     size_t npix = (size_t)W * H;
-    const float ws = m->opt.ssim_weight, wl1 = 1.0f - ws, wd = m->opt.depth_weight;
+    const float ws = with_ssim ? m->opt.ssim_weight : 0, wl1 = 1.0f - m->opt.ssim_weight, wd = m->opt.depth_weight;
     const float inv_v = 1.0f / m->valid_pixels;
     memset(m->d_rgb, 0, npix * 3 * sizeof(float));
-    memset(m->d_depth, 0, npix * sizeof(float));
-    memset(m->d_alpha, 0, npix * sizeof(float));
-    float loss = wl1 * optim_l1_forward(out->rgb, m->rgb, m->vmask, H, W, 3);
+    if (!(wd > 0)) { /* otherwise the depth loop below writes every pixel */
+        memset(m->d_depth, 0, npix * sizeof(float));
+        memset(m->d_alpha, 0, npix * sizeof(float));
+    }
+    float loss = want_value ? wl1 * optim_l1_forward(out->rgb, m->rgb, m->vmask, H, W, 3) : 0;
     optim_l1_backward(m->d_rgb, wl1, out->rgb, m->rgb, m->vmask, H, W, 3);
     if (ws > 0) {
         loss += ws * (1.0f - optim_ssim_forward(m->ssim, out->rgb, m->rgb, m->vmask, H, W, 3));
@@ -316,7 +308,10 @@ static float source_loss(proxy_frame_model *m, const pg_render_output *out)
     if (wd > 0) {
         for (size_t i = 0; i < npix; i++) {
             float D = m->depth[i], a = out->alpha[i];
-            if (!(D > 0) || a <= 0.05f) continue;
+            if (!(D > 0) || a <= 0.05f) {
+                m->d_depth[i] = m->d_alpha[i] = 0;
+                continue;
+            }
             float dn = out->depth[i] / a, e = (dn - D) / D;
             ld += fabsf(e);
             float gdn = wd * inv_v * (float)((e > 0) - (e < 0)) / D;
@@ -327,19 +322,54 @@ static float source_loss(proxy_frame_model *m, const pg_render_output *out)
     return loss + (float)(wd * ld * inv_v);
 }
 
-/* Zeroes the gradients the fit reads. The SH rows beyond DC stay untouched: the model renders at
- * SH degree 0, and zeroing all 48 coefficients per Gaussian every step cost 4 % of the fit. */
+/* Zeroes the gradients the fit reads. Rotations are fixed and the model renders at SH degree 0:
+ * the quaternion gradients (zeroed per frame) and SH rows beyond DC are never read; the DC
+ * gradients are moved out and zeroed by colour_grads. */
 static void zero_grads(pg_gaussians *gr)
 {
     size_t n = (size_t)gr->count;
     memset(gr->means, 0, n * 3 * sizeof(float));
     memset(gr->log_scales, 0, n * 3 * sizeof(float));
-    memset(gr->quats, 0, n * 4 * sizeof(float));
     memset(gr->opacity, 0, n * sizeof(float));
-    for (size_t i = 0; i < n; i++) {
-        float *dc = gr->sh + i * PG_SH_COEFFS * 3;
-        dc[0] = dc[1] = dc[2] = 0;
+}
+
+/* Moves the DC gradients (stride 48 in grad.sh) into the compact d_dc (N,3), zeroing them. */
+static void colour_grads(proxy_frame_model *m)
+{
+    int n = m->grad.count;
+    for (int i = 0; i < n; i++) {
+        float *src = m->grad.sh + (size_t)i * PG_SH_COEFFS * 3, *dst = m->d_dc + (size_t)i * 3;
+        dst[0] = src[0]; dst[1] = src[1]; dst[2] = src[2];
+        src[0] = src[1] = src[2] = 0;
     }
+}
+
+/* Copies the compact colours back into the DC entries the rasterizer reads. */
+static void colour_scatter(proxy_frame_model *m)
+{
+    int n = m->g.count;
+    for (int i = 0; i < n; i++) {
+        float *dst = m->g.sh + (size_t)i * PG_SH_COEFFS * 3;
+        const float *src = m->dc + (size_t)i * 3;
+        dst[0] = src[0]; dst[1] = src[1]; dst[2] = src[2];
+    }
+}
+
+/* PSNR of a source-view render over the pixels with valid depth, into the stats. The fit uses the
+ * render of its last step (before that step's update) rather than paying one more forward. */
+static void source_psnr(proxy_frame_model *m, const pg_render_output *out)
+{
+    double se = 0;
+    size_t cnt = 0;
+    for (size_t i = 0; i < (size_t)m->W * m->H; i++) {
+        if (!(m->depth[i] > 0)) continue;
+        for (int c = 0; c < 3; c++) {
+            double d = out->rgb[i * 3 + c] - m->rgb[i * 3 + c];
+            se += d * d;
+        }
+        cnt += 3;
+    }
+    m->stats.source_psnr = cnt ? (float)(-10.0 * log10(fmax(se / cnt, 1e-12))) : 0;
 }
 
 pg_status proxy_model_fit(proxy_frame_model *m)
@@ -348,7 +378,6 @@ pg_status proxy_model_fit(proxy_frame_model *m)
     pg_render_settings s = model_settings();
     pg_render_output out;
     pg_gaussians *g = &m->g, *gr = &m->grad;
-    int n = g->count;
     /* Fewer steps than the reference 100 get proportionally larger steps (at most 2x): 50 steps
      * at 2x lost ~0.25 dB of proxy PSNR against 100 at 1x on the sample scene, 50 at 1x ~1 dB. */
     const float boost = m->opt.steps > 0 ? clampf(100.0f / m->opt.steps, 1.0f, 2.0f) : 1.0f;
@@ -357,30 +386,28 @@ pg_status proxy_model_fit(proxy_frame_model *m)
     const float lr_color = m->opt.lr_color * boost;
     for (int it = 0; it < m->opt.steps; it++) {
         PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));
-        float loss = source_loss(m, &out);
+        /* D-SSIM is ~20 % of a step and changes slowly: every ssim_every-th step and the last. */
+        int with_ssim = it % m->opt.ssim_every == 0 || it == m->opt.steps - 1;
+        int last = it == m->opt.steps - 1;
+        float loss = source_loss(m, &out, with_ssim, it == 0 || last);
         if (it == 0) m->stats.first_loss = loss;
-        m->stats.last_loss = loss;
+        if (last) {
+            m->stats.last_loss = loss;
+            source_psnr(m, &out);
+        }
         zero_grads(gr);
         PG_TRY(splat_render_backward(m->raster, g, &m->cam, &s, m->d_rgb, m->d_depth, m->d_alpha, gr, NULL));
-        float bc1 = 1.0f - powf(0.9f, (float)(it + 1)), bc2 = 1.0f - powf(0.999f, (float)(it + 1));
-        adam_group(g->means, gr->means, m->m, m->v, n, 3, 0, lr_mean, bc1, bc2);
-        adam_group(g->log_scales, gr->log_scales, m->m, m->v, n, 3, 3, lr_scales, bc1, bc2);
-        adam_group(g->opacity, gr->opacity, m->m, m->v, n, 1, 6, lr_opacity, bc1, bc2);
-        adam_dc(g->sh, gr->sh, m->m, m->v, n, lr_color, bc1, bc2);
+        if (lr_mean > 0) PG_TRY(optim_adam_step_group(m->adam, FIT_MEANS, g->means, gr->means, lr_mean));
+        PG_TRY(optim_adam_step_group(m->adam, FIT_SCALES, g->log_scales, gr->log_scales, lr_scales));
+        PG_TRY(optim_adam_step_group(m->adam, FIT_OPACITY, g->opacity, gr->opacity, lr_opacity));
+        colour_grads(m);
+        PG_TRY(optim_adam_step_group(m->adam, FIT_DC, m->dc, m->d_dc, lr_color));
+        colour_scatter(m);
     }
-    /* Final quality at the source view (for reports). */
-    PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));
-    double se = 0;
-    size_t cnt = 0;
-    for (size_t i = 0; i < (size_t)m->W * m->H; i++) {
-        if (!(m->depth[i] > 0)) continue;
-        for (int c = 0; c < 3; c++) {
-            double d = out.rgb[i * 3 + c] - m->rgb[i * 3 + c];
-            se += d * d;
-        }
-        cnt += 3;
+    if (m->opt.steps == 0) { /* no step rendered the source view: report the initial model */
+        PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));
+        source_psnr(m, &out);
     }
-    m->stats.source_psnr = cnt ? (float)(-10.0 * log10(fmax(se / cnt, 1e-12))) : 0;
     m->stats.fit_s += pg_time_seconds() - t0;
     return PG_OK;
 }

@@ -23,6 +23,7 @@ typedef struct {
     int block;            /* k: one Gaussian per k x k pixel block (1) */
     int steps;            /* Adam steps on the source view (100) */
     float ssim_weight;    /* weight of D-SSIM against L1 (0.2) */
+    int ssim_every;       /* D-SSIM (forward + backward) only every k-th step and the last; L1 alone between (8) */
     float depth_weight;   /* weight of the relative depth L1 term (0.1) */
     float init_opacity;   /* initial opacity (0.8; higher gave lower proxy PSNR) */
     float scale_mult;     /* initial std = scale_mult * k * depth / f (0.6) */

@@ -55,10 +55,11 @@ static unsigned long long settings_hash(const proxy_options *o, const proxy_job 
 {
     unsigned long long h = 1469598103934665603ULL;
     const proxy_fit_options *f = &o->fit;
-    h = hash_int(h, 2); /* format version of the cache */
+    h = hash_int(h, 3); /* format version of the cache (3: shared Adam) */
     h = hash_int(h, f->block);
     h = hash_int(h, f->steps);
     h = hash_int(h, f->surfels);
+    h = hash_int(h, f->ssim_every);
     h = hash_float(h, f->surfel_thickness);
     float fl[] = { f->ssim_weight, f->depth_weight, f->init_opacity, f->scale_mult, f->lr_means, f->lr_scales,
                    f->lr_opacity, f->lr_color, f->mask.alpha_min, f->mask.edge_rel, f->mask.stretch_max,
