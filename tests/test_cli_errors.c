@@ -345,6 +345,7 @@ int main(void)
     expect_error("bench iteration --gaussians -5", "--gaussians");
     expect_error("bench loss --width -1", "--width");
     expect_error("bench deform --bogus", "--bogus");
+    expect_error("bench deform --points 1000000000", "--points");
     expect_error("bench flow --bogus", "--bogus");
 
     /* --help everywhere */

@@ -52,6 +52,7 @@ int bench_deform(int argc, char **argv)
     int rc = cli_parse(&spec, argc, argv, NULL, &np);
     if (rc) return rc < 0 ? 0 : rc;
     if (points < 1 || threads < 1 || reps < 1) return cli_usage_error("bench deform: --points, --threads, --reps must be >= 1");
+    if (points > 20000000) return cli_usage_error("bench deform: --points must be at most 20000000 (got %d)", points);
     pg_set_threads(threads);
     cfg.head_init_scale = 1.0f;
     const float aabb[6] = { -1, -1, -1, 1, 1, 1 };

@@ -313,13 +313,13 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
     ws->store_points = (max_points + chunk - 1) / chunk * (long)chunk;
     size_t store_floats;
     if (pg_size_mul((size_t)ws->store_points, ws->act_pp, &store_floats)) {
-        free(ws);
+        deform_ws_destroy(ws); /* also frees the packed weights */
         return pg_fail(PG_ERR_SIZE, "deform_ws_create: %ld points overflow", max_points);
     }
     if (store_floats) {
         ws->store = alloc_floats(store_floats, 0, "deform stored activations");
         if (!ws->store) {
-            free(ws);
+            deform_ws_destroy(ws);
             return PG_ERR_NOMEM;
         }
     }

@@ -115,7 +115,7 @@ pg_status io_dataset_open(const char *path, const io_dataset_options *opt, pg_da
         st = ds_open_dynerf(ds);
     } else {
         st = open_single(ds);
-        if (st && pg_path_is_dir(path))
+        if (st && st != PG_ERR_ARG && pg_path_is_dir(path)) /* a bad option is not a layout problem */
             pg_fail_context(st, "%s: not a DyNeRF (poses_bounds.npy), Panoptic (train_meta.json) or frame folder", path);
     }
     if (st) {
