@@ -16,7 +16,7 @@ int cmd_demo(int argc, char **argv)
     int frames = 0, iters = 0, threads = 0;
     const cli_option options[] = {
         { "--out", CLI_STR, &out, "output directory (default demo-out)" },
-        { "--frames", CLI_INT, &frames, "frames of the sample scene (default 30)" },
+        { "--frames", CLI_INT, &frames, "frames of the sample scene (default 20)" },
         { "--iters", CLI_INT, &iters, "training iterations (default: the fast preset's)" },
         { "--threads", CLI_INT, &threads, "worker threads (default: all cores)" },
     };
@@ -41,7 +41,7 @@ int cmd_demo(int argc, char **argv)
     if (st == PG_OK && !pg_path_exists(marker)) { /* the dataset writer finishes with scene.json */
         synth_options so;
         synth_options_default(&so);
-        if (frames > 0) so.frames = frames;
+        so.frames = frames > 0 ? frames : 20; /* keeps the demo to a few minutes on 2 cores */
         fprintf(stderr, "prodygs: demo: rendering the sample scene into %s\n", scene_dir);
         st = synth_write_dataset(scene_dir, &so);
     }

@@ -20,10 +20,10 @@ typedef struct {
     int max_side; /* shrink larger inputs so the longer side is at most this */
 } preset;
 
-/* fast: a few minutes on 2 cores for a short clip; quality: 4x the iterations at up to 640 px. */
+/* fast: minutes on 2 cores for a short clip at up to 320 px; quality: 5x the iterations at up to 640 px. */
 static const preset presets[] = {
-    { "fast", 3000, 8, 320 },
-    { "quality", 12000, -1, 640 },
+    { "fast", 1500, 8, 320 },
+    { "quality", 8000, -1, 640 },
 };
 
 /* Picks an even WxH with the input's aspect ratio and the longer side at most max_side;
