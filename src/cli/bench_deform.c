@@ -4,6 +4,7 @@
  * JSON line with the medians over --reps repetitions after one warm-up.
  */
 #include "cli/cli.h"
+#include "core/mathx.h"
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "deform/deform.h"
@@ -12,20 +13,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
-
-/* Process CPU seconds (all threads): robust against other processes time-sharing the cores. */
-static double cpu_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
 
 int bench_deform(int argc, char **argv)
 {
@@ -81,11 +68,11 @@ int bench_deform(int argc, char **argv)
         for (long i = 0; i < (long)points * DEFORM_OUT_DIM; i++) dout[i] = (float)pg_rng_range(&rng, -1, 1);
         for (int r = -1; r < reps && !st; r++) {
             float t = (float)pg_rng_uniform(&rng);
-            double c0 = cpu_seconds(), t0 = pg_time_seconds();
+            double c0 = pg_cpu_seconds(), t0 = pg_time_seconds();
             st = deform_network_forward(net, ws, means, NULL, points, t, out);
-            double c1 = cpu_seconds(), t1 = pg_time_seconds();
+            double c1 = pg_cpu_seconds(), t1 = pg_time_seconds();
             if (!st) st = deform_network_backward(net, ws, dout, dmeans);
-            double c2 = cpu_seconds(), t2 = pg_time_seconds();
+            double c2 = pg_cpu_seconds(), t2 = pg_time_seconds();
             double t3 = pg_time_seconds();
             if (!st) deform_network_regularize(net, 2e-4f, 1e-3f, 1e-4f);
             if (r >= 0) reg_ms += (pg_time_seconds() - t3) * 1e3 / reps;
@@ -98,8 +85,8 @@ int bench_deform(int argc, char **argv)
         }
     }
     if (!st) {
-        qsort(tf, reps, sizeof(double), cmp_double);
-        qsort(tb, reps, sizeof(double), cmp_double);
+        qsort(tf, reps, sizeof(double), pg_cmp_double);
+        qsort(tb, reps, sizeof(double), pg_cmp_double);
         printf("{\"bench\":\"deform\",\"points\":%d,\"threads\":%d,\"forward_ms\":%.2f,\"backward_ms\":%.2f,\"forward_min_ms\":%.2f,\"backward_min_ms\":%.2f,"
                "\"forward_cpu_ms\":%.2f,\"backward_cpu_ms\":%.2f,\"regularize_ms\":%.2f,"
                "\"params\":%zu,\"channels\":%d,\"res\":%d,\"res_time\":%d,\"width\":%d,\"chunk\":%d,\"store\":%d,\"sorted\":%d,\"amx\":%d}\n",

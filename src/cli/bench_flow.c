@@ -5,6 +5,7 @@
  * Prints one JSON line: median wall and process-CPU seconds per flow, and the end-point error.
  */
 #include "cli/cli.h"
+#include "core/mathx.h"
 #include "core/parallel.h"
 #include "depth/flow.h"
 
@@ -12,19 +13,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <time.h>
-
-static double cpu_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
 
 static void bench_texture(float x, float y, float *rgb)
 {
@@ -77,10 +65,10 @@ int bench_flow(int argc, char **argv)
     depth_flow_backend be = depth_flow_backend_default();
     st = depth_flow_compute(&be, &i0, &i1, flow); /* warm-up */
     for (int r = 0; r < reps && !st; r++) {
-        double t0 = pg_time_seconds(), c0 = cpu_seconds();
+        double t0 = pg_time_seconds(), c0 = pg_cpu_seconds();
         st = depth_flow_compute(&be, &i0, &i1, flow);
         wall[r] = pg_time_seconds() - t0;
-        cpu[r] = cpu_seconds() - c0;
+        cpu[r] = pg_cpu_seconds() - c0;
     }
     if (!st) {
         double epe = 0;
@@ -91,8 +79,8 @@ int bench_flow(int argc, char **argv)
                 epe += hypot(flow[2 * k] - dx, flow[2 * k + 1] - dy);
                 cnt++;
             }
-        qsort(wall, reps, sizeof(double), cmp_double);
-        qsort(cpu, reps, sizeof(double), cmp_double);
+        qsort(wall, reps, sizeof(double), pg_cmp_double);
+        qsort(cpu, reps, sizeof(double), pg_cmp_double);
         printf("{\"bench\": \"flow\", \"backend\": \"%s\", \"width\": %d, \"height\": %d, \"threads\": 1, "
                "\"wall_s\": %.4f, \"cpu_s\": %.4f, \"epe_px\": %.4f}\n",
                be.name, W, H, wall[reps / 2], cpu[reps / 2], cnt ? epe / cnt : 0.0);

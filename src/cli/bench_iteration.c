@@ -29,18 +29,6 @@ static double cpu_ms(void)
     return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
 }
 
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
-
-static double median(double *v, int n)
-{
-    qsort(v, (size_t)n, sizeof(double), cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 int bench_iteration(int argc, char **argv)
 {
     int width = 320, height = 240, n = 100000, threads = 2, reps = 7, no_cull = 0;
@@ -157,8 +145,8 @@ int bench_iteration(int argc, char **argv)
            "\"regularize\": %.2f, \"raster_forward\": %.2f, \"raster_backward\": %.2f, \"loss\": %.2f, \"optimizer\": %.2f, "
            "\"other\": %.2f, \"deformed\": %d, \"gaussians\": %d, \"width\": %d, \"height\": %d, \"threads\": %d, "
            "\"static_fraction\": %.2f, \"cull\": %s}\n",
-           median(t[0], reps), median(t[9], reps), median(t[1], reps), median(t[2], reps), median(t[8], reps), median(t[3], reps), median(t[4], reps),
-           median(t[5], reps), median(t[6], reps), median(t[7], reps), deformed, n, width, height, threads,
+           pg_median(t[0], reps), pg_median(t[9], reps), pg_median(t[1], reps), pg_median(t[2], reps), pg_median(t[8], reps), pg_median(t[3], reps), pg_median(t[4], reps),
+           pg_median(t[5], reps), pg_median(t[6], reps), pg_median(t[7], reps), deformed, n, width, height, threads,
            static_fraction, no_cull ? "false" : "true");
 done:
     for (int k = 0; k < 10; k++) free(t[k]);

@@ -1,6 +1,7 @@
 /* bench_loss.c - `prodygs bench loss`: time of the per-iteration image losses (L1 + D-SSIM with
  * backward, SSI depth with backward) on random W x H images; one JSON line, medians after a warm-up. */
 #include "cli/cli.h"
+#include "core/mathx.h"
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "optim/loss_depth.h"
@@ -8,12 +9,6 @@
 
 #include <stdio.h>
 #include <stdlib.h>
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
 
 int bench_loss(int argc, char **argv)
 {
@@ -57,8 +52,8 @@ int bench_loss(int argc, char **argv)
             double t2 = pg_time_seconds();
             if (r >= 0) { ts[r] = (t1 - t0) * 1e3; td[r] = (t2 - t1) * 1e3; }
         }
-        qsort(ts, reps, sizeof(double), cmp_double);
-        qsort(td, reps, sizeof(double), cmp_double);
+        qsort(ts, reps, sizeof(double), pg_cmp_double);
+        qsort(td, reps, sizeof(double), pg_cmp_double);
         printf("{\"bench\":\"loss\",\"width\":%d,\"height\":%d,\"threads\":%d,\"l1_dssim_ms\":%.2f,"
                "\"l1_dssim_min_ms\":%.2f,\"ssi_depth_ms\":%.2f}\n", W, H, threads, ts[reps / 2], ts[0], td[reps / 2]);
     }

@@ -11,27 +11,6 @@
 #include <stdlib.h>
 #include <time.h>
 
-/* Process CPU time in seconds: on a shared machine this shows what the run cost even when
- * other jobs stretch the wall clock. */
-static double cpu_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
-    return ts.tv_sec + ts.tv_nsec * 1e-9;
-}
-
-static int cmp_double(const void *a, const void *b)
-{
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-
-static double median(double *v, int n)
-{
-    qsort(v, (size_t)n, sizeof(double), cmp_double);
-    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 int bench_raster(int argc, char **argv)
 {
     int width = 800, height = 800, n = 100000, threads = 1, sh_degree = 0, seed = 1, reps = 7, scalar = 0;
@@ -87,13 +66,13 @@ int bench_raster(int argc, char **argv)
     s.sh_degree = sh_degree;
     pg_render_output out = { 0 };
     for (int k = -1; k < reps; k++) { /* k = -1 is the warm-up */
-        double c0 = cpu_seconds(), t0 = pg_time_seconds();
+        double c0 = pg_cpu_seconds(), t0 = pg_time_seconds();
         if ((st = splat_render_forward(r, &g, &cam, &s, &out))) goto done;
-        double t1 = pg_time_seconds(), c1 = cpu_seconds();
+        double t1 = pg_time_seconds(), c1 = pg_cpu_seconds();
         splat_gaussians_zero(&grad);
-        double c2 = cpu_seconds(), t2 = pg_time_seconds();
+        double c2 = pg_cpu_seconds(), t2 = pg_time_seconds();
         if ((st = splat_render_backward(r, &g, &cam, &s, d_rgb, d_depth, NULL, &grad, NULL))) goto done;
-        double t3 = pg_time_seconds(), c3 = cpu_seconds();
+        double t3 = pg_time_seconds(), c3 = pg_cpu_seconds();
         if (k >= 0) {
             tf[k] = (t1 - t0) * 1e3; tb[k] = (t3 - t2) * 1e3; tp[k] = out.preprocess_ms;
             cf[k] = (c1 - c0) * 1e3; cb[k] = (c3 - c2) * 1e3;
@@ -102,8 +81,8 @@ int bench_raster(int argc, char **argv)
     printf("{\"bench\":\"raster\",\"width\":%d,\"height\":%d,\"gaussians\":%d,\"sigma_px\":%g,\"sh_degree\":%d,"
            "\"threads\":%d,\"simd\":\"%s\",\"reps\":%d,\"forward_ms\":%.3f,\"backward_ms\":%.3f,"
            "\"preprocess_ms\":%.3f,\"intersections\":%ld,\"cpu_forward_ms\":%.3f,\"cpu_backward_ms\":%.3f}\n",
-           width, height, n, sigma, sh_degree, threads, splat_raster_simd_name(r), reps, median(tf, reps),
-           median(tb, reps), median(tp, reps), out.intersections, median(cf, reps), median(cb, reps));
+           width, height, n, sigma, sh_degree, threads, splat_raster_simd_name(r), reps, pg_median(tf, reps),
+           pg_median(tb, reps), pg_median(tp, reps), out.intersections, pg_median(cf, reps), pg_median(cb, reps));
 done:
     free(tf); free(tb); free(tp); free(cf); free(cb); free(d_rgb); free(d_depth);
     splat_raster_destroy(r);

@@ -116,6 +116,13 @@ static inline int pg_cmp_float(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
+/* qsort comparator for doubles, ascending. */
+static inline int pg_cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
 static inline float clampf(float x, float lo, float hi) { return x < lo ? lo : (x > hi ? hi : x); }
 static inline int clampi(int x, int lo, int hi) { return x < lo ? lo : (x > hi ? hi : x); }
 

@@ -2,7 +2,10 @@
 #include "core/parallel.h"
 
 #include <omp.h>
+#include <stdlib.h>
 #include <time.h>
+
+#include "core/mathx.h"
 
 void pg_set_threads(int n)
 {
@@ -19,4 +22,18 @@ double pg_time_seconds(void)
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+double pg_cpu_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+    return ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+double pg_median(double *v, int n)
+{
+    if (n <= 0) return 0.0;
+    qsort(v, (size_t)n, sizeof(double), pg_cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }

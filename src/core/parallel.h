@@ -9,5 +9,10 @@ int pg_get_threads(void);
 int pg_thread_index(void);
 /* Monotonic wall clock in seconds. */
 double pg_time_seconds(void);
+/* CPU time of the whole process in seconds (all threads): on a shared machine this shows what
+ * a run cost even when other jobs stretch the wall clock. */
+double pg_cpu_seconds(void);
+/* Median of v[0..n) (sorts v in place). */
+double pg_median(double *v, int n);
 
 #endif
