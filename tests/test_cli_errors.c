@@ -255,7 +255,7 @@ int main(void)
     expect_error("prepare @/ds --depth @/wrongshape.npy --out @/p", "wrongshape.npy");
     expect_error("prepare @/ds --depth @/wrongframes.npy --out @/p", "wrongframes.npy");
     expect_error("prepare @/ds --depth @/dfold --out @/p", "dfold/0001.npy");
-    expect_error("prepare @/ds --depth @/nan.npy --out @/p", "valid depth"); /* does not name the file yet */
+    expect_error("prepare @/ds --depth @/nan.npy --out @/p", "nan.npy: no valid depth");
     expect_error("prepare @/garbled.mp4 --depth @/good.npy --out @/p", "garbled.mp4");
     expect_error("prepare @/frames_bad --depth @/good.npy --out @/p", "0002.png");
     snprintf(a, sizeof a, "prepare @/ds %s --out @/p --depth-kind foo", dep);
@@ -263,11 +263,14 @@ int main(void)
     snprintf(a, sizeof a, "prepare @/ds %s --out @/p --frames -1", dep);
     expect_error(a, "--frames");
     snprintf(a, sizeof a, "prepare @/ds %s --out @/p --size 100000x100000", dep);
-    expect_error(a, "--size");
+    expect_error(a, "out of range");
+    snprintf(a, sizeof a, "prepare @/ds %s --out @/p --threads -1", dep);
+    expect_error(a, "--threads");
 
     /* proxies */
     expect_error("proxies @/ds --depth @/missing.npy --out @/x", "missing.npy");
     expect_error("proxies @/ds --depth @/wrongshape.npy --out @/x", "wrongshape.npy");
+    expect_error("proxies @/ds --depth @/nan.npy --out @/x", "nan.npy: no valid depth");
     snprintf(a, sizeof a, "proxies @/ds %s --out @/x --num -5", dep);
     expect_error(a, "--num");
     snprintf(a, sizeof a, "proxies @/ds %s --out @/x --poses foo", dep);
@@ -284,6 +287,15 @@ int main(void)
     expect_error("train @/ds --out @/t --sh-degree 9", "--sh-degree");
     expect_error("train @/ds --out @/t --threads -1", "--threads");
     expect_error("train @/ds --out @/t --depth @/trunc.npy", "trunc.npy");
+    expect_error("train @/ds --out @/t --iters 2 --depth @/wrongshape.npy", "wrongshape.npy: depth is (3, 5, 5) but the frames are (3, 12, 16)");
+    expect_error("train @/ds --out @/t --iters 2 --depth @/nan.npy", "nan.npy: no valid depth");
+    expect_error("train @/ds --out @/t --iters 2 --width 100000", "--width");
+    expect_error("train @/ds --out @/t --iters 2 --width -3", "--width");
+    expect_error("train @/ds --out @/t --iters 2 --coarse-iters -1", "--coarse-iters");
+    expect_error("train @/ds --out @/t --iters 2 --init-points -1", "--init-points");
+    expect_error("train @/ds --out @/t --iters 2 --real-every 0", "--real-every");
+    expect_error("train @/ds --out @/t --iters 2 --frames -1", "--frames");
+    expect_error("train @/ds --out @/t --iters 2 --proxies -2", "--proxies");
 
     /* render */
     expect_error("render @/m_garb", "--out");
@@ -342,6 +354,7 @@ int main(void)
     expect_error("bench raster --gaussians -5", "--gaussians");
     expect_error("bench raster --width 100000 --height 100000", "--width");
     expect_error("bench proxy --num -1", "--num");
+    expect_error("bench proxy --frames -1", "--frames");
     expect_error("bench iteration --gaussians -5", "--gaussians");
     expect_error("bench loss --width -1", "--width");
     expect_error("bench deform --bogus", "--bogus");

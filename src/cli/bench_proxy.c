@@ -45,7 +45,8 @@ int bench_proxy(int argc, char **argv)
         return cli_usage_error("bench proxy: size %dx%d not in 16..4096", width, height);
     if (num < 1 || num > 256) return cli_usage_error("bench proxy: --num %d not in 1..256", num);
     if (threads < 1 || threads > 64) return cli_usage_error("bench proxy: --threads %d not in 1..64", threads);
-    if (frames <= 0) frames = 2 * threads;
+    if (frames < 0) return cli_usage_error("bench proxy: --frames %d must be >= 1 (0 = 2 x threads)", frames);
+    if (frames == 0) frames = 2 * threads;
     if (frames > 1000) return cli_usage_error("bench proxy: --frames %d too many", frames);
     char dir[256];
     if (out) snprintf(dir, sizeof dir, "%s", out);

@@ -38,6 +38,8 @@ int cli_usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 void cli_install_progress(void);
 /* Parses "a,b,c" integers into out (max n); returns the count or -1 on a bad list. */
 int cli_parse_int_list(const char *text, int *out, int n);
+/* Largest image side the commands accept for a requested size (--width, --size). */
+#define CLI_MAX_SIDE 8192
 
 int cmd_info(int argc, char **argv);
 int cmd_synth(int argc, char **argv);

@@ -17,12 +17,15 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Parses "320x240" (either side may be 0 to keep the aspect ratio). */
+/* Parses "320x240" (either side may be 0 to keep the aspect ratio): -1 not WxH, -2 out of range. */
 static int parse_size(const char *text, int *w, int *h)
 {
     char tail;
-    if (sscanf(text, "%dx%d%c", w, h, &tail) != 2) return -1;
-    if (*w < 0 || *h < 0 || (*w == 0 && *h == 0) || *w > PG_MAX_IMAGE_SIDE || *h > PG_MAX_IMAGE_SIDE) return -1;
+    long lw, lh;
+    if (sscanf(text, "%ldx%ld%c", &lw, &lh, &tail) != 2) return -1;
+    if (lw < 0 || lh < 0 || (lw == 0 && lh == 0) || lw > CLI_MAX_SIDE || lh > CLI_MAX_SIDE) return -2;
+    *w = (int)lw;
+    *h = (int)lh;
     return 0;
 }
 
@@ -55,7 +58,10 @@ int cmd_prepare(int argc, char **argv)
     if (!depth_path) return cli_usage_error("prepare: --depth PATH is required");
     if (!out) return cli_usage_error("prepare: --out DIR is required");
     int want_w = 0, want_h = 0;
-    if (size && parse_size(size, &want_w, &want_h)) return cli_usage_error("prepare: --size '%s' is not WxH", size);
+    int size_rc = size ? parse_size(size, &want_w, &want_h) : 0;
+    if (size_rc == -1) return cli_usage_error("prepare: --size '%s' is not WxH", size);
+    if (size_rc == -2) return cli_usage_error("prepare: --size '%s' out of range (sides 0..%d, not both 0)", size, CLI_MAX_SIDE);
+    if (threads < 0 || threads > 256) return cli_usage_error("prepare: --threads %d must be in 1..256", threads);
     if (frames_n < 0) return cli_usage_error("prepare: --frames must be >= 1");
     if (!(depth_scale > 0.0f)) return cli_usage_error("prepare: --depth-scale must be > 0");
     io_depth_kind dkind;
@@ -107,6 +113,8 @@ int cmd_prepare(int argc, char **argv)
         o.count = frames_n; /* --frames N takes the first N depth frames too */
         o.expect_frames = F;
         st = io_depth_load(depth_path, &o, &depth);
+        if (!st && !(depth.max > 0))
+            st = pg_fail(PG_ERR_FORMAT, "%s: no valid depth in any frame (every value is NaN, inf or <= 0)", depth_path);
     }
     /* Flow fields are kept only for the pictures; skip them when they would be large. */
     if (popt.keep_flow && (double)F * W * H * 2 * sizeof(float) > 1024.0 * 1024 * 1024) popt.keep_flow = 0;

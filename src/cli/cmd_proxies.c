@@ -182,6 +182,13 @@ int cmd_proxies(int argc, char **argv)
     st = io_depth_load(depth_path, &zo, &depth);
     if (!st && depth.frames != F)
         st = pg_fail(PG_ERR_SIZE, "%s: %d depth frames for %d video frames", depth_path, depth.frames, F);
+    if (!st) {
+        /* The scene centre and the scale fit read frame 0: it must have some depth. */
+        size_t valid0 = 0;
+        for (size_t i = 0; i < (size_t)W * H; i++) valid0 += depth.data[i] > 0;
+        if (!valid0)
+            st = pg_fail(PG_ERR_FORMAT, "%s: no valid depth in frame 0 (every value is NaN, inf or <= 0)", depth_path);
+    }
     if (st) goto done;
 
     pg_camera real;

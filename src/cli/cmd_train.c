@@ -5,6 +5,7 @@
  * (cameras of the training set with their roles, settings, held-out PSNR, seconds).
  */
 #include <cjson/cJSON.h>
+#include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -67,7 +68,7 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
 int cmd_train(int argc, char **argv)
 {
     const char *out = NULL, *real_cams = NULL, *test_cams = NULL, *depth = NULL;
-    int iters = 3000, coarse = -1, resume = 0, threads = 2, seed = 1, max_g = 200000, ck_every = 500;
+    int iters = 3000, coarse = INT_MIN /* unset: iters/6 */, resume = 0, threads = 2, seed = 1, max_g = 200000, ck_every = 500;
     int init_points = 30000, frames = 0, width = 0, no_static = 0, no_cull = 0, sh = 3, real_every = 3;
     int eval_train = 0, proxies = -1, deform_res = 0, deform_width = 0, static_check = 0;
     float lambda_depth = -1, lambda_dssim = -1;
@@ -108,7 +109,14 @@ int cmd_train(int argc, char **argv)
     if (rc) return rc;
     if (!out) return cli_usage_error("train: --out MODEL is required");
     if (iters < 1) return cli_usage_error("train: --iters must be >= 1");
-    if (coarse > iters) return cli_usage_error("train: --coarse-iters must be <= --iters");
+    if (coarse != INT_MIN && (coarse < 0 || coarse > iters))
+        return cli_usage_error("train: --coarse-iters %d must be in 0..--iters (%d)", coarse, iters);
+    if (init_points < 1) return cli_usage_error("train: --init-points %d must be >= 1", init_points);
+    if (real_every < 1) return cli_usage_error("train: --real-every %d must be >= 1", real_every);
+    if (frames < 0) return cli_usage_error("train: --frames %d must be >= 1 (0 = all)", frames);
+    if (width < 0 || width > CLI_MAX_SIDE)
+        return cli_usage_error("train: --width %d out of range 1..%d (0 = keep)", width, CLI_MAX_SIDE);
+    if (proxies < -1) return cli_usage_error("train: --proxies %d must be >= 0 (-1 = all)", proxies);
     if (max_g < 16) return cli_usage_error("train: --max-gaussians must be >= 16");
     if (threads < 1 || threads > 256) return cli_usage_error("train: --threads must be in 1..256");
     if (sh < 0 || sh > 3) return cli_usage_error("train: --sh-degree must be 0..3");
@@ -154,7 +162,7 @@ int cmd_train(int argc, char **argv)
 
     train_config cfg = train_default_config();
     cfg.iters = iters;
-    cfg.coarse_iters = coarse >= 0 ? coarse : iters / 6;
+    cfg.coarse_iters = coarse != INT_MIN ? coarse : iters / 6;
     cfg.seed = (uint64_t)seed;
     cfg.threads = threads;
     cfg.max_gaussians = max_g;

@@ -322,16 +322,24 @@ static pg_status store_depth(train_set *ts, int vi, const char *path)
     pg_status st = PG_OK;
     if (dep.ndim != 3 || dep.shape[0] < (size_t)ts->frames) {
         st = pg_fail(PG_ERR_SIZE, "%s: depth must be (F>=%d, H, W)", path, ts->frames);
+    } else if (dep.shape[1] < 1 || dep.shape[2] < 1 ||
+               fabs((double)dep.shape[2] * ts->height / ((double)dep.shape[1] * ts->width) - 1.0) > 0.05) {
+        /* Resampling is fine for another resolution, not for another aspect (wrong file). */
+        st = pg_fail(PG_ERR_SIZE, "%s: depth is (%zu, %zu, %zu) but the frames are (%d, %d, %d) (F, H, W): aspect differs",
+                     path, dep.shape[0], dep.shape[1], dep.shape[2], ts->frames, ts->height, ts->width);
     } else {
         int dh = (int)dep.shape[1], dw = (int)dep.shape[2];
-        size_t px = (size_t)ts->width * ts->height;
+        size_t px = (size_t)ts->width * ts->height, valid = 0;
         for (int f = 0; f < ts->frames; f++)
             for (int y = 0; y < ts->height; y++)
                 for (int x = 0; x < ts->width; x++) {
                     int sx = (int)((x + 0.5f) * dw / ts->width), sy = (int)((y + 0.5f) * dh / ts->height);
                     float d = dep.data[((size_t)f * dh + sy) * dw + sx];
-                    ts->views[vi].depth[(size_t)f * px + (size_t)y * ts->width + x] = (isfinite(d) && d > 0) ? d : 0;
+                    int ok = isfinite(d) && d > 0;
+                    valid += (size_t)ok;
+                    ts->views[vi].depth[(size_t)f * px + (size_t)y * ts->width + x] = ok ? d : 0;
                 }
+        if (!valid) st = pg_fail(PG_ERR_FORMAT, "%s: no valid depth (every value is NaN, inf or <= 0)", path);
     }
     pg_array_destroy(&dep);
     return st;
