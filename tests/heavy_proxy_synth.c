@@ -31,25 +31,6 @@ typedef struct {
     int n[NCAM];
 } tally;
 
-static int cmpf(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
-/* median over pixels valid in both of a[i] / b[i] */
-static float median_ratio(const float *a, const float *b, size_t n)
-{
-    float *r = malloc(n * sizeof(float));
-    size_t k = 0;
-    for (size_t i = 0; i < n; i++)
-        if (a[i] > 0 && b[i] > 0) r[k++] = a[i] / b[i];
-    qsort(r, k, sizeof(float), cmpf);
-    float med = k ? r[k / 2] : 0;
-    free(r);
-    return med;
-}
-
 static void measure(const synth_scene *sc, const pg_camera *cams, const float *rgb0, const float *depth_pose,
                     float s, const float *const *gt_rgb, const float *const *gt_depth, proxy_frame_model *m, tally *t)
 {
@@ -175,7 +156,7 @@ int main(void)
         depth_prepare_result_destroy(&pr);
         free(fr);
     }
-    const float s_true = median_ratio(gt0, aligned, npix);
+    const float s_true = test_median_ratio(gt0, aligned, npix);
 
     /* Pose scale from frame 0 against the training cameras (not cam05/cam06). */
     pg_camera train[NCAM];

@@ -17,24 +17,7 @@
 #include "proxy/frame_model.h"
 #include "proxy/poses.h"
 #include "testlib.h"
-
-static int cmpf(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
-static float median_ratio(const float *a, const float *b, size_t n)
-{
-    float *r = malloc(n * sizeof(float));
-    size_t k = 0;
-    for (size_t i = 0; i < n; i++)
-        if (a[i] > 0 && b[i] > 0) r[k++] = a[i] / b[i];
-    qsort(r, k, sizeof(float), cmpf);
-    float med = k ? r[k / 2] : 0;
-    free(r);
-    return med;
-}
+#include "core/mathx.h"
 
 int main(void)
 {
@@ -69,7 +52,7 @@ int main(void)
     depth_prepare_defaults(&po);
     depth_prepare_result pr;
     CHECK_OK(depth_prepare_run(&po, frames0, F, mono.data, &pr));
-    float s_true = median_ratio(gt.data, pr.depth, npix);
+    float s_true = test_median_ratio(gt.data, pr.depth, npix);
 
     /* pose scale on frame 0 against the training cameras */
     pg_camera train[32];
@@ -89,7 +72,7 @@ int main(void)
         size_t k = 0;
         for (size_t i = 0; i < npix; i++)
             if (pr.depth[i] > 0) tmp[k++] = pr.depth[i];
-        qsort(tmp, k, sizeof(float), cmpf);
+        qsort(tmp, k, sizeof(float), pg_cmp_float);
         float m = k ? tmp[k / 2] : 1;
         free(tmp);
         so.scale_min = sqrtf(nz * fz) / m / 4;

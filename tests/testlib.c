@@ -1,6 +1,7 @@
 /* testlib.c - implementation of the small test harness. */
 #include "testlib.h"
 #include "core/fileutil.h"
+#include "core/mathx.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -75,4 +76,17 @@ int test_files_equal(const char *a, const char *b)
     free(da);
     free(db);
     return eq;
+}
+
+float test_median_ratio(const float *a, const float *b, size_t n)
+{
+    float *r = malloc((n ? n : 1) * sizeof(float));
+    if (!r) return 0;
+    size_t k = 0;
+    for (size_t i = 0; i < n; i++)
+        if (a[i] > 0 && b[i] > 0) r[k++] = a[i] / b[i];
+    qsort(r, k, sizeof(float), pg_cmp_float);
+    float med = k ? r[k / 2] : 0;
+    free(r);
+    return med;
 }

@@ -49,4 +49,8 @@ int test_shared_data(const char *name, char *out, size_t size);
 /* 1 if both files can be read (up to 1 GB each) and hold the same bytes. */
 int test_files_equal(const char *a, const char *b);
 
+/* Median of a[i] / b[i] over the i where both are > 0 (0 if there is none), e.g. a depth
+ * map's scale against the ground truth. */
+float test_median_ratio(const float *a, const float *b, size_t n);
+
 #endif
