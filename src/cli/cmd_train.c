@@ -12,6 +12,7 @@
 
 #include "cli/cli.h"
 #include "core/fileutil.h"
+#include "io/json.h"
 #include "core/parallel.h"
 #include "train/train.h"
 #include "train/trainset.h"
@@ -19,17 +20,8 @@
 static cJSON *camera_json(const train_view *v)
 {
     static const char *roles[] = {"real", "proxy", "test"};
-    cJSON *c = cJSON_CreateObject();
-    cJSON_AddStringToObject(c, "name", v->name);
-    cJSON_AddStringToObject(c, "role", roles[v->role]);
-    cJSON_AddNumberToObject(c, "width", v->cam.width);
-    cJSON_AddNumberToObject(c, "height", v->cam.height);
-    cJSON_AddNumberToObject(c, "fx", v->cam.fx);
-    cJSON_AddNumberToObject(c, "fy", v->cam.fy);
-    cJSON_AddNumberToObject(c, "cx", v->cam.cx);
-    cJSON_AddNumberToObject(c, "cy", v->cam.cy);
-    cJSON_AddItemToObject(c, "R", cJSON_CreateFloatArray(v->cam.R, 9));
-    cJSON_AddItemToObject(c, "t", cJSON_CreateFloatArray(v->cam.t, 3));
+    cJSON *c = io_json_from_camera(&v->cam, v->name);
+    if (c) cJSON_AddStringToObject(c, "role", roles[v->role]);
     return c;
 }
 

@@ -8,6 +8,7 @@
 #include <cjson/cJSON.h>
 
 #include "core/fileutil.h"
+#include "io/json.h"
 
 const char *proxy_role_name(proxy_role role)
 {
@@ -40,27 +41,11 @@ pg_status proxy_trainset_make_dirs(const char *dir, const char *camera, int with
     return PG_OK;
 }
 
-static cJSON *float_array(const float *v, int n)
-{
-    cJSON *a = cJSON_CreateArray();
-    for (int i = 0; a && i < n; i++) cJSON_AddItemToArray(a, cJSON_CreateNumber(v[i]));
-    return a;
-}
-
 static cJSON *camera_json(const proxy_trainset_camera *c)
 {
     char path[160];
-    cJSON *o = cJSON_CreateObject();
+    cJSON *o = io_json_from_camera(&c->cam, c->name);
     if (!o) return NULL;
-    cJSON_AddStringToObject(o, "name", c->name);
-    cJSON_AddNumberToObject(o, "width", c->cam.width);
-    cJSON_AddNumberToObject(o, "height", c->cam.height);
-    cJSON_AddNumberToObject(o, "fx", c->cam.fx);
-    cJSON_AddNumberToObject(o, "fy", c->cam.fy);
-    cJSON_AddNumberToObject(o, "cx", c->cam.cx);
-    cJSON_AddNumberToObject(o, "cy", c->cam.cy);
-    cJSON_AddItemToObject(o, "R", float_array(c->cam.R, 9));
-    cJSON_AddItemToObject(o, "t", float_array(c->cam.t, 3));
     cJSON_AddStringToObject(o, "role", proxy_role_name(c->role));
     if (c->has_rgb) {
         snprintf(path, sizeof path, "%s/rgb", c->name);
@@ -98,7 +83,7 @@ pg_status proxy_trainset_write_json(const char *dir, const proxy_trainset_info *
     cJSON *arr = cJSON_AddArrayToObject(root, "cameras");
     for (int i = 0; i < n; i++) cJSON_AddItemToArray(arr, camera_json(&cams[i]));
     cJSON *scene = cJSON_AddObjectToObject(root, "scene");
-    cJSON_AddItemToObject(scene, "center", float_array(info->center, 3));
+    cJSON_AddItemToObject(scene, "center", io_json_float_array(info->center, 3));
     cJSON_AddNumberToObject(scene, "radius", info->radius);
     cJSON_AddNumberToObject(scene, "near", info->near);
     cJSON_AddNumberToObject(scene, "far", info->far);
