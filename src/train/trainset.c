@@ -1,5 +1,6 @@
 /* trainset.c - load a training set (docs/FORMATS.md) or build one from a DyNeRF dataset. */
 #include "train/trainset.h"
+#include "io/json.h"
 
 #include <cjson/cJSON.h>
 #include <math.h>
@@ -119,49 +120,6 @@ static void store_rgb(train_set *ts, int v, int f, const pg_image *img)
 
 /* ---------- trainset.json directory ---------- */
 
-static pg_status json_number(const cJSON *obj, const char *key, const char *path, double *out)
-{
-    const cJSON *it = cJSON_GetObjectItemCaseSensitive(obj, key);
-    if (!cJSON_IsNumber(it)) return pg_fail(PG_ERR_FORMAT, "%s: missing or non-numeric \"%s\"", path, key);
-    *out = it->valuedouble;
-    return PG_OK;
-}
-
-static pg_status json_floats(const cJSON *obj, const char *key, const char *path, float *out, int n)
-{
-    const cJSON *arr = cJSON_GetObjectItemCaseSensitive(obj, key);
-    if (!cJSON_IsArray(arr) || cJSON_GetArraySize(arr) != n)
-        return pg_fail(PG_ERR_FORMAT, "%s: \"%s\" must be an array of %d numbers", path, key, n);
-    for (int i = 0; i < n; i++) {
-        const cJSON *x = cJSON_GetArrayItem(arr, i);
-        if (!cJSON_IsNumber(x)) return pg_fail(PG_ERR_FORMAT, "%s: \"%s\"[%d] is not a number", path, key, i);
-        out[i] = (float)x->valuedouble;
-    }
-    return PG_OK;
-}
-
-static pg_status parse_camera(const cJSON *c, const char *path, pg_camera *cam)
-{
-    double w = 0, h = 0, fx = 0, fy = 0, cx = 0, cy = 0;
-    PG_TRY(json_number(c, "width", path, &w));
-    PG_TRY(json_number(c, "height", path, &h));
-    PG_TRY(json_number(c, "fx", path, &fx));
-    PG_TRY(json_number(c, "fy", path, &fy));
-    PG_TRY(json_number(c, "cx", path, &cx));
-    PG_TRY(json_number(c, "cy", path, &cy));
-    memset(cam, 0, sizeof *cam);
-    cam->width = (int)w;
-    cam->height = (int)h;
-    cam->fx = (float)fx;
-    cam->fy = (float)fy;
-    cam->cx = (float)cx;
-    cam->cy = (float)cy;
-    PG_TRY(json_floats(c, "R", path, cam->R, 9));
-    PG_TRY(json_floats(c, "t", path, cam->t, 3));
-    if (!(fx > 0 && fy > 0)) return pg_fail(PG_ERR_FORMAT, "%s: camera focal lengths must be positive", path);
-    return PG_OK;
-}
-
 static pg_status load_view_files(train_set *ts, int vi, const char *dir, const char *rgb_rel, const char *mask_rel,
                                  const char *depth_rel)
 {
@@ -231,10 +189,10 @@ pg_status train_set_load(const char *dir, train_set *ts)
     if (!root) return pg_fail(PG_ERR_FORMAT, "%s: not valid JSON", path);
     pg_status st = PG_OK;
     double frames = 0, width = 0, height = 0, fps = 30;
-    if ((st = json_number(root, "frames", path, &frames)) || (st = json_number(root, "width", path, &width)) ||
-        (st = json_number(root, "height", path, &height)))
+    if ((st = io_json_get_number(root, "frames", path, &frames)) || (st = io_json_get_number(root, "width", path, &width)) ||
+        (st = io_json_get_number(root, "height", path, &height)))
         goto done;
-    json_number(root, "fps", path, &fps);
+    io_json_get_number(root, "fps", path, &fps);
     if (frames < 1 || frames > TS_MAX_FRAMES || width < 1 || height < 1 || width > PG_MAX_IMAGE_SIDE ||
         height > PG_MAX_IMAGE_SIDE) {
         st = pg_fail(PG_ERR_SIZE, "%s: absurd size %g frames of %g x %g", path, frames, width, height);
@@ -247,11 +205,11 @@ pg_status train_set_load(const char *dir, train_set *ts)
     const cJSON *scene = cJSON_GetObjectItemCaseSensitive(root, "scene");
     if (cJSON_IsObject(scene)) {
         double r = 0, n = 0, fz = 0;
-        if (!json_floats(scene, "center", path, ts->center, 3) && !json_number(scene, "radius", path, &r)) {
+        if (!io_json_get_floats(scene, "center", path, ts->center, 3) && !io_json_get_number(scene, "radius", path, &r)) {
             ts->has_scene = 1;
             ts->radius = (float)r;
-            if (!json_number(scene, "near", path, &n)) ts->near_z = (float)n;
-            if (!json_number(scene, "far", path, &fz)) ts->far_z = (float)fz;
+            if (!io_json_get_number(scene, "near", path, &n)) ts->near_z = (float)n;
+            if (!io_json_get_number(scene, "far", path, &fz)) ts->far_z = (float)fz;
         }
     }
     const cJSON *cams = cJSON_GetObjectItemCaseSensitive(root, "cameras");
@@ -263,7 +221,7 @@ pg_status train_set_load(const char *dir, train_set *ts)
     cJSON_ArrayForEach(c, cams)
     {
         pg_camera cam;
-        if ((st = parse_camera(c, path, &cam))) goto done;
+        if ((st = io_json_to_camera(c, path, &cam, NULL, 0))) goto done;
         const char *name = json_str_or_null(c, "name");
         const char *role_s = json_str_or_null(c, "role");
         const char *rgb = json_str_or_null(c, "rgb");
