@@ -32,17 +32,6 @@ static pg_status get_frame(void *ctx, int camera, int frame, pg_image *out)
     return PG_OK;
 }
 
-static int file_equal(const char *a, const char *b)
-{
-    char *da = NULL, *db = NULL;
-    size_t na = 0, nb = 0;
-    int eq = !pg_read_file(a, 1 << 24, &da, &na) && !pg_read_file(b, 1 << 24, &db, &nb) && na == nb &&
-             memcmp(da, db, na) == 0;
-    free(da);
-    free(db);
-    return eq;
-}
-
 int main(void)
 {
     pg_set_threads(2);
@@ -151,10 +140,10 @@ int main(void)
     CHECK_OK(proxy_generate(&o, &job, dir2, &res));
     snprintf(path, sizeof path, "%s/proxy02/rgb/0001.png", dir);
     snprintf(path2, sizeof path2, "%s/proxy02/rgb/0001.png", dir2);
-    CHECK(file_equal(path, path2), "%s and %s differ", path, path2);
+    CHECK(test_files_equal(path, path2), "%s and %s differ", path, path2);
     snprintf(path, sizeof path, "%s/proxy02/depth.npy", dir);
     snprintf(path2, sizeof path2, "%s/proxy02/depth.npy", dir2);
-    CHECK(file_equal(path, path2), "%s and %s differ", path, path2);
+    CHECK(test_files_equal(path, path2), "%s and %s differ", path, path2);
 
     /* Changed settings -> everything recomputed. */
     o.fit.steps = 4;

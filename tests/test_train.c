@@ -12,21 +12,6 @@
 #include "train/trainset.h"
 #include "train_toy.h"
 
-static int files_equal(const char *a, const char *b)
-{
-    char *da = NULL, *db = NULL;
-    size_t na = 0, nb = 0;
-    if (pg_read_file(a, 1u << 30, &da, &na) || pg_read_file(b, 1u << 30, &db, &nb)) {
-        free(da);
-        free(db);
-        return 0;
-    }
-    int eq = na == nb && memcmp(da, db, na) == 0;
-    free(da);
-    free(db);
-    return eq;
-}
-
 static train_config small_config(void)
 {
     train_config c = train_default_config();
@@ -123,7 +108,7 @@ int main(void)
           s ? train_session_iteration(s) : -1);
     if (s) CHECK_OK(train_session_run(s));
     train_session_destroy(s);
-    CHECK(files_equal(a, b), "resumed final checkpoint differs from the uninterrupted one");
+    CHECK(test_files_equal(a, b), "resumed final checkpoint differs from the uninterrupted one");
 
     /* corrupt checkpoints fail cleanly */
     char *blob = NULL;
@@ -154,7 +139,7 @@ int main(void)
     CHECK(test_run_cli(cmd, err, sizeof err) == 0, "train CLI resume: %s", err);
     snprintf(a, sizeof a, "%s/m1/model.ckpt", dir);
     snprintf(b, sizeof b, "%s/m2/model.ckpt", dir);
-    CHECK(files_equal(a, b), "CLI resume: final checkpoints differ");
+    CHECK(test_files_equal(a, b), "CLI resume: final checkpoints differ");
     snprintf(a, sizeof a, "%s/m1/train.json", dir);
     CHECK(pg_path_exists(a), "train.json written");
 
