@@ -53,7 +53,7 @@ static void measure(const synth_scene *sc, const pg_camera *cams, const float *r
                     vis = synth_point_visible(sc, &cams[0], X, s, 1e-3f);
                 }
                 nvis += vis;
-                if (!mask[i]) continue;
+                if (mask[i] != PROXY_MASK_REAL) continue;
                 nm++;
                 nvis_m += vis;
                 nfalse += !vis;
@@ -68,7 +68,7 @@ static void measure(const synth_scene *sc, const pg_camera *cams, const float *r
             double se2 = 0; long n2 = 0;
             for (int v = 0; v < H; v++) for (int u = 0; u < W; u++) {
                 size_t i = (size_t)v * W + u;
-                if (!mask[i]) continue;
+                if (mask[i] != PROXY_MASK_REAL) continue;
                 float X[3], uv[2];
                 pg_camera_unproject(&cams[k], u + 0.5f, v + 0.5f, gt_depth[k][i], X);
                 pg_camera_project(&cams[0], X, uv);

@@ -117,7 +117,7 @@ int main(void)
                 double se = 0;
                 long n = 0;
                 for (size_t i = 0; i < npix; i++) {
-                    if (!mask[i]) continue;
+                    if (mask[i] != PROXY_MASK_REAL) continue;
                     for (int k = 0; k < 3; k++) {
                         double e = prgb[i * 3 + k] - target[c].data[i * 3 + k];
                         se += e * e;

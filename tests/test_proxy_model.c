@@ -9,6 +9,7 @@
 #include "core/parallel.h"
 #include "proxy/frame_model.h"
 #include "proxy/metrics.h"
+#include "proxy/outpaint.h"
 #include "proxy/poses.h"
 #include "proxy/procedural.h"
 #include "testlib.h"
@@ -53,7 +54,7 @@ static void run(int block, int steps, double min_psnr, double min_cov)
         double derr = 0;
         long nd = 0;
         for (int i = 0; i < W * H; i++)
-            if (mask[i]) { derr += fabs(pdepth[i] - vdepth[i]) / vdepth[i]; nd++; }
+            if (mask[i] == PROXY_MASK_REAL) { derr += fabs(pdepth[i] - vdepth[i]) / vdepth[i]; nd++; }
         printf("  view %d (%.1f deg): psnr %.2f coverage %.3f false %.4f mask %.3f depth err %.4f\n", k,
                proxy_camera_angle_deg(&real, &cams[k]), mt.psnr_masked, mt.coverage, mt.false_valid,
                mt.mask_fraction, nd ? derr / nd : 0);
@@ -72,8 +73,37 @@ static void run(int block, int steps, double min_psnr, double min_cov)
     free(rgb); free(depth); free(vrgb); free(vdepth); free(prgb); free(pdepth); free(mask);
 }
 
+/* Outpainting continues a tilted plane exactly (inverse depth is affine in the pixel coordinates),
+ * keeps a constant colour, copies the interior and leaves the margin empty without valid depth. */
+static void outpaint_plane(void)
+{
+    enum { w = 40, h = 30, p = 12, w2 = w + 2 * p, h2 = h + 2 * p };
+    float rgb[h][w][3], depth[h][w], rgb2[h2][w2][3], depth2[h2][w2];
+    for (int y = 0; y < h; y++)
+        for (int x = 0; x < w; x++) {
+            depth[y][x] = 1.0f / (0.5f + 0.004f * x - 0.003f * y);
+            rgb[y][x][0] = 0.2f; rgb[y][x][1] = 0.4f; rgb[y][x][2] = 0.6f;
+        }
+    CHECK_OK(proxy_outpaint(w, h, &rgb[0][0][0], &depth[0][0], p, &rgb2[0][0][0], &depth2[0][0]));
+    double worst = 0, worst_rgb = 0;
+    for (int y = 0; y < h2; y++)
+        for (int x = 0; x < w2; x++) {
+            double want = 1.0 / (0.5 + 0.004 * (x - p) - 0.003 * (y - p));
+            worst = fmax(worst, fabs(depth2[y][x] - want) / want);
+            for (int c = 0; c < 3; c++) worst_rgb = fmax(worst_rgb, fabs(rgb2[y][x][c] - (0.2 + 0.2 * c)));
+        }
+    printf("outpaint: plane depth worst relative error %.2e, colour %.2e\n", worst, worst_rgb);
+    CHECK(worst < 1e-3, "plane continued with relative depth error %g", worst);
+    CHECK(worst_rgb < 1e-5, "constant colour changed by %g", worst_rgb);
+    CHECK(depth2[p + 3][p + 5] == depth[3][5], "interior depth not copied");
+    memset(depth, 0, sizeof depth);
+    CHECK_OK(proxy_outpaint(w, h, &rgb[0][0][0], &depth[0][0], p, &rgb2[0][0][0], &depth2[0][0]));
+    CHECK(depth2[0][0] == 0 && depth2[h2 / 2][1] == 0, "margin got depth without any valid border depth");
+}
+
 int main(void)
 {
+    outpaint_plane();
     pg_set_threads(2);
     {
         proxy_fit_options o = proxy_default_fit_options();

@@ -43,7 +43,7 @@ int main(void)
     CHECK_OK(train_set_load(data, &ts));
     CHECK(ts.num_views == 5 && ts.frames == 4 && ts.width == 64, "loaded %d views %d frames", ts.num_views, ts.frames);
     CHECK(train_set_count_role(&ts, TRAIN_ROLE_PROXY) == 3, "proxies");
-    CHECK(ts.views[1].mask && ts.views[1].mask[0] == 0 && ts.views[1].mask[63] == 1, "proxy mask loaded");
+    CHECK(ts.views[1].mask && ts.views[1].mask[0] == 0 && ts.views[1].mask[63] == TRAIN_MASK_FULL, "proxy mask loaded");
     CHECK(ts.views[0].depth && ts.views[0].depth[64 * 24 + 32] > 3, "depth loaded");
 
     {

@@ -87,7 +87,7 @@ int cmd_proxies(int argc, char **argv)
 {
     const char *depth_path = NULL, *out = NULL, *poses = NULL, *test_list = NULL, *size = NULL, *train_text = NULL;
     int num = -1, steps = 100, block = 1, train_cam = 0, frames = 0, threads = 2, force = 0;
-    float max_angle = 20, pose_scale = 0, fov = 60;
+    float max_angle = 20, pose_scale = 0, fov = 60, pad = proxy_default_fit_options().pad;
     cli_option opts[] = {
         { "--depth", CLI_STR, &depth_path, "aligned depth (depth_aligned.npy from `prodygs prepare`) or raw depth" },
         { "--out", CLI_STR, &out, "output training-set directory" },
@@ -96,6 +96,7 @@ int cmd_proxies(int argc, char **argv)
         { "--max-angle", CLI_FLOAT, &max_angle, "hemisphere: max angle from the real camera in degrees (20)" },
         { "--steps", CLI_INT, &steps, "Adam steps per frame (100)" },
         { "--block", CLI_INT, &block, "one Gaussian per k x k pixel block (1)" },
+        { "--pad", CLI_FLOAT, &pad, "outpainted margin around the real view, fraction of the larger side (0.3; 0 = none)" },
         { "--train-cam", CLI_STR, &train_text, "the real (training) camera: index or name (0)" },
         { "--test-cams", CLI_STR, &test_list, "test camera indices, never used (dataset default 5,6)" },
         { "--pose-scale", CLI_FLOAT, &pose_scale, "pose units per depth unit (dataset: fitted if absent)" },
@@ -117,6 +118,7 @@ int cmd_proxies(int argc, char **argv)
     if (!(max_angle > 0 && max_angle < 90)) return cli_usage_error("proxies: --max-angle %g not in (0, 90)", max_angle);
     if (steps < 0 || steps > 100000) return cli_usage_error("proxies: --steps %d out of range", steps);
     if (block < 1 || block > 64) return cli_usage_error("proxies: --block %d not in 1..64", block);
+    if (!(pad >= 0 && pad <= 1)) return cli_usage_error("proxies: --pad %g not in [0, 1]", pad);
     if (threads < 1 || threads > 64) return cli_usage_error("proxies: --threads %d not in 1..64", threads);
     if (frames < 0) return cli_usage_error("proxies: --frames %d is negative", frames);
     if (pose_scale < 0 || !isfinite(pose_scale)) return cli_usage_error("proxies: --pose-scale must be positive");
@@ -263,6 +265,7 @@ int cmd_proxies(int argc, char **argv)
     po.force = force;
     po.fit.steps = steps;
     po.fit.block = block;
+    po.fit.pad = pad;
     pg_set_threads(threads);
     proxy_result res;
     st = proxy_generate(&po, &job, out, &res);

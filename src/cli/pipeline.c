@@ -55,6 +55,7 @@ static int validate_options(const pipeline_options *o)
     if (o->pose_scale < 0) return cli_usage_error("--pose-scale must be > 0 (got %g)", o->pose_scale);
     if (o->max_angle < 0 || o->max_angle >= 90)
         return cli_usage_error("--max-angle must be in (0, 90) degrees (got %g)", o->max_angle);
+    if (o->pad > 1 || (o->pad < 0 && o->pad != -1)) return cli_usage_error("--pad must be in [0, 1] (got %g)", o->pad);
     if (o->poses && strcmp(o->poses, "hemisphere") != 0 && strcmp(o->poses, "dataset") != 0)
         return cli_usage_error("--poses must be hemisphere or dataset (got '%s')", o->poses);
     if (o->depth_kind && strcmp(o->depth_kind, "depth") != 0 && strcmp(o->depth_kind, "disparity") != 0)
@@ -219,6 +220,7 @@ int pipeline_run_stages(const pipeline_options *o, cJSON *seconds)
     if (o->proxies >= 0) args_addf(&a, "--num", "%d", o->proxies);
     if (o->max_angle > 0) args_addf(&a, "--max-angle", "%g", o->max_angle);
     if (o->fov > 0) args_addf(&a, "--fov", "%g", o->fov);
+    if (o->pad >= 0) args_addf(&a, "--pad", "%g", o->pad);
     if (o->train_cam) args_addf(&a, "--train-cam", "%s", o->train_cam);
     if (o->test_cams) args_addf(&a, "--test-cams", "%s", o->test_cams);
     if (o->pose_scale > 0) args_addf(&a, "--pose-scale", "%g", o->pose_scale);
@@ -257,6 +259,7 @@ cJSON *pipeline_config_json(const pipeline_options *o)
     cJSON_AddStringToObject(c, "preset", o->preset);
     cJSON_AddStringToObject(c, "poses", o->poses ? o->poses : "hemisphere");
     cJSON_AddNumberToObject(c, "proxies", o->proxies);
+    if (o->pad >= 0) cJSON_AddNumberToObject(c, "pad", o->pad);
     if (o->train_cam) cJSON_AddStringToObject(c, "train_cam", o->train_cam);
     if (o->test_cams) cJSON_AddStringToObject(c, "test_cams", o->test_cams);
     cJSON_AddBoolToObject(c, "refine", !o->no_refine);
@@ -273,6 +276,7 @@ int pipeline_cli_options(pipeline_options *o, const char **proxies_text, cli_opt
 {
     memset(o, 0, sizeof *o);
     o->proxies = -1;
+    o->pad = -1;
     *proxies_text = NULL;
     const cli_option shared[] = {
         { "--depth", CLI_STR, &o->depth, "per-frame depth of the (training) camera: .npy (F,H,W) or a folder (required)" },
@@ -282,6 +286,7 @@ int pipeline_cli_options(pipeline_options *o, const char **proxies_text, cli_opt
         { "--poses", CLI_STR, &o->poses, "proxy poses: hemisphere or dataset (default: dataset with --test-cams)" },
         { "--max-angle", CLI_FLOAT, &o->max_angle, "hemisphere cap angle in degrees (default 20)" },
         { "--fov", CLI_FLOAT, &o->fov, "single video: horizontal field of view in degrees (default 60)" },
+        { "--pad", CLI_FLOAT, &o->pad, "proxies: outpainted margin around the real view, fraction of the larger side (0.3; 0 = none)" },
         { "--no-refine", CLI_FLAG, &o->no_refine, "skip edge-aware depth refinement (ablation)" },
         { "--no-align", CLI_FLAG, &o->no_align, "skip temporal scale/shift alignment (ablation)" },
         { "--depth-kind", CLI_STR, &o->depth_kind, "depth (default) or disparity" },

@@ -25,6 +25,7 @@ typedef struct {
     int proxies;             /* number of proxy cameras; -1 = preset default / all */
     float max_angle;         /* hemisphere cap angle (0 = default) */
     float fov;               /* single video: horizontal field of view in degrees (0 = default) */
+    float pad;               /* proxies' outpainted margin, fraction of the larger side (< 0 = default) */
     int no_refine, no_align;
     int frames;              /* 0 = all */
     const char *size;        /* "WxH" or NULL (preset default) */

@@ -10,13 +10,16 @@
 #include "core/parallel.h"
 #include "optim/adam.h"
 #include "optim/loss_image.h"
+#include "proxy/outpaint.h"
 #include "splat/gaussians.h"
 #include "splat/raster.h"
 
 #define SH_C0 0.28209479177387814f
 
 struct proxy_frame_model {
-    int W, H;              /* source frame size */
+    int W, H;              /* modelled frame size: the source frame plus the margin on each side */
+    int src_W, src_H;      /* source frame size */
+    int pad;               /* margin in pixels (a multiple of the margin block 2k) */
     proxy_fit_options opt;
     pg_gaussians g, grad;  /* parameters and their gradients (N) */
     optim_adam *adam;      /* shared Adam over the groups of fit_groups (N rows), rebuilt per frame */
@@ -25,13 +28,14 @@ struct proxy_frame_model {
     splat_raster *raster;
     optim_ssim_ws *ssim;   /* SSIM workspace at the source size */
     float *vmask;          /* (H, W) 1 where the source depth is valid (loss mask) */
-    pg_camera cam;         /* source camera */
-    float *rgb;            /* (H, W, 3) source colours */
-    float *depth;          /* (H, W) source depth in pose units, 0 = invalid */
+    pg_camera cam;         /* source camera, widened by the margin */
+    float *rgb;            /* (H, W, 3) source colours, outpainted margin included */
+    float *depth;          /* (H, W) source depth in pose units, 0 = invalid, margin included */
     float *d_rgb;          /* (H, W, 3) loss gradient w.r.t. rendered colour */
     float *d_depth;        /* (H, W) w.r.t. rendered (unnormalised) depth */
     float *d_alpha;        /* (H, W) w.r.t. rendered alpha */
     float *zmesh;          /* (view H, view W) mesh depth scratch for masks */
+    unsigned char *vmargin; /* (view H, view W) 1 where the mesh shows the margin */
     size_t zmesh_size;
     float median_depth;
     int valid_pixels;
@@ -60,6 +64,7 @@ proxy_fit_options proxy_default_fit_options(void)
     o.lr_scales = 0.005f;
     o.lr_opacity = 0.02f;
     o.lr_color = 0.005f;
+    o.pad = 0.3f;
     o.mask = proxy_default_mask_options();
     return o;
 }
@@ -81,6 +86,7 @@ void proxy_model_destroy(proxy_frame_model *m)
     free(m->d_depth);
     free(m->d_alpha);
     free(m->zmesh);
+    free(m->vmargin);
     free(m);
 }
 
@@ -93,13 +99,21 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
     if (opt.block < 1 || opt.block > 64) return pg_fail(PG_ERR_ARG, "proxy model: block %d not in 1..64", opt.block);
     if (opt.ssim_every < 1) return pg_fail(PG_ERR_ARG, "proxy model: ssim_every %d < 1", opt.ssim_every);
     if (opt.steps < 0) return pg_fail(PG_ERR_ARG, "proxy model: negative step count %d", opt.steps);
+    if (!(opt.pad >= 0 && opt.pad <= 1)) return pg_fail(PG_ERR_ARG, "proxy model: pad %g not in [0, 1]", opt.pad);
     proxy_frame_model *m = pg_calloc(1, sizeof *m, "proxy model");
     if (!m) return PG_ERR_NOMEM;
-    m->W = width;
-    m->H = height;
+    int km = 2 * opt.block;
+    m->pad = (int)ceilf(opt.pad * (width > height ? width : height) / km) * km;
+    m->src_W = width;
+    m->src_H = height;
+    m->W = width + 2 * m->pad;
+    m->H = height + 2 * m->pad;
     m->opt = opt;
+    width = m->W;
+    height = m->H;
     size_t npix = (size_t)width * height;
-    size_t ng = (size_t)((width + opt.block - 1) / opt.block) * ((height + opt.block - 1) / opt.block);
+    size_t ng = (size_t)((m->src_W + opt.block - 1) / opt.block) * ((m->src_H + opt.block - 1) / opt.block) +
+                (size_t)((width + km - 1) / km) * ((height + km - 1) / km);
     pg_status st = splat_gaussians_create(&m->g, (int)ng);
     if (!st) st = splat_gaussians_create(&m->grad, (int)ng);
     if (!st) st = splat_raster_create(&m->raster);
@@ -189,72 +203,96 @@ static int init_surfel(const proxy_frame_model *m, const pg_camera *cam, int x, 
     return 1;
 }
 
-/* One Gaussian per k x k block at the block's median depth; its colour and position average the
+/* Whether pixel (x, y) of the padded frame lies in the real frame (not the margin). */
+static int in_frame(const proxy_frame_model *m, int x, int y)
+{
+    return x >= m->pad && y >= m->pad && x < m->pad + m->src_W && y < m->pad + m->src_H;
+}
+
+/* One Gaussian for the k x k block at (bx, by), restricted to the frame's (interior = 1) or the
+ * margin's (interior = 0) pixels, at the block's median depth; its colour and position average the
  * block pixels on that surface (within 5 % of the median), so blocks on an edge do not blend the
- * foreground with the background. */
+ * foreground with the background. Returns 1 if a Gaussian was written at index n. */
+static int seed_block(proxy_frame_model *m, int bx, int by, int k, int interior, int n, float logit, float *depth_out)
+{
+    const int W = m->W, H = m->H;
+    const pg_camera *cam = &m->cam;
+    float vals[128 * 128];
+    int cnt = 0;
+    for (int y = by; y < by + k && y < H; y++)
+        for (int x = bx; x < bx + k && x < W; x++)
+            if (in_frame(m, x, y) == interior && m->depth[(size_t)y * W + x] > 0)
+                vals[cnt++] = m->depth[(size_t)y * W + x];
+    if (cnt == 0) return 0;
+    qsort(vals, cnt, sizeof(float), cmp_float);
+    float dm = vals[cnt / 2];
+    float col[3] = { 0, 0, 0 }, su = 0, sv = 0, sd = 0;
+    int used = 0;
+    for (int y = by; y < by + k && y < H; y++)
+        for (int x = bx; x < bx + k && x < W; x++) {
+            float d = m->depth[(size_t)y * W + x];
+            if (in_frame(m, x, y) != interior || !(d > 0) || fabsf(d - dm) > 0.05f * dm) continue;
+            const float *p = m->rgb + ((size_t)y * W + x) * 3;
+            col[0] += p[0]; col[1] += p[1]; col[2] += p[2];
+            su += x + 0.5f; sv += y + 0.5f; sd += d;
+            used++;
+        }
+    pg_gaussians *g = &m->g;
+    float d = sd / used;
+    float *mu = g->means + (size_t)n * 3;
+    pg_camera_unproject(cam, su / used, sv / used, d, mu);
+    float sigma = m->opt.scale_mult * k * d / cam->fx;
+    float *q = g->quats + (size_t)n * 4, *ls = g->log_scales + (size_t)n * 3;
+    if (!(m->opt.surfels && init_surfel(m, cam, bx + k / 2, by + k / 2, k, mu, sigma, q, ls))) {
+        ls[0] = ls[1] = ls[2] = logf(sigma);
+        q[0] = 1; q[1] = q[2] = q[3] = 0;
+    }
+    g->opacity[n] = logit;
+    float *sh = g->sh + (size_t)n * PG_SH_COEFFS * 3;
+    memset(sh, 0, PG_SH_COEFFS * 3 * sizeof(float));
+    for (int c = 0; c < 3; c++) sh[c] = (col[c] / used - 0.5f) / SH_C0;
+    *depth_out = d;
+    return 1;
+}
+
+/* Seeds the frame's k x k blocks, then the margin's 2k x 2k blocks (outpainted content is smooth). */
 pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const float *rgb, const float *depth)
 {
     double t0 = pg_time_seconds();
-    int W = m->W, H = m->H, k = m->opt.block;
-    if (cam->width != W || cam->height != H)
-        return pg_fail(PG_ERR_SIZE, "proxy model: camera is %dx%d, model %dx%d", cam->width, cam->height, W, H);
-    m->cam = *cam;
-    size_t npix = (size_t)W * H;
-    memcpy(m->rgb, rgb, npix * 3 * sizeof(float));
+    int W = m->W, H = m->H, k = m->opt.block, p = m->pad;
+    if (cam->width != m->src_W || cam->height != m->src_H)
+        return pg_fail(PG_ERR_SIZE, "proxy model: camera is %dx%d, model %dx%d", cam->width, cam->height, m->src_W,
+                       m->src_H);
     int valid = 0;
-    for (size_t i = 0; i < npix; i++) {
-        float d = depth[i];
-        int ok = isfinite(d) && d > 0;
-        m->depth[i] = ok ? d : 0;
-        m->vmask[i] = (float)ok;
-        valid += ok;
-    }
+    for (size_t i = 0; i < (size_t)m->src_W * m->src_H; i++) valid += isfinite(depth[i]) && depth[i] > 0;
     if (valid == 0) return pg_fail(PG_ERR_ARG, "proxy model: the depth map has no valid pixel");
+    PG_TRY(proxy_outpaint(m->src_W, m->src_H, rgb, depth, p, m->rgb, m->depth));
+    m->cam = *cam;
+    m->cam.width = W;
+    m->cam.height = H;
+    m->cam.cx += p;
+    m->cam.cy += p;
+    size_t npix = (size_t)W * H;
+    valid = 0;
+    for (size_t i = 0; i < npix; i++) {
+        m->vmask[i] = (float)(m->depth[i] > 0);
+        valid += m->depth[i] > 0;
+    }
     m->valid_pixels = valid;
 
-    float vals[64 * 64];
     int n = 0;
     double dsum = 0;
     pg_gaussians *g = &m->g;
     PG_TRY(splat_gaussians_resize(g, g->capacity));
     const float logit = logf(m->opt.init_opacity / (1.0f - m->opt.init_opacity));
-    for (int by = 0; by < H; by += k) {
-        for (int bx = 0; bx < W; bx += k) {
-            int cnt = 0;
-            for (int y = by; y < by + k && y < H; y++)
-                for (int x = bx; x < bx + k && x < W; x++)
-                    if (m->depth[(size_t)y * W + x] > 0) vals[cnt++] = m->depth[(size_t)y * W + x];
-            if (cnt == 0) continue;
-            qsort(vals, cnt, sizeof(float), cmp_float);
-            float dm = vals[cnt / 2];
-            float col[3] = { 0, 0, 0 }, su = 0, sv = 0, sd = 0;
-            int used = 0;
-            for (int y = by; y < by + k && y < H; y++)
-                for (int x = bx; x < bx + k && x < W; x++) {
-                    float d = m->depth[(size_t)y * W + x];
-                    if (!(d > 0) || fabsf(d - dm) > 0.05f * dm) continue;
-                    const float *p = rgb + ((size_t)y * W + x) * 3;
-                    col[0] += p[0]; col[1] += p[1]; col[2] += p[2];
-                    su += x + 0.5f; sv += y + 0.5f; sd += d;
-                    used++;
-                }
-            float d = sd / used;
-            float *mu = g->means + (size_t)n * 3;
-            pg_camera_unproject(cam, su / used, sv / used, d, mu);
-            float sigma = m->opt.scale_mult * k * d / cam->fx;
-            float *q = g->quats + (size_t)n * 4, *ls = g->log_scales + (size_t)n * 3;
-            if (!(m->opt.surfels && init_surfel(m, cam, bx + k / 2, by + k / 2, k, mu, sigma, q, ls))) {
-                ls[0] = ls[1] = ls[2] = logf(sigma);
-                q[0] = 1; q[1] = q[2] = q[3] = 0;
-            }
-            g->opacity[n] = logit;
-            float *sh = g->sh + (size_t)n * PG_SH_COEFFS * 3;
-            memset(sh, 0, PG_SH_COEFFS * 3 * sizeof(float));
-            for (int c = 0; c < 3; c++) sh[c] = (col[c] / used - 0.5f) / SH_C0;
-            dsum += d;
-            n++;
-        }
-    }
+    float d;
+    for (int by = p; by < p + m->src_H; by += k)
+        for (int bx = p; bx < p + m->src_W; bx += k)
+            if (seed_block(m, bx, by, k, 1, n, logit, &d)) n++, dsum += d;
+    if (p > 0)
+        for (int by = 0; by < H; by += 2 * k)
+            for (int bx = 0; bx < W; bx += 2 * k)
+                if (seed_block(m, bx, by, 2 * k, 0, n, logit, &d)) n++, dsum += d;
     g->count = n;
     g->sh_degree = 0;
     PG_TRY(splat_gaussians_resize(&m->grad, n));
@@ -355,14 +393,15 @@ static void colour_scatter(proxy_frame_model *m)
     }
 }
 
-/* PSNR of a source-view render over the pixels with valid depth, into the stats. The fit uses the
- * render of its last step (before that step's update) rather than paying one more forward. */
+/* PSNR of a source-view render over the frame's pixels with valid depth (not the margin), into the
+ * stats. The fit uses the render of its last step (before that step's update) rather than paying
+ * one more forward. */
 static void source_psnr(proxy_frame_model *m, const pg_render_output *out)
 {
     double se = 0;
     size_t cnt = 0;
     for (size_t i = 0; i < (size_t)m->W * m->H; i++) {
-        if (!(m->depth[i] > 0)) continue;
+        if (!(m->depth[i] > 0) || !in_frame(m, (int)(i % m->W), (int)(i / m->W))) continue;
         for (int c = 0; c < 3; c++) {
             double d = out->rgb[i * 3 + c] - m->rgb[i * 3 + c];
             se += d * d;
@@ -422,9 +461,11 @@ pg_status proxy_model_render(proxy_frame_model *m, const pg_camera *view, float 
     size_t n = (size_t)view->width * view->height;
     if (m->zmesh_size < n) {
         free(m->zmesh);
+        free(m->vmargin);
         m->zmesh = pg_malloc(n * sizeof(float), "proxy mesh depth");
-        m->zmesh_size = m->zmesh ? n : 0;
-        if (!m->zmesh) return PG_ERR_NOMEM;
+        m->vmargin = pg_malloc(n, "proxy margin flags");
+        m->zmesh_size = m->zmesh && m->vmargin ? n : 0;
+        if (!m->zmesh_size) return PG_ERR_NOMEM;
     }
     /* Depth normalised by alpha, into the caller's buffer or a temporary. */
     float *dn = depth;
@@ -438,13 +479,14 @@ pg_status proxy_model_render(proxy_frame_model *m, const pg_camera *view, float 
     if (rgb) memcpy(rgb, out.rgb, n * 3 * sizeof(float));
     pg_status st = PG_OK;
     if (mask || valid_fraction) {
-        st = proxy_mesh_depth(&m->cam, m->depth, view, &m->opt.mask, m->zmesh);
+        st = proxy_mesh_depth(&m->cam, m->depth, m->pad, view, &m->opt.mask, m->zmesh, m->vmargin);
         if (!st) {
             unsigned char *mk = mask ? mask : pg_malloc(n, "proxy mask");
             if (!mk) {
                 st = PG_ERR_NOMEM;
             } else {
-                float f = proxy_mask_combine(view->width, view->height, out.alpha, dn, m->zmesh, &m->opt.mask, mk);
+                float f = proxy_mask_combine(view->width, view->height, out.alpha, dn, m->zmesh, m->vmargin,
+                                               &m->opt.mask, mk);
                 if (valid_fraction) *valid_fraction = f;
                 if (depth)
                     for (size_t i = 0; i < n; i++)

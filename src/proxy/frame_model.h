@@ -11,6 +11,8 @@
  *   proxy_model_destroy(m);
  *
  * depth is in the pose units of the cameras (already multiplied by any pose scale), 0 = invalid.
+ * With opt.pad > 0 the model also covers an outpainted margin around the frame (one Gaussian per
+ * 2k x 2k block there), so proxies turned away from the real view have no empty borders.
  */
 #ifndef PG_PROXY_FRAME_MODEL_H
 #define PG_PROXY_FRAME_MODEL_H
@@ -31,6 +33,8 @@ typedef struct {
     float surfel_thickness; /* surfel std along the normal, relative to the in-plane std (0.2) */
     float lr_means;       /* mean learning rate relative to the median depth (2e-5) */
     float lr_scales, lr_opacity, lr_color; /* Adam learning rates (0.005, 0.02, 0.005) */
+    float pad;            /* margin added on each side by outpainting (outpaint.h), as a fraction of
+                           * the larger frame side (0.3); 0 = proxies end at the real frame's border */
     proxy_mask_options mask;
 } proxy_fit_options;
 

@@ -10,13 +10,14 @@
 
 proxy_mask_options proxy_default_mask_options(void)
 {
-    proxy_mask_options o = { 0.5f, 0.04f, 2.5f, 0.02f };
+    proxy_mask_options o = { 0.5f, 0.04f, 2.5f, 0.02f, 0.5f };
     return o;
 }
 
 typedef struct {
     float x, y, z; /* target pixel coordinates (continuous) and camera depth */
     int ok;
+    int margin;    /* the source pixel lies in the outpainted margin */
 } proj_vertex;
 
 static int edge_ok(const proj_vertex *a, const proj_vertex *b, float da, float db, const proxy_mask_options *o)
@@ -28,10 +29,12 @@ static int edge_ok(const proj_vertex *a, const proj_vertex *b, float da, float d
 }
 
 /* Scan-converts one triangle into the z-buffer: pixel centres inside (top-left-inclusive enough for
- * a coverage test), depth interpolated as 1/z, which is linear in screen space. */
+ * a coverage test), depth interpolated as 1/z, which is linear in screen space. margin (may be
+ * NULL) records whether the nearest triangle touches the outpainted margin. */
 static void raster_triangle(const proj_vertex *a, const proj_vertex *b, const proj_vertex *c, int W, int H,
-                            float *zbuf)
+                            float *zbuf, unsigned char *margin)
 {
+    const unsigned char from_margin = (unsigned char)(a->margin || b->margin || c->margin);
     float minx = fminf(a->x, fminf(b->x, c->x)), maxx = fmaxf(a->x, fmaxf(b->x, c->x));
     float miny = fminf(a->y, fminf(b->y, c->y)), maxy = fmaxf(a->y, fmaxf(b->y, c->y));
     int x0 = (int)ceilf(minx - 0.5f), x1 = (int)floorf(maxx - 0.5f);
@@ -56,16 +59,20 @@ static void raster_triangle(const proj_vertex *a, const proj_vertex *b, const pr
             if (w0 < -eps || w1 < -eps || w2 < -eps) continue;
             float z = 1.0f / (w0 * iza + w1 * izb + w2 * izc);
             float *zb = &zbuf[(size_t)y * W + x];
-            if (*zb == 0 || z < *zb) *zb = z;
+            if (*zb == 0 || z < *zb) {
+                *zb = z;
+                if (margin) margin[(size_t)y * W + x] = from_margin;
+            }
         }
     }
 }
 
-pg_status proxy_mesh_depth(const pg_camera *src, const float *depth, const pg_camera *dst,
-                           const proxy_mask_options *opt, float *zmesh)
+pg_status proxy_mesh_depth(const pg_camera *src, const float *depth, int pad, const pg_camera *dst,
+                           const proxy_mask_options *opt, float *zmesh, unsigned char *margin)
 {
     int W = src->width, H = src->height, W2 = dst->width, H2 = dst->height;
     memset(zmesh, 0, (size_t)W2 * H2 * sizeof(float));
+    if (margin) memset(margin, 0, (size_t)W2 * H2);
     /* Two rows of projected vertices at a time keep the memory at O(W). */
     proj_vertex *rows = pg_malloc((size_t)2 * W * sizeof(proj_vertex), "mesh vertex rows");
     if (!rows) return PG_ERR_NOMEM;
@@ -84,6 +91,7 @@ pg_status proxy_mesh_depth(const pg_camera *src, const float *depth, const pg_ca
             p->y = uv[1];
             p->z = z;
             p->ok = 1;
+            p->margin = u < pad || v < pad || u >= W - pad || v >= H - pad;
         }
         if (v == 0) continue;
         const float *drow = depth + (size_t)v * W, *dprev = depth + (size_t)(v - 1) * W;
@@ -100,11 +108,11 @@ pg_status proxy_mesh_depth(const pg_camera *src, const float *depth, const pg_ca
             /* Split along whichever diagonal is intact, so a corner behind an edge does not kill the
              * whole quad. */
             if (bc) {
-                if (ab && ac) raster_triangle(a, b, c, W2, H2, zmesh);
-                if (bd && cd) raster_triangle(b, d, c, W2, H2, zmesh);
+                if (ab && ac) raster_triangle(a, b, c, W2, H2, zmesh, margin);
+                if (bd && cd) raster_triangle(b, d, c, W2, H2, zmesh, margin);
             } else if (ad) {
-                if (ab && bd) raster_triangle(a, b, d, W2, H2, zmesh);
-                if (ac && cd) raster_triangle(a, d, c, W2, H2, zmesh);
+                if (ab && bd) raster_triangle(a, b, d, W2, H2, zmesh, margin);
+                if (ac && cd) raster_triangle(a, d, c, W2, H2, zmesh, margin);
             }
         }
     }
@@ -113,13 +121,14 @@ pg_status proxy_mesh_depth(const pg_camera *src, const float *depth, const pg_ca
 }
 
 float proxy_mask_combine(int width, int height, const float *alpha, const float *depth_norm, const float *zmesh,
-                         const proxy_mask_options *opt, unsigned char *mask)
+                         const unsigned char *margin, const proxy_mask_options *opt, unsigned char *mask)
 {
     size_t n = (size_t)width * height, valid = 0;
+    const unsigned char margin_value = (unsigned char)lroundf(clampf(opt->margin_weight, 0, 1) * PROXY_MASK_REAL);
     for (size_t i = 0; i < n; i++) {
         int ok = alpha[i] > opt->alpha_min && zmesh[i] > 0 &&
                  fabsf(depth_norm[i] - zmesh[i]) <= opt->depth_tol * zmesh[i];
-        mask[i] = (unsigned char)ok;
+        mask[i] = !ok ? 0 : (margin && margin[i]) ? margin_value : PROXY_MASK_REAL;
         valid += ok;
     }
     return n ? (float)valid / n : 0;

@@ -22,18 +22,26 @@ typedef struct {
     float edge_rel;    /* 0.04: |d1 - d2| / min(d1, d2) above this is a depth edge */
     float stretch_max; /* 2.5: max projected edge length in target pixels per source pixel */
     float depth_tol;   /* 0.02: relative splat-vs-mesh depth disagreement allowed */
+    float margin_weight; /* 0.5: mask value (training weight) of valid pixels that show the
+                          * outpainted margin rather than something the real camera saw */
 } proxy_mask_options;
+
+/* Mask values: 0 invalid, PROXY_MASK_REAL seen by the real camera, in between the margin weight. */
+#define PROXY_MASK_REAL 255
 
 proxy_mask_options proxy_default_mask_options(void);
 
 /* Rasterises the depth mesh of src (depth (H,W) in pose units, 0 = invalid) into dst.
- * zmesh (H2,W2) receives the nearest kept-triangle depth, 0 where no kept triangle lands. */
-pg_status proxy_mesh_depth(const pg_camera *src, const float *depth, const pg_camera *dst,
-                           const proxy_mask_options *opt, float *zmesh);
+ * zmesh (H2,W2) receives the nearest kept-triangle depth, 0 where no kept triangle lands.
+ * The outer `pad` pixels of src are an outpainted margin: margin (H2,W2, may be NULL) gets 1
+ * where the nearest triangle touches it. */
+pg_status proxy_mesh_depth(const pg_camera *src, const float *depth, int pad, const pg_camera *dst,
+                           const proxy_mask_options *opt, float *zmesh, unsigned char *margin);
 
-/* Combines splat alpha (H2,W2), splat depth normalised by alpha (H2,W2) and zmesh into
- * mask (H2,W2) of 0/1. Returns the valid fraction. */
+/* Combines splat alpha (H2,W2), splat depth normalised by alpha (H2,W2), zmesh and margin (may be
+ * NULL) into mask (H2,W2): 0, the margin weight x 255, or PROXY_MASK_REAL. Returns the valid
+ * fraction (margin included). */
 float proxy_mask_combine(int width, int height, const float *alpha, const float *depth_norm, const float *zmesh,
-                         const proxy_mask_options *opt, unsigned char *mask);
+                         const unsigned char *margin, const proxy_mask_options *opt, unsigned char *mask);
 
 #endif

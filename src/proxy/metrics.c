@@ -26,7 +26,7 @@ pg_status proxy_measure_view(const pg_camera *real, const float *real_depth, con
                 }
             }
             nvis += visible;
-            if (mask[i]) {
+            if (mask[i] == PROXY_MASK_REAL) {
                 nm++;
                 nvis_m += visible;
                 nfalse += !visible;

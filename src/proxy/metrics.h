@@ -11,6 +11,7 @@
 
 #include "core/camera.h"
 #include "core/status.h"
+#include "proxy/mask.h"
 
 typedef struct {
     double psnr_masked;     /* PSNR over mask pixels (RGB) */
@@ -21,7 +22,8 @@ typedef struct {
 } proxy_view_metrics;
 
 /* real_depth (H,W) and view_depth (H',W') ground-truth z-depth in pose units; view_rgb, proxy_rgb
- * (H',W',3); mask (H',W') 0/1. */
+ * (H',W',3); mask (H',W') from proxy_mask_combine: only PROXY_MASK_REAL pixels count (the
+ * outpainted margin is a guess, not a reprojection). */
 pg_status proxy_measure_view(const pg_camera *real, const float *real_depth, const pg_camera *view,
                              const float *view_depth, const float *view_rgb, const float *proxy_rgb,
                              const unsigned char *mask, float vis_tol, proxy_view_metrics *out);

@@ -61,6 +61,7 @@ static unsigned long long settings_hash(const proxy_options *o, const proxy_job 
     h = hash_int(h, f->surfels);
     h = hash_int(h, f->ssim_every);
     h = hash_float(h, f->surfel_thickness);
+    h = hash_float(h, f->pad);
     float fl[] = { f->ssim_weight, f->depth_weight, f->init_opacity, f->scale_mult, f->lr_means, f->lr_scales,
                    f->lr_opacity, f->lr_color, f->mask.alpha_min, f->mask.edge_rel, f->mask.stretch_max,
                    f->mask.depth_tol, j->pose_scale };
@@ -96,7 +97,7 @@ static int frame_is_done(const char *dir, int frame, const char *hash_hex)
 
 static pg_status save_mask_png(const char *path, const unsigned char *mask, int W, int H, float *scratch)
 {
-    for (size_t i = 0; i < (size_t)W * H; i++) scratch[i] = mask[i] ? 1.0f : 0.0f;
+    for (size_t i = 0; i < (size_t)W * H; i++) scratch[i] = mask[i] / (float)PROXY_MASK_REAL;
     pg_image img = { W, H, 1, scratch };
     return io_image_save_png(path, &img);
 }

@@ -368,7 +368,8 @@ static int load_target(train_session *s, int vi, int f)
     const train_view *v = &ts->views[vi];
     size_t px = (size_t)ts->width * ts->height;
     train_set_frame_rgb(ts, vi, f, &s->target);
-    for (size_t i = 0; i < px; i++) s->mask[i] = v->mask ? (float)v->mask[(size_t)f * px + i] : 1.0f;
+    for (size_t i = 0; i < px; i++)
+        s->mask[i] = v->mask ? v->mask[(size_t)f * px + i] * (1.0f / TRAIN_MASK_FULL) : 1.0f;
     if (v->depth) memcpy(s->depth_t, v->depth + (size_t)f * px, px * sizeof(float));
     return v->depth != NULL;
 }

@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "core/fileutil.h"
+#include "core/mathx.h"
 #include "io/dataset.h"
 #include "io/image_io.h"
 #include "io/npy.h"
@@ -70,7 +71,7 @@ pg_status train_set_add_view(train_set *ts, const char *name, train_role role, c
     if (with_mask) {
         v->mask = pg_malloc(n, "training-set masks");
         if (!v->mask) return PG_ERR_NOMEM;
-        memset(v->mask, 1, n);
+        memset(v->mask, TRAIN_MASK_FULL, n);
     }
     if (with_depth) {
         v->depth = pg_calloc(n, sizeof(float), "training-set depth");
@@ -149,7 +150,9 @@ static pg_status load_view_files(train_set *ts, int vi, const char *dir, const c
                 st = pg_fail(PG_ERR_SIZE, "%s: mask is %dx%d, expected %dx%d", path, img.width, img.height, ts->width,
                              ts->height);
             else
-                for (size_t i = 0; i < px; i++) ts->views[vi].mask[(size_t)f * px + i] = img.data[i * 3] > 0.5f;
+                for (size_t i = 0; i < px; i++)
+                    ts->views[vi].mask[(size_t)f * px + i] =
+                        (unsigned char)lroundf(clampf(img.data[i * 3], 0, 1) * TRAIN_MASK_FULL);
             pg_image_destroy(&img);
         }
     }

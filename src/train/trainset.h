@@ -10,7 +10,7 @@
  *   train_set_destroy(&ts);
  *
  * Images are kept as uint8 RGB (4x smaller than float; the trainer converts the sampled
- * frame on the fly), masks as uint8 0/1, depth as float32 (0 = invalid).
+ * frame on the fly), masks as uint8 loss weights 0..TRAIN_MASK_FULL, depth as float32 (0 = invalid).
  */
 #ifndef PG_TRAINSET_H
 #define PG_TRAINSET_H
@@ -21,6 +21,8 @@
 #include "core/image.h"
 #include "core/status.h"
 
+#define TRAIN_MASK_FULL 255 /* mask byte of a fully trusted pixel (mask PNG value 1) */
+
 typedef enum { TRAIN_ROLE_REAL = 0, TRAIN_ROLE_PROXY, TRAIN_ROLE_TEST } train_role;
 
 typedef struct {
@@ -28,7 +30,7 @@ typedef struct {
     train_role role;
     pg_camera cam;
     uint8_t *rgb;   /* (F, H, W, 3) */
-    uint8_t *mask;  /* (F, H, W) 1 = valid, or NULL (all valid) */
+    uint8_t *mask;  /* (F, H, W) loss weight x TRAIN_MASK_FULL (0 = invalid), or NULL (all valid) */
     float *depth;   /* (F, H, W) z-depth, 0 = invalid, or NULL */
 } train_view;
 
