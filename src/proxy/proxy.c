@@ -146,14 +146,15 @@ static pg_status process_frame(const proxy_job *j, const char *dir, const char *
     int empty = 1;
     for (size_t i = 0; i < npix && empty; i++) empty = !(w->depth[i] > 0);
     /* A frame without any valid depth gives empty proxies (all masked out) instead of failing the
-     * run: the trainer then simply gets no proxy pixels for that frame. */
-    if (!empty) {
+     * run: the trainer then simply gets no proxy pixels for that frame. Without proxy cameras
+     * (the --proxies 0 ablation) there is nothing to render, so no model is fitted. */
+    if (!empty && j->num_proxies > 0) {
         st = proxy_model_init(w->model, &j->real, frame.data, w->depth);
         if (!st) st = proxy_model_fit(w->model);
     }
     pg_image_destroy(&frame);
     if (st) return pg_fail_context(st, "frame %d: ", f);
-    if (!empty) {
+    if (!empty && j->num_proxies > 0) {
         w->psnr_sum += proxy_model_get_stats(w->model)->source_psnr;
         w->frames++;
     }
