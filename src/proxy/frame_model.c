@@ -26,14 +26,19 @@ struct proxy_frame_model {
     float *dc, *d_dc;      /* (N, 3) compact SH DC colour and its gradient: the optimised copy of the
                             * stride-48 DC entries of g.sh / grad.sh (contiguous, so Adam vectorises) */
     splat_raster *raster;
-    optim_ssim_ws *ssim;   /* SSIM workspace at the source size */
-    float *vmask;          /* (H, W) 1 where the source depth is valid (loss mask) */
-    pg_camera cam;         /* source camera, widened by the margin */
+    pg_camera cam;         /* source camera widened by the margin (seeding, masks) */
     float *rgb;            /* (H, W, 3) source colours, outpainted margin included */
     float *depth;          /* (H, W) source depth in pose units, 0 = invalid, margin included */
-    float *d_rgb;          /* (H, W, 3) loss gradient w.r.t. rendered colour */
-    float *d_depth;        /* (H, W) w.r.t. rendered (unnormalised) depth */
-    float *d_alpha;        /* (H, W) w.r.t. rendered alpha */
+    /* The fit sees the real frame only (the margin Gaussians start at their targets; they move
+     * only where they overlap the frame), so its buffers have the source size SH x SW: */
+    pg_camera src_cam;     /* source camera */
+    optim_ssim_ws *ssim;   /* SSIM workspace at the source size */
+    float *src_rgb;        /* (SH, SW, 3) source colours */
+    float *src_depth;      /* (SH, SW) source depth, 0 = invalid */
+    float *vmask;          /* (SH, SW) 1 where the source depth is valid (loss mask) */
+    float *d_rgb;          /* (SH, SW, 3) loss gradient w.r.t. rendered colour */
+    float *d_depth;        /* (SH, SW) w.r.t. rendered (unnormalised) depth */
+    float *d_alpha;        /* (SH, SW) w.r.t. rendered alpha */
     float *zmesh;          /* (view H, view W) mesh depth scratch for masks */
     unsigned char *vmargin; /* (view H, view W) 1 where the mesh shows the margin */
     size_t zmesh_size;
@@ -82,6 +87,8 @@ void proxy_model_destroy(proxy_frame_model *m)
     free(m->d_dc);
     free(m->rgb);
     free(m->depth);
+    free(m->src_rgb);
+    free(m->src_depth);
     free(m->d_rgb);
     free(m->d_depth);
     free(m->d_alpha);
@@ -109,11 +116,9 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
     m->W = width + 2 * m->pad;
     m->H = height + 2 * m->pad;
     m->opt = opt;
-    width = m->W;
-    height = m->H;
-    size_t npix = (size_t)width * height;
-    size_t ng = (size_t)((m->src_W + opt.block - 1) / opt.block) * ((m->src_H + opt.block - 1) / opt.block) +
-                (size_t)((width + km - 1) / km) * ((height + km - 1) / km);
+    size_t npix = (size_t)width * height, npad = (size_t)m->W * m->H;
+    size_t ng = (size_t)((width + opt.block - 1) / opt.block) * ((height + opt.block - 1) / opt.block) +
+                (size_t)((m->W + km - 1) / km) * ((m->H + km - 1) / km);
     pg_status st = splat_gaussians_create(&m->g, (int)ng);
     if (!st) st = splat_gaussians_create(&m->grad, (int)ng);
     if (!st) st = splat_raster_create(&m->raster);
@@ -121,13 +126,16 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
     if (st) { proxy_model_destroy(m); return st; }
     m->dc = pg_malloc(ng * 3 * sizeof(float), "proxy colour");
     m->d_dc = pg_malloc(ng * 3 * sizeof(float), "proxy colour gradient");
-    m->rgb = pg_malloc(npix * 3 * sizeof(float), "proxy source rgb");
-    m->depth = pg_malloc(npix * sizeof(float), "proxy source depth");
+    m->rgb = pg_malloc(npad * 3 * sizeof(float), "proxy padded rgb");
+    m->depth = pg_malloc(npad * sizeof(float), "proxy padded depth");
+    m->src_rgb = pg_malloc(npix * 3 * sizeof(float), "proxy source rgb");
+    m->src_depth = pg_malloc(npix * sizeof(float), "proxy source depth");
     m->d_rgb = pg_malloc(npix * 3 * sizeof(float), "proxy d_rgb");
     m->d_depth = pg_malloc(npix * sizeof(float), "proxy d_depth");
     m->d_alpha = pg_malloc(npix * sizeof(float), "proxy d_alpha");
     m->vmask = pg_malloc(npix * sizeof(float), "proxy loss mask");
-    if (!m->vmask || !m->dc || !m->d_dc || !m->rgb || !m->depth || !m->d_rgb || !m->d_depth || !m->d_alpha) {
+    if (!m->vmask || !m->dc || !m->d_dc || !m->rgb || !m->depth || !m->src_rgb || !m->src_depth || !m->d_rgb ||
+        !m->d_depth || !m->d_alpha) {
         proxy_model_destroy(m);
         return PG_ERR_NOMEM;
     }
@@ -263,22 +271,24 @@ pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const flo
     if (cam->width != m->src_W || cam->height != m->src_H)
         return pg_fail(PG_ERR_SIZE, "proxy model: camera is %dx%d, model %dx%d", cam->width, cam->height, m->src_W,
                        m->src_H);
+    size_t npix = (size_t)m->src_W * m->src_H;
     int valid = 0;
-    for (size_t i = 0; i < (size_t)m->src_W * m->src_H; i++) valid += isfinite(depth[i]) && depth[i] > 0;
+    memcpy(m->src_rgb, rgb, npix * 3 * sizeof(float));
+    for (size_t i = 0; i < npix; i++) {
+        int ok = isfinite(depth[i]) && depth[i] > 0;
+        m->src_depth[i] = ok ? depth[i] : 0;
+        m->vmask[i] = (float)ok;
+        valid += ok;
+    }
     if (valid == 0) return pg_fail(PG_ERR_ARG, "proxy model: the depth map has no valid pixel");
-    PG_TRY(proxy_outpaint(m->src_W, m->src_H, rgb, depth, p, m->rgb, m->depth));
+    m->valid_pixels = valid;
+    PG_TRY(proxy_outpaint(m->src_W, m->src_H, m->src_rgb, m->src_depth, p, m->rgb, m->depth));
+    m->src_cam = *cam;
     m->cam = *cam;
     m->cam.width = W;
     m->cam.height = H;
     m->cam.cx += p;
     m->cam.cy += p;
-    size_t npix = (size_t)W * H;
-    valid = 0;
-    for (size_t i = 0; i < npix; i++) {
-        m->vmask[i] = (float)(m->depth[i] > 0);
-        valid += m->depth[i] > 0;
-    }
-    m->valid_pixels = valid;
 
     int n = 0;
     double dsum = 0;
@@ -327,7 +337,7 @@ static pg_render_settings model_settings(void)
  * alone is enough for the steps whose loss nobody reads). */
 static float source_loss(proxy_frame_model *m, const pg_render_output *out, int with_ssim, int want_value)
 {
-    int W = m->W, H = m->H;
+    int W = m->src_W, H = m->src_H;
     size_t npix = (size_t)W * H;
     const float ws = with_ssim ? m->opt.ssim_weight : 0, wl1 = 1.0f - m->opt.ssim_weight, wd = m->opt.depth_weight;
     const float inv_v = 1.0f / m->valid_pixels;
@@ -336,16 +346,16 @@ static float source_loss(proxy_frame_model *m, const pg_render_output *out, int 
         memset(m->d_depth, 0, npix * sizeof(float));
         memset(m->d_alpha, 0, npix * sizeof(float));
     }
-    float loss = want_value ? wl1 * optim_l1_forward(out->rgb, m->rgb, m->vmask, H, W, 3) : 0;
-    optim_l1_backward(m->d_rgb, wl1, out->rgb, m->rgb, m->vmask, H, W, 3);
+    float loss = want_value ? wl1 * optim_l1_forward(out->rgb, m->src_rgb, m->vmask, H, W, 3) : 0;
+    optim_l1_backward(m->d_rgb, wl1, out->rgb, m->src_rgb, m->vmask, H, W, 3);
     if (ws > 0) {
-        loss += ws * (1.0f - optim_ssim_forward(m->ssim, out->rgb, m->rgb, m->vmask, H, W, 3));
-        optim_ssim_backward(m->ssim, m->d_rgb, -ws, out->rgb, m->rgb, m->vmask, H, W, 3);
+        loss += ws * (1.0f - optim_ssim_forward(m->ssim, out->rgb, m->src_rgb, m->vmask, H, W, 3));
+        optim_ssim_backward(m->ssim, m->d_rgb, -ws, out->rgb, m->src_rgb, m->vmask, H, W, 3);
     }
     double ld = 0;
     if (wd > 0) {
         for (size_t i = 0; i < npix; i++) {
-            float D = m->depth[i], a = out->alpha[i];
+            float D = m->src_depth[i], a = out->alpha[i];
             if (!(D > 0) || a <= 0.05f) {
                 m->d_depth[i] = m->d_alpha[i] = 0;
                 continue;
@@ -393,17 +403,16 @@ static void colour_scatter(proxy_frame_model *m)
     }
 }
 
-/* PSNR of a source-view render over the frame's pixels with valid depth (not the margin), into the
- * stats. The fit uses the render of its last step (before that step's update) rather than paying
- * one more forward. */
+/* PSNR of a source-view render over the pixels with valid depth, into the stats. The fit uses the
+ * render of its last step (before that step's update) rather than paying one more forward. */
 static void source_psnr(proxy_frame_model *m, const pg_render_output *out)
 {
     double se = 0;
     size_t cnt = 0;
-    for (size_t i = 0; i < (size_t)m->W * m->H; i++) {
-        if (!(m->depth[i] > 0) || !in_frame(m, (int)(i % m->W), (int)(i / m->W))) continue;
+    for (size_t i = 0; i < (size_t)m->src_W * m->src_H; i++) {
+        if (!(m->src_depth[i] > 0)) continue;
         for (int c = 0; c < 3; c++) {
-            double d = out->rgb[i * 3 + c] - m->rgb[i * 3 + c];
+            double d = out->rgb[i * 3 + c] - m->src_rgb[i * 3 + c];
             se += d * d;
         }
         cnt += 3;
@@ -424,7 +433,7 @@ pg_status proxy_model_fit(proxy_frame_model *m)
     const float lr_scales = m->opt.lr_scales * boost, lr_opacity = m->opt.lr_opacity * boost;
     const float lr_color = m->opt.lr_color * boost;
     for (int it = 0; it < m->opt.steps; it++) {
-        PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));
+        PG_TRY(splat_render_forward(m->raster, g, &m->src_cam, &s, &out));
         /* D-SSIM is ~20 % of a step and changes slowly: every ssim_every-th step and the last. */
         int with_ssim = it % m->opt.ssim_every == 0 || it == m->opt.steps - 1;
         int last = it == m->opt.steps - 1;
@@ -435,7 +444,7 @@ pg_status proxy_model_fit(proxy_frame_model *m)
             source_psnr(m, &out);
         }
         zero_grads(gr);
-        PG_TRY(splat_render_backward(m->raster, g, &m->cam, &s, m->d_rgb, m->d_depth, m->d_alpha, gr, NULL));
+        PG_TRY(splat_render_backward(m->raster, g, &m->src_cam, &s, m->d_rgb, m->d_depth, m->d_alpha, gr, NULL));
         if (lr_mean > 0) PG_TRY(optim_adam_step_group(m->adam, FIT_MEANS, g->means, gr->means, lr_mean));
         PG_TRY(optim_adam_step_group(m->adam, FIT_SCALES, g->log_scales, gr->log_scales, lr_scales));
         PG_TRY(optim_adam_step_group(m->adam, FIT_OPACITY, g->opacity, gr->opacity, lr_opacity));
@@ -444,7 +453,7 @@ pg_status proxy_model_fit(proxy_frame_model *m)
         colour_scatter(m);
     }
     if (m->opt.steps == 0) { /* no step rendered the source view: report the initial model */
-        PG_TRY(splat_render_forward(m->raster, g, &m->cam, &s, &out));
+        PG_TRY(splat_render_forward(m->raster, g, &m->src_cam, &s, &out));
         source_psnr(m, &out);
     }
     m->stats.fit_s += pg_time_seconds() - t0;
