@@ -1,5 +1,6 @@
 /* test_splat_adam.c - Adam optimiser: exact first step, convergence, learning-rate schedule,
- * strided Gaussian groups and moment remapping for clone / prune. */
+ * strided Gaussian groups and moment remapping for clone / prune, column-limited steps,
+ * column ranges of one row. */
 #include "testlib.h"
 #include "optim/adam.h"
 
@@ -40,6 +41,71 @@ static void test_schedule(void)
     optim_lr_schedule d = { 1e-2f, 1e-2f, 100, 0.01f, 1000 };
     CHECK(fabsf(optim_lr_expon(&d, 0) - 1e-4f) < 1e-9f, "delayed lr(0) = %g", optim_lr_expon(&d, 0));
     CHECK(fabsf(optim_lr_expon(&d, 100) - 1e-2f) < 1e-7f, "delayed lr(100) = %g", optim_lr_expon(&d, 100));
+    /* an end <= 0 has no logarithm: linear instead */
+    optim_lr_schedule z = { 1e-2f, 0, 0, 1.0f, 100 };
+    CHECK(optim_lr_expon(&z, 0) == 1e-2f && fabsf(optim_lr_expon(&z, 25) - 7.5e-3f) < 1e-9f &&
+              optim_lr_expon(&z, 100) == 0,
+          "decay to 0: %g %g %g", optim_lr_expon(&z, 0), optim_lr_expon(&z, 25), optim_lr_expon(&z, 100));
+    optim_lr_schedule u = { 0, 1e-2f, 0, 1.0f, 100 };
+    CHECK(optim_lr_expon(&u, 0) == 0 && fabsf(optim_lr_expon(&u, 50) - 5e-3f) < 1e-9f, "ramp from 0: %g",
+          optim_lr_expon(&u, 50));
+}
+
+/* Stepping the first k columns equals a full step when the other columns have zero gradient,
+ * leaves those columns alone and counts a step; two groups in one pass equal two separate
+ * steps; one row split in column ranges (as a network's grids and MLP) steps like separate
+ * flat arrays. */
+static void test_column_steps(void)
+{
+    optim_group_desc d[2] = { { "dc", 6, 0, 1 }, { "rest", 6, 1, 5 } };
+    optim_adam *a, *b;
+    CHECK_OK(optim_adam_create(&a, d, 2, 2, 1e-15f));
+    CHECK_OK(optim_adam_create(&b, d, 2, 2, 1e-15f));
+    float pa[12], pb[12], g[12] = { 9, 1, -2, 0, 0, 0, -9, 3, 0.5f, 0, 0, 0 };
+    for (int i = 0; i < 12; i++) pa[i] = pb[i] = (float)i;
+    optim_group_step two[2] = { { 0, pa, g, 0.3f, 1 }, { 1, pa, g, 0.1f, 2 } };
+    two[1].cols = 6;
+    CHECK(optim_adam_step_groups(a, two, 2) == PG_ERR_ARG && optim_adam_group_step(a, 0) == 0,
+          "too many columns accepted");
+    two[1].cols = 2;
+    two[1].group = 0;
+    CHECK(optim_adam_step_groups(a, two, 2) == PG_ERR_ARG, "group listed twice accepted");
+    two[1].group = 1;
+    for (int it = 0; it < 3; it++) {
+        CHECK_OK(optim_adam_step_groups(a, two, 2));
+        CHECK_OK(optim_adam_step_group(b, 0, pb, g, 0.3f));
+        CHECK_OK(optim_adam_step_group(b, 1, pb, g, 0.1f));
+    }
+    CHECK(memcmp(pa, pb, sizeof pa) == 0, "fused 2-column steps differ from separate full steps");
+    CHECK(pa[0] != 0 && pa[6] != 6 && pa[1] != 1 && pa[3] == 3 && pa[9] == 9, "wrong columns moved");
+    CHECK(optim_adam_group_step(a, 0) == 3 && optim_adam_group_step(a, 1) == 3, "steps counted %d %d",
+          optim_adam_group_step(a, 0), optim_adam_group_step(a, 1));
+    two[1].cols = 0;
+    CHECK_OK(optim_adam_step_groups(a, two + 1, 1));
+    CHECK(optim_adam_group_step(a, 1) == 4 && memcmp(pa, pb, sizeof pa) == 0, "0-column step");
+    CHECK(optim_adam_num_groups(a) == 2 && optim_adam_moment_size(a, 1) == 10 && optim_adam_moment_size(a, 2) == 0,
+          "group sizes");
+    optim_adam_destroy(a);
+    optim_adam_destroy(b);
+
+    optim_group_desc ranges[2] = { { "grid", 7, 0, 3 }, { "mlp", 7, 3, 4 } };
+    optim_adam *r, *f0, *f1;
+    CHECK_OK(optim_adam_create(&r, ranges, 2, 1, 1e-15f));
+    CHECK_OK(optim_adam_create_flat(&f0, 3, 1e-15f));
+    CHECK_OK(optim_adam_create_flat(&f1, 4, 1e-15f));
+    float p[7] = { 1, 2, 3, 4, 5, 6, 7 }, q[7], gr[7] = { 0.3f, -1, 2, 5, -0.25f, 1e-3f, 0 };
+    memcpy(q, p, sizeof p);
+    for (int it = 0; it < 4; it++) {
+        CHECK_OK(optim_adam_step_group(r, 0, p, gr, 0.01f));
+        CHECK_OK(optim_adam_step_group(r, 1, p, gr, 0.2f));
+        CHECK_OK(optim_adam_step_group(f0, 0, q, gr, 0.01f));
+        CHECK_OK(optim_adam_step_group(f1, 0, q + 3, gr + 3, 0.2f));
+    }
+    CHECK(memcmp(p, q, sizeof p) == 0, "column ranges of one row differ from flat arrays");
+    CHECK(memcmp(optim_adam_moment(r, 1, 1), optim_adam_moment(f1, 0, 1), 4 * sizeof(float)) == 0, "range moments");
+    optim_adam_destroy(r);
+    optim_adam_destroy(f0);
+    optim_adam_destroy(f1);
 }
 
 static void test_gaussian_groups_and_remap(void)
@@ -89,6 +155,7 @@ int main(void)
 {
     test_first_step_and_convergence();
     test_schedule();
+    test_column_steps();
     test_gaussian_groups_and_remap();
     return test_summary("test_splat_adam");
 }

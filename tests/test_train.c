@@ -119,6 +119,16 @@ int main(void)
         pg_write_file_atomic(c, blob, n / 2);
         train_model m;
         CHECK(train_model_load(c, &m) == PG_ERR_FORMAT, "truncated checkpoint rejected");
+        /* another format version (here the old one) is refused, in one line naming the file */
+        blob[8] = 1;
+        pg_write_file_atomic(c, blob, n);
+        CHECK(train_model_load(c, &m) == PG_ERR_FORMAT && strstr(pg_last_error(), "cut.ckpt") &&
+                  strstr(pg_last_error(), "version 1") && !strchr(pg_last_error(), '\n'),
+              "version 1 checkpoint: %s", pg_last_error());
+        train_session *sv = NULL;
+        CHECK(train_session_create(&sv, &ts, &c2, c, 1) == PG_ERR_FORMAT && !sv && strstr(pg_last_error(), "cut.ckpt"),
+              "resume from a version 1 checkpoint: %s", pg_last_error());
+        blob[8] = 2;
         blob[0] = 'X';
         pg_write_file_atomic(c, blob, n);
         CHECK(train_model_load(c, &m) == PG_ERR_FORMAT, "bad magic rejected");

@@ -28,7 +28,9 @@ float optim_lr_expon(const optim_lr_schedule *s, int step)
     }
     double t = s->max_steps > 0 ? (double)step / s->max_steps : 1.0;
     t = t < 0 ? 0 : (t > 1 ? 1 : t);
-    double lr = exp(log(s->lr_init) * (1 - t) + log(s->lr_final) * t);
+    /* log-linear needs two positive ends; otherwise (e.g. decay to 0) interpolate linearly */
+    double lr = s->lr_init > 0 && s->lr_final > 0 ? exp(log(s->lr_init) * (1 - t) + log(s->lr_final) * t)
+                                                  : s->lr_init * (1 - t) + (double)s->lr_final * t;
     return (float)(delay * lr);
 }
 
@@ -97,42 +99,86 @@ pg_status optim_adam_create_flat(optim_adam **opt, int n, float eps)
 void optim_adam_set_betas(optim_adam *opt, float beta1, float beta2) { opt->beta1 = beta1; opt->beta2 = beta2; }
 int optim_adam_rows(const optim_adam *opt) { return opt->rows; }
 
+/* A group's step prepared for the loops: its Adam state, where its columns start in param and
+ * grad, and the bias-corrected step size. */
+typedef struct {
+    adam_group *g;
+    float *p;
+    const float *gr;
+    int ncols;
+    float step_size, inv_sqrt_c2;
+} adam_run;
+
+/* Advances the group's step count and folds the bias corrections into the step size and
+ * eps, in double for long runs. */
+static adam_run prepare_run(optim_adam *opt, const optim_group_step *st)
+{
+    adam_group *g = &opt->g[st->group];
+    g->step++;
+    double c1 = 1.0 - pow(opt->beta1, g->step), c2 = 1.0 - pow(opt->beta2, g->step);
+    adam_run r = { g, st->param + g->d.col0, st->grad + g->d.col0, st->cols,
+                   (float)(st->lr / c1), (float)(1.0 / sqrt(c2)) };
+    return r;
+}
+
 pg_status optim_adam_step_group(optim_adam *opt, int gi, float *param, const float *grad, float lr)
 {
     if (gi < 0 || gi >= opt->ngroups) return pg_fail(PG_ERR_ARG, "adam: no group %d", gi);
     adam_group *g = &opt->g[gi];
-    g->step++;
+    optim_group_step st = { gi, param, grad, lr, g->d.cols };
+    if (g->d.row_stride != g->d.cols && opt->rows != 1) return optim_adam_step_groups(opt, &st, 1);
+    /* Contiguous run (full rows, or one row): one flat, vectorisable loop (the same arithmetic
+     * per element as in optim_adam_step_groups). */
+    adam_run r = prepare_run(opt, &st);
+    float b1 = opt->beta1, b2 = opt->beta2, eps = opt->eps, step_size = r.step_size, inv_sqrt_c2 = r.inv_sqrt_c2;
+    long n = (long)opt->rows * g->d.cols;
+    float *p = r.p, *m = g->m, *v = g->v;
+    const float *gr = r.gr;
+    #pragma omp parallel for simd schedule(static) if (n > 65536)
+    for (long i = 0; i < n; i++) {
+        float gv = gr[i];
+        m[i] = b1 * m[i] + (1.0f - b1) * gv;
+        v[i] = b2 * v[i] + (1.0f - b2) * gv * gv;
+        p[i] -= step_size * m[i] / (sqrtf(v[i]) * inv_sqrt_c2 + eps);
+    }
+    return PG_OK;
+}
+
+pg_status optim_adam_step_groups(optim_adam *opt, const optim_group_step *steps, int n)
+{
+    if (n < 0 || n > OPTIM_MAX_GROUP_STEPS) return pg_fail(PG_ERR_ARG, "adam: %d groups in one step", n);
+    long work = 0;
+    for (int k = 0; k < n; k++) {
+        int gi = steps[k].group;
+        if (gi < 0 || gi >= opt->ngroups) return pg_fail(PG_ERR_ARG, "adam: no group %d", gi);
+        const optim_group_desc *d = &opt->g[gi].d;
+        if (steps[k].cols < 0 || steps[k].cols > d->cols)
+            return pg_fail(PG_ERR_ARG, "adam: %d of the %d columns of group %s", steps[k].cols, d->cols,
+                           d->name ? d->name : "?");
+        for (int j = 0; j < k; j++)
+            if (steps[j].group == gi) return pg_fail(PG_ERR_ARG, "adam: group %d listed twice in one step", gi);
+        work += steps[k].cols;
+    }
+    adam_run run[OPTIM_MAX_GROUP_STEPS];
+    for (int k = 0; k < n; k++) run[k] = prepare_run(opt, &steps[k]);
     float b1 = opt->beta1, b2 = opt->beta2, eps = opt->eps;
-    /* Bias corrections folded into the step size and eps, in double for long runs. */
-    double c1 = 1.0 - pow(b1, g->step), c2 = 1.0 - pow(b2, g->step);
-    float step_size = (float)(lr / c1), inv_sqrt_c2 = (float)(1.0 / sqrt(c2));
-    int rows = opt->rows, stride = g->d.row_stride, col0 = g->d.col0, cols = g->d.cols;
-    if (stride == cols) {
-        /* Contiguous group: one flat, vectorisable run (the same arithmetic per element). */
-        long n = (long)rows * cols;
-        float *p = param + col0, *m = g->m, *v = g->v;
-        const float *gr = grad + col0;
-        #pragma omp parallel for simd schedule(static) if (n > 65536)
-        for (long i = 0; i < n; i++) {
-            float gv = gr[i];
-            m[i] = b1 * m[i] + (1.0f - b1) * gv;
-            v[i] = b2 * v[i] + (1.0f - b2) * gv * gv;
-            p[i] -= step_size * m[i] / (sqrtf(v[i]) * inv_sqrt_c2 + eps);
+    int rows = opt->rows;
+    #pragma omp parallel for schedule(static) if ((long)rows * work > 65536)
+    for (int r = 0; r < rows; r++)
+        for (int k = 0; k < n; k++) {
+            const adam_run *u = &run[k];
+            int stride = u->g->d.row_stride, cols = u->g->d.cols, ncols = u->ncols;
+            float *p = u->p + (size_t)r * stride, *m = u->g->m + (size_t)r * cols, *v = u->g->v + (size_t)r * cols;
+            const float *gr = u->gr + (size_t)r * stride;
+            float step_size = u->step_size, inv_sqrt_c2 = u->inv_sqrt_c2;
+            #pragma omp simd
+            for (int c = 0; c < ncols; c++) {
+                float gv = gr[c];
+                m[c] = b1 * m[c] + (1.0f - b1) * gv;
+                v[c] = b2 * v[c] + (1.0f - b2) * gv * gv;
+                p[c] -= step_size * m[c] / (sqrtf(v[c]) * inv_sqrt_c2 + eps);
+            }
         }
-        return PG_OK;
-    }
-    #pragma omp parallel for schedule(static) if ((long)rows * cols > 65536)
-    for (int r = 0; r < rows; r++) {
-        float *p = param + (size_t)r * stride + col0;
-        const float *gr = grad + (size_t)r * stride + col0;
-        float *m = g->m + (size_t)r * cols, *v = g->v + (size_t)r * cols;
-        for (int c = 0; c < cols; c++) {
-            float gv = gr[c];
-            m[c] = b1 * m[c] + (1.0f - b1) * gv;
-            v[c] = b2 * v[c] + (1.0f - b2) * gv * gv;
-            p[c] -= step_size * m[c] / (sqrtf(v[c]) * inv_sqrt_c2 + eps);
-        }
-    }
     return PG_OK;
 }
 
@@ -144,9 +190,14 @@ pg_status optim_adam_step_gaussians(optim_adam *opt, pg_gaussians *g, const pg_g
                        g->count, grad->count, opt->rows);
     float *P[OPTIM_GAUSS_GROUPS] = { g->means, g->log_scales, g->quats, g->opacity, g->sh, g->sh };
     const float *G[OPTIM_GAUSS_GROUPS] = { grad->means, grad->log_scales, grad->quats, grad->opacity, grad->sh, grad->sh };
-    for (int i = 0; i < OPTIM_GAUSS_GROUPS; i++)
+    for (int i = 0; i < OPTIM_G_SH_DC; i++)
         if (lr[i] > 0) PG_TRY(optim_adam_step_group(opt, i, P[i], G[i], lr[i]));
-    return PG_OK;
+    /* the two SH groups share the rows of g->sh: one pass */
+    optim_group_step sh[2];
+    int n = 0;
+    for (int i = OPTIM_G_SH_DC; i <= OPTIM_G_SH_REST; i++)
+        if (lr[i] > 0) sh[n++] = (optim_group_step){ i, P[i], G[i], lr[i], opt->g[i].d.cols };
+    return optim_adam_step_groups(opt, sh, n);
 }
 
 pg_status optim_adam_remap_rows(optim_adam *opt, const int *src, int new_rows)
@@ -185,6 +236,13 @@ float *optim_adam_moment(optim_adam *opt, int gi, int which)
 {
     if (gi < 0 || gi >= opt->ngroups) return NULL;
     return which ? opt->g[gi].v : opt->g[gi].m;
+}
+
+int optim_adam_num_groups(const optim_adam *opt) { return opt->ngroups; }
+
+size_t optim_adam_moment_size(const optim_adam *opt, int gi)
+{
+    return gi >= 0 && gi < opt->ngroups ? (size_t)opt->rows * opt->g[gi].d.cols : 0;
 }
 
 int optim_adam_group_step(const optim_adam *opt, int gi) { return gi >= 0 && gi < opt->ngroups ? opt->g[gi].step : 0; }

@@ -13,6 +13,9 @@
  *   // any flat float array (e.g. network weights): one group of n values
  *   optim_adam_create_flat(&opt, n, 1e-15f);
  *   optim_adam_step_group(opt, 0, weights, grads, lr);
+ *   // or one row of n floats in column ranges with their own rates (grids [0, k), MLP [k, n))
+ *   optim_group_desc ranges[2] = { { "grid", n, 0, k }, { "mlp", n, k, n - k } };
+ *   optim_adam_create(&opt, ranges, 2, 1, 1e-15f);
  *
  * Moments live in the optimiser; parameter and gradient pointers are passed at every step, so
  * the caller may reallocate its arrays freely. Each group counts its own steps for the bias
@@ -24,8 +27,9 @@
 #include "core/status.h"
 #include "splat/gaussians.h"
 
-/* 3DGS get_expon_lr_func: log-linear from lr_init to lr_final over max_steps, optionally
- * scaled by a sine ramp from delay_mult to 1 over the first delay_steps. */
+/* 3DGS get_expon_lr_func: log-linear from lr_init to lr_final over max_steps (linear when
+ * either end is <= 0, e.g. a decay to 0), optionally scaled by a sine ramp from delay_mult to 1
+ * over the first delay_steps. 0 for step < 0; steps past max_steps give lr_final. */
 typedef struct {
     float lr_init, lr_final;
     int delay_steps;   /* 0: no delay ramp */
@@ -60,6 +64,25 @@ void optim_adam_set_betas(optim_adam *opt, float beta1, float beta2);
 /* One Adam step of group gi: param -= lr * mhat / (sqrt(vhat) + eps) over its rows x cols.
  * param and grad are the full (rows, row_stride) arrays. */
 pg_status optim_adam_step_group(optim_adam *opt, int gi, float *param, const float *grad, float lr);
+/* One group's part of optim_adam_step_groups: param and grad are the full (rows, row_stride)
+ * arrays; only the first `cols` (0..the group's cols) columns of each row are updated. */
+typedef struct {
+    int group;
+    float *param;
+    const float *grad;
+    float lr;
+    int cols;
+} optim_group_step;
+
+enum { OPTIM_MAX_GROUP_STEPS = 8 };
+
+/* Steps up to OPTIM_MAX_GROUP_STEPS distinct groups in one pass over the rows, so groups sharing
+ * the rows of one array (SH DC and rest) load each row once; same arithmetic as stepping them
+ * one by one, and every listed group's step count advances. Columns past `cols` keep their
+ * parameters and moments, which is exact when their gradients have always been zero (e.g. SH
+ * coefficients above the current degree). Fails without change on a bad group, column count
+ * or a group listed twice. */
+pg_status optim_adam_step_groups(optim_adam *opt, const optim_group_step *steps, int n);
 /* Steps all six Gaussian groups with per-group learning rates lr[OPTIM_GAUSS_GROUPS];
  * a group with lr <= 0 is left untouched (frozen) and does not advance its step count. */
 pg_status optim_adam_step_gaussians(optim_adam *opt, pg_gaussians *g, const pg_gaussians *grad,
@@ -73,6 +96,9 @@ int optim_adam_rows(const optim_adam *opt);
 void optim_adam_reset_group(optim_adam *opt, int gi);
 /* Raw moment access (rows, cols) for checkpoints; NULL if gi is out of range. */
 float *optim_adam_moment(optim_adam *opt, int gi, int which /* 0: m, 1: v */);
+int optim_adam_num_groups(const optim_adam *opt);
+/* Floats in each moment array of group gi (rows x cols; 0 if gi is out of range). */
+size_t optim_adam_moment_size(const optim_adam *opt, int gi);
 int optim_adam_group_step(const optim_adam *opt, int gi);
 void optim_adam_set_group_step(optim_adam *opt, int gi, int step);
 

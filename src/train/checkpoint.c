@@ -3,15 +3,20 @@
  *
  * Layout (little-endian, written in one go to a temporary file then renamed):
  *   "PGDYCKP1"                              magic
- *   u32 version (1), u32 config text length, config text ("key=value\n" lines)
- *   i32 iter, fine, frames, width, height, num_views; i64 gstep, nstep; u64 rng[4]
+ *   u32 version (2), u32 config text length, config text ("key=value\n" lines)
+ *   i32 iter, fine, frames, width, height, num_views; u64 rng[4]
  *   f32 extent, center[3], max_disp, bg[3]
- *   i32 N, sh_degree; Gaussians params, Adam m, Adam v (each means, log_scales, quats,
- *       opacity, sh for N rows); u8 is_static[N]; f32 grad_accum[N], grad_denom[N]
+ *   i32 N, sh_degree; Gaussians (means, log_scales, quats, opacity, sh for N rows)
+ *   Adam of the Gaussians: i32 step[6], then per group f32 m[N x cols], v[N x cols]
+ *       (groups means, log_scales, quats, opacity, sh_dc, sh_rest of 3, 3, 4, 1, 3, 45 cols)
+ *   u8 is_static[N]; f32 grad_accum[N], grad_denom[N]
  *   if fine: network config (f32 aabb[6], i32 width, res, tres, channels, u64 seed),
- *       u64 P, f32 params[P], m[P], v[P]
+ *       u64 P, f32 params[P], Adam of the network: i32 step[2], then per group m, v
+ *       (groups HexPlane grids [0, grid_end) and MLP [grid_end, P))
  *   "PGEND\0\0\0"
- * Nothing time- or machine-dependent is stored, so equal training gives equal bytes.
+ * Adam sections are the optimiser's groups in order (src/optim/adam). Nothing time- or
+ * machine-dependent is stored, so equal training gives equal bytes. Version 1 (one step count
+ * for all Gaussian groups, moments stored like Gaussians) is not read.
  */
 #include "train/train_internal.h"
 
@@ -22,8 +27,9 @@
 
 #define CKPT_MAGIC "PGDYCKP1"
 #define CKPT_END "PGEND\0\0\0"
-#define CKPT_VERSION 1u
+#define CKPT_VERSION 2u
 #define SH_ROW (PG_SH_COEFFS * 3)
+#define GAUSS_FLOATS (3 + 3 + 4 + 1 + SH_ROW) /* per Gaussian, also the Adam columns per row */
 
 typedef struct {
     unsigned char *data;
@@ -49,7 +55,6 @@ static void put(buf *b, const void *p, size_t n)
     b->size += n;
 }
 static void put_i32(buf *b, int32_t x) { put(b, &x, 4); }
-static void put_i64(buf *b, int64_t x) { put(b, &x, 8); }
 static void put_u64(buf *b, uint64_t x) { put(b, &x, 8); }
 static void put_f32(buf *b, float x) { put(b, &x, 4); }
 
@@ -60,6 +65,16 @@ static void put_gaussians(buf *b, const pg_gaussians *g, int n)
     put(b, g->quats, (size_t)n * 4 * 4);
     put(b, g->opacity, (size_t)n * 4);
     put(b, g->sh, (size_t)n * SH_ROW * 4);
+}
+
+/* An optimiser's state: every group's step count, then every group's m and v. */
+static void put_adam(buf *b, optim_adam *opt)
+{
+    int ng = optim_adam_num_groups(opt);
+    for (int gi = 0; gi < ng; gi++) put_i32(b, optim_adam_group_step(opt, gi));
+    for (int gi = 0; gi < ng; gi++)
+        for (int which = 0; which < 2; which++)
+            put(b, optim_adam_moment(opt, gi, which), optim_adam_moment_size(opt, gi) * 4);
 }
 
 /* The config as text lines; read back by name so fields can be added later. */
@@ -136,8 +151,6 @@ pg_status train_checkpoint_write(train_session *s, const char *path)
     put_i32(&b, s->ts->width);
     put_i32(&b, s->ts->height);
     put_i32(&b, s->ts->num_views);
-    put_i64(&b, s->gstep);
-    put_i64(&b, s->nstep);
     for (int k = 0; k < 4; k++) put_u64(&b, s->rng.s[k]);
     put_f32(&b, s->extent);
     for (int k = 0; k < 3; k++) put_f32(&b, s->center[k]);
@@ -147,8 +160,7 @@ pg_status train_checkpoint_write(train_session *s, const char *path)
     put_i32(&b, n);
     put_i32(&b, s->g.sh_degree);
     put_gaussians(&b, &s->g, n);
-    put_gaussians(&b, &s->m, n);
-    put_gaussians(&b, &s->v, n);
+    put_adam(&b, s->gopt);
     put(&b, s->is_static, (size_t)n);
     put(&b, s->grad_accum, (size_t)n * 4);
     put(&b, s->grad_denom, (size_t)n * 4);
@@ -164,8 +176,7 @@ pg_status train_checkpoint_write(train_session *s, const char *path)
         uint64_t P = train_net_num_params(s->net);
         put_u64(&b, P);
         put(&b, train_net_params(s->net), (size_t)P * 4);
-        put(&b, s->net_m, (size_t)P * 4);
-        put(&b, s->net_v, (size_t)P * 4);
+        put_adam(&b, s->nopt);
     }
     put(&b, CKPT_END, 8);
     if (b.failed) {
@@ -196,7 +207,6 @@ static void get(rd *r, void *dst, size_t n)
     r->off += n;
 }
 static int32_t get_i32(rd *r) { int32_t x; get(r, &x, 4); return x; }
-static int64_t get_i64(rd *r) { int64_t x; get(r, &x, 8); return x; }
 static uint64_t get_u64(rd *r) { uint64_t x; get(r, &x, 8); return x; }
 static float get_f32(rd *r) { float x; get(r, &x, 4); return x; }
 
@@ -209,10 +219,24 @@ static void get_gaussians(rd *r, pg_gaussians *g, int n)
     get(r, g->sh, (size_t)n * SH_ROW * 4);
 }
 
+/* Reads an optimiser's state written by put_adam into opt (created with the right groups and
+ * rows); a negative step count is corruption. */
+static void get_adam(rd *r, optim_adam *opt)
+{
+    int ng = optim_adam_num_groups(opt);
+    for (int gi = 0; gi < ng; gi++) {
+        int32_t step = get_i32(r);
+        if (step < 0) r->bad = 1;
+        optim_adam_set_group_step(opt, gi, step);
+    }
+    for (int gi = 0; gi < ng; gi++)
+        for (int which = 0; which < 2; which++)
+            get(r, optim_adam_moment(opt, gi, which), optim_adam_moment_size(opt, gi) * 4);
+}
+
 typedef struct {
     train_config cfg;
     int iter, fine, frames, width, height, num_views;
-    int64_t gstep, nstep;
     uint64_t rng[4];
     float extent, center[3], max_disp, bg[3];
     int n, sh_degree;
@@ -227,7 +251,9 @@ static pg_status read_header(rd *r, const char *path, ckpt_header *h)
     if (r->bad || memcmp(magic, CKPT_MAGIC, 8) != 0)
         return pg_fail(PG_ERR_FORMAT, "%s: not a prodygs training checkpoint", path);
     uint32_t ver = (uint32_t)get_i32(r);
-    if (ver != CKPT_VERSION) return pg_fail(PG_ERR_FORMAT, "%s: checkpoint version %u is not supported", path, ver);
+    if (ver != CKPT_VERSION)
+        return pg_fail(PG_ERR_FORMAT, "%s: checkpoint format version %u, this build reads only version %u (train again)",
+                       path, ver, CKPT_VERSION);
     int32_t tl = get_i32(r);
     if (tl < 0 || (size_t)tl > r->size - r->off) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint", path);
     char *text = pg_malloc((size_t)tl + 1, "checkpoint config");
@@ -243,8 +269,6 @@ static pg_status read_header(rd *r, const char *path, ckpt_header *h)
     h->width = get_i32(r);
     h->height = get_i32(r);
     h->num_views = get_i32(r);
-    h->gstep = get_i64(r);
-    h->nstep = get_i64(r);
     for (int k = 0; k < 4; k++) h->rng[k] = get_u64(r);
     h->extent = get_f32(r);
     for (int k = 0; k < 3; k++) h->center[k] = get_f32(r);
@@ -255,13 +279,15 @@ static pg_status read_header(rd *r, const char *path, ckpt_header *h)
     if (r->bad) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint header", path);
     if (h->n < 1 || h->n > CKPT_MAX_GAUSSIANS || h->sh_degree < 0 || h->sh_degree > 3 || h->frames < 1)
         return pg_fail(PG_ERR_FORMAT, "%s: corrupt checkpoint header (N=%d, sh=%d)", path, h->n, h->sh_degree);
-    /* the rest must fit: 3 copies of the Gaussians + flags and statistics */
-    size_t need = (size_t)h->n * ((3 + 3 + 4 + 1 + SH_ROW) * 4 * 3 + 1 + 8);
+    /* the rest must fit: the Gaussians, their Adam state, flags and statistics */
+    size_t need = (size_t)h->n * (GAUSS_FLOATS * 4 * 3 + 1 + 8) + OPTIM_GAUSS_GROUPS * 4;
     if (r->size - r->off < need) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (Gaussians)", path);
     return PG_OK;
 }
 
-static pg_status read_net(rd *r, const char *path, train_net_config *nc, train_net **net, float **m, float **v)
+/* The network section; with s, the network and its optimiser go into the session, without
+ * (model loading) the network into *net and the Adam state is skipped. */
+static pg_status read_net(rd *r, const char *path, train_net_config *nc, train_net **net, train_session *s)
 {
     memset(nc, 0, sizeof *nc);
     for (int k = 0; k < 3; k++) nc->aabb_min[k] = get_f32(r);
@@ -280,16 +306,15 @@ static pg_status read_net(rd *r, const char *path, train_net_config *nc, train_n
     if (train_net_num_params(*net) != P)
         return pg_fail(PG_ERR_FORMAT, "%s: network has %llu parameters, this build expects %zu", path,
                        (unsigned long long)P, train_net_num_params(*net));
-    if (r->size - r->off < P * 12) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (network)", path);
+    size_t adam_bytes = TRAIN_NET_GROUPS * 4 + (size_t)P * 8;
+    if (r->size - r->off < P * 4 + adam_bytes) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (network)", path);
     get(r, train_net_params(*net), (size_t)P * 4);
-    if (m) {
-        *m = pg_calloc(P ? P : 1, 4, "network Adam moments");
-        *v = pg_calloc(P ? P : 1, 4, "network Adam moments");
-        if (!*m || !*v) return PG_ERR_NOMEM;
-        get(r, *m, (size_t)P * 4);
-        get(r, *v, (size_t)P * 4);
+    if (s) {
+        PG_TRY(train_adam_create_net(s));
+        get_adam(r, s->nopt);
+        if (r->bad) return pg_fail(PG_ERR_FORMAT, "%s: corrupt network Adam state in the checkpoint", path);
     } else {
-        r->off += (size_t)P * 8;
+        r->off += adam_bytes;
     }
     return PG_OK;
 }
@@ -320,8 +345,6 @@ pg_status train_checkpoint_read(train_session *s, const char *path)
     }
     s->cfg = h.cfg;
     s->iter = h.iter;
-    s->gstep = h.gstep;
-    s->nstep = h.nstep;
     memcpy(s->rng.s, h.rng, sizeof h.rng);
     s->extent = h.extent;
     memcpy(s->center, h.center, sizeof h.center);
@@ -329,14 +352,17 @@ pg_status train_checkpoint_read(train_session *s, const char *path)
     memcpy(s->cfg.bg, h.bg, sizeof h.bg);
     if ((st = train_resize_all(s, h.n))) goto done;
     get_gaussians(&r, &s->g, h.n);
-    get_gaussians(&r, &s->m, h.n);
-    get_gaussians(&r, &s->v, h.n);
+    get_adam(&r, s->gopt);
+    if (r.bad) {
+        st = pg_fail(PG_ERR_FORMAT, "%s: corrupt Adam state of the Gaussians in the checkpoint", path);
+        goto done;
+    }
     s->g.sh_degree = h.sh_degree;
     get(&r, s->is_static, (size_t)h.n);
     get(&r, s->grad_accum, (size_t)h.n * 4);
     get(&r, s->grad_denom, (size_t)h.n * 4);
     if (h.fine) {
-        if ((st = read_net(&r, path, &s->net_cfg, &s->net, &s->net_m, &s->net_v))) goto done;
+        if ((st = read_net(&r, path, &s->net_cfg, &s->net, s))) goto done;
         s->fine = 1;
     }
     st = check_end(&r, path);
@@ -359,7 +385,7 @@ pg_status train_model_load(const char *path, train_model *m)
     if ((st = splat_gaussians_create(&m->g, h.n)) || (st = splat_gaussians_resize(&m->g, h.n))) goto done;
     get_gaussians(&r, &m->g, h.n);
     m->g.sh_degree = h.sh_degree;
-    r.off += (size_t)h.n * (3 + 3 + 4 + 1 + SH_ROW) * 4 * 2; /* Adam moments */
+    r.off += OPTIM_GAUSS_GROUPS * 4 + (size_t)h.n * GAUSS_FLOATS * 4 * 2; /* Adam state */
     m->is_static = pg_malloc((size_t)h.n, "model static flags");
     if (!m->is_static) {
         st = PG_ERR_NOMEM;
@@ -369,7 +395,7 @@ pg_status train_model_load(const char *path, train_model *m)
     r.off += (size_t)h.n * 8;
     if (h.fine) {
         train_net_config nc;
-        if ((st = read_net(&r, path, &nc, &m->net, NULL, NULL))) goto done;
+        if ((st = read_net(&r, path, &nc, &m->net, NULL))) goto done;
     }
     st = check_end(&r, path);
     m->frames = h.frames;

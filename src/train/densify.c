@@ -1,8 +1,9 @@
 /* densify.c - adaptive density control (3DGS): clone small / split large Gaussians whose mean
  * view-space gradient is high, prune transparent and oversized ones, keep N under the cap.
  *
- * Every per-Gaussian array of the session (parameters, Adam moments, static flags, density
- * statistics) moves together; new rows get zero Adam moments, as in the reference.
+ * Every per-Gaussian array of the session (parameters, static flags, density statistics) moves
+ * together; the Adam moments follow through one optim_adam_remap_rows per pass (rows record
+ * where they came from), and new rows get zero moments, as in the reference.
  */
 #include "train/train_internal.h"
 
@@ -57,15 +58,14 @@ static void zero_rows(pg_gaussians *g, int from, int to)
 /* Sets the count of every per-Gaussian array to n; rows past the old count are zeroed. */
 pg_status train_resize_all(train_session *s, int n)
 {
-    pg_gaussians *all[6] = {&s->g, &s->gg, &s->m, &s->v, &s->d, &s->dg};
-    for (int k = 0; k < 6; k++) {
+    pg_gaussians *all[4] = {&s->g, &s->gg, &s->d, &s->dg};
+    for (int k = 0; k < 4; k++) {
         int old = all[k]->count;
         if (all[k]->capacity == 0) PG_TRY(splat_gaussians_create(all[k], n > 16 ? n : 16));
         PG_TRY(splat_gaussians_resize(all[k], n));
         zero_rows(all[k], old, n);
     }
-    int old = s->g.count;
-    (void)old;
+    PG_TRY(train_adam_resize_gaussians(s, n));
     PG_TRY(train_ensure_side(s, n));
     return PG_OK;
 }
@@ -97,15 +97,14 @@ static int cand_cmp(const void *a, const void *b)
     return x->index - y->index;
 }
 
-/* Appends a copy of row i (Adam moments zero, flags inherited); returns the new index. */
-static int append_copy(train_session *s, int i)
+/* Appends a copy of row i (Adam moments zero: src -1, flags inherited); returns the new index. */
+static int append_copy(train_session *s, int i, int *src)
 {
     int j = s->g.count;
     /* capacity was ensured by the caller */
-    s->g.count = s->gg.count = s->m.count = s->v.count = s->d.count = s->dg.count = j + 1;
+    s->g.count = s->gg.count = s->d.count = s->dg.count = j + 1;
     copy_row(&s->g, j, &s->g, i);
-    zero_rows(&s->m, j, j + 1);
-    zero_rows(&s->v, j, j + 1);
+    src[j] = -1;
     s->is_static[j] = s->is_static[i];
     s->grad_accum[j] = 0;
     s->grad_denom[j] = 0;
@@ -117,12 +116,10 @@ pg_status train_densify_and_prune(train_session *s, int densify)
     const train_config *c = &s->cfg;
     int n0 = s->g.count;
     float thr_scale = c->percent_dense * s->extent;
-    cand *cs = NULL;
-    uint8_t *split = NULL;
     int nc = 0;
+    cand *cs = pg_malloc(sizeof(cand) * (size_t)(n0 ? n0 : 1), "densify candidates");
+    if (!cs) return PG_ERR_NOMEM;
     if (densify) {
-        cs = pg_malloc(sizeof(cand) * (size_t)(n0 ? n0 : 1), "densify candidates");
-        if (!cs) return PG_ERR_NOMEM;
         for (int i = 0; i < n0; i++) {
             float g = s->grad_denom[i] > 0 ? s->grad_accum[i] / s->grad_denom[i] : 0;
             if (g >= c->densify_grad) cs[nc++] = (cand){g, i};
@@ -133,35 +130,32 @@ pg_status train_densify_and_prune(train_session *s, int densify)
             qsort(cs, (size_t)nc, sizeof(cand), cand_cmp);
             nc = budget;
         }
-        /* room for the clones and the second half of each split */
-        int grow = n0 + nc;
-        pg_gaussians *all[6] = {&s->g, &s->gg, &s->m, &s->v, &s->d, &s->dg};
-        for (int k = 0; k < 6; k++) {
-            PG_TRY(splat_gaussians_resize(all[k], grow));
-            all[k]->count = n0;
-        }
-        pg_status st = train_ensure_side(s, grow);
-        if (st) {
-            free(cs);
-            return st;
-        }
-        split = pg_calloc((size_t)grow + 1, 1, "densify split flags");
-        if (!split) {
-            free(cs);
-            return PG_ERR_NOMEM;
-        }
-        /* in index order so the result does not depend on the sort above */
-        uint8_t *chosen = pg_calloc((size_t)n0 + 1, 1, "densify chosen");
-        if (!chosen) {
-            free(cs);
-            free(split);
-            return PG_ERR_NOMEM;
-        }
+    }
+    /* room for the clones and the second half of each split */
+    int grow = n0 + nc;
+    pg_gaussians *all[4] = {&s->g, &s->gg, &s->d, &s->dg};
+    pg_status st = PG_OK;
+    for (int k = 0; k < 4 && !st; k++) {
+        st = splat_gaussians_resize(all[k], grow);
+        all[k]->count = n0;
+    }
+    if (!st) st = train_ensure_side(s, grow);
+    /* src[i]: the old row whose Adam moments row i gets (-1: zero), for optim_adam_remap_rows;
+     * chosen: candidates in index order so the result does not depend on the sort above */
+    int *src = st ? NULL : pg_malloc(sizeof(int) * (size_t)(grow + 1), "densify row map");
+    uint8_t *chosen = src ? pg_calloc((size_t)n0 + 1, 1, "densify chosen") : NULL;
+    if (!chosen) {
+        free(cs);
+        free(src);
+        return st ? st : PG_ERR_NOMEM;
+    }
+    for (int i = 0; i < n0; i++) src[i] = i;
+    if (densify) {
         for (int k = 0; k < nc; k++) chosen[cs[k].index] = 1;
         for (int i = 0; i < n0; i++) {
             if (!chosen[i]) continue;
             if (max_scale(&s->g, i) <= thr_scale) {
-                append_copy(s, i); /* clone: same Gaussian twice, the gradient pulls them apart */
+                append_copy(s, i, src); /* clone: same Gaussian twice, the gradient pulls them apart */
             } else {
                 /* split: two samples from the Gaussian, scales / 1.6; the original row becomes
                  * the first sample and an appended row the second */
@@ -175,7 +169,7 @@ pg_status train_densify_and_prune(train_session *s, int densify)
                 quat_to_mat3(R, q);
                 float sc[3];
                 for (int k = 0; k < 3; k++) sc[k] = expf(s->g.log_scales[3 * (size_t)i + k]);
-                int j = append_copy(s, i);
+                int j = append_copy(s, i, src);
                 int rows[2] = {i, j};
                 float mean[3];
                 memcpy(mean, s->g.means + 3 * (size_t)i, sizeof mean);
@@ -188,15 +182,12 @@ pg_status train_densify_and_prune(train_session *s, int densify)
                         s->g.log_scales[3 * (size_t)rows[r] + k] -= logf(1.6f);
                     }
                 }
-                zero_rows(&s->m, i, i + 1);
-                zero_rows(&s->v, i, i + 1);
-                split[i] = 1;
+                src[i] = -1; /* both halves start with zero moments */
             }
         }
-        free(chosen);
-        free(cs);
-        free(split);
     }
+    free(chosen);
+    free(cs);
     /* prune: transparent or too large (in place, order kept) */
     int n = s->g.count, w = 0;
     float big = c->prune_big_scale * s->extent;
@@ -207,27 +198,28 @@ pg_status train_densify_and_prune(train_session *s, int densify)
         if (!keep) continue;
         if (w != i) {
             copy_row(&s->g, w, &s->g, i);
-            copy_row(&s->m, w, &s->m, i);
-            copy_row(&s->v, w, &s->v, i);
+            src[w] = src[i];
             s->is_static[w] = s->is_static[i];
         }
         w++;
     }
-    pg_gaussians *all[6] = {&s->g, &s->gg, &s->m, &s->v, &s->d, &s->dg};
-    for (int k = 0; k < 6; k++) all[k]->count = w;
+    for (int k = 0; k < 4; k++) all[k]->count = w;
     memset(s->grad_accum, 0, (size_t)s->side_cap * sizeof(float));
     memset(s->grad_denom, 0, (size_t)s->side_cap * sizeof(float));
-    return PG_OK;
+    st = optim_adam_remap_rows(s->gopt, src, w);
+    free(src);
+    return st;
 }
 
 void train_reset_opacity(train_session *s)
 {
     float lim = logf(0.01f / 0.99f);
+    float *m = optim_adam_moment(s->gopt, OPTIM_G_OPACITY, 0), *v = optim_adam_moment(s->gopt, OPTIM_G_OPACITY, 1);
     for (int i = 0; i < s->g.count; i++) {
         if (s->g.opacity[i] > lim) {
             s->g.opacity[i] = lim;
-            s->m.opacity[i] = 0;
-            s->v.opacity[i] = 0;
+            m[i] = 0;
+            v[i] = 0;
         }
     }
 }

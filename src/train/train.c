@@ -5,7 +5,7 @@
  *   2. d = canonical copy; rows of movable, possibly visible Gaussians go through the network
  *   3. rasterize d, loss, backward -> dg
  *   4. gg = dg (identity path); network backward adds the deformation path into gg and its params
- *   5. K-Planes regularisers, Adam on the Gaussians and the network, density statistics
+ *   5. K-Planes regularisers, Adam on the Gaussians and the network (train_adam.c), density statistics
  * The coarse stage is the same without step 2/4 (d = g).
  */
 #include "train/train_internal.h"
@@ -20,10 +20,6 @@
 #include "core/progress.h"
 #include "optim/loss_depth.h"
 #include "optim/loss_image.h"
-
-#define ADAM_B1 0.9f
-#define ADAM_B2 0.999f
-#define ADAM_EPS 1e-15f
 
 train_config train_default_config(void)
 {
@@ -96,8 +92,6 @@ void train_session_destroy(train_session *s)
     if (!s) return;
     splat_gaussians_destroy(&s->g);
     splat_gaussians_destroy(&s->gg);
-    splat_gaussians_destroy(&s->m);
-    splat_gaussians_destroy(&s->v);
     splat_gaussians_destroy(&s->d);
     splat_gaussians_destroy(&s->dg);
     free(s->is_static);
@@ -105,9 +99,9 @@ void train_session_destroy(train_session *s)
     free(s->grad_denom);
     free(s->vs_grad);
     free(s->idx);
+    optim_adam_destroy(s->gopt);
     train_net_destroy(s->net);
-    free(s->net_m);
-    free(s->net_v);
+    optim_adam_destroy(s->nopt);
     splat_raster_destroy(s->raster);
     pg_image_destroy(&s->target);
     free(s->mask);
@@ -154,11 +148,7 @@ static pg_status start_fine(train_session *s)
     nc.seed = s->cfg.seed * 7919u + 17u;
     s->net_cfg = nc;
     PG_TRY(train_net_create(&s->net, &nc));
-    size_t P = train_net_num_params(s->net);
-    s->net_m = pg_calloc(P ? P : 1, sizeof(float), "network Adam moments");
-    s->net_v = pg_calloc(P ? P : 1, sizeof(float), "network Adam moments");
-    if (!s->net_m || !s->net_v) return PG_ERR_NOMEM;
-    s->nstep = 0;
+    PG_TRY(train_adam_create_net(s));
     s->fine = 1;
     return PG_OK;
 }
@@ -228,84 +218,6 @@ pg_status train_session_create(train_session **out, const train_set *ts, const t
 fail:
     train_session_destroy(s);
     return st;
-}
-
-/* Exponential interpolation lr0 -> lr1 over progress u in [0,1] (3DGS schedule). */
-static float lr_exp(float lr0, float lr1, float u)
-{
-    if (u < 0) u = 0;
-    if (u > 1) u = 1;
-    if (lr0 <= 0 || lr1 <= 0) return lr0 * (1 - u) + lr1 * u;
-    return expf(logf(lr0) * (1 - u) + logf(lr1) * u);
-}
-
-/* One Adam update of n parameters (eps 1e-15 as in 3DGS); element-wise, so the result does not
- * depend on the thread count. */
-static inline void adam_span(float *restrict p, const float *restrict g, float *restrict m, float *restrict v, long n,
-                             float lr, float bc1, float bc2)
-{
-    float a = lr / bc1, ib2 = 1.0f / bc2;
-#pragma omp simd
-    for (long i = 0; i < n; i++) {
-        float gi = g[i];
-        float mi = ADAM_B1 * m[i] + (1 - ADAM_B1) * gi;
-        float vi = ADAM_B2 * v[i] + (1 - ADAM_B2) * gi * gi;
-        m[i] = mi;
-        v[i] = vi;
-        p[i] -= a * mi / (sqrtf(vi * ib2) + ADAM_EPS);
-    }
-}
-
-static void adam_update(float *p, const float *g, float *m, float *v, size_t n, float lr, float bc1, float bc2)
-{
-    if (lr == 0 || n == 0) return;
-    const long block = 16384;
-    long nb = ((long)n + block - 1) / block;
-#pragma omp parallel for schedule(static)
-    for (long b = 0; b < nb; b++) {
-        long o = b * block, len = (long)n - o < block ? (long)n - o : block;
-        adam_span(p + o, g + o, m + o, v + o, len, lr, bc1, bc2);
-    }
-}
-
-static void adam_gaussians(train_session *s, float stage_u)
-{
-    s->gstep++;
-    float bc1 = 1 - powf(ADAM_B1, (float)s->gstep), bc2 = 1 - powf(ADAM_B2, (float)s->gstep);
-    size_t n = (size_t)s->g.count;
-    float lr_mean = lr_exp(s->cfg.lr_means, s->cfg.lr_means_final, stage_u) * s->extent;
-    adam_update(s->g.means, s->gg.means, s->m.means, s->v.means, n * 3, lr_mean, bc1, bc2);
-    adam_update(s->g.log_scales, s->gg.log_scales, s->m.log_scales, s->v.log_scales, n * 3, s->cfg.lr_scales, bc1,
-                bc2);
-    adam_update(s->g.quats, s->gg.quats, s->m.quats, s->v.quats, n * 4, s->cfg.lr_quats, bc1, bc2);
-    adam_update(s->g.opacity, s->gg.opacity, s->m.opacity, s->v.opacity, n, s->cfg.lr_opacity, bc1, bc2);
-    /* SH: the DC (first 3 floats of each row) and the rest have their own rates; the degree only
-     * grows, so coefficients above it have always had zero gradient and moments: skipping them
-     * is exact */
-    int deg = s->g.sh_degree, used = (deg + 1) * (deg + 1) * 3;
-    long nn = (long)n;
-    float lr_dc = s->cfg.lr_sh_dc, lr_rest = s->cfg.lr_sh_rest;
-#pragma omp parallel for schedule(static)
-    for (long i = 0; i < nn; i++) {
-        size_t o = (size_t)i * PG_SH_COEFFS * 3;
-        adam_span(s->g.sh + o, s->gg.sh + o, s->m.sh + o, s->v.sh + o, 3, lr_dc, bc1, bc2);
-        int rest = used - 3;
-        if (rest > 0) adam_span(s->g.sh + o + 3, s->gg.sh + o + 3, s->m.sh + o + 3, s->v.sh + o + 3, rest, lr_rest, bc1, bc2);
-    }
-}
-
-static void adam_network(train_session *s, float stage_u)
-{
-    size_t P = train_net_num_params(s->net);
-    if (P == 0) return;
-    s->nstep++;
-    float bc1 = 1 - powf(ADAM_B1, (float)s->nstep), bc2 = 1 - powf(ADAM_B2, (float)s->nstep);
-    size_t ge = train_net_grid_end(s->net);
-    float *p = train_net_params(s->net), *g = train_net_grads(s->net);
-    float lr_grid = lr_exp(s->cfg.lr_grid, s->cfg.lr_grid_final, stage_u) * s->extent;
-    float lr_net = lr_exp(s->cfg.lr_net, s->cfg.lr_net_final, stage_u) * s->extent;
-    adam_update(p, g, s->net_m, s->net_v, ge, lr_grid, bc1, bc2);
-    adam_update(p + ge, g + ge, s->net_m + ge, s->net_v + ge, P - ge, lr_net, bc1, bc2);
 }
 
 /* Picks a training (view, frame): a real view every real_every iterations (and whenever there
@@ -544,24 +456,18 @@ pg_status train_session_step(train_session *s)
 
     /* identity path, then the deformation path for the deformed rows */
     copy_gaussians(&s->gg, &s->dg);
-    float stage_u;
     if (s->fine) {
         train_net_zero_grad(s->net);
         if (nd > 0) PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, &s->dg, &s->gg));
         double tr = pg_time_seconds();
         loss += train_net_regularize(s->net, c->reg_tv, c->reg_time, c->reg_l1);
         s->timing.regularize = (pg_time_seconds() - tr) * 1e3;
-        int fine_len = c->iters - c->coarse_iters;
-        stage_u = fine_len > 0 ? (float)(s->iter - c->coarse_iters) / (float)fine_len : 1.0f;
-    } else {
-        stage_u = c->coarse_iters > 0 ? (float)s->iter / (float)c->coarse_iters : 1.0f;
     }
     t1 = pg_time_seconds();
     s->timing.deform_backward = (t1 - t0) * 1e3 - s->timing.regularize;
     t0 = t1;
 
-    adam_gaussians(s, stage_u);
-    if (s->fine) adam_network(s, stage_u);
+    PG_TRY(train_adam_step(s));
     t1 = pg_time_seconds();
     s->timing.optimizer = (t1 - t0) * 1e3;
     t0 = t1;

@@ -4,6 +4,7 @@
 
 #include "core/image.h"
 #include "core/rng.h"
+#include "optim/adam.h"
 #include "optim/loss_image.h"
 #include "splat/raster.h"
 #include "train/model.h"
@@ -17,8 +18,6 @@ struct train_session {
     int iter;          /* iterations done */
     pg_rng rng;
     int fine;          /* 1 once the fine stage started (network exists) */
-    long gstep;        /* Adam steps of the Gaussian groups (reset at the fine stage) */
-    long nstep;        /* Adam steps of the network */
     float extent;      /* scene radius for lr scaling and densification */
     float center[3];
     float max_disp;    /* largest |delta position| seen, culling margin */
@@ -26,7 +25,7 @@ struct train_session {
 
     pg_gaussians g;    /* canonical parameters */
     pg_gaussians gg;   /* their gradients */
-    pg_gaussians m, v; /* Adam moments */
+    optim_adam *gopt;  /* Adam of g: the OPTIM_G_* groups, g.count rows */
     pg_gaussians d;    /* deformed copy for the current frame */
     pg_gaussians dg;   /* gradients w.r.t. the deformed copy */
     int side_cap;
@@ -36,7 +35,7 @@ struct train_session {
     float *vs_grad;      /* (side_cap) this iteration's view-space gradient norm */
     int *idx;            /* (side_cap) Gaussians sent through the network */
     train_net *net;
-    float *net_m, *net_v; /* (P) */
+    optim_adam *nopt;    /* Adam of the network parameters: TRAIN_NET_* groups, one row */
 
     splat_raster *raster;
     pg_image target;     /* (H, W, 3) */
@@ -55,6 +54,13 @@ struct train_session {
     long fine_steps;
 };
 
+/* Adam groups of the network's flat parameter array (train_net_grid_end splits it). */
+enum { TRAIN_NET_GRID, TRAIN_NET_MLP, TRAIN_NET_GROUPS };
+
+/* train_adam.c */
+pg_status train_adam_resize_gaussians(train_session *s, int n);
+pg_status train_adam_create_net(train_session *s);
+pg_status train_adam_step(train_session *s);
 /* init.c */
 pg_status train_init_gaussians(train_session *s);
 /* densify.c */

@@ -1,0 +1,97 @@
+/* train_adam.c - the trainer's use of the shared Adam (src/optim/adam): learning rates and
+ * schedules of the Gaussian groups and of the deformation network, and the network's groups.
+ *
+ * Betas 0.9 / 0.999, eps 1e-15 (3DGS). Every group counts its own steps for the bias
+ * correction; with positive learning rates all of them step every iteration (of their stage),
+ * so the Gaussian groups count the iterations since the start and the network groups those
+ * since the fine stage began. Checkpoints store each group's count (checkpoint.c).
+ */
+#include "train/train_internal.h"
+
+#include <limits.h>
+#include <stdlib.h>
+
+#define TRAIN_ADAM_EPS 1e-15f
+
+/* Gives the Gaussians' optimiser n rows (creating it on first use): rows below the old count
+ * keep their moments, new rows start at zero, the step counts are kept. */
+pg_status train_adam_resize_gaussians(train_session *s, int n)
+{
+    if (!s->gopt) return optim_adam_create_gaussians(&s->gopt, n, TRAIN_ADAM_EPS);
+    int old = optim_adam_rows(s->gopt);
+    int *src = pg_malloc((size_t)(n > 0 ? n : 1) * sizeof(int), "Adam row map");
+    if (!src) return PG_ERR_NOMEM;
+    for (int i = 0; i < n; i++) src[i] = i < old ? i : -1;
+    pg_status st = optim_adam_remap_rows(s->gopt, src, n);
+    free(src);
+    return st;
+}
+
+/* The network's flat parameter array is one row of P floats: the HexPlane grids are columns
+ * [0, grid_end) and the MLP [grid_end, P), each a group with its own learning rate. */
+pg_status train_adam_create_net(train_session *s)
+{
+    size_t P = train_net_num_params(s->net), ge = train_net_grid_end(s->net);
+    if (ge == 0 || ge >= P || P > INT_MAX)
+        return pg_fail(PG_ERR_INTERNAL, "train: network of %zu parameters (%zu in grids) has no Adam layout", P, ge);
+    optim_group_desc groups[TRAIN_NET_GROUPS] = {
+        {"grid", (int)P, 0, (int)ge},
+        {"mlp", (int)P, (int)ge, (int)(P - ge)},
+    };
+    optim_adam_destroy(s->nopt);
+    s->nopt = NULL;
+    return optim_adam_create(&s->nopt, groups, TRAIN_NET_GROUPS, 1, TRAIN_ADAM_EPS);
+}
+
+/* Learning rate decaying exponentially from lr0 to lr1 over the current stage (coarse:
+ * iterations [0, coarse_iters), fine: [coarse_iters, iters)), as 3DGS schedules the means. */
+static float stage_lr(const train_session *s, float lr0, float lr1)
+{
+    const train_config *c = &s->cfg;
+    optim_lr_schedule sched = {lr0, lr1, 0, 1.0f, s->fine ? c->iters - c->coarse_iters : c->coarse_iters};
+    return optim_lr_expon(&sched, s->fine ? s->iter - c->coarse_iters : s->iter);
+}
+
+/* The Gaussian groups; a group with lr <= 0 is frozen. The SH degree only grows and
+ * coefficients above it get no gradient, so their moments are still zero and an Adam step would
+ * not move them: only the columns up to the current degree are stepped, DC and rest in one pass
+ * over the SH rows. */
+static pg_status step_gaussians(train_session *s)
+{
+    const train_config *c = &s->cfg;
+    pg_gaussians *g = &s->g;
+    const pg_gaussians *gr = &s->gg;
+    float lr[OPTIM_GAUSS_GROUPS] = {stage_lr(s, c->lr_means, c->lr_means_final) * s->extent,
+                                    c->lr_scales, c->lr_quats, c->lr_opacity, c->lr_sh_dc, c->lr_sh_rest};
+    float *P[OPTIM_G_SH_DC] = {g->means, g->log_scales, g->quats, g->opacity};
+    const float *G[OPTIM_G_SH_DC] = {gr->means, gr->log_scales, gr->quats, gr->opacity};
+    for (int i = 0; i < OPTIM_G_SH_DC; i++)
+        if (lr[i] > 0) PG_TRY(optim_adam_step_group(s->gopt, i, P[i], G[i], lr[i]));
+    int deg = g->sh_degree, cols[OPTIM_GAUSS_GROUPS] = {0};
+    cols[OPTIM_G_SH_DC] = 3;
+    cols[OPTIM_G_SH_REST] = (deg + 1) * (deg + 1) * 3 - 3;
+    optim_group_step sh[2];
+    int n = 0;
+    for (int i = OPTIM_G_SH_DC; i <= OPTIM_G_SH_REST; i++)
+        if (lr[i] > 0) sh[n++] = (optim_group_step){i, g->sh, gr->sh, lr[i], cols[i]};
+    return optim_adam_step_groups(s->gopt, sh, n);
+}
+
+static pg_status step_network(train_session *s)
+{
+    const train_config *c = &s->cfg;
+    float lr[TRAIN_NET_GROUPS] = {stage_lr(s, c->lr_grid, c->lr_grid_final) * s->extent,
+                                  stage_lr(s, c->lr_net, c->lr_net_final) * s->extent};
+    float *p = train_net_params(s->net);
+    const float *g = train_net_grads(s->net);
+    for (int i = 0; i < TRAIN_NET_GROUPS; i++)
+        if (lr[i] > 0) PG_TRY(optim_adam_step_group(s->nopt, i, p, g, lr[i]));
+    return PG_OK;
+}
+
+pg_status train_adam_step(train_session *s)
+{
+    PG_TRY(step_gaussians(s));
+    if (s->fine) PG_TRY(step_network(s));
+    return PG_OK;
+}
