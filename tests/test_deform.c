@@ -493,40 +493,73 @@ static float bf16_round(float f)
     return f;
 }
 
-/* AMX GEMM on ragged sizes and transposed strides vs a double product of the bf16-rounded inputs. */
+/* AMX GEMM vs a double product of the bf16-rounded inputs: f32 accumulate into a sub-block of a
+ * bigger C (operands packed from a transposed A and a ragged B), then the bf16 epilogue (bias, ReLU,
+ * mask, column sums, row-major / transposed / VNNI outputs). */
 static void test_gemm_amx(void)
 {
     if (!gemm_amx_available()) {
         printf("gemm_amx: AMX not available, skipped\n");
         return;
     }
-    enum { M = 37, N = 45, K = 50 };
+    enum { M = 37, N = 45, K = 50, MP = 64, NP = 64, KP = 64, LDC = 80 };
     pg_rng rng;
     pg_rng_seed(&rng, 8);
-    static float A[K * M], B[K * N], Cm[M * 50], R[M * N];
+    static float A[K * M], B[K * N], Cm[MP * LDC], C0[MP * LDC], R[M * N], bias[NP];
+    static uint16_t ap[MP * KP], bp[KP * NP], mask[MP * NP], rm[MP * NP], tr[NP * MP], vn[MP * NP];
     for (int i = 0; i < K * M; i++) A[i] = (float)pg_rng_range(&rng, -1, 1);
     for (int i = 0; i < K * N; i++) B[i] = (float)pg_rng_range(&rng, -1, 1);
-    for (int i = 0; i < M * 50; i++) Cm[i] = (float)pg_rng_range(&rng, -1, 1);
-    /* A stored transposed (K, M): a(i,k) = A[k*M + i]; B row-major (K, N); C with ldc 50, accumulate */
+    for (int i = 0; i < MP * LDC; i++) C0[i] = Cm[i] = (float)pg_rng_range(&rng, -1, 1);
+    for (int j = 0; j < NP; j++) bias[j] = j < N ? (float)pg_rng_range(&rng, -0.5, 0.5) : 0.0f;
+    for (int i = 0; i < MP * NP; i++) mask[i] = pg_rng_uniform(&rng) < 0.8 ? 1 : 0;
+    /* A stored transposed (K, M): a(i,k) = A[k*M + i]; B row-major (K, N) */
     for (int i = 0; i < M; i++)
         for (int j = 0; j < N; j++) {
-            double s = Cm[i * 50 + j];
+            double s = 0;
             for (int k = 0; k < K; k++) s += (double)bf16_round(A[k * M + i]) * bf16_round(B[k * N + j]);
             R[i * N + j] = (float)s;
         }
-    uint16_t *ap = malloc(gemm_amx_a_size(M, K) * 2), *bp = malloc(gemm_amx_b_size(K, N) * 2);
-    gemm_amx_pack_a(ap, A, 1, M, M, K);
+    gemm_amx_pack_a(ap, KP, MP, KP, A, 1, M, M, K);
     gemm_amx_pack_b(bp, B, N, 1, K, N);
-    float untouched = Cm[0 * 50 + 47];
-    gemm_amx_run(Cm, 50, ap, bp, M, N, K, 1);
+    /* f32, accumulate into C at column offset 16 */
+    gemm_amx_epilogue ef = { .c = Cm + 16, .ldc = LDC, .accumulate = 1 };
+    gemm_amx(ap, KP, bp, 2 * NP, MP, NP, KP, &ef);
     double e = 0;
-    for (int i = 0; i < M; i++)
-        for (int j = 0; j < N; j++) e = fmax(e, fabs(Cm[i * 50 + j] - R[i * N + j]));
-    CHECK(e < 1e-4, "amx gemm vs bf16 reference: %g", e);
-    CHECK(Cm[47] == untouched, "amx gemm wrote outside N");
-    printf("gemm_amx (37x45x50, transposed A, accumulate): max err %.2e\n", e);
-    free(ap);
-    free(bp);
+    int outside = 0;
+    for (int i = 0; i < MP; i++)
+        for (int j = 0; j < LDC; j++) {
+            int in = j >= 16 && j < 16 + NP;
+            double ref = C0[i * LDC + j] + (in && i < M && j - 16 < N ? R[i * N + j - 16] : 0.0);
+            if (!in) outside |= Cm[i * LDC + j] != C0[i * LDC + j];
+            else e = fmax(e, fabs(Cm[i * LDC + j] - ref));
+        }
+    CHECK(e < 1e-4 && !outside, "amx gemm f32 accumulate: err %g, wrote outside %d", e, outside);
+    /* bf16 epilogue */
+    float colsum[NP] = { 0 };
+    gemm_amx_epilogue eb = { .bias = bias, .relu = 1, .mask = mask, .ldmask = NP, .colsum = colsum, .rows = M,
+                             .rm = rm, .ldrm = NP, .tr = tr, .ldtr = MP, .vn = vn, .ldvn = 2 * NP };
+    gemm_amx(ap, KP, bp, 2 * NP, MP, NP, KP, &eb);
+    double e2 = 0, es = 0;
+    int layout = 0;
+    for (int j = 0; j < NP; j++) {
+        double cs = 0;
+        for (int i = 0; i < MP; i++) {
+            double v = (i < M && j < N ? R[i * N + j] : 0.0) + bias[j];
+            v = v > 0 && mask[i * NP + j] ? v : 0.0;
+            if (i < M) cs += v;
+            uint16_t r = rm[i * NP + j];
+            float got;
+            uint32_t u = (uint32_t)r << 16;
+            memcpy(&got, &u, 4);
+            e2 = fmax(e2, fabs(got - v) / (fabs(v) + 1e-3));
+            layout |= tr[j * MP + i] != r || vn[(i / 2) * 2 * NP + 2 * j + i % 2] != r;
+        }
+        es = fmax(es, fabs(colsum[j] - cs));
+    }
+    CHECK(e2 < 1e-2 && es < 1e-3 && !layout, "amx gemm epilogue: rel err %g, colsum err %g, layouts differ %d", e2, es,
+          layout);
+    printf("gemm_amx (37x45x50 padded to 64): f32 accumulate max err %.2e, epilogue rel err %.2e colsum %.2e\n", e, e2,
+           es);
 }
 
 /* The bf16 AMX network path agrees with the f32 path to bf16 accuracy. */

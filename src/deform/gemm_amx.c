@@ -1,7 +1,8 @@
-/* gemm_amx.c - bf16 AMX matrix multiply (see gemm_amx.h).
+/* gemm_amx.c - bf16 AMX matrix multiply with fused epilogues (see gemm_amx.h).
  *
  * Blocking: 32x32 output blocks held in four 16x16 f32 tiles (tmm0-3), two A tiles (tmm4-5, 16 rows
- * x 32 bf16) and two B tiles (tmm6-7, 16 pair-rows x 16 columns) per 32-deep K step.
+ * x 32 bf16) and two B tiles (tmm6-7, 16 pair-rows x 16 columns) per 32-deep K step. Column blocks
+ * are the outer loop so the B panel (K x 32) stays in L1 while the row blocks stream past it.
  */
 #include "deform/gemm_amx.h"
 
@@ -26,7 +27,7 @@ int gemm_amx_available(void)
     if (amx_state >= 0) return amx_state;
     unsigned a, b, c, d;
     int ok = __get_cpuid_count(7, 0, &a, &b, &c, &d) && (d & (1u << 22)) && (d & (1u << 24));
-    /* Linux keeps the 8 KB tile state off until the process asks for it. */
+    /* Linux keeps the 8 KB tile state off until the process asks for it (once per process). */
     if (ok) ok = syscall(SYS_arch_prctl, ARCH_REQ_XCOMP_PERM, XFEATURE_XTILEDATA) == 0;
     amx_state = ok;
     return ok;
@@ -35,28 +36,18 @@ int gemm_amx_available(void)
 #endif
 }
 
-/* f32 -> bf16, round to nearest even (inputs here are finite). */
-static inline uint16_t f2bf(float f)
+void gemm_amx_pack_a(uint16_t *dst, int ld, int Mp, int Kp, const float *src, long rs, long cs, int M, int K)
 {
-    uint32_t u;
-    memcpy(&u, &f, 4);
-    u += 0x7FFFu + ((u >> 16) & 1u);
-    return (uint16_t)(u >> 16);
-}
-
-void gemm_amx_pack_a(uint16_t *dst, const float *src, long rs, long cs, int M, int K)
-{
-    int Mp = gemm_amx_round(M), Kp = gemm_amx_round(K);
     for (int i = 0; i < Mp; i++) {
-        uint16_t *row = dst + (size_t)i * Kp;
+        uint16_t *row = dst + (size_t)i * ld;
         int k = 0;
         if (i < M) {
             const float *s = src + i * rs;
             if (cs == 1) {
                 #pragma omp simd
-                for (int q = 0; q < K; q++) row[q] = f2bf(s[q]);
+                for (int q = 0; q < K; q++) row[q] = gemm_amx_bf16(s[q]);
             } else {
-                for (int q = 0; q < K; q++) row[q] = f2bf(s[q * cs]);
+                for (int q = 0; q < K; q++) row[q] = gemm_amx_bf16(s[q * cs]);
             }
             k = K;
         }
@@ -69,26 +60,61 @@ void gemm_amx_pack_b(uint16_t *dst, const float *src, long rs, long cs, int K, i
     int Kp = gemm_amx_round(K), Np = gemm_amx_round(N);
     for (int kk = 0; kk < Kp / 2; kk++) {
         uint16_t *row = dst + (size_t)kk * Np * 2;
-        if (cs == 1 && 2 * kk + 1 < K) {
-            /* two contiguous source rows interleaved as 32-bit pairs: vectorises */
-            const float *s0 = src + 2 * kk * rs, *s1 = s0 + rs;
-            uint32_t *r32 = (uint32_t *)row;
-            #pragma omp simd
-            for (int n = 0; n < N; n++) r32[n] = (uint32_t)f2bf(s0[n]) | ((uint32_t)f2bf(s1[n]) << 16);
-            for (int n = N; n < Np; n++) r32[n] = 0;
-            continue;
-        }
         for (int e = 0; e < 2; e++) {
             int k = 2 * kk + e;
-            if (k < K) {
-                const float *s = src + k * rs;
-                for (int n = 0; n < N; n++) row[2 * n + e] = f2bf(s[n * cs]);
-                for (int n = N; n < Np; n++) row[2 * n + e] = 0;
-            } else {
-                for (int n = 0; n < Np; n++) row[2 * n + e] = 0;
-            }
+            const float *s = src + k * rs;
+            for (int n = 0; n < Np; n++) row[2 * n + e] = k < K && n < N ? gemm_amx_bf16(s[n * cs]) : 0;
         }
     }
+}
+
+/* The bf16 epilogue of one 32x32 block v (row stride 32, modified in place) at C position (i, j). */
+static void block_epilogue(const gemm_amx_epilogue *e, float *v, int i, int j)
+{
+    for (int r = 0; r < 32; r++) {
+        float *b = v + r * 32;
+        if (e->bias) {
+            const float *bj = e->bias + j;
+            #pragma omp simd
+            for (int q = 0; q < 32; q++) b[q] += bj[q];
+        }
+        if (e->relu) {
+            #pragma omp simd
+            for (int q = 0; q < 32; q++) b[q] = b[q] > 0.0f ? b[q] : 0.0f;
+        }
+        if (e->mask) {
+            const uint16_t *mk = e->mask + (size_t)(i + r) * e->ldmask + j;
+            #pragma omp simd
+            for (int q = 0; q < 32; q++) b[q] = mk[q] ? b[q] : 0.0f;
+        }
+        if (e->rm) {
+            uint16_t *o = e->rm + (size_t)(i + r) * e->ldrm + j;
+            #pragma omp simd
+            for (int q = 0; q < 32; q++) o[q] = gemm_amx_bf16(b[q]);
+        }
+    }
+    if (e->colsum) {
+        int nr = e->rows - i < 32 ? e->rows - i : 32;
+        float *cs = e->colsum + j;
+        for (int r = 0; r < nr; r++) {
+            const float *b = v + r * 32;
+            #pragma omp simd
+            for (int q = 0; q < 32; q++) cs[q] += b[q];
+        }
+    }
+    if (e->vn)
+        for (int r = 0; r < 32; r += 2) {
+            uint32_t *o = (uint32_t *)(e->vn + (size_t)((i + r) / 2) * e->ldvn + 2 * j);
+            const float *b0 = v + r * 32, *b1 = b0 + 32;
+            #pragma omp simd
+            for (int q = 0; q < 32; q++) o[q] = (uint32_t)gemm_amx_bf16(b0[q]) | (uint32_t)gemm_amx_bf16(b1[q]) << 16;
+        }
+    if (e->tr)
+        for (int q = 0; q < 32; q++) {
+            uint16_t *o = e->tr + (size_t)(j + q) * e->ldtr + i;
+            #pragma omp simd
+            for (int r = 0; r < 32; r++) o[r] = gemm_amx_bf16(v[r * 32 + q]);
+        }
 }
 
 #ifdef PG_HAVE_AMX_BUILD
@@ -100,35 +126,10 @@ typedef struct {
     uint8_t rows[16];
 } __attribute__((packed, aligned(64))) amx_tilecfg;
 
-/* C block rows [i, i+mi), cols [j, j+nj): c = max(c + bias, 0) or c + bias, while it is in L1. */
-static inline void block_epilogue(float *C, int ldc, int i, int j, int mi, int nj, const float *bias, int relu)
+__attribute__((target("amx-tile,amx-bf16"))) void gemm_amx(const uint16_t *A, int lda, const uint16_t *B, int ldb,
+                                                            int M, int N, int K, const gemm_amx_epilogue *e)
 {
-    const float *bj = bias + j;
-    for (int r = 0; r < mi; r++) {
-        float *c = C + (size_t)(i + r) * ldc + j;
-        if (relu) {
-            #pragma omp simd
-            for (int q = 0; q < nj; q++) {
-                float v = c[q] + bj[q];
-                c[q] = v > 0.0f ? v : 0.0f;
-            }
-        } else {
-            #pragma omp simd
-            for (int q = 0; q < nj; q++) c[q] += bj[q];
-        }
-    }
-}
-
-void gemm_amx_run(float *C, int ldc, const uint16_t *Ap, const uint16_t *Bp, int M, int N, int K, int accumulate)
-{
-    gemm_amx_run_bias(C, ldc, Ap, Bp, M, N, K, accumulate, NULL, 0);
-}
-
-__attribute__((target("amx-tile,amx-bf16"))) void gemm_amx_run_bias(float *C, int ldc, const uint16_t *Ap,
-                                                                     const uint16_t *Bp, int M, int N, int K,
-                                                                     int accumulate, const float *bias, int relu)
-{
-    const int Kp = gemm_amx_round(K), Np = gemm_amx_round(N), Mp = gemm_amx_round(M);
+    if (M <= 0 || N <= 0 || K <= 0) return;
     amx_tilecfg cfg;
     memset(&cfg, 0, sizeof(cfg));
     cfg.palette_id = 1;
@@ -138,73 +139,59 @@ __attribute__((target("amx-tile,amx-bf16"))) void gemm_amx_run_bias(float *C, in
     }
     _tile_loadconfig(&cfg);
     float blk[32 * 32] __attribute__((aligned(64)));
-    const long a_stride = (long)Kp * 2, b_stride = (long)Np * 4;
-    for (int i = 0; i < Mp; i += 32) {
-        for (int j = 0; j < Np; j += 32) {
-            /* full 32x32 blocks load/store C directly; ragged edges go through blk */
-            const int full = i + 32 <= M && j + 32 <= N;
-            float *cb = C + (size_t)i * ldc + j;
-            const long c_stride = (long)ldc * 4;
-            if (full && accumulate) {
+    const long a_stride = (long)lda * 2, b_stride = (long)ldb * 2, c_stride = (long)e->ldc * 4;
+    for (int j = 0; j < N; j += 32) {
+        for (int i = 0; i < M; i += 32) {
+            float *cb = e->c ? e->c + (size_t)i * e->ldc + j : NULL;
+            if (cb && e->accumulate) {
                 _tile_loadd(0, cb, c_stride);
                 _tile_loadd(1, cb + 16, c_stride);
-                _tile_loadd(2, cb + (size_t)16 * ldc, c_stride);
-                _tile_loadd(3, cb + (size_t)16 * ldc + 16, c_stride);
+                _tile_loadd(2, cb + (size_t)16 * e->ldc, c_stride);
+                _tile_loadd(3, cb + (size_t)16 * e->ldc + 16, c_stride);
             } else {
                 _tile_zero(0);
                 _tile_zero(1);
                 _tile_zero(2);
                 _tile_zero(3);
             }
-            for (int k = 0; k < Kp; k += 32) {
-                const uint16_t *a0 = Ap + (size_t)i * Kp + k;
-                const uint16_t *b0 = Bp + (size_t)(k / 2) * Np * 2 + (size_t)j * 2;
-                _tile_loadd(4, a0, a_stride);
-                _tile_loadd(5, a0 + (size_t)16 * Kp, a_stride);
-                _tile_loadd(6, b0, b_stride);
-                _tile_loadd(7, b0 + 32, b_stride);
+            const uint16_t *a0 = A + (size_t)i * lda, *b0 = B + (size_t)j * 2;
+            for (int k = 0; k < K; k += 32) {
+                _tile_loadd(4, a0 + k, a_stride);
+                _tile_loadd(5, a0 + (size_t)16 * lda + k, a_stride);
+                _tile_loadd(6, b0 + (size_t)(k / 2) * ldb, b_stride);
+                _tile_loadd(7, b0 + (size_t)(k / 2) * ldb + 32, b_stride);
                 _tile_dpbf16ps(0, 4, 6);
                 _tile_dpbf16ps(1, 4, 7);
                 _tile_dpbf16ps(2, 5, 6);
                 _tile_dpbf16ps(3, 5, 7);
             }
-            if (full) {
+            if (cb) {
                 _tile_stored(0, cb, c_stride);
                 _tile_stored(1, cb + 16, c_stride);
-                _tile_stored(2, cb + (size_t)16 * ldc, c_stride);
-                _tile_stored(3, cb + (size_t)16 * ldc + 16, c_stride);
-                if (bias) block_epilogue(C, ldc, i, j, 32, 32, bias, relu);
+                _tile_stored(2, cb + (size_t)16 * e->ldc, c_stride);
+                _tile_stored(3, cb + (size_t)16 * e->ldc + 16, c_stride);
+                if (e->bias)
+                    for (int r = 0; r < 32; r++) {
+                        float *c = cb + (size_t)r * e->ldc;
+                        const float *bj = e->bias + j;
+                        #pragma omp simd
+                        for (int q = 0; q < 32; q++) c[q] += bj[q];
+                    }
                 continue;
             }
             _tile_stored(0, blk, 128);
             _tile_stored(1, blk + 16, 128);
             _tile_stored(2, blk + 16 * 32, 128);
             _tile_stored(3, blk + 16 * 32 + 16, 128);
-            int mi = M - i < 32 ? M - i : 32, nj = N - j < 32 ? N - j : 32;
-            for (int r = 0; r < mi; r++) {
-                float *c = C + (size_t)(i + r) * ldc + j;
-                const float *s = blk + r * 32;
-                if (accumulate) {
-                    #pragma omp simd
-                    for (int q = 0; q < nj; q++) c[q] += s[q];
-                } else {
-                    memcpy(c, s, (size_t)nj * sizeof(float));
-                }
-            }
-            if (bias) block_epilogue(C, ldc, i, j, mi, nj, bias, relu);
+            block_epilogue(e, blk, i, j);
         }
     }
     _tile_release();
 }
 #else
-void gemm_amx_run_bias(float *C, int ldc, const uint16_t *Ap, const uint16_t *Bp, int M, int N, int K,
-                       int accumulate, const float *bias, int relu)
+void gemm_amx(const uint16_t *A, int lda, const uint16_t *B, int ldb, int M, int N, int K, const gemm_amx_epilogue *e)
 {
-    (void)C; (void)ldc; (void)Ap; (void)Bp; (void)M; (void)N; (void)K; (void)accumulate; (void)bias; (void)relu;
-}
-
-void gemm_amx_run(float *C, int ldc, const uint16_t *Ap, const uint16_t *Bp, int M, int N, int K, int accumulate)
-{
-    (void)C; (void)ldc; (void)Ap; (void)Bp; (void)M; (void)N; (void)K; (void)accumulate;
+    (void)A; (void)lda; (void)B; (void)ldb; (void)M; (void)N; (void)K; (void)e;
+    (void)block_epilogue;
 }
 #endif
