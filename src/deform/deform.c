@@ -201,6 +201,7 @@ struct deform_ws {
     float t;
     long *order;          /* (order_cap) processing order: row j of the chunks is point order[j] */
     long *keys;           /* (order_cap) Morton keys of the points */
+    float *pos;           /* (order_cap, 3) positions in processing order (gathered once per forward) */
     long order_cap;
     long *bins;           /* (SORT_BINS + 1) counting-sort histogram */
     /* bf16 AMX path (deform_amx.h): the MLP there, the HexPlane and ordering here */
@@ -260,9 +261,9 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
     ws->num_params = net->num_params;
     ws->amx = net->cfg.bf16 && gemm_amx_available();
     ws->scratch_floats = ws_scratch_floats(ws);
-    ws->store_points = (max_points + chunk - 1) / chunk * (long)chunk;
+    ws->store_points = ws->amx ? 0 : (max_points + chunk - 1) / chunk * (long)chunk;
     if (ws->amx) {
-        pg_status st = deform_amx_create(&ws->amxp, net, chunk, ws->store_points / chunk);
+        pg_status st = deform_amx_create(&ws->amxp, net, chunk);
         if (st) {
             deform_ws_destroy(ws);
             return st;
@@ -302,6 +303,7 @@ void deform_ws_destroy(deform_ws *ws)
     free(ws->tgrads);
     free(ws->order);
     free(ws->keys);
+    free(ws->pos);
     free(ws->bins);
     deform_amx_destroy(ws->amxp);
     free(ws);
@@ -327,15 +329,19 @@ static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
 {
     if (n > ws->order_cap) {
         long *o = malloc((size_t)n * sizeof(long)), *k = malloc((size_t)n * sizeof(long));
-        if (!o || !k) {
+        float *ps = malloc((size_t)n * 3 * sizeof(float));
+        if (!o || !k || !ps) {
             free(o);
             free(k);
+            free(ps);
             return pg_fail(PG_ERR_NOMEM, "deform: no memory to order %ld points", n);
         }
         free(ws->order);
         free(ws->keys);
+        free(ws->pos);
         ws->order = o;
         ws->keys = k;
+        ws->pos = ps;
         ws->order_cap = n;
     }
     if (!ws->bins && !(ws->bins = malloc((SORT_BINS + 1) * sizeof(long))))
@@ -356,6 +362,9 @@ static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
     for (long i = 0; i < n; i++) ws->bins[keys[i] + 1]++;
     for (long b = 0; b < SORT_BINS; b++) ws->bins[b + 1] += ws->bins[b];
     for (long i = 0; i < n; i++) ws->order[ws->bins[keys[i]]++] = i;
+    /* one gather pass (independent loads overlap) instead of a dependent random load per point in
+     * every HexPlane pass */
+    for (long j = 0; j < n; j++) memcpy(ws->pos + 3 * j, ws->means + 3 * point_row(ws, j), 3 * sizeof(float));
     return PG_OK;
 }
 
@@ -382,12 +391,12 @@ static void chunk_features(const deform_network *net, const deform_ws *ws, float
     const int F = ws->F;
     hex_point ring[HEX_PREFETCH_AHEAD + 1]; /* axes of points i .. i+AHEAD */
     for (int i = 0; i < m && i < HEX_PREFETCH_AHEAD; i++)
-        hex_point_setup(&ring[i], &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
+        hex_point_setup(&ring[i], &net->grid, ws->pos + 3 * (start + i), ws->t);
     for (int i = 0; i < m; i++) {
         int ahead = i + HEX_PREFETCH_AHEAD;
         if (ahead < m) {
             hex_point *hp = &ring[ahead % (HEX_PREFETCH_AHEAD + 1)];
-            hex_point_setup(hp, &net->grid, ws->means + 3 * point_row(ws, start + ahead), ws->t);
+            hex_point_setup(hp, &net->grid, ws->pos + 3 * (start + ahead), ws->t);
             hex_prefetch_point(&net->grid, NULL, hp);
         }
         hex_sample_forward_point(feat + (size_t)i * F, &net->grid, &ring[i % (HEX_PREFETCH_AHEAD + 1)]);
@@ -401,7 +410,7 @@ static void chunk_forward(const deform_network *net, deform_ws *ws, long k, int 
     float *scr = ws->scratch + (size_t)tid * ws->scratch_floats;
     if (ws->amx) {
         chunk_features(net, ws, scr, start, m);
-        deform_amx_chunk_forward(ws->amxp, k, tid, scr, m, y);
+        deform_amx_chunk_forward(ws->amxp, tid, scr, m, y);
         return;
     }
     int stored;
@@ -530,20 +539,20 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
             const float *dfeat;
             int ldf = ws->F;
             if (ws->amx) {
-                if (!deform_amx_stored(ws->amxp, k)) chunk_forward(net, ws, k, m, tid, NULL);
-                dfeat = deform_amx_chunk_backward(ws->amxp, k, tid, dy, m, &ldf);
+                chunk_forward(net, ws, k, m, tid, NULL);
+                dfeat = deform_amx_chunk_backward(ws->amxp, tid, dy, m, &ldf);
             } else {
                 dfeat = chunk_backward_f32(net, ws, k, m, tid, dy, grads);
             }
             hex_point ring[HEX_PREFETCH_AHEAD + 1];
             for (int i = 0; i < m && i < HEX_PREFETCH_AHEAD; i++)
-                hex_point_setup(&ring[i], &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
+                hex_point_setup(&ring[i], &net->grid, ws->pos + 3 * (start + i), ws->t);
             for (int i = 0; i < m; i++) {
                 int ahead = i + HEX_PREFETCH_AHEAD;
                 if (ahead < m) {
                     long gn = point_row(ws, start + ahead);
                     hex_point *hp = &ring[ahead % (HEX_PREFETCH_AHEAD + 1)];
-                    hex_point_setup(hp, &net->grid, ws->means + 3 * gn, ws->t);
+                    hex_point_setup(hp, &net->grid, ws->pos + 3 * (start + ahead), ws->t);
                     hex_prefetch_point(&net->grid, dplanes, hp);
                     if (d_means) __builtin_prefetch(d_means + 3 * gn, 1, 3);
                 }

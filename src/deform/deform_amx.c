@@ -15,7 +15,7 @@ typedef struct {
     float *db[DEFORM_MAX_FEATURE_LAYERS + 1];  /* (d_{l+1}) bias gradients */
     float *dwh;                                /* (64, d_L) heads' last-layer weight gradients */
     float *dbh;                                /* (64) heads' bias gradients */
-    uint16_t *acts;                            /* one chunk's activations (chunks that are not stored) */
+    uint16_t *acts;                            /* the current chunk's activations */
     uint16_t *dya, *dyt;                       /* d_out as A (mp, 64) and transposed (64, mp) */
     uint16_t *avn;                             /* last activation as VNNI pairs of points (mp/2, d_L, 2) */
     uint16_t *grm[2], *gvn[2];                 /* ping-pong input gradients: row-major and VNNI */
@@ -32,8 +32,6 @@ struct deform_amx {
     uint16_t *hf, *hb;               /* heads' last layers, block-diagonal: (d_L, 64) and (64, d_L) as B */
     float *bias[DEFORM_MAX_FEATURE_LAYERS + 1], *hbias; /* zero-padded biases */
     void *shared;                    /* storage of the packed weights and biases */
-    uint16_t *store;                 /* (store_chunks, act_elems) */
-    long store_chunks;
     int nthreads;
     size_t thread_bytes;
     void *threads_mem;
@@ -78,7 +76,7 @@ static size_t thread_layout(const deform_amx *a, char *base, amx_thread *t)
     return p;
 }
 
-pg_status deform_amx_create(deform_amx **out, const deform_network *net, int chunk, long store_chunks)
+pg_status deform_amx_create(deform_amx **out, const deform_network *net, int chunk)
 {
     *out = NULL;
     deform_amx *a = pg_calloc(1, sizeof(*a), "deform AMX path");
@@ -109,16 +107,9 @@ pg_status deform_amx_create(deform_amx **out, const deform_network *net, int chu
         bytes += 2 * align64((size_t)a->d[l] * a->d[l + 1] * 2) + align64((size_t)a->d[l + 1] * sizeof(float));
     bytes += 2 * align64((size_t)a->d[a->L] * HEAD_N * 2) + align64(HEAD_N * sizeof(float));
     a->shared = aligned_alloc(64, bytes);
-    a->store_chunks = store_chunks;
-    size_t store_elems = 0;
-    if (store_chunks > 0 && pg_size_mul((size_t)store_chunks, a->act_elems, &store_elems)) {
-        deform_amx_destroy(a);
-        return pg_fail(PG_ERR_SIZE, "deform: %ld stored chunks overflow", store_chunks);
-    }
-    if (store_elems) a->store = aligned_alloc(64, align64(store_elems * 2));
-    if (!a->shared || (store_elems && !a->store)) {
-        deform_amx_destroy(a);
-        return pg_fail(PG_ERR_NOMEM, "out of memory for the deform AMX buffers (%zu stored bf16 values)", store_elems);
+    if (!a->shared) {
+        free(a);
+        return pg_fail(PG_ERR_NOMEM, "out of memory for the deform AMX weights");
     }
     char *sh = a->shared;
     size_t p = 0;
@@ -160,7 +151,6 @@ void deform_amx_destroy(deform_amx *a)
 {
     if (!a) return;
     free(a->shared);
-    free(a->store);
     free(a->threads_mem);
     free(a->th);
     free(a);
@@ -206,16 +196,9 @@ void deform_amx_pack_backward(deform_amx *a, const deform_network *net)
                 a->hb[(size_t)oo * 2 * N + 2 * k + e] = k < in ? gemm_amx_bf16(head_weight(net, k, 2 * oo + e)) : 0;
 }
 
-int deform_amx_stored(const deform_amx *a, long k) { return k < a->store_chunks; }
-
-static uint16_t *chunk_acts(deform_amx *a, long k, int tid)
+void deform_amx_chunk_forward(deform_amx *a, int tid, const float *feat, int m, float *y)
 {
-    return deform_amx_stored(a, k) ? a->store + (size_t)k * a->act_elems : a->th[tid].acts;
-}
-
-void deform_amx_chunk_forward(deform_amx *a, long k, int tid, const float *feat, int m, float *y)
-{
-    uint16_t *acts = chunk_acts(a, k, tid);
+    uint16_t *acts = a->th[tid].acts;
     const int mp = a->mp, F = a->in[0];
     /* padding rows/columns are zero, so padded points stay finite and add nothing to gradients */
     gemm_amx_pack_a(acts + a->rm_off[0], a->d[0], mp, a->d[0], feat, F, 1, m, F);
@@ -255,10 +238,10 @@ static void pair_rows(uint16_t *dst, const uint16_t *src, int mp, int d)
     }
 }
 
-const float *deform_amx_chunk_backward(deform_amx *a, long k, int tid, const float *dy, int m, int *ld)
+const float *deform_amx_chunk_backward(deform_amx *a, int tid, const float *dy, int m, int *ld)
 {
     amx_thread *t = &a->th[tid];
-    uint16_t *acts = chunk_acts(a, k, tid);
+    uint16_t *acts = t->acts;
     const int mp = a->mp, L = a->L, dL = a->d[L], k4 = a->k4;
     for (int i = 0; i < m; i++) {
         const float *r = dy + (size_t)i * DEFORM_OUT_DIM;
