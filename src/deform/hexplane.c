@@ -103,12 +103,18 @@ void hex_sample_forward_point(float *feat, const hex_grid *g, const hex_point *h
     }
 }
 
+/* Position gradients: per channel, accumulated per axis over all planes and scales (dgdx folded
+ * in), then summed over channels once per axis; a horizontal sum per plane would be a serial add
+ * chain 2 x 12 times per point. */
 void hex_sample_backward_point(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], float *d_pos, const float *d_feat,
                                const hex_grid *g, const hex_point *hp)
 {
     const int C = g->C;
     float v[HEX_PLANES][HEX_MAX_C]; /* per-plane samples */
     float pre[HEX_MAX_C], suf[HEX_PLANES][HEX_MAX_C];
+    float acc[4][HEX_MAX_C];        /* d_pos per axis and channel; [3] (time) is discarded */
+    for (int d = 0; d < 4; d++)
+        for (int c = 0; c < C; c++) acc[d][c] = 0.0f;
     for (int s = 0; s < g->S; s++) {
         const hex_axis *ax = hp->ax[s];
         const float *df = d_feat + s * C;
@@ -140,23 +146,31 @@ void hex_sample_backward_point(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES]
             float *restrict d00 = d_planes[s][p] + off, *restrict d01 = d00 + C, *restrict d10 = d00 + row,
                   *restrict d11 = d10 + C;
             const float *t00 = base[p], *t01 = t00 + C, *t10 = t00 + row, *t11 = t10 + C;
-            float ga = 0, gb = 0;
-            #pragma omp simd reduction(+ : ga, gb)
+            float *restrict ga = acc[a], *restrict gb = acc[b];
+            const float sa = A->dgdx, sb = B->dgdx;
+            #pragma omp simd
             for (int c = 0; c < C; c++) {
                 float gp = df[c] * pre[c] * suf[p][c];
                 d00[c] += w00 * gp;
                 d01[c] += w01 * gp;
                 d10[c] += w10 * gp;
                 d11[c] += w11 * gp;
-                ga += gp * ((1 - wb) * (t01[c] - t00[c]) + wb * (t11[c] - t10[c]));
-                gb += gp * ((1 - wa) * (t10[c] - t00[c]) + wa * (t11[c] - t01[c]));
+                ga[c] += sa * gp * ((1 - wb) * (t01[c] - t00[c]) + wb * (t11[c] - t10[c]));
+                gb[c] += sb * gp * ((1 - wa) * (t10[c] - t00[c]) + wa * (t11[c] - t01[c]));
                 pre[c] *= v[p][c];
             }
-            if (d_pos) {
-                if (a < 3) d_pos[a] += ga * A->dgdx;
-                if (b < 3) d_pos[b] += gb * B->dgdx;
-            }
         }
+    }
+    if (d_pos) {
+        float sx = 0, sy = 0, sz = 0;
+        for (int c = 0; c < C; c++) {
+            sx += acc[0][c];
+            sy += acc[1][c];
+            sz += acc[2][c];
+        }
+        d_pos[0] += sx;
+        d_pos[1] += sy;
+        d_pos[2] += sz;
     }
 }
 
