@@ -410,7 +410,7 @@ static void chunk_forward(const deform_network *net, deform_ws *ws, long k, int 
     float *scr = ws->scratch + (size_t)tid * ws->scratch_floats;
     if (ws->amx) {
         chunk_features(net, ws, scr, start, m);
-        deform_amx_chunk_forward(ws->amxp, tid, scr, m, y);
+        deform_amx_chunk_forward(ws->amxp, tid, k, scr, m, y);
         return;
     }
     int stored;
@@ -440,9 +440,12 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
     ws->n = n;
     ws->t = t;
     PG_TRY(ws_sort_points(ws, &net->grid, n));
-    if (ws->amx) deform_amx_pack_forward(ws->amxp, net); /* weights change every optimiser step */
     const int ldy = ws->amx ? DEFORM_AMX_OUT_LD : DEFORM_OUT_DIM;
     long nchunks = (n + ws->chunk - 1) / ws->chunk;
+    if (ws->amx) {
+        PG_TRY(deform_amx_prepare(ws->amxp, nchunks));
+        deform_amx_pack_forward(ws->amxp, net); /* weights change every optimiser step */
+    }
     #pragma omp parallel for schedule(static)
     for (long k = 0; k < nchunks; k++) {
         int tid = omp_get_thread_num();
@@ -539,8 +542,8 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
             const float *dfeat;
             int ldf = ws->F;
             if (ws->amx) {
-                chunk_forward(net, ws, k, m, tid, NULL);
-                dfeat = deform_amx_chunk_backward(ws->amxp, tid, dy, m, &ldf);
+                deform_amx_chunk_forward(ws->amxp, tid, k, NULL, m, NULL);
+                dfeat = deform_amx_chunk_backward(ws->amxp, tid, k, dy, m, &ldf);
             } else {
                 dfeat = chunk_backward_f32(net, ws, k, m, tid, dy, grads);
             }

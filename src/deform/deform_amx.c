@@ -15,9 +15,10 @@ typedef struct {
     float *db[DEFORM_MAX_FEATURE_LAYERS + 1];  /* (d_{l+1}) bias gradients */
     float *dwh;                                /* (64, d_L) heads' last-layer weight gradients */
     float *dbh;                                /* (64) heads' bias gradients */
-    uint16_t *acts;                            /* the current chunk's activations */
+    uint16_t *acts;                            /* the current chunk's activations 1..L */
     uint16_t *dya, *dyt;                       /* d_out as A (mp, 64) and transposed (64, mp) */
-    uint16_t *avn;                             /* last activation as VNNI pairs of points (mp/2, d_L, 2) */
+    uint16_t *avn;                             /* last activation as VNNI pairs of points (mp/2, d_L, 2),
+                                                * written by the backward's rerun of the forward */
     uint16_t *grm[2], *gvn[2];                 /* ping-pong input gradients: row-major and VNNI */
     float *dfeat;                              /* (mp, d_0) */
     size_t acc_floats;                         /* dwt..dbh, zeroed per backward */
@@ -27,7 +28,10 @@ struct deform_amx {
     int L, W, chunk, mp, k4;         /* layers, width, chunk, padded chunk, 32-aligned start of head 4's inputs */
     int d[MAX_ACTS];                 /* padded widths of the activations: d[0] features, d[L] = 5W padded */
     int in[MAX_ACTS], out[MAX_ACTS]; /* true layer sizes */
-    size_t rm_off[MAX_ACTS], tr_off[MAX_ACTS], act_elems;
+    size_t rm_off[MAX_ACTS], tr_off[MAX_ACTS], act_elems; /* activations 1..L in a thread's acts */
+    uint16_t *feats;                 /* (feat_chunks, feat_elems): activation 0 (rm, then tr) of every chunk */
+    size_t feat_elems;
+    long feat_chunks;
     uint16_t *wf[DEFORM_MAX_FEATURE_LAYERS + 1], *wb[DEFORM_MAX_FEATURE_LAYERS + 1]; /* w as B of x w^T, of d_y w */
     uint16_t *hf, *hb;               /* heads' last layers, block-diagonal: (d_L, 64) and (64, d_L) as B */
     float *bias[DEFORM_MAX_FEATURE_LAYERS + 1], *hbias; /* zero-padded biases */
@@ -92,8 +96,11 @@ pg_status deform_amx_create(deform_amx **out, const deform_network *net, int chu
         a->d[l] = gemm_amx_round(a->in[l]);
         a->d[l + 1] = gemm_amx_round(a->out[l]);
     }
+    a->feat_elems = 2 * (size_t)a->mp * a->d[0];
+    a->rm_off[0] = 0;
+    a->tr_off[0] = (size_t)a->mp * a->d[0];
     size_t off = 0;
-    for (int i = 0; i <= a->L; i++) {
+    for (int i = 1; i <= a->L; i++) {
         a->rm_off[i] = off;
         off += (size_t)a->mp * a->d[i];
         if (i < a->L) {
@@ -151,6 +158,7 @@ void deform_amx_destroy(deform_amx *a)
 {
     if (!a) return;
     free(a->shared);
+    free(a->feats);
     free(a->threads_mem);
     free(a->th);
     free(a);
@@ -196,26 +204,48 @@ void deform_amx_pack_backward(deform_amx *a, const deform_network *net)
                 a->hb[(size_t)oo * 2 * N + 2 * k + e] = k < in ? gemm_amx_bf16(head_weight(net, k, 2 * oo + e)) : 0;
 }
 
-void deform_amx_chunk_forward(deform_amx *a, int tid, const float *feat, int m, float *y)
+pg_status deform_amx_prepare(deform_amx *a, long nchunks)
 {
-    uint16_t *acts = a->th[tid].acts;
-    const int mp = a->mp, F = a->in[0];
-    /* padding rows/columns are zero, so padded points stay finite and add nothing to gradients */
-    gemm_amx_pack_a(acts + a->rm_off[0], a->d[0], mp, a->d[0], feat, F, 1, m, F);
-    gemm_amx_pack_a(acts + a->tr_off[0], mp, a->d[0], mp, feat, 1, F, F, m);
-    for (int l = 0; l < a->L; l++) {
-        gemm_amx_epilogue e = { .bias = a->bias[l], .relu = 1, .rm = acts + a->rm_off[l + 1], .ldrm = a->d[l + 1] };
-        if (l + 1 < a->L) {
-            e.tr = acts + a->tr_off[l + 1];
+    if (nchunks <= a->feat_chunks) return PG_OK;
+    size_t n;
+    if (pg_size_mul((size_t)nchunks, a->feat_elems * 2, &n)) return pg_fail(PG_ERR_SIZE, "deform: %ld chunks overflow", nchunks);
+    uint16_t *f = aligned_alloc(64, align64(n));
+    if (!f) return pg_fail(PG_ERR_NOMEM, "out of memory for the deform features of %ld chunks", nchunks);
+    free(a->feats);
+    a->feats = f;
+    a->feat_chunks = nchunks;
+    return PG_OK;
+}
+
+void deform_amx_chunk_forward(deform_amx *a, int tid, long k, const float *feat, int m, float *y)
+{
+    amx_thread *t = &a->th[tid];
+    const int mp = a->mp, F = a->in[0], L = a->L;
+    uint16_t *fk = a->feats + (size_t)k * a->feat_elems;
+    const uint16_t *xin = fk; /* this layer's input: features, then t->acts */
+    if (feat) {
+        /* padding rows/columns are zero, so padded points stay finite and add nothing to gradients */
+        gemm_amx_pack_a(fk, a->d[0], mp, a->d[0], feat, F, 1, m, F);
+        gemm_amx_pack_a(fk + a->tr_off[0], mp, a->d[0], mp, feat, 1, F, F, m);
+    }
+    for (int l = 0; l < L; l++) {
+        uint16_t *o = t->acts + a->rm_off[l + 1];
+        gemm_amx_epilogue e = { .bias = a->bias[l], .relu = 1, .rm = o, .ldrm = a->d[l + 1] };
+        if (l + 1 < L) {
+            e.tr = t->acts + a->tr_off[l + 1];
             e.ldtr = mp;
+        } else if (!y) { /* the backward's rerun: also the VNNI copy its heads' weight gradient reads */
+            e.vn = t->avn;
+            e.ldvn = 2 * a->d[L];
         }
-        gemm_amx(acts + a->rm_off[l], a->d[l], a->wf[l], 2 * a->d[l + 1], mp, a->d[l + 1], a->d[l], &e);
+        gemm_amx(xin, a->d[l], a->wf[l], 2 * a->d[l + 1], mp, a->d[l + 1], a->d[l], &e);
+        xin = o;
     }
     if (!y) return;
     /* Heads: output columns [0, 32) (small heads + first SH) read all of a; [32, 64) are SH only and
      * read head 4's inputs [k4, d_L). */
-    const uint16_t *act = acts + a->rm_off[a->L];
-    const int dL = a->d[a->L], k4 = a->k4;
+    const uint16_t *act = xin;
+    const int dL = a->d[L], k4 = a->k4;
     gemm_amx_epilogue e0 = { .c = y, .ldc = DEFORM_AMX_OUT_LD, .bias = a->hbias };
     gemm_amx(act, dL, a->hf, 2 * HEAD_N, mp, 32, dL, &e0);
     gemm_amx_epilogue e1 = { .c = y + 32, .ldc = DEFORM_AMX_OUT_LD, .bias = a->hbias + 32 };
@@ -227,21 +257,10 @@ void deform_amx_backward_begin(deform_amx *a, int tid)
     memset(a->th[tid].dwt[0], 0, a->th[tid].acc_floats * sizeof(float));
 }
 
-/* The last activation (mp, d) row-major -> VNNI pairs of rows (mp/2, d, 2). */
-static void pair_rows(uint16_t *dst, const uint16_t *src, int mp, int d)
-{
-    for (int r = 0; r < mp; r += 2) {
-        const uint16_t *s0 = src + (size_t)r * d, *s1 = s0 + d;
-        uint32_t *o = (uint32_t *)(dst + (size_t)r * d);
-        #pragma omp simd
-        for (int q = 0; q < d; q++) o[q] = (uint32_t)s0[q] | (uint32_t)s1[q] << 16;
-    }
-}
-
-const float *deform_amx_chunk_backward(deform_amx *a, int tid, const float *dy, int m, int *ld)
+const float *deform_amx_chunk_backward(deform_amx *a, int tid, long k, const float *dy, int m, int *ld)
 {
     amx_thread *t = &a->th[tid];
-    uint16_t *acts = t->acts;
+    const uint16_t *fk = a->feats + (size_t)k * a->feat_elems;
     const int mp = a->mp, L = a->L, dL = a->d[L], k4 = a->k4;
     for (int i = 0; i < m; i++) {
         const float *r = dy + (size_t)i * DEFORM_OUT_DIM;
@@ -251,8 +270,7 @@ const float *deform_amx_chunk_backward(deform_amx *a, int tid, const float *dy, 
     gemm_amx_pack_a(t->dya, HEAD_N, mp, HEAD_N, dy, DEFORM_OUT_DIM, 1, m, DEFORM_OUT_DIM);
     gemm_amx_pack_a(t->dyt, mp, HEAD_N, mp, dy, 1, DEFORM_OUT_DIM, DEFORM_OUT_DIM, m);
     /* heads' weight gradients: rows [0, 32) over all inputs, rows [32, 64) (SH only) over [k4, dL) */
-    const uint16_t *act = acts + a->rm_off[L];
-    pair_rows(t->avn, act, mp, dL);
+    const uint16_t *act = t->acts + a->rm_off[L];
     gemm_amx_epilogue w0 = { .c = t->dwh, .ldc = dL, .accumulate = 1 };
     gemm_amx(t->dyt, mp, t->avn, 2 * dL, 32, dL, mp, &w0);
     gemm_amx_epilogue w1 = { .c = t->dwh + (size_t)32 * dL + k4, .ldc = dL, .accumulate = 1 };
@@ -271,13 +289,13 @@ const float *deform_amx_chunk_backward(deform_amx *a, int tid, const float *dy, 
     for (int l = L - 1; l >= 0; l--) {
         const int din = a->d[l], dout = a->d[l + 1];
         gemm_amx_epilogue w = { .c = t->dwt[l], .ldc = dout, .accumulate = 1 };
-        gemm_amx(acts + a->tr_off[l], mp, t->gvn[cur], 2 * dout, din, dout, mp, &w);
+        gemm_amx((l ? t->acts : fk) + a->tr_off[l], mp, t->gvn[cur], 2 * dout, din, dout, mp, &w);
         if (l == 0) {
             gemm_amx_epilogue f = { .c = t->dfeat, .ldc = din };
             gemm_amx(t->grm[cur], dout, a->wb[0], 2 * din, mp, din, dout, &f);
             break;
         }
-        gemm_amx_epilogue n = { .mask = acts + a->rm_off[l], .ldmask = din, .colsum = t->db[l - 1], .rows = m,
+        gemm_amx_epilogue n = { .mask = t->acts + a->rm_off[l], .ldmask = din, .colsum = t->db[l - 1], .rows = m,
                                 .rm = t->grm[!cur], .ldrm = din, .vn = t->gvn[!cur], .ldvn = 2 * din };
         gemm_amx(t->grm[cur], dout, a->wb[l], 2 * din, mp, din, dout, &n);
         cur = !cur;

@@ -2,9 +2,9 @@
  *
  * deform.c does the HexPlane and the point ordering; this module runs the Linear layers and heads
  * of one chunk of points on AMX (gemm_amx.h) with activations kept as bf16 in exactly the layouts
- * the later GEMMs read, so nothing is repacked. They are not kept between forward and backward:
- * the backward reruns the chunk's forward, which measured as fast as streaming 1.9 KB per point
- * back from memory (and costs no memory). Per chunk:
+ * the later GEMMs read, so nothing is repacked. Only the features (activation 0, 128 B per point)
+ * are kept from forward to backward: the backward reruns the GEMMs of the chunk's forward, which
+ * measured faster than streaming the 1.9 KB per point of activations back from memory. Per chunk:
  *     act 0 = features, act l+1 = output of layer l (the last one = the heads' hidden layer a)
  *     act a row-major (mp, d_a)  - A operand of the next forward GEMM, and the backward ReLU mask
  *     act a transposed (d_a, mp) - A operand of the weight gradient d_W^T += x^T d_y (a < last)
@@ -33,17 +33,20 @@ void deform_amx_destroy(deform_amx *a);
 void deform_amx_pack_forward(deform_amx *a, const deform_network *net);
 void deform_amx_pack_backward(deform_amx *a, const deform_network *net);
 
-/* Forward of a chunk (m points, features feat (m, F) f32) on thread tid: all layers into the
+/* Sizes the feature store for nchunks chunks (call before the chunks' forward). */
+pg_status deform_amx_prepare(deform_amx *a, long nchunks);
+/* Forward of chunk k (m points) on thread tid: features feat (m, F) f32 are packed into the store
+ * (feat == NULL: the stored ones are reused, the backward's rerun), then all layers into the
  * thread's activations; with y != NULL also the heads, y (m, DEFORM_AMX_OUT_LD) f32 = the 59
  * outputs (+ zero padding). */
-void deform_amx_chunk_forward(deform_amx *a, int tid, const float *feat, int m, float *y);
+void deform_amx_chunk_forward(deform_amx *a, int tid, long k, const float *feat, int m, float *y);
 
 /* Backward: begin zeroes thread tid's accumulators; chunk_backward (right after the chunk's forward
- * on the same thread) takes d_out rows dy (m, 59) f32 and returns d features (f32, row stride *ld);
+ * rerun, feat == NULL and y == NULL, on the same thread) takes d_out rows dy (m, 59) f32 and returns d features (f32, row stride *ld);
  * end adds the thread's accumulated parameter gradients into grads (the thread's gradient buffer,
  * network layout). */
 void deform_amx_backward_begin(deform_amx *a, int tid);
-const float *deform_amx_chunk_backward(deform_amx *a, int tid, const float *dy, int m, int *ld);
+const float *deform_amx_chunk_backward(deform_amx *a, int tid, long k, const float *dy, int m, int *ld);
 void deform_amx_backward_end(deform_amx *a, const deform_network *net, int tid, float *grads);
 
 #endif
