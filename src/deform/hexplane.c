@@ -1,6 +1,10 @@
 /* hexplane.c - HexPlane sampling forward/backward (see hexplane.h). */
 #include "deform/hexplane.h"
 
+/* With C = 16 a texel is one 512-bit vector; gcc's default 256-bit preference doubles the
+ * instructions of these loops (hexplane backward measured -5 ms per 100k points with 512). */
+#pragma GCC target("prefer-vector-width=512")
+
 #include <math.h>
 
 #define HEX_MAX_C 64
