@@ -36,6 +36,22 @@ int gemm_amx_available(void)
 #endif
 }
 
+#ifdef PG_HAVE_AMX_BUILD
+/* Row i of A from a strided column of src (a(i, q) = src[i*rs + q*cs]): 16 gathered values per
+ * step. The transposing packs (features, d_out) would otherwise be scalar. */
+static __attribute__((target("avx512f,avx512bw,avx512bf16"))) void pack_row_gather(uint16_t *row, const float *s,
+                                                                                   long cs, int K)
+{
+    const __m512i step = _mm512_mullo_epi32(_mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0),
+                                            _mm512_set1_epi32((int)cs));
+    for (int q = 0; q < K; q += 16) {
+        __mmask16 k = K - q >= 16 ? 0xFFFF : (__mmask16)((1u << (K - q)) - 1);
+        __m512 v = _mm512_mask_i32gather_ps(_mm512_setzero_ps(), k, step, s + q * cs, 4);
+        _mm256_mask_storeu_epi16(row + q, k, (__m256i)_mm512_cvtneps_pbh(v));
+    }
+}
+#endif
+
 void gemm_amx_pack_a(uint16_t *dst, int ld, int Mp, int Kp, const float *src, long rs, long cs, int M, int K)
 {
     for (int i = 0; i < Mp; i++) {
@@ -47,7 +63,12 @@ void gemm_amx_pack_a(uint16_t *dst, int ld, int Mp, int Kp, const float *src, lo
                 #pragma omp simd
                 for (int q = 0; q < K; q++) row[q] = gemm_amx_bf16(s[q]);
             } else {
-                for (int q = 0; q < K; q++) row[q] = gemm_amx_bf16(s[q * cs]);
+#ifdef PG_HAVE_AMX_BUILD
+                if (amx_state == 1 && cs < (1L << 26)) /* AMX implies AVX-512 BF16; index fits 32 bits */
+                    pack_row_gather(row, s, cs, K);
+                else
+#endif
+                    for (int q = 0; q < K; q++) row[q] = gemm_amx_bf16(s[q * cs]);
             }
             k = K;
         }
