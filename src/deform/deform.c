@@ -347,13 +347,15 @@ static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
     if (!ws->bins && !(ws->bins = malloc((SORT_BINS + 1) * sizeof(long))))
         return pg_fail(PG_ERR_NOMEM, "deform: no memory for the point sort");
     long *keys = ws->keys;
+    float inv[3];
+    for (int d = 0; d < 3; d++) inv[d] = (float)(1 << SORT_BITS) / (g->aabb[3 + d] - g->aabb[d]);
+    #pragma omp parallel for schedule(static)
     for (long i = 0; i < n; i++) {
         const float *p = ws->means + 3 * (ws->idx ? (long)ws->idx[i] : i);
         long key = 0;
         for (int d = 0; d < 3; d++) {
-            float u = (p[d] - g->aabb[d]) / (g->aabb[3 + d] - g->aabb[d]);
-            int c = u > 0.0f ? (int)(u * (1 << SORT_BITS)) : 0; /* NaN -> 0 */
-            if (c > (1 << SORT_BITS) - 1) c = (1 << SORT_BITS) - 1;
+            float u = (p[d] - g->aabb[d]) * inv[d];
+            int c = u > 0.0f ? (int)fminf(u, (float)((1 << SORT_BITS) - 1)) : 0; /* NaN -> 0 */
             for (int b = 0; b < SORT_BITS; b++) key |= (long)((c >> b) & 1) << (3 * b + d);
         }
         keys[i] = key;
@@ -364,6 +366,7 @@ static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
     for (long i = 0; i < n; i++) ws->order[ws->bins[keys[i]]++] = i;
     /* one gather pass (independent loads overlap) instead of a dependent random load per point in
      * every HexPlane pass */
+    #pragma omp parallel for schedule(static)
     for (long j = 0; j < n; j++) memcpy(ws->pos + 3 * j, ws->means + 3 * point_row(ws, j), 3 * sizeof(float));
     return PG_OK;
 }
