@@ -62,12 +62,14 @@ void hex_point_setup(hex_point *hp, const hex_grid *g, const float *pos, float t
     for (int s = 0; s < g->S; s++) hex_axes(hp->ax[s], g, s, pos, t);
 }
 
+/* Only the spatial planes: a time plane is read at the same two rows by every point, which stay
+ * in cache, so prefetching them would only cost instructions. */
 void hex_prefetch_point(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_point *hp)
 {
     const int C = g->C;
     for (int s = 0; s < g->S; s++) {
         const hex_axis *ax = hp->ax[s];
-        for (int p = 0; p < HEX_PLANES; p++) {
+        for (int p = 0; p < 3; p++) {
             const hex_axis *A = &ax[hex_plane_axes[p][0]], *B = &ax[hex_plane_axes[p][1]];
             size_t Wp = (size_t)hex_axis_res(g, s, hex_plane_axes[p][0]);
             size_t off = ((size_t)B->i0 * Wp + A->i0) * C, row = Wp * C;

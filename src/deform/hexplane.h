@@ -58,8 +58,9 @@ size_t hex_total_size(const hex_grid *g);
 int hex_time_row(const hex_grid *g, float t);
 
 /* Sampling on a prepared point (hex_point_setup), so a caller that prefetches ahead computes the
- * axes once per point. hex_prefetch_point prefetches the texels (and, if d_planes != NULL, their
- * gradient lines) the point will touch; called a few points ahead it hides the cache misses of
+ * axes once per point. hex_prefetch_point prefetches the spatial planes' texels (and, if
+ * d_planes != NULL, their gradient lines) the point will touch (time planes are read at two rows
+ * only, which stay cached); called a few points ahead it hides the cache misses of
  * the random plane accesses. */
 void hex_point_setup(hex_point *hp, const hex_grid *g, const float *pos, float t);
 void hex_prefetch_point(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_point *hp);
