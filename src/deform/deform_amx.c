@@ -232,8 +232,10 @@ void deform_amx_chunk_forward(deform_amx *a, int tid, long k, const float *feat,
         uint16_t *o = t->acts + a->rm_off[l + 1];
         gemm_amx_epilogue e = { .bias = a->bias[l], .relu = 1, .rm = o, .ldrm = a->d[l + 1] };
         if (l + 1 < L) {
-            e.tr = t->acts + a->tr_off[l + 1];
-            e.ldtr = mp;
+            if (!y) { /* the backward's rerun: also the transposed copy the weight gradients read */
+                e.tr = t->acts + a->tr_off[l + 1];
+                e.ldtr = mp;
+            }
         } else if (!y) { /* the backward's rerun: also the VNNI copy its heads' weight gradient reads */
             e.vn = t->avn;
             e.ldvn = 2 * a->d[L];
