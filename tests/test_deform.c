@@ -125,6 +125,36 @@ static void randomize_planes(deform_network *net, pg_rng *rng)
     for (size_t i = 0; i < net->num_plane_params; i++) net->params[i] = (float)pg_rng_range(rng, 0.5, 1.5);
 }
 
+/* One point through the slice API: slice at t, sample (and, with d_planes, the backward with the
+ * slice gradient spread onto the time rows). */
+static void hex_point_forward(float *feat, const hex_grid *g, const float *pos, float t)
+{
+    float *buf = malloc(hex_slice_size(g) * sizeof(float));
+    hex_slice sl;
+    hex_point hp;
+    hex_slice_layout(&sl, buf, g, t);
+    hex_slice_forward(&sl, g);
+    hex_point_setup(&hp, g, pos);
+    hex_sample_forward_point(feat, g, &sl, &hp);
+    free(buf);
+}
+
+static void hex_point_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], float *d_pos, const float *d_feat,
+                               const hex_grid *g, const float *pos, float t)
+{
+    float *buf = malloc(hex_slice_size(g) * sizeof(float)), *dbuf = calloc(hex_slice_size(g), sizeof(float));
+    hex_slice sl, dsl;
+    hex_point hp;
+    hex_slice_layout(&sl, buf, g, t);
+    hex_slice_forward(&sl, g);
+    hex_slice_layout(&dsl, dbuf, g, t);
+    hex_point_setup(&hp, g, pos);
+    hex_sample_backward_point(d_planes, &dsl, d_pos, d_feat, g, &sl, &hp);
+    hex_slice_backward(d_planes, &dsl, g);
+    free(buf);
+    free(dbuf);
+}
+
 static void test_hexplane(void)
 {
     deform_config cfg;
@@ -138,8 +168,8 @@ static void test_hexplane(void)
     /* t-invariance at init: time planes are 1 */
     float pos[3], f0[64], f1[64];
     random_pos(&rng, &net->grid, pos);
-    hex_sample_forward(f0, &net->grid, pos, 0.1f);
-    hex_sample_forward(f1, &net->grid, pos, 0.83f);
+    hex_point_forward(f0, &net->grid, pos, 0.1f);
+    hex_point_forward(f1, &net->grid, pos, 0.83f);
     int F = cfg.channels * cfg.num_scales;
     CHECK(memcmp(f0, f1, F * sizeof(float)) == 0, "features depend on t with time planes = 1");
     int inrange = 1;
@@ -163,7 +193,7 @@ static void test_hexplane(void)
     double worst_f = 0;
     for (int k = 0; k < npts; k++) {
         double pos_d[3] = { pts[k][0], pts[k][1], pts[k][2] }, fr[64];
-        hex_sample_forward(f0, &net->grid, pts[k], t);
+        hex_point_forward(f0, &net->grid, pts[k], t);
         ref_hex(fr, &r, pos_d, t);
         for (int i = 0; i < F; i++) worst_f = fmax(worst_f, fabs(f0[i] - fr[i]) / fmax(1e-3, fabs(fr[i])));
     }
@@ -173,7 +203,7 @@ static void test_hexplane(void)
     for (int s = 0; s < cfg.num_scales; s++)
         for (int p = 0; p < HEX_PLANES; p++) dpl[s][p] = gp + net->plane_off[s][p];
     float dpos[3][3] = { { 0 } };
-    for (int k = 0; k < npts; k++) hex_sample_backward(dpl, dpos[k], dfeat, &net->grid, pts[k], t);
+    for (int k = 0; k < npts; k++) hex_point_backward(dpl, dpos[k], dfeat, &net->grid, pts[k], t);
     const double h = 1e-6;
     for (size_t i = 0; i < P; i++) {
         double v = pd[i], L[2];
@@ -211,7 +241,7 @@ static void test_hexplane(void)
     CHECK(e_pos < 1e-3, "hexplane d/dpos rel err %g", e_pos);
     /* outside the AABB: border clamp, zero position gradient */
     float out_pos[3] = { 5, -7, 10 }, dp_out[3] = { 0, 0, 0 };
-    hex_sample_backward(dpl, dp_out, dfeat, &net->grid, out_pos, t);
+    hex_point_backward(dpl, dp_out, dfeat, &net->grid, out_pos, t);
     CHECK(dp_out[0] == 0 && dp_out[1] == 0 && dp_out[2] == 0, "clamped position has gradient %g %g %g", dp_out[0],
           dp_out[1], dp_out[2]);
     printf("hexplane: forward rel err %.2e, d/dplanes %.2e, d/dpos %.2e\n", worst_f, e_plane, e_pos);

@@ -213,6 +213,9 @@ struct deform_ws {
     long *order;          /* (order_cap) processing order: row j of the chunks is point order[j] */
     long *keys;           /* (order_cap) Morton keys of the points */
     float *pos;           /* (order_cap, 3) positions in processing order (gathered once per forward) */
+    hex_slice sl;         /* the time planes at t (built per forward, read by its backward) */
+    float *slice_buf;     /* storage of sl */
+    size_t slice_off;     /* offset of a thread's slice gradient in its scratch */
     long order_cap;
     long *bins;           /* (SORT_BINS + 1) counting-sort histogram */
     /* bf16 AMX path (deform_amx.h): the MLP there, the HexPlane and ordering here */
@@ -272,6 +275,12 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
     ws->num_params = net->num_params;
     ws->amx = net->cfg.bf16 && gemm_amx_available();
     ws->scratch_floats = ws_scratch_floats(ws);
+    ws->slice_off = ws->scratch_floats;
+    ws->scratch_floats += (hex_slice_size(&net->grid) + 15) & ~(size_t)15;
+    if (!(ws->slice_buf = alloc_floats(hex_slice_size(&net->grid), 0, "deform time slice"))) {
+        deform_ws_destroy(ws);
+        return PG_ERR_NOMEM;
+    }
     ws->store_points = ws->amx ? 0 : (max_points + chunk - 1) / chunk * (long)chunk;
     if (ws->amx) {
         pg_status st = deform_amx_create(&ws->amxp, net, chunk);
@@ -315,6 +324,7 @@ void deform_ws_destroy(deform_ws *ws)
     free(ws->order);
     free(ws->keys);
     free(ws->pos);
+    free(ws->slice_buf);
     free(ws->bins);
     deform_amx_destroy(ws->amxp);
     free(ws);
@@ -405,15 +415,15 @@ static void chunk_features(const deform_network *net, const deform_ws *ws, float
     const int F = ws->F;
     hex_point ring[HEX_PREFETCH_AHEAD + 1]; /* axes of points i .. i+AHEAD */
     for (int i = 0; i < m && i < HEX_PREFETCH_AHEAD; i++)
-        hex_point_setup(&ring[i], &net->grid, ws->pos + 3 * (start + i), ws->t);
+        hex_point_setup(&ring[i], &net->grid, ws->pos + 3 * (start + i));
     for (int i = 0; i < m; i++) {
         int ahead = i + HEX_PREFETCH_AHEAD;
         if (ahead < m) {
             hex_point *hp = &ring[ahead % (HEX_PREFETCH_AHEAD + 1)];
-            hex_point_setup(hp, &net->grid, ws->pos + 3 * (start + ahead), ws->t);
+            hex_point_setup(hp, &net->grid, ws->pos + 3 * (start + ahead));
             hex_prefetch_point(&net->grid, NULL, hp);
         }
-        hex_sample_forward_point(feat + (size_t)i * F, &net->grid, &ring[i % (HEX_PREFETCH_AHEAD + 1)]);
+        hex_sample_forward_point(feat + (size_t)i * F, &net->grid, &ws->sl, &ring[i % (HEX_PREFETCH_AHEAD + 1)]);
     }
 }
 
@@ -454,6 +464,8 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
     ws->n = n;
     ws->t = t;
     PG_TRY(ws_sort_points(ws, &net->grid, n));
+    hex_slice_layout(&ws->sl, ws->slice_buf, &net->grid, t);
+    hex_slice_forward(&ws->sl, &net->grid);
     const int ldy = ws->amx ? DEFORM_AMX_OUT_LD : DEFORM_OUT_DIM;
     long nchunks = (n + ws->chunk - 1) / ws->chunk;
     if (ws->amx) {
@@ -546,6 +558,9 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
         /* d_out rows of the chunk: after the activations (f32) or the features (AMX) */
         float *dy = ws->amx ? scr + (size_t)ws->chunk * ws->F : scr + (size_t)ws->chunk * ws->act_pp;
         if (ws->amx) deform_amx_backward_begin(ws->amxp, tid);
+        hex_slice dsl; /* this thread's time-plane gradient, spread onto the two time rows at the end */
+        hex_slice_layout(&dsl, scr + ws->slice_off, &net->grid, ws->t);
+        memset(scr + ws->slice_off, 0, hex_slice_size(&net->grid) * sizeof(float));
         #pragma omp for schedule(static)
         for (long k = 0; k < nchunks; k++) {
             long start = k * ws->chunk;
@@ -563,22 +578,23 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
             }
             hex_point ring[HEX_PREFETCH_AHEAD + 1];
             for (int i = 0; i < m && i < HEX_PREFETCH_AHEAD; i++)
-                hex_point_setup(&ring[i], &net->grid, ws->pos + 3 * (start + i), ws->t);
+                hex_point_setup(&ring[i], &net->grid, ws->pos + 3 * (start + i));
             for (int i = 0; i < m; i++) {
                 int ahead = i + HEX_PREFETCH_AHEAD;
                 if (ahead < m) {
                     long gn = point_row(ws, start + ahead);
                     hex_point *hp = &ring[ahead % (HEX_PREFETCH_AHEAD + 1)];
-                    hex_point_setup(hp, &net->grid, ws->pos + 3 * (start + ahead), ws->t);
+                    hex_point_setup(hp, &net->grid, ws->pos + 3 * (start + ahead));
                     hex_prefetch_point(&net->grid, dplanes, hp);
                     if (d_means) __builtin_prefetch(d_means + 3 * gn, 1, 3);
                 }
                 long gi = point_row(ws, start + i);
-                hex_sample_backward_point(dplanes, d_means ? d_means + 3 * gi : NULL, dfeat + (size_t)i * ldf,
-                                          &net->grid, &ring[i % (HEX_PREFETCH_AHEAD + 1)]);
+                hex_sample_backward_point(dplanes, &dsl, d_means ? d_means + 3 * gi : NULL, dfeat + (size_t)i * ldf,
+                                          &net->grid, &ws->sl, &ring[i % (HEX_PREFETCH_AHEAD + 1)]);
             }
         }
         if (ws->amx) deform_amx_backward_end(ws->amxp, net, tid, grads);
+        hex_slice_backward(dplanes, &dsl, &net->grid);
         /* Fixed-order reduction of the other threads' buffers over the written ranges, inside the
          * same parallel region (a fork/join per range is slow when the cores are busy). */
         if (used_threads > 1) {
