@@ -564,6 +564,15 @@ static void test_gemm_amx(void)
             else e = fmax(e, fabs(Cm[i * LDC + j] - ref));
         }
     CHECK(e < 1e-4 && !outside, "amx gemm f32 accumulate: err %g, wrote outside %d", e, outside);
+    /* 16-wide edges (M = 48, N = 48: a 32-block plus a row strip and a column strip), with bias */
+    static float Ce[48 * 48];
+    gemm_amx_epilogue ee = { .c = Ce, .ldc = 48, .bias = bias };
+    gemm_amx(ap, KP, bp, 2 * NP, 48, 48, KP, &ee);
+    double e_edge = 0;
+    for (int i = 0; i < 48; i++)
+        for (int j = 0; j < 48; j++)
+            e_edge = fmax(e_edge, fabs(Ce[i * 48 + j] - ((i < M && j < N ? R[i * N + j] : 0.0) + bias[j])));
+    CHECK(e_edge < 1e-4, "amx gemm 16-wide edges: err %g", e_edge);
     /* bf16 epilogue */
     float colsum[NP] = { 0 };
     gemm_amx_epilogue eb = { .bias = bias, .relu = 1, .mask = mask, .ldmask = NP, .colsum = colsum, .rows = M,

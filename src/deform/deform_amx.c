@@ -244,14 +244,14 @@ void deform_amx_chunk_forward(deform_amx *a, int tid, long k, const float *feat,
         xin = o;
     }
     if (!y) return;
-    /* Heads: output columns [0, 32) (small heads + first SH) read all of a; [32, 64) are SH only and
-     * read head 4's inputs [k4, d_L). */
+    /* Heads: output columns [0, 16) (the 11 small-head outputs + 5 SH) read all of a; [16, 64) are SH
+     * only and read head 4's inputs [k4, d_L). */
     const uint16_t *act = xin;
     const int dL = a->d[L], k4 = a->k4;
     gemm_amx_epilogue e0 = { .c = y, .ldc = DEFORM_AMX_OUT_LD, .bias = a->hbias };
-    gemm_amx(act, dL, a->hf, 2 * HEAD_N, mp, 32, dL, &e0);
-    gemm_amx_epilogue e1 = { .c = y + 32, .ldc = DEFORM_AMX_OUT_LD, .bias = a->hbias + 32 };
-    gemm_amx(act + k4, dL, a->hf + (size_t)(k4 / 2) * 2 * HEAD_N + 64, 2 * HEAD_N, mp, 32, dL - k4, &e1);
+    gemm_amx(act, dL, a->hf, 2 * HEAD_N, mp, 16, dL, &e0);
+    gemm_amx_epilogue e1 = { .c = y + 16, .ldc = DEFORM_AMX_OUT_LD, .bias = a->hbias + 16 };
+    gemm_amx(act + k4, dL, a->hf + (size_t)(k4 / 2) * 2 * HEAD_N + 32, 2 * HEAD_N, mp, 48, dL - k4, &e1);
 }
 
 void deform_amx_backward_begin(deform_amx *a, int tid)
@@ -271,12 +271,12 @@ const float *deform_amx_chunk_backward(deform_amx *a, int tid, long k, const flo
     }
     gemm_amx_pack_a(t->dya, HEAD_N, mp, HEAD_N, dy, DEFORM_OUT_DIM, 1, m, DEFORM_OUT_DIM);
     gemm_amx_pack_a(t->dyt, mp, HEAD_N, mp, dy, 1, DEFORM_OUT_DIM, DEFORM_OUT_DIM, m);
-    /* heads' weight gradients: rows [0, 32) over all inputs, rows [32, 64) (SH only) over [k4, dL) */
+    /* heads' weight gradients: rows [0, 16) over all inputs, rows [16, 64) (SH only) over [k4, dL) */
     const uint16_t *act = t->acts + a->rm_off[L];
     gemm_amx_epilogue w0 = { .c = t->dwh, .ldc = dL, .accumulate = 1 };
-    gemm_amx(t->dyt, mp, t->avn, 2 * dL, 32, dL, mp, &w0);
-    gemm_amx_epilogue w1 = { .c = t->dwh + (size_t)32 * dL + k4, .ldc = dL, .accumulate = 1 };
-    gemm_amx(t->dyt + (size_t)32 * mp, mp, t->avn + 2 * k4, 2 * dL, 32, dL - k4, mp, &w1);
+    gemm_amx(t->dyt, mp, t->avn, 2 * dL, 16, dL, mp, &w0);
+    gemm_amx_epilogue w1 = { .c = t->dwh + (size_t)16 * dL + k4, .ldc = dL, .accumulate = 1 };
+    gemm_amx(t->dyt + (size_t)16 * mp, mp, t->avn + 2 * k4, 2 * dL, 48, dL - k4, mp, &w1);
     /* d a = d_out W_heads, masked by a > 0: inputs [0, k4) belong to heads 0-3 whose outputs are the
      * first 32 columns of d_out; [k4, dL) need all 64 */
     int cur = 0;

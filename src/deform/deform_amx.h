@@ -11,7 +11,8 @@
  * (mp = chunk rounded up to 32, d_a = width rounded up to 32). The backward writes each input
  * gradient once as row-major (A of the next input gradient) and as VNNI pairs of points (B of the
  * weight gradient). The five heads' last layers run as one 5W -> 64 block-diagonal GEMM split into
- * two calls that skip the all-zero K ranges. Weight gradients accumulate in f32 per thread and are
+ * two calls that skip the all-zero blocks (outputs 0-15 hold the 11 small-head outputs and read all
+ * 5W inputs; outputs 16-63 are SH only and read head 4's W inputs). Weight gradients accumulate in f32 per thread and are
  * added to the caller's gradient buffer by deform_amx_backward_end.
  */
 #ifndef PG_DEFORM_DEFORM_AMX_H

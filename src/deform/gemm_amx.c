@@ -168,6 +168,76 @@ typedef struct {
     uint8_t rows[16];
 } __attribute__((packed, aligned(64))) amx_tilecfg;
 
+/* Bias of f32 rows [i, i+16), columns [j, j+16). */
+static void tile_bias(const gemm_amx_epilogue *e, int i, int j)
+{
+    for (int r = 0; r < 16; r++) {
+        float *c = e->c + (size_t)(i + r) * e->ldc + j;
+        #pragma omp simd
+        for (int q = 0; q < 16; q++) c[q] += e->bias[j + q];
+    }
+}
+
+/* A 16-wide edge of an f32 output: the column strip [j0, j0+16) over rows [i0, end) (rows = 0), or
+ * the row strip [i0, i0+16) over columns [j0, end) (rows = 1), as 16x16 tiles in groups of up to
+ * three that share their A (row strip) or B (column strip) operand, so the three accumulation
+ * chains interleave instead of waiting on each other. */
+static __attribute__((target("amx-tile,amx-bf16"))) void edge_strip(const uint16_t *A, int lda, const uint16_t *B,
+                                                                    int ldb, int K, const gemm_amx_epilogue *e, int i0,
+                                                                    int j0, int end, int rows)
+{
+    const long a_stride = (long)lda * 2, b_stride = (long)ldb * 2, c_stride = (long)e->ldc * 4;
+    for (int x = rows ? j0 : i0; x < end; x += 48) {
+        const int nt = end - x >= 48 ? 3 : (end - x) / 16;
+        float *c[3] = { NULL, NULL, NULL };
+        for (int t = 0; t < nt; t++)
+            c[t] = rows ? e->c + (size_t)i0 * e->ldc + x + 16 * t : e->c + (size_t)(x + 16 * t) * e->ldc + j0;
+        if (e->accumulate) {
+            _tile_loadd(0, c[0], c_stride);
+            if (nt > 1) _tile_loadd(1, c[1], c_stride);
+            if (nt > 2) _tile_loadd(2, c[2], c_stride);
+        } else {
+            _tile_zero(0);
+            _tile_zero(1);
+            _tile_zero(2);
+        }
+        for (int k = 0; k < K; k += 32) {
+            if (rows) { /* shared A rows i0, B columns x + 16t */
+                const uint16_t *b0 = B + (size_t)(k / 2) * ldb + (size_t)x * 2;
+                _tile_loadd(4, A + (size_t)i0 * lda + k, a_stride);
+                _tile_loadd(5, b0, b_stride);
+                _tile_dpbf16ps(0, 4, 5);
+                if (nt > 1) {
+                    _tile_loadd(6, b0 + 32, b_stride);
+                    _tile_dpbf16ps(1, 4, 6);
+                }
+                if (nt > 2) {
+                    _tile_loadd(7, b0 + 64, b_stride);
+                    _tile_dpbf16ps(2, 4, 7);
+                }
+            } else { /* shared B columns j0, A rows x + 16t */
+                const uint16_t *a0 = A + (size_t)x * lda + k;
+                _tile_loadd(4, B + (size_t)(k / 2) * ldb + (size_t)j0 * 2, b_stride);
+                _tile_loadd(5, a0, a_stride);
+                _tile_dpbf16ps(0, 5, 4);
+                if (nt > 1) {
+                    _tile_loadd(6, a0 + (size_t)16 * lda, a_stride);
+                    _tile_dpbf16ps(1, 6, 4);
+                }
+                if (nt > 2) {
+                    _tile_loadd(7, a0 + (size_t)32 * lda, a_stride);
+                    _tile_dpbf16ps(2, 7, 4);
+                }
+            }
+        }
+        _tile_stored(0, c[0], c_stride);
+        if (nt > 1) _tile_stored(1, c[1], c_stride);
+        if (nt > 2) _tile_stored(2, c[2], c_stride);
+        if (e->bias)
+            for (int t = 0; t < nt; t++) tile_bias(e, rows ? i0 : x + 16 * t, rows ? x + 16 * t : j0);
+    }
+}
+
 __attribute__((target("amx-tile,amx-bf16"))) void gemm_amx(const uint16_t *A, int lda, const uint16_t *B, int ldb,
                                                             int M, int N, int K, const gemm_amx_epilogue *e)
 {
@@ -182,8 +252,9 @@ __attribute__((target("amx-tile,amx-bf16"))) void gemm_amx(const uint16_t *A, in
     _tile_loadconfig(&cfg);
     float blk[32 * 32] __attribute__((aligned(64)));
     const long a_stride = (long)lda * 2, b_stride = (long)ldb * 2, c_stride = (long)e->ldc * 4;
-    for (int j = 0; j < N; j += 32) {
-        for (int i = 0; i < M; i += 32) {
+    const int M32 = M & ~31, N32 = N & ~31;
+    for (int j = 0; j < N32; j += 32) {
+        for (int i = 0; i < M32; i += 32) {
             float *cb = e->c ? e->c + (size_t)i * e->ldc + j : NULL;
             if (cb && e->accumulate) {
                 _tile_loadd(0, cb, c_stride);
@@ -228,6 +299,8 @@ __attribute__((target("amx-tile,amx-bf16"))) void gemm_amx(const uint16_t *A, in
             block_epilogue(e, blk, i, j);
         }
     }
+    if (N32 < N) edge_strip(A, lda, B, ldb, K, e, 0, N32, M, 0);
+    if (M32 < M) edge_strip(A, lda, B, ldb, K, e, M32, 0, N32, 1);
     _tile_release();
 }
 #else

@@ -1,6 +1,7 @@
 /* gemm_amx.h - bf16 matrix multiply on Intel AMX tiles (f32 accumulation), for the MLP layers.
  *
- * C (M, N) = A (M, K) * B (K, N) with M, N, K multiples of 32 (callers pad with zeros):
+ * C (M, N) = A (M, K) * B (K, N) with K a multiple of 32 and M, N multiples of 32 (multiples of 16
+ * for an f32 output); callers pad with zeros:
  *   A: bf16 row-major, row stride lda (elements);
  *   B: bf16 "VNNI" pairs of rows: b(k, n) at B[(k/2)*ldb + 2n + k%2] (ldb = 2 * padded width).
  * Sub-blocks of a bigger operand are plain pointer offsets (A + k0, B + (k0/2)*ldb + 2*n0).
