@@ -25,9 +25,8 @@ typedef struct {
 } amx_thread;
 
 struct deform_amx {
-    int L, W, chunk, mp, k4;         /* layers, width, chunk, padded chunk, 32-aligned start of head 4's inputs */
+    int L, W, F, mp, k4;             /* layers, width, features, padded chunk, 32-aligned start of head 4's inputs */
     int d[MAX_ACTS];                 /* padded widths of the activations: d[0] features, d[L] = 5W padded */
-    int in[MAX_ACTS], out[MAX_ACTS]; /* true layer sizes */
     size_t rm_off[MAX_ACTS], tr_off[MAX_ACTS], act_elems; /* activations 1..L in a thread's acts */
     uint16_t *feats;                 /* (feat_chunks, feat_elems): activation 0 (rm, then tr) of every chunk */
     size_t feat_elems;
@@ -87,14 +86,12 @@ pg_status deform_amx_create(deform_amx **out, const deform_network *net, int chu
     if (!a) return PG_ERR_NOMEM;
     a->L = net->num_layers;
     a->W = net->cfg.width;
-    a->chunk = chunk;
+    a->F = net->layers[0].in;
     a->mp = gemm_amx_round(chunk);
     a->k4 = (4 * a->W) & ~31;
     for (int l = 0; l < a->L; l++) {
-        a->in[l] = net->layers[l].in;
-        a->out[l] = net->layers[l].out;
-        a->d[l] = gemm_amx_round(a->in[l]);
-        a->d[l + 1] = gemm_amx_round(a->out[l]);
+        a->d[l] = gemm_amx_round(net->layers[l].in);
+        a->d[l + 1] = gemm_amx_round(net->layers[l].out);
     }
     a->feat_elems = 2 * (size_t)a->mp * a->d[0];
     a->rm_off[0] = 0;
@@ -220,7 +217,7 @@ pg_status deform_amx_prepare(deform_amx *a, long nchunks)
 void deform_amx_chunk_forward(deform_amx *a, int tid, long k, const float *feat, int m, float *y)
 {
     amx_thread *t = &a->th[tid];
-    const int mp = a->mp, F = a->in[0], L = a->L;
+    const int mp = a->mp, F = a->F, L = a->L;
     uint16_t *fk = a->feats + (size_t)k * a->feat_elems;
     const uint16_t *xin = fk; /* this layer's input: features, then t->acts */
     if (feat) {
