@@ -125,6 +125,36 @@ static void randomize_planes(deform_network *net, pg_rng *rng)
     for (size_t i = 0; i < net->num_plane_params; i++) net->params[i] = (float)pg_rng_range(rng, 0.5, 1.5);
 }
 
+/* One point through the slice API: slice at t, sample (and, with d_planes, the backward with the
+ * slice gradient spread onto the time rows). */
+static void hex_point_forward(float *feat, const hex_grid *g, const float *pos, float t)
+{
+    float *buf = malloc(hex_slice_size(g) * sizeof(float));
+    hex_slice sl;
+    hex_point hp;
+    hex_slice_layout(&sl, buf, g, t);
+    hex_slice_forward(&sl, g);
+    hex_point_setup(&hp, g, pos);
+    hex_sample_forward_point(feat, g, &sl, &hp);
+    free(buf);
+}
+
+static void hex_point_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], float *d_pos, const float *d_feat,
+                               const hex_grid *g, const float *pos, float t)
+{
+    float *buf = malloc(hex_slice_size(g) * sizeof(float)), *dbuf = calloc(hex_slice_size(g), sizeof(float));
+    hex_slice sl, dsl;
+    hex_point hp;
+    hex_slice_layout(&sl, buf, g, t);
+    hex_slice_forward(&sl, g);
+    hex_slice_layout(&dsl, dbuf, g, t);
+    hex_point_setup(&hp, g, pos);
+    hex_sample_backward_point(d_planes, &dsl, d_pos, d_feat, g, &sl, &hp);
+    hex_slice_backward(d_planes, &dsl, g);
+    free(buf);
+    free(dbuf);
+}
+
 static void test_hexplane(void)
 {
     deform_config cfg;
@@ -138,8 +168,8 @@ static void test_hexplane(void)
     /* t-invariance at init: time planes are 1 */
     float pos[3], f0[64], f1[64];
     random_pos(&rng, &net->grid, pos);
-    hex_sample_forward(f0, &net->grid, pos, 0.1f);
-    hex_sample_forward(f1, &net->grid, pos, 0.83f);
+    hex_point_forward(f0, &net->grid, pos, 0.1f);
+    hex_point_forward(f1, &net->grid, pos, 0.83f);
     int F = cfg.channels * cfg.num_scales;
     CHECK(memcmp(f0, f1, F * sizeof(float)) == 0, "features depend on t with time planes = 1");
     int inrange = 1;
@@ -163,7 +193,7 @@ static void test_hexplane(void)
     double worst_f = 0;
     for (int k = 0; k < npts; k++) {
         double pos_d[3] = { pts[k][0], pts[k][1], pts[k][2] }, fr[64];
-        hex_sample_forward(f0, &net->grid, pts[k], t);
+        hex_point_forward(f0, &net->grid, pts[k], t);
         ref_hex(fr, &r, pos_d, t);
         for (int i = 0; i < F; i++) worst_f = fmax(worst_f, fabs(f0[i] - fr[i]) / fmax(1e-3, fabs(fr[i])));
     }
@@ -173,7 +203,7 @@ static void test_hexplane(void)
     for (int s = 0; s < cfg.num_scales; s++)
         for (int p = 0; p < HEX_PLANES; p++) dpl[s][p] = gp + net->plane_off[s][p];
     float dpos[3][3] = { { 0 } };
-    for (int k = 0; k < npts; k++) hex_sample_backward(dpl, dpos[k], dfeat, &net->grid, pts[k], t);
+    for (int k = 0; k < npts; k++) hex_point_backward(dpl, dpos[k], dfeat, &net->grid, pts[k], t);
     const double h = 1e-6;
     for (size_t i = 0; i < P; i++) {
         double v = pd[i], L[2];
@@ -211,7 +241,7 @@ static void test_hexplane(void)
     CHECK(e_pos < 1e-3, "hexplane d/dpos rel err %g", e_pos);
     /* outside the AABB: border clamp, zero position gradient */
     float out_pos[3] = { 5, -7, 10 }, dp_out[3] = { 0, 0, 0 };
-    hex_sample_backward(dpl, dp_out, dfeat, &net->grid, out_pos, t);
+    hex_point_backward(dpl, dp_out, dfeat, &net->grid, out_pos, t);
     CHECK(dp_out[0] == 0 && dp_out[1] == 0 && dp_out[2] == 0, "clamped position has gradient %g %g %g", dp_out[0],
           dp_out[1], dp_out[2]);
     printf("hexplane: forward rel err %.2e, d/dplanes %.2e, d/dpos %.2e\n", worst_f, e_plane, e_pos);
@@ -493,40 +523,82 @@ static float bf16_round(float f)
     return f;
 }
 
-/* AMX GEMM on ragged sizes and transposed strides vs a double product of the bf16-rounded inputs. */
+/* AMX GEMM vs a double product of the bf16-rounded inputs: f32 accumulate into a sub-block of a
+ * bigger C (operands packed from a transposed A and a ragged B), then the bf16 epilogue (bias, ReLU,
+ * mask, column sums, row-major / transposed / VNNI outputs). */
 static void test_gemm_amx(void)
 {
     if (!gemm_amx_available()) {
         printf("gemm_amx: AMX not available, skipped\n");
         return;
     }
-    enum { M = 37, N = 45, K = 50 };
+    enum { M = 37, N = 45, K = 50, MP = 64, NP = 64, KP = 64, LDC = 80 };
     pg_rng rng;
     pg_rng_seed(&rng, 8);
-    static float A[K * M], B[K * N], Cm[M * 50], R[M * N];
+    static float A[K * M], B[K * N], Cm[MP * LDC], C0[MP * LDC], R[M * N], bias[NP];
+    static uint16_t ap[MP * KP], bp[KP * NP], mask[MP * NP], rm[MP * NP], tr[NP * MP], vn[MP * NP];
     for (int i = 0; i < K * M; i++) A[i] = (float)pg_rng_range(&rng, -1, 1);
     for (int i = 0; i < K * N; i++) B[i] = (float)pg_rng_range(&rng, -1, 1);
-    for (int i = 0; i < M * 50; i++) Cm[i] = (float)pg_rng_range(&rng, -1, 1);
-    /* A stored transposed (K, M): a(i,k) = A[k*M + i]; B row-major (K, N); C with ldc 50, accumulate */
+    for (int i = 0; i < MP * LDC; i++) C0[i] = Cm[i] = (float)pg_rng_range(&rng, -1, 1);
+    for (int j = 0; j < NP; j++) bias[j] = j < N ? (float)pg_rng_range(&rng, -0.5, 0.5) : 0.0f;
+    for (int i = 0; i < MP * NP; i++) mask[i] = pg_rng_uniform(&rng) < 0.8 ? 1 : 0;
+    /* A stored transposed (K, M): a(i,k) = A[k*M + i]; B row-major (K, N) */
     for (int i = 0; i < M; i++)
         for (int j = 0; j < N; j++) {
-            double s = Cm[i * 50 + j];
+            double s = 0;
             for (int k = 0; k < K; k++) s += (double)bf16_round(A[k * M + i]) * bf16_round(B[k * N + j]);
             R[i * N + j] = (float)s;
         }
-    uint16_t *ap = malloc(gemm_amx_a_size(M, K) * 2), *bp = malloc(gemm_amx_b_size(K, N) * 2);
-    gemm_amx_pack_a(ap, A, 1, M, M, K);
+    gemm_amx_pack_a(ap, KP, MP, KP, A, 1, M, M, K);
     gemm_amx_pack_b(bp, B, N, 1, K, N);
-    float untouched = Cm[0 * 50 + 47];
-    gemm_amx_run(Cm, 50, ap, bp, M, N, K, 1);
+    /* f32, accumulate into C at column offset 16 */
+    gemm_amx_epilogue ef = { .c = Cm + 16, .ldc = LDC, .accumulate = 1 };
+    gemm_amx(ap, KP, bp, 2 * NP, MP, NP, KP, &ef);
     double e = 0;
-    for (int i = 0; i < M; i++)
-        for (int j = 0; j < N; j++) e = fmax(e, fabs(Cm[i * 50 + j] - R[i * N + j]));
-    CHECK(e < 1e-4, "amx gemm vs bf16 reference: %g", e);
-    CHECK(Cm[47] == untouched, "amx gemm wrote outside N");
-    printf("gemm_amx (37x45x50, transposed A, accumulate): max err %.2e\n", e);
-    free(ap);
-    free(bp);
+    int outside = 0;
+    for (int i = 0; i < MP; i++)
+        for (int j = 0; j < LDC; j++) {
+            int in = j >= 16 && j < 16 + NP;
+            double ref = C0[i * LDC + j] + (in && i < M && j - 16 < N ? R[i * N + j - 16] : 0.0);
+            if (!in) outside |= Cm[i * LDC + j] != C0[i * LDC + j];
+            else e = fmax(e, fabs(Cm[i * LDC + j] - ref));
+        }
+    CHECK(e < 1e-4 && !outside, "amx gemm f32 accumulate: err %g, wrote outside %d", e, outside);
+    /* 16-wide edges (M = 48, N = 48: a 32-block plus a row strip and a column strip), with bias */
+    static float Ce[48 * 48];
+    gemm_amx_epilogue ee = { .c = Ce, .ldc = 48, .bias = bias };
+    gemm_amx(ap, KP, bp, 2 * NP, 48, 48, KP, &ee);
+    double e_edge = 0;
+    for (int i = 0; i < 48; i++)
+        for (int j = 0; j < 48; j++)
+            e_edge = fmax(e_edge, fabs(Ce[i * 48 + j] - ((i < M && j < N ? R[i * N + j] : 0.0) + bias[j])));
+    CHECK(e_edge < 1e-4, "amx gemm 16-wide edges: err %g", e_edge);
+    /* bf16 epilogue */
+    float colsum[NP] = { 0 };
+    gemm_amx_epilogue eb = { .bias = bias, .relu = 1, .mask = mask, .ldmask = NP, .colsum = colsum, .rows = M,
+                             .rm = rm, .ldrm = NP, .tr = tr, .ldtr = MP, .vn = vn, .ldvn = 2 * NP };
+    gemm_amx(ap, KP, bp, 2 * NP, MP, NP, KP, &eb);
+    double e2 = 0, es = 0;
+    int layout = 0;
+    for (int j = 0; j < NP; j++) {
+        double cs = 0;
+        for (int i = 0; i < MP; i++) {
+            double v = (i < M && j < N ? R[i * N + j] : 0.0) + bias[j];
+            v = v > 0 && mask[i * NP + j] ? v : 0.0;
+            if (i < M) cs += v;
+            uint16_t r = rm[i * NP + j];
+            float got;
+            uint32_t u = (uint32_t)r << 16;
+            memcpy(&got, &u, 4);
+            e2 = fmax(e2, fabs(got - v) / (fabs(v) + 1e-3));
+            layout |= tr[j * MP + i] != r || vn[(i / 2) * 2 * NP + 2 * j + i % 2] != r;
+        }
+        es = fmax(es, fabs(colsum[j] - cs));
+    }
+    CHECK(e2 < 1e-2 && es < 1e-3 && !layout, "amx gemm epilogue: rel err %g, colsum err %g, layouts differ %d", e2, es,
+          layout);
+    printf("gemm_amx (37x45x50 padded to 64): f32 accumulate max err %.2e, epilogue rel err %.2e colsum %.2e\n", e, e2,
+           es);
 }
 
 /* The bf16 AMX network path agrees with the f32 path to bf16 accuracy. */

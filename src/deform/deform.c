@@ -4,6 +4,7 @@
 
 #include "core/fileutil.h"
 #include "core/rng.h"
+#include "deform/deform_amx.h"
 #include "deform/gemm_amx.h"
 #include "deform/mlp.h"
 #include "optim/loss_reg.h"
@@ -177,7 +178,18 @@ void deform_network_destroy(deform_network *net)
 
 size_t deform_network_num_params(const deform_network *net) { return net->num_params; }
 
-void deform_network_zero_grad(deform_network *net) { memset(net->grads, 0, net->num_params * sizeof(float)); }
+/* 10 MB with the defaults, every iteration: split over the threads (memory bandwidth per core is
+ * the limit). */
+void deform_network_zero_grad(deform_network *net)
+{
+    const size_t block = (size_t)1 << 16;
+    const long nblocks = (long)((net->num_params + block - 1) / block);
+    #pragma omp parallel for schedule(static)
+    for (long b = 0; b < nblocks; b++) {
+        size_t lo = (size_t)b * block, n = net->num_params - lo < block ? net->num_params - lo : block;
+        memset(net->grads + lo, 0, n * sizeof(float));
+    }
+}
 
 /* ---------------------------------------------------------------------------------------------- */
 /* workspace                                                                                       */
@@ -200,17 +212,15 @@ struct deform_ws {
     float t;
     long *order;          /* (order_cap) processing order: row j of the chunks is point order[j] */
     long *keys;           /* (order_cap) Morton keys of the points */
+    float *pos;           /* (order_cap, 3) positions in processing order (gathered once per forward) */
+    hex_slice sl;         /* the time planes at t (built per forward, read by its backward) */
+    float *slice_buf;     /* storage of sl */
+    size_t slice_off;     /* offset of a thread's slice gradient in its scratch */
     long order_cap;
     long *bins;           /* (SORT_BINS + 1) counting-sort histogram */
-    /* bf16 AMX path */
+    /* bf16 AMX path (deform_amx.h): the MLP there, the HexPlane and ordering here */
     int amx;
-    size_t apack_off, bpack_off;  /* offsets (floats) of the packing scratch inside a thread's scratch */
-    size_t dwt_off;               /* per-thread transposed weight gradients (in, out) of every layer */
-    uint16_t *wt_pack[DEFORM_MAX_FEATURE_LAYERS + 1]; /* per layer: w as B of x w^T  */
-    uint16_t *w_pack[DEFORM_MAX_FEATURE_LAYERS + 1];  /* per layer: w as B of d_y w  */
-    uint16_t *head_wt_pack[DEFORM_HEADS]; /* heads' last layers, for forward */
-    uint16_t *head_w_pack[DEFORM_HEADS];  /* heads' last layers, for d a = d_y w */
-    uint16_t *packs;              /* storage of all packed weights */
+    deform_amx *amxp;
 };
 
 int deform_ws_uses_amx(const deform_ws *ws) { return ws->amx; }
@@ -219,26 +229,15 @@ int deform_ws_chunk(const deform_ws *ws) { return ws->chunk; }
 static size_t ws_scratch_floats(const deform_ws *ws)
 {
     size_t c = (size_t)ws->chunk;
-    size_t big = (size_t)DEFORM_HEADS * ws->W;
-    size_t mx = (size_t)(ws->W > ws->F ? ws->W : ws->F);
-    /* acts + d_out copy + dA (c, 5W) + two ping-pong (c, max(W, F)) [+ bf16 packing scratch] */
-    size_t n = c * ws->act_pp + c * DEFORM_OUT_DIM + c * big + 2 * c * mx;
-    return (n + 15) & ~(size_t)15;
-}
-
-/* Packing scratch (in uint16) of the AMX path for layers of sizes in -> out. */
-static void ws_amx_scratch(const deform_network *net, int chunk, size_t *a, size_t *b)
-{
-    *a = *b = 0;
-    for (int l = 0; l < net->num_layers; l++) {
-        int in = net->layers[l].in, out = net->layers[l].out;
-        size_t s1 = gemm_amx_a_size(chunk, in), s2 = gemm_amx_a_size(in, chunk), s3 = gemm_amx_a_size(chunk, out);
-        size_t m = s1 > s2 ? s1 : s2;
-        if (s3 > m) m = s3;
-        if (m > *a) *a = m;
-        size_t sb = gemm_amx_b_size(chunk, out);
-        if (sb > *b) *b = sb;
+    size_t n;
+    if (ws->amx) { /* features, d_out rows, head outputs; the activations live in the AMX module */
+        n = c * ws->F + c * DEFORM_OUT_DIM + c * DEFORM_AMX_OUT_LD;
+    } else { /* acts + d_out copy + dA (c, 5W) + two ping-pong (c, max(W, F)) */
+        size_t big = (size_t)DEFORM_HEADS * ws->W;
+        size_t mx = (size_t)(ws->W > ws->F ? ws->W : ws->F);
+        n = c * ws->act_pp + c * DEFORM_OUT_DIM + c * big + 2 * c * mx;
     }
+    return (n + 15) & ~(size_t)15;
 }
 
 /* Grows the per-thread buffers to the current OpenMP thread count. */
@@ -248,7 +247,7 @@ static pg_status ws_ensure_threads(deform_ws *ws)
     if (nt <= ws->nthreads) return PG_OK;
     float *s = alloc_floats((size_t)nt * ws->scratch_floats, 0, "deform thread scratch");
     float *g = nt > 1 ? alloc_floats((size_t)(nt - 1) * ws->num_params, 0, "deform thread gradients") : NULL;
-    if (!s || (nt > 1 && !g)) {
+    if (!s || (nt > 1 && !g) || (ws->amxp && deform_amx_ensure_threads(ws->amxp, nt))) {
         free(s);
         free(g);
         return PG_ERR_NOMEM;
@@ -274,51 +273,28 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
     ws->L = net->num_layers;
     ws->act_pp = (size_t)ws->F + (size_t)(ws->L - 1) * ws->W + (size_t)DEFORM_HEADS * ws->W;
     ws->num_params = net->num_params;
-    ws->scratch_floats = ws_scratch_floats(ws);
     ws->amx = net->cfg.bf16 && gemm_amx_available();
+    ws->scratch_floats = ws_scratch_floats(ws);
+    ws->slice_off = ws->scratch_floats;
+    ws->scratch_floats += (hex_slice_size(&net->grid) + 15) & ~(size_t)15;
+    if (!(ws->slice_buf = alloc_floats(hex_slice_size(&net->grid), 0, "deform time slice"))) {
+        deform_ws_destroy(ws);
+        return PG_ERR_NOMEM;
+    }
+    ws->store_points = ws->amx ? 0 : (max_points + chunk - 1) / chunk * (long)chunk;
     if (ws->amx) {
-        size_t a, b, total = 0;
-        ws_amx_scratch(net, chunk, &a, &b);
-        ws->apack_off = ws->scratch_floats;
-        ws->bpack_off = ws->apack_off + ((a / 2 + 16) & ~(size_t)15);
-        ws->dwt_off = ws->bpack_off + ((b / 2 + 16) & ~(size_t)15);
-        size_t dwt = 0;
-        for (int l = 0; l < net->num_layers; l++) dwt += (size_t)net->layers[l].in * net->layers[l].out;
-        ws->scratch_floats = ws->dwt_off + ((dwt + 15) & ~(size_t)15);
-        for (int l = 0; l < net->num_layers; l++)
-            total += gemm_amx_b_size(net->layers[l].in, net->layers[l].out) +
-                     gemm_amx_b_size(net->layers[l].out, net->layers[l].in);
-        for (int h = 0; h < DEFORM_HEADS; h++)
-            total += gemm_amx_b_size(net->heads[h].in, net->heads[h].out) +
-                     gemm_amx_b_size(net->heads[h].out, net->heads[h].in);
-        ws->packs = pg_malloc(total * sizeof(uint16_t), "deform packed weights");
-        if (!ws->packs) {
-            free(ws);
-            return PG_ERR_NOMEM;
+        pg_status st = deform_amx_create(&ws->amxp, net, chunk);
+        if (st) {
+            deform_ws_destroy(ws);
+            return st;
         }
-        uint16_t *p = ws->packs;
-        for (int l = 0; l < net->num_layers; l++) {
-            ws->wt_pack[l] = p;
-            p += gemm_amx_b_size(net->layers[l].in, net->layers[l].out);
-            ws->w_pack[l] = p;
-            p += gemm_amx_b_size(net->layers[l].out, net->layers[l].in);
+    } else {
+        size_t store_floats;
+        if (pg_size_mul((size_t)ws->store_points, ws->act_pp, &store_floats)) {
+            deform_ws_destroy(ws);
+            return pg_fail(PG_ERR_SIZE, "deform_ws_create: %ld points overflow", max_points);
         }
-        for (int h = 0; h < DEFORM_HEADS; h++) {
-            ws->head_wt_pack[h] = p;
-            p += gemm_amx_b_size(net->heads[h].in, net->heads[h].out);
-            ws->head_w_pack[h] = p;
-            p += gemm_amx_b_size(net->heads[h].out, net->heads[h].in);
-        }
-    }
-    ws->store_points = (max_points + chunk - 1) / chunk * (long)chunk;
-    size_t store_floats;
-    if (pg_size_mul((size_t)ws->store_points, ws->act_pp, &store_floats)) {
-        deform_ws_destroy(ws); /* also frees the packed weights */
-        return pg_fail(PG_ERR_SIZE, "deform_ws_create: %ld points overflow", max_points);
-    }
-    if (store_floats) {
-        ws->store = alloc_floats(store_floats, 0, "deform stored activations");
-        if (!ws->store) {
+        if (store_floats && !(ws->store = alloc_floats(store_floats, 0, "deform stored activations"))) {
             deform_ws_destroy(ws);
             return PG_ERR_NOMEM;
         }
@@ -347,8 +323,10 @@ void deform_ws_destroy(deform_ws *ws)
     free(ws->tgrads);
     free(ws->order);
     free(ws->keys);
+    free(ws->pos);
+    free(ws->slice_buf);
     free(ws->bins);
-    free(ws->packs);
+    deform_amx_destroy(ws->amxp);
     free(ws);
 }
 
@@ -372,27 +350,33 @@ static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
 {
     if (n > ws->order_cap) {
         long *o = malloc((size_t)n * sizeof(long)), *k = malloc((size_t)n * sizeof(long));
-        if (!o || !k) {
+        float *ps = malloc((size_t)n * 3 * sizeof(float));
+        if (!o || !k || !ps) {
             free(o);
             free(k);
+            free(ps);
             return pg_fail(PG_ERR_NOMEM, "deform: no memory to order %ld points", n);
         }
         free(ws->order);
         free(ws->keys);
+        free(ws->pos);
         ws->order = o;
         ws->keys = k;
+        ws->pos = ps;
         ws->order_cap = n;
     }
     if (!ws->bins && !(ws->bins = malloc((SORT_BINS + 1) * sizeof(long))))
         return pg_fail(PG_ERR_NOMEM, "deform: no memory for the point sort");
     long *keys = ws->keys;
+    float inv[3];
+    for (int d = 0; d < 3; d++) inv[d] = (float)(1 << SORT_BITS) / (g->aabb[3 + d] - g->aabb[d]);
+    #pragma omp parallel for schedule(static)
     for (long i = 0; i < n; i++) {
         const float *p = ws->means + 3 * (ws->idx ? (long)ws->idx[i] : i);
         long key = 0;
         for (int d = 0; d < 3; d++) {
-            float u = (p[d] - g->aabb[d]) / (g->aabb[3 + d] - g->aabb[d]);
-            int c = u > 0.0f ? (int)(u * (1 << SORT_BITS)) : 0; /* NaN -> 0 */
-            if (c > (1 << SORT_BITS) - 1) c = (1 << SORT_BITS) - 1;
+            float u = (p[d] - g->aabb[d]) * inv[d];
+            int c = u > 0.0f ? (int)fminf(u, (float)((1 << SORT_BITS) - 1)) : 0; /* NaN -> 0 */
             for (int b = 0; b < SORT_BITS; b++) key |= (long)((c >> b) & 1) << (3 * b + d);
         }
         keys[i] = key;
@@ -401,11 +385,15 @@ static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
     for (long i = 0; i < n; i++) ws->bins[keys[i] + 1]++;
     for (long b = 0; b < SORT_BINS; b++) ws->bins[b + 1] += ws->bins[b];
     for (long i = 0; i < n; i++) ws->order[ws->bins[keys[i]]++] = i;
+    /* one gather pass (independent loads overlap) instead of a dependent random load per point in
+     * every HexPlane pass */
+    #pragma omp parallel for schedule(static)
+    for (long j = 0; j < n; j++) memcpy(ws->pos + 3 * j, ws->means + 3 * point_row(ws, j), 3 * sizeof(float));
     return PG_OK;
 }
 
-/* Activations of chunk k: stored, or this thread's scratch. Layout (m rows each): feat (m, F),
- * layer outputs 0..L-2 (m, W), last layer (m, 5W). */
+/* f32 path: activations of chunk k, stored or this thread's scratch. Layout (m rows each): feat
+ * (m, F), layer outputs 0..L-2 (m, W), last layer (m, 5W). */
 static float *chunk_acts(deform_ws *ws, long k, int tid, int *stored)
 {
     long start = k * ws->chunk;
@@ -414,38 +402,55 @@ static float *chunk_acts(deform_ws *ws, long k, int tid, int *stored)
     return ws->scratch + (size_t)tid * ws->scratch_floats;
 }
 
-/* Pointer to the output of layer l (-1: the features) inside a chunk's activations of m rows. */
+/* f32 path: pointer to the output of layer l (-1: the features) inside a chunk's activations. */
 static float *layer_out(const deform_ws *ws, float *acts, int l, int m)
 {
     if (l < 0) return acts;
     return acts + (size_t)m * ws->F + (size_t)l * m * ws->W;
 }
 
-/* Hexplane + hidden layers of one chunk (everything except the heads' last layers). */
-static void chunk_forward_hidden(const deform_network *net, deform_ws *ws, float *acts, long start, int m, int tid)
+/* HexPlane features feat (m, F) of the chunk's points (prefetching texels a few points ahead). */
+static void chunk_features(const deform_network *net, const deform_ws *ws, float *feat, long start, int m)
 {
     const int F = ws->F;
     hex_point ring[HEX_PREFETCH_AHEAD + 1]; /* axes of points i .. i+AHEAD */
     for (int i = 0; i < m && i < HEX_PREFETCH_AHEAD; i++)
-        hex_point_setup(&ring[i], &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
+        hex_point_setup(&ring[i], &net->grid, ws->pos + 3 * (start + i));
     for (int i = 0; i < m; i++) {
         int ahead = i + HEX_PREFETCH_AHEAD;
         if (ahead < m) {
             hex_point *hp = &ring[ahead % (HEX_PREFETCH_AHEAD + 1)];
-            hex_point_setup(hp, &net->grid, ws->means + 3 * point_row(ws, start + ahead), ws->t);
+            hex_point_setup(hp, &net->grid, ws->pos + 3 * (start + ahead));
             hex_prefetch_point(&net->grid, NULL, hp);
         }
-        hex_sample_forward_point(acts + (size_t)i * F, &net->grid, &ring[i % (HEX_PREFETCH_AHEAD + 1)]);
+        hex_sample_forward_point(feat + (size_t)i * F, &net->grid, &ws->sl, &ring[i % (HEX_PREFETCH_AHEAD + 1)]);
     }
-    uint16_t *apack = (uint16_t *)(ws->scratch + (size_t)tid * ws->scratch_floats + ws->apack_off);
+}
+
+/* Forward of chunk k up to the heads' hidden layer (AMX: also the heads when y != NULL). */
+static void chunk_forward(const deform_network *net, deform_ws *ws, long k, int m, int tid, float *y)
+{
+    long start = k * ws->chunk;
+    float *scr = ws->scratch + (size_t)tid * ws->scratch_floats;
+    if (ws->amx) {
+        chunk_features(net, ws, scr, start, m);
+        deform_amx_chunk_forward(ws->amxp, tid, k, scr, m, y);
+        return;
+    }
+    int stored;
+    float *acts = chunk_acts(ws, k, tid, &stored);
+    chunk_features(net, ws, acts, start, m);
     for (int l = 0; l < net->num_layers; l++) {
         const deform_layer *L = &net->layers[l];
-        if (ws->amx)
-            mlp_linear_forward_amx(layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
-                                   ws->wt_pack[l], net->params + L->b_off, m, L->in, L->out, 1, apack);
-        else
-            mlp_linear_forward(layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
-                               net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 1);
+        mlp_linear_forward(layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
+                           net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 1);
+    }
+    if (!y) return;
+    const float *a = layer_out(ws, acts, net->num_layers - 1, m);
+    for (int h = 0; h < DEFORM_HEADS; h++) {
+        const deform_layer *L = &net->heads[h];
+        mlp_linear_forward(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, DEFORM_HEADS * ws->W,
+                           net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 0);
     }
 }
 
@@ -459,52 +464,62 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
     ws->n = n;
     ws->t = t;
     PG_TRY(ws_sort_points(ws, &net->grid, n));
-    if (ws->amx) /* weights as B of x w^T, once per call (they change every optimiser step) */
-        for (int l = 0; l < net->num_layers; l++) {
-            const deform_layer *L = &net->layers[l];
-            gemm_amx_pack_b(ws->wt_pack[l], net->params + L->w_off, 1, L->in, L->in, L->out);
-        }
-    if (ws->amx)
-        for (int h = 0; h < DEFORM_HEADS; h++) {
-            const deform_layer *L = &net->heads[h];
-            gemm_amx_pack_b(ws->head_wt_pack[h], net->params + L->w_off, 1, L->in, L->in, L->out);
-        }
-    const int W5 = DEFORM_HEADS * ws->W;
+    hex_slice_layout(&ws->sl, ws->slice_buf, &net->grid, t);
+    hex_slice_forward(&ws->sl, &net->grid);
+    const int ldy = ws->amx ? DEFORM_AMX_OUT_LD : DEFORM_OUT_DIM;
     long nchunks = (n + ws->chunk - 1) / ws->chunk;
+    if (ws->amx) {
+        PG_TRY(deform_amx_prepare(ws->amxp, nchunks));
+        deform_amx_pack_forward(ws->amxp, net); /* weights change every optimiser step */
+    }
     #pragma omp parallel for schedule(static)
     for (long k = 0; k < nchunks; k++) {
-        int tid = omp_get_thread_num(), stored;
+        int tid = omp_get_thread_num();
         long start = k * ws->chunk;
         int m = (int)(n - start < ws->chunk ? n - start : ws->chunk);
-        float *acts = chunk_acts(ws, k, tid, &stored);
-        chunk_forward_hidden(net, ws, acts, start, m, tid);
-        const float *a = layer_out(ws, acts, net->num_layers - 1, m);
-        float *y = ws->scratch + (size_t)tid * ws->scratch_floats + (size_t)ws->chunk * ws->act_pp; /* (m, 59) */
-        uint16_t *apack = (uint16_t *)(ws->scratch + (size_t)tid * ws->scratch_floats + ws->apack_off);
-        for (int h = 0; h < DEFORM_HEADS; h++) {
-            const deform_layer *L = &net->heads[h];
-            if (ws->amx)
-                mlp_linear_forward_amx(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, W5,
-                                       ws->head_wt_pack[h], net->params + L->b_off, m, L->in, L->out, 0, apack);
-            else
-                mlp_linear_forward(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, W5,
-                                   net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 0);
-        }
+        float *scr = ws->scratch + (size_t)tid * ws->scratch_floats;
+        float *y = ws->amx ? scr + (size_t)ws->chunk * (ws->F + DEFORM_OUT_DIM) : scr + (size_t)ws->chunk * ws->act_pp;
+        chunk_forward(net, ws, k, m, tid, y);
         for (int i = 0; i < m; i++)
-            memcpy(out + (size_t)ws->order[start + i] * DEFORM_OUT_DIM, y + (size_t)i * DEFORM_OUT_DIM,
-                   DEFORM_OUT_DIM * sizeof(float));
+            memcpy(out + (size_t)ws->order[start + i] * DEFORM_OUT_DIM, y + (size_t)i * ldy, DEFORM_OUT_DIM * sizeof(float));
     }
     return PG_OK;
+}
+
+/* f32 path: backward of chunk k's MLP; dy (m, 59) is overwritten; returns d features (m, F). */
+static const float *chunk_backward_f32(const deform_network *net, deform_ws *ws, long k, int m, int tid, float *dy,
+                                       float *grads)
+{
+    const int W = ws->W, W5 = DEFORM_HEADS * W, F = ws->F;
+    const size_t c = (size_t)ws->chunk, mx = (size_t)(W > F ? W : F);
+    int stored;
+    float *acts = chunk_acts(ws, k, tid, &stored);
+    if (!stored) chunk_forward(net, ws, k, m, tid, NULL);
+    float *dA = dy + c * DEFORM_OUT_DIM; /* (c, 5W) */
+    float *dB = dA + c * W5, *dC = dB + c * mx;
+    const float *a = layer_out(ws, acts, net->num_layers - 1, m);
+    for (int h = 0; h < DEFORM_HEADS; h++) {
+        const deform_layer *L = &net->heads[h];
+        mlp_linear_backward(dA + (size_t)h * W, W5, grads + L->w_off, grads + L->b_off, dy + deform_head_offset[h],
+                            DEFORM_OUT_DIM, NULL, 0, a + (size_t)h * W, W5, net->params + L->w_off, m, L->in, L->out, 0);
+    }
+    float *dcur = dA, *dnext = dB;
+    for (int l = net->num_layers - 1; l >= 0; l--) {
+        const deform_layer *L = &net->layers[l];
+        mlp_linear_backward(dnext, L->in, grads + L->w_off, grads + L->b_off, dcur, L->out, layer_out(ws, acts, l, m),
+                            L->out, layer_out(ws, acts, l - 1, m), L->in, net->params + L->w_off, m, L->in, L->out, 1);
+        dcur = dnext;
+        dnext = dnext == dB ? dC : dB;
+    }
+    return dcur;
 }
 
 pg_status deform_network_backward(deform_network *net, deform_ws *ws, const float *d_out, float *d_means)
 {
     const long n = ws->n;
-    const int W = ws->W, W5 = DEFORM_HEADS * W, F = ws->F;
     long nchunks = (n + ws->chunk - 1) / ws->chunk;
     int nt = omp_get_max_threads();
     if (nt > ws->nthreads) return pg_fail(PG_ERR_ARG, "deform_network_backward: more threads than the workspace was sized for at the forward");
-    size_t mx = (size_t)(W > F ? W : F);
     int used_threads = 1;
     /* Parameter ranges a backward can write: spatial planes, the two time rows at t of each time
      * plane (60% of the parameters are time planes; this skips zeroing/reducing the rest of them
@@ -527,16 +542,7 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
     ranges[nranges][0] = net->num_plane_params;
     ranges[nranges][1] = net->num_params - net->num_plane_params;
     nranges++;
-    if (ws->amx)
-        for (int l = 0; l < net->num_layers; l++) {
-            const deform_layer *L = &net->layers[l];
-            gemm_amx_pack_b(ws->w_pack[l], net->params + L->w_off, L->in, 1, L->out, L->in);
-        }
-    if (ws->amx)
-        for (int h = 0; h < DEFORM_HEADS; h++) {
-            const deform_layer *L = &net->heads[h];
-            gemm_amx_pack_b(ws->head_w_pack[h], net->params + L->w_off, L->in, 1, L->out, L->in);
-        }
+    if (ws->amx) deform_amx_pack_backward(ws->amxp, net);
     #pragma omp parallel
     {
         int tid = omp_get_thread_num();
@@ -549,84 +555,46 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
         for (int s = 0; s < net->cfg.num_scales; s++)
             for (int p = 0; p < HEX_PLANES; p++) dplanes[s][p] = grads + net->plane_off[s][p];
         float *scr = ws->scratch + (size_t)tid * ws->scratch_floats;
-        size_t c = (size_t)ws->chunk;
-        float *dy = scr + c * ws->act_pp; /* (c, 59) */
-        float *dA = dy + c * DEFORM_OUT_DIM;   /* (c, 5W) */
-        float *dB = dA + c * W5;               /* (c, max(W, F)) */
-        float *dC = dB + c * mx;               /* (c, max(W, F)) */
-        float *dwt[DEFORM_MAX_FEATURE_LAYERS + 1]; /* AMX path: (in, out) per layer */
-        if (ws->amx) {
-            float *q = scr + ws->dwt_off;
-            for (int l = 0; l < net->num_layers; l++) {
-                dwt[l] = q;
-                q += (size_t)net->layers[l].in * net->layers[l].out;
-            }
-            memset(scr + ws->dwt_off, 0, (size_t)(q - (scr + ws->dwt_off)) * sizeof(float));
-        }
+        /* d_out rows of the chunk: after the activations (f32) or the features (AMX) */
+        float *dy = ws->amx ? scr + (size_t)ws->chunk * ws->F : scr + (size_t)ws->chunk * ws->act_pp;
+        if (ws->amx) deform_amx_backward_begin(ws->amxp, tid);
+        hex_slice dsl; /* this thread's time-plane gradient, spread onto the two time rows at the end */
+        hex_slice_layout(&dsl, scr + ws->slice_off, &net->grid, ws->t);
+        memset(scr + ws->slice_off, 0, hex_slice_size(&net->grid) * sizeof(float));
         #pragma omp for schedule(static)
         for (long k = 0; k < nchunks; k++) {
-            int stored;
             long start = k * ws->chunk;
             int m = (int)(n - start < ws->chunk ? n - start : ws->chunk);
-            float *acts = chunk_acts(ws, k, tid, &stored);
-            if (!stored) chunk_forward_hidden(net, ws, acts, start, m, tid);
             for (int i = 0; i < m; i++)
                 memcpy(dy + (size_t)i * DEFORM_OUT_DIM, d_out + (size_t)ws->order[start + i] * DEFORM_OUT_DIM,
                        DEFORM_OUT_DIM * sizeof(float));
-            const float *a = layer_out(ws, acts, net->num_layers - 1, m);
-            for (int h = 0; h < DEFORM_HEADS; h++) {
-                const deform_layer *L = &net->heads[h];
-                /* weight/bias gradients of the small last layers stay f32 (a strided bf16 pack of a^T
-                 * would cost more than it saves); d a = d_y w goes on AMX when enabled */
-                mlp_linear_backward(ws->amx ? NULL : dA + (size_t)h * W, W5, grads + L->w_off, grads + L->b_off,
-                                    dy + deform_head_offset[h], DEFORM_OUT_DIM, NULL, 0, a + (size_t)h * W, W5,
-                                    net->params + L->w_off, m, L->in, L->out, 0);
-                if (ws->amx) {
-                    uint16_t *apack = (uint16_t *)(scr + ws->apack_off);
-                    gemm_amx_pack_a(apack, dy + deform_head_offset[h], DEFORM_OUT_DIM, 1, m, L->out);
-                    gemm_amx_run(dA + (size_t)h * W, W5, apack, ws->head_w_pack[h], m, W, L->out, 0);
-                }
+            const float *dfeat;
+            int ldf = ws->F;
+            if (ws->amx) {
+                deform_amx_chunk_forward(ws->amxp, tid, k, NULL, m, NULL);
+                dfeat = deform_amx_chunk_backward(ws->amxp, tid, k, dy, m, &ldf);
+            } else {
+                dfeat = chunk_backward_f32(net, ws, k, m, tid, dy, grads);
             }
-            float *dcur = dA, *dnext = dB;
-            for (int l = net->num_layers - 1; l >= 0; l--) {
-                const deform_layer *L = &net->layers[l];
-                if (ws->amx)
-                    mlp_linear_backward_amx(dnext, L->in, dwt[l], grads + L->b_off, dcur, L->out,
-                                            layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
-                                            ws->w_pack[l], m, L->in, L->out, 1, (uint16_t *)(scr + ws->apack_off),
-                                            (uint16_t *)(scr + ws->bpack_off));
-                else
-                    mlp_linear_backward(dnext, L->in, grads + L->w_off, grads + L->b_off, dcur, L->out,
-                                        layer_out(ws, acts, l, m), L->out, layer_out(ws, acts, l - 1, m), L->in,
-                                        net->params + L->w_off, m, L->in, L->out, 1);
-                dcur = dnext;
-                dnext = dnext == dB ? dC : dB;
-            }
-            /* dcur = d features (m, F) */
             hex_point ring[HEX_PREFETCH_AHEAD + 1];
             for (int i = 0; i < m && i < HEX_PREFETCH_AHEAD; i++)
-                hex_point_setup(&ring[i], &net->grid, ws->means + 3 * point_row(ws, start + i), ws->t);
+                hex_point_setup(&ring[i], &net->grid, ws->pos + 3 * (start + i));
             for (int i = 0; i < m; i++) {
                 int ahead = i + HEX_PREFETCH_AHEAD;
                 if (ahead < m) {
                     long gn = point_row(ws, start + ahead);
                     hex_point *hp = &ring[ahead % (HEX_PREFETCH_AHEAD + 1)];
-                    hex_point_setup(hp, &net->grid, ws->means + 3 * gn, ws->t);
+                    hex_point_setup(hp, &net->grid, ws->pos + 3 * (start + ahead));
                     hex_prefetch_point(&net->grid, dplanes, hp);
                     if (d_means) __builtin_prefetch(d_means + 3 * gn, 1, 3);
                 }
                 long gi = point_row(ws, start + i);
-                hex_sample_backward_point(dplanes, d_means ? d_means + 3 * gi : NULL, dcur + (size_t)i * F,
-                                          &net->grid, &ring[i % (HEX_PREFETCH_AHEAD + 1)]);
+                hex_sample_backward_point(dplanes, &dsl, d_means ? d_means + 3 * gi : NULL, dfeat + (size_t)i * ldf,
+                                          &net->grid, &ws->sl, &ring[i % (HEX_PREFETCH_AHEAD + 1)]);
             }
         }
-        if (ws->amx) /* this thread's transposed weight gradients -> its (out, in) gradient buffer */
-            for (int l = 0; l < net->num_layers; l++) {
-                const deform_layer *L = &net->layers[l];
-                float *gw = grads + L->w_off;
-                for (int o = 0; o < L->out; o++)
-                    for (int i = 0; i < L->in; i++) gw[(size_t)o * L->in + i] += dwt[l][(size_t)i * L->out + o];
-            }
+        if (ws->amx) deform_amx_backward_end(ws->amxp, net, tid, grads);
+        hex_slice_backward(dplanes, &dsl, &net->grid);
         /* Fixed-order reduction of the other threads' buffers over the written ranges, inside the
          * same parallel region (a fork/join per range is slow when the cores are busy). */
         if (used_threads > 1) {

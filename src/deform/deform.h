@@ -105,9 +105,11 @@ void deform_network_destroy(deform_network *net);
 size_t deform_network_num_params(const deform_network *net);
 void deform_network_zero_grad(deform_network *net);
 
-/* Workspace: per-thread chunk scratch, per-thread gradient buffers, and stored activations for up
- * to max_points points (forward calls with more points still work: the backward then recomputes
- * the activations of the chunks that were not kept). chunk = points per chunk (0: default, 128 on the AMX path, else 256). */
+/* Workspace: per-thread chunk scratch, per-thread gradient buffers, and (f32 path only) stored
+ * activations for up to max_points points (forward calls with more points still work: the backward
+ * then recomputes the activations of the chunks that were not kept). The AMX path ignores
+ * max_points and always recomputes (as fast as reading them back, see deform_amx.h).
+ * chunk = points per chunk (0: default, 128 on the AMX path, else 256). */
 pg_status deform_ws_create(deform_ws **ws, const deform_network *net, long max_points);
 pg_status deform_ws_create_chunked(deform_ws **ws, const deform_network *net, long max_points, int chunk);
 void deform_ws_destroy(deform_ws *ws);

@@ -1,7 +1,8 @@
-/* gemm_amx.c - bf16 AMX matrix multiply (see gemm_amx.h).
+/* gemm_amx.c - bf16 AMX matrix multiply with fused epilogues (see gemm_amx.h).
  *
  * Blocking: 32x32 output blocks held in four 16x16 f32 tiles (tmm0-3), two A tiles (tmm4-5, 16 rows
- * x 32 bf16) and two B tiles (tmm6-7, 16 pair-rows x 16 columns) per 32-deep K step.
+ * x 32 bf16) and two B tiles (tmm6-7, 16 pair-rows x 16 columns) per 32-deep K step. Column blocks
+ * are the outer loop so the B panel (K x 32) stays in L1 while the row blocks stream past it.
  */
 #include "deform/gemm_amx.h"
 
@@ -26,7 +27,7 @@ int gemm_amx_available(void)
     if (amx_state >= 0) return amx_state;
     unsigned a, b, c, d;
     int ok = __get_cpuid_count(7, 0, &a, &b, &c, &d) && (d & (1u << 22)) && (d & (1u << 24));
-    /* Linux keeps the 8 KB tile state off until the process asks for it. */
+    /* Linux keeps the 8 KB tile state off until the process asks for it (once per process). */
     if (ok) ok = syscall(SYS_arch_prctl, ARCH_REQ_XCOMP_PERM, XFEATURE_XTILEDATA) == 0;
     amx_state = ok;
     return ok;
@@ -35,28 +36,39 @@ int gemm_amx_available(void)
 #endif
 }
 
-/* f32 -> bf16, round to nearest even (inputs here are finite). */
-static inline uint16_t f2bf(float f)
+#ifdef PG_HAVE_AMX_BUILD
+/* Row i of A from a strided column of src (a(i, q) = src[i*rs + q*cs]): 16 gathered values per
+ * step. The transposing packs (features, d_out) would otherwise be scalar. */
+static __attribute__((target("avx512f,avx512bw,avx512bf16"))) void pack_row_gather(uint16_t *row, const float *s,
+                                                                                   long cs, int K)
 {
-    uint32_t u;
-    memcpy(&u, &f, 4);
-    u += 0x7FFFu + ((u >> 16) & 1u);
-    return (uint16_t)(u >> 16);
+    const __m512i step = _mm512_mullo_epi32(_mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0),
+                                            _mm512_set1_epi32((int)cs));
+    for (int q = 0; q < K; q += 16) {
+        __mmask16 k = K - q >= 16 ? 0xFFFF : (__mmask16)((1u << (K - q)) - 1);
+        __m512 v = _mm512_mask_i32gather_ps(_mm512_setzero_ps(), k, step, s + q * cs, 4);
+        _mm256_mask_storeu_epi16(row + q, k, (__m256i)_mm512_cvtneps_pbh(v));
+    }
 }
+#endif
 
-void gemm_amx_pack_a(uint16_t *dst, const float *src, long rs, long cs, int M, int K)
+void gemm_amx_pack_a(uint16_t *dst, int ld, int Mp, int Kp, const float *src, long rs, long cs, int M, int K)
 {
-    int Mp = gemm_amx_round(M), Kp = gemm_amx_round(K);
     for (int i = 0; i < Mp; i++) {
-        uint16_t *row = dst + (size_t)i * Kp;
+        uint16_t *row = dst + (size_t)i * ld;
         int k = 0;
         if (i < M) {
             const float *s = src + i * rs;
             if (cs == 1) {
                 #pragma omp simd
-                for (int q = 0; q < K; q++) row[q] = f2bf(s[q]);
+                for (int q = 0; q < K; q++) row[q] = gemm_amx_bf16(s[q]);
             } else {
-                for (int q = 0; q < K; q++) row[q] = f2bf(s[q * cs]);
+#ifdef PG_HAVE_AMX_BUILD
+                if (amx_state == 1 && cs < (1L << 26)) /* AMX implies AVX-512 BF16; index fits 32 bits */
+                    pack_row_gather(row, s, cs, K);
+                else
+#endif
+                    for (int q = 0; q < K; q++) row[q] = gemm_amx_bf16(s[q * cs]);
             }
             k = K;
         }
@@ -69,29 +81,85 @@ void gemm_amx_pack_b(uint16_t *dst, const float *src, long rs, long cs, int K, i
     int Kp = gemm_amx_round(K), Np = gemm_amx_round(N);
     for (int kk = 0; kk < Kp / 2; kk++) {
         uint16_t *row = dst + (size_t)kk * Np * 2;
-        if (cs == 1 && 2 * kk + 1 < K) {
-            /* two contiguous source rows interleaved as 32-bit pairs: vectorises */
-            const float *s0 = src + 2 * kk * rs, *s1 = s0 + rs;
-            uint32_t *r32 = (uint32_t *)row;
-            #pragma omp simd
-            for (int n = 0; n < N; n++) r32[n] = (uint32_t)f2bf(s0[n]) | ((uint32_t)f2bf(s1[n]) << 16);
-            for (int n = N; n < Np; n++) r32[n] = 0;
-            continue;
-        }
         for (int e = 0; e < 2; e++) {
             int k = 2 * kk + e;
-            if (k < K) {
-                const float *s = src + k * rs;
-                for (int n = 0; n < N; n++) row[2 * n + e] = f2bf(s[n * cs]);
-                for (int n = N; n < Np; n++) row[2 * n + e] = 0;
-            } else {
-                for (int n = 0; n < Np; n++) row[2 * n + e] = 0;
-            }
+            const float *s = src + k * rs;
+            for (int n = 0; n < Np; n++) row[2 * n + e] = k < K && n < N ? gemm_amx_bf16(s[n * cs]) : 0;
         }
     }
 }
 
 #ifdef PG_HAVE_AMX_BUILD
+#define EPI_TARGET __attribute__((target("avx512f,avx512bw,avx512bf16")))
+
+/* Two f32 halves -> 32 bf16 (round to nearest even, as gemm_amx_bf16 for normal numbers). */
+static inline EPI_TARGET __m512i to_bf16(__m512 lo, __m512 hi) { return (__m512i)_mm512_cvtne2ps_pbh(hi, lo); }
+
+/* The bf16 epilogue of one 32x32 block v (row stride 32) at C position (i, j). Pairs of rows are
+ * processed together: their bf16 values interleaved as 32-bit pairs are the VNNI output, and the
+ * same pairs gathered down a column give the transposed output. */
+static EPI_TARGET void block_epilogue(const gemm_amx_epilogue *e, const float *v, int i, int j)
+{
+    __m512 b0 = _mm512_setzero_ps(), b1 = b0, zero = b0, cs0 = b0, cs1 = b0;
+    if (e->bias) {
+        b0 = _mm512_loadu_ps(e->bias + j);
+        b1 = _mm512_loadu_ps(e->bias + j + 16);
+    }
+    if (e->colsum) {
+        cs0 = _mm512_loadu_ps(e->colsum + j);
+        cs1 = _mm512_loadu_ps(e->colsum + j + 16);
+    }
+    const int nr = e->rows - i;
+    /* 32-bit lane p of vector k = (row 2p, row 2p+1) of column 16k + p: the VNNI interleave */
+    const __m512i ilo = _mm512_set_epi16(47, 15, 46, 14, 45, 13, 44, 12, 43, 11, 42, 10, 41, 9, 40, 8, 39, 7, 38, 6, 37,
+                                         5, 36, 4, 35, 3, 34, 2, 33, 1, 32, 0);
+    const __m512i ihi = _mm512_add_epi16(ilo, _mm512_set1_epi16(16));
+    uint32_t pairs[16 * 32] __attribute__((aligned(64))); /* (row pair, column) */
+    for (int r = 0; r < 32; r += 2) {
+        __m512i h[2];
+        for (int s = 0; s < 2; s++) {
+            const float *row = v + (r + s) * 32;
+            __m512 x0 = _mm512_add_ps(_mm512_load_ps(row), b0), x1 = _mm512_add_ps(_mm512_load_ps(row + 16), b1);
+            if (e->relu) {
+                x0 = _mm512_max_ps(x0, zero);
+                x1 = _mm512_max_ps(x1, zero);
+            }
+            if (e->mask) {
+                __m512i mk = _mm512_loadu_si512(e->mask + (size_t)(i + r + s) * e->ldmask + j);
+                __mmask32 k = _mm512_test_epi16_mask(mk, mk);
+                x0 = _mm512_maskz_mov_ps((__mmask16)k, x0);
+                x1 = _mm512_maskz_mov_ps((__mmask16)(k >> 16), x1);
+            }
+            if (e->colsum && r + s < nr) {
+                cs0 = _mm512_add_ps(cs0, x0);
+                cs1 = _mm512_add_ps(cs1, x1);
+            }
+            h[s] = to_bf16(x0, x1);
+            if (e->rm) _mm512_storeu_si512(e->rm + (size_t)(i + r + s) * e->ldrm + j, h[s]);
+        }
+        if (e->vn || e->tr) {
+            __m512i p0 = _mm512_permutex2var_epi16(h[0], ilo, h[1]), p1 = _mm512_permutex2var_epi16(h[0], ihi, h[1]);
+            if (e->vn) {
+                uint16_t *o = e->vn + (size_t)((i + r) / 2) * e->ldvn + 2 * j;
+                _mm512_storeu_si512(o, p0);
+                _mm512_storeu_si512(o + 32, p1);
+            }
+            _mm512_store_si512(pairs + (r / 2) * 32, p0);
+            _mm512_store_si512(pairs + (r / 2) * 32 + 16, p1);
+        }
+    }
+    if (e->colsum) {
+        _mm512_storeu_ps(e->colsum + j, cs0);
+        _mm512_storeu_ps(e->colsum + j + 16, cs1);
+    }
+    if (e->tr) {
+        const __m512i idx = _mm512_mullo_epi32(_mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0),
+                                               _mm512_set1_epi32(32));
+        for (int q = 0; q < 32; q++)
+            _mm512_storeu_si512(e->tr + (size_t)(j + q) * e->ldtr + i, _mm512_i32gather_epi32(idx, pairs + q, 4));
+    }
+}
+
 typedef struct {
     uint8_t palette_id;
     uint8_t start_row;
@@ -100,35 +168,80 @@ typedef struct {
     uint8_t rows[16];
 } __attribute__((packed, aligned(64))) amx_tilecfg;
 
-/* C block rows [i, i+mi), cols [j, j+nj): c = max(c + bias, 0) or c + bias, while it is in L1. */
-static inline void block_epilogue(float *C, int ldc, int i, int j, int mi, int nj, const float *bias, int relu)
+/* Bias of f32 rows [i, i+16), columns [j, j+16). */
+static void tile_bias(const gemm_amx_epilogue *e, int i, int j)
 {
-    const float *bj = bias + j;
-    for (int r = 0; r < mi; r++) {
-        float *c = C + (size_t)(i + r) * ldc + j;
-        if (relu) {
-            #pragma omp simd
-            for (int q = 0; q < nj; q++) {
-                float v = c[q] + bj[q];
-                c[q] = v > 0.0f ? v : 0.0f;
-            }
-        } else {
-            #pragma omp simd
-            for (int q = 0; q < nj; q++) c[q] += bj[q];
-        }
+    for (int r = 0; r < 16; r++) {
+        float *c = e->c + (size_t)(i + r) * e->ldc + j;
+        #pragma omp simd
+        for (int q = 0; q < 16; q++) c[q] += e->bias[j + q];
     }
 }
 
-void gemm_amx_run(float *C, int ldc, const uint16_t *Ap, const uint16_t *Bp, int M, int N, int K, int accumulate)
+/* A 16-wide edge of an f32 output: the column strip [j0, j0+16) over rows [i0, end) (rows = 0), or
+ * the row strip [i0, i0+16) over columns [j0, end) (rows = 1), as 16x16 tiles in groups of up to
+ * three that share their A (row strip) or B (column strip) operand, so the three accumulation
+ * chains interleave instead of waiting on each other. */
+static __attribute__((target("amx-tile,amx-bf16"))) void edge_strip(const uint16_t *A, int lda, const uint16_t *B,
+                                                                    int ldb, int K, const gemm_amx_epilogue *e, int i0,
+                                                                    int j0, int end, int rows)
 {
-    gemm_amx_run_bias(C, ldc, Ap, Bp, M, N, K, accumulate, NULL, 0);
+    const long a_stride = (long)lda * 2, b_stride = (long)ldb * 2, c_stride = (long)e->ldc * 4;
+    for (int x = rows ? j0 : i0; x < end; x += 48) {
+        const int nt = end - x >= 48 ? 3 : (end - x) / 16;
+        float *c[3] = { NULL, NULL, NULL };
+        for (int t = 0; t < nt; t++)
+            c[t] = rows ? e->c + (size_t)i0 * e->ldc + x + 16 * t : e->c + (size_t)(x + 16 * t) * e->ldc + j0;
+        if (e->accumulate) {
+            _tile_loadd(0, c[0], c_stride);
+            if (nt > 1) _tile_loadd(1, c[1], c_stride);
+            if (nt > 2) _tile_loadd(2, c[2], c_stride);
+        } else {
+            _tile_zero(0);
+            _tile_zero(1);
+            _tile_zero(2);
+        }
+        for (int k = 0; k < K; k += 32) {
+            if (rows) { /* shared A rows i0, B columns x + 16t */
+                const uint16_t *b0 = B + (size_t)(k / 2) * ldb + (size_t)x * 2;
+                _tile_loadd(4, A + (size_t)i0 * lda + k, a_stride);
+                _tile_loadd(5, b0, b_stride);
+                _tile_dpbf16ps(0, 4, 5);
+                if (nt > 1) {
+                    _tile_loadd(6, b0 + 32, b_stride);
+                    _tile_dpbf16ps(1, 4, 6);
+                }
+                if (nt > 2) {
+                    _tile_loadd(7, b0 + 64, b_stride);
+                    _tile_dpbf16ps(2, 4, 7);
+                }
+            } else { /* shared B columns j0, A rows x + 16t */
+                const uint16_t *a0 = A + (size_t)x * lda + k;
+                _tile_loadd(4, B + (size_t)(k / 2) * ldb + (size_t)j0 * 2, b_stride);
+                _tile_loadd(5, a0, a_stride);
+                _tile_dpbf16ps(0, 5, 4);
+                if (nt > 1) {
+                    _tile_loadd(6, a0 + (size_t)16 * lda, a_stride);
+                    _tile_dpbf16ps(1, 6, 4);
+                }
+                if (nt > 2) {
+                    _tile_loadd(7, a0 + (size_t)32 * lda, a_stride);
+                    _tile_dpbf16ps(2, 7, 4);
+                }
+            }
+        }
+        _tile_stored(0, c[0], c_stride);
+        if (nt > 1) _tile_stored(1, c[1], c_stride);
+        if (nt > 2) _tile_stored(2, c[2], c_stride);
+        if (e->bias)
+            for (int t = 0; t < nt; t++) tile_bias(e, rows ? i0 : x + 16 * t, rows ? x + 16 * t : j0);
+    }
 }
 
-__attribute__((target("amx-tile,amx-bf16"))) void gemm_amx_run_bias(float *C, int ldc, const uint16_t *Ap,
-                                                                     const uint16_t *Bp, int M, int N, int K,
-                                                                     int accumulate, const float *bias, int relu)
+__attribute__((target("amx-tile,amx-bf16"))) void gemm_amx(const uint16_t *A, int lda, const uint16_t *B, int ldb,
+                                                            int M, int N, int K, const gemm_amx_epilogue *e)
 {
-    const int Kp = gemm_amx_round(K), Np = gemm_amx_round(N), Mp = gemm_amx_round(M);
+    if (M <= 0 || N <= 0 || K <= 0) return;
     amx_tilecfg cfg;
     memset(&cfg, 0, sizeof(cfg));
     cfg.palette_id = 1;
@@ -138,73 +251,61 @@ __attribute__((target("amx-tile,amx-bf16"))) void gemm_amx_run_bias(float *C, in
     }
     _tile_loadconfig(&cfg);
     float blk[32 * 32] __attribute__((aligned(64)));
-    const long a_stride = (long)Kp * 2, b_stride = (long)Np * 4;
-    for (int i = 0; i < Mp; i += 32) {
-        for (int j = 0; j < Np; j += 32) {
-            /* full 32x32 blocks load/store C directly; ragged edges go through blk */
-            const int full = i + 32 <= M && j + 32 <= N;
-            float *cb = C + (size_t)i * ldc + j;
-            const long c_stride = (long)ldc * 4;
-            if (full && accumulate) {
+    const long a_stride = (long)lda * 2, b_stride = (long)ldb * 2, c_stride = (long)e->ldc * 4;
+    const int M32 = M & ~31, N32 = N & ~31;
+    for (int j = 0; j < N32; j += 32) {
+        for (int i = 0; i < M32; i += 32) {
+            float *cb = e->c ? e->c + (size_t)i * e->ldc + j : NULL;
+            if (cb && e->accumulate) {
                 _tile_loadd(0, cb, c_stride);
                 _tile_loadd(1, cb + 16, c_stride);
-                _tile_loadd(2, cb + (size_t)16 * ldc, c_stride);
-                _tile_loadd(3, cb + (size_t)16 * ldc + 16, c_stride);
+                _tile_loadd(2, cb + (size_t)16 * e->ldc, c_stride);
+                _tile_loadd(3, cb + (size_t)16 * e->ldc + 16, c_stride);
             } else {
                 _tile_zero(0);
                 _tile_zero(1);
                 _tile_zero(2);
                 _tile_zero(3);
             }
-            for (int k = 0; k < Kp; k += 32) {
-                const uint16_t *a0 = Ap + (size_t)i * Kp + k;
-                const uint16_t *b0 = Bp + (size_t)(k / 2) * Np * 2 + (size_t)j * 2;
-                _tile_loadd(4, a0, a_stride);
-                _tile_loadd(5, a0 + (size_t)16 * Kp, a_stride);
-                _tile_loadd(6, b0, b_stride);
-                _tile_loadd(7, b0 + 32, b_stride);
+            const uint16_t *a0 = A + (size_t)i * lda, *b0 = B + (size_t)j * 2;
+            for (int k = 0; k < K; k += 32) {
+                _tile_loadd(4, a0 + k, a_stride);
+                _tile_loadd(5, a0 + (size_t)16 * lda + k, a_stride);
+                _tile_loadd(6, b0 + (size_t)(k / 2) * ldb, b_stride);
+                _tile_loadd(7, b0 + (size_t)(k / 2) * ldb + 32, b_stride);
                 _tile_dpbf16ps(0, 4, 6);
                 _tile_dpbf16ps(1, 4, 7);
                 _tile_dpbf16ps(2, 5, 6);
                 _tile_dpbf16ps(3, 5, 7);
             }
-            if (full) {
+            if (cb) {
                 _tile_stored(0, cb, c_stride);
                 _tile_stored(1, cb + 16, c_stride);
-                _tile_stored(2, cb + (size_t)16 * ldc, c_stride);
-                _tile_stored(3, cb + (size_t)16 * ldc + 16, c_stride);
-                if (bias) block_epilogue(C, ldc, i, j, 32, 32, bias, relu);
+                _tile_stored(2, cb + (size_t)16 * e->ldc, c_stride);
+                _tile_stored(3, cb + (size_t)16 * e->ldc + 16, c_stride);
+                if (e->bias)
+                    for (int r = 0; r < 32; r++) {
+                        float *c = cb + (size_t)r * e->ldc;
+                        const float *bj = e->bias + j;
+                        #pragma omp simd
+                        for (int q = 0; q < 32; q++) c[q] += bj[q];
+                    }
                 continue;
             }
             _tile_stored(0, blk, 128);
             _tile_stored(1, blk + 16, 128);
             _tile_stored(2, blk + 16 * 32, 128);
             _tile_stored(3, blk + 16 * 32 + 16, 128);
-            int mi = M - i < 32 ? M - i : 32, nj = N - j < 32 ? N - j : 32;
-            for (int r = 0; r < mi; r++) {
-                float *c = C + (size_t)(i + r) * ldc + j;
-                const float *s = blk + r * 32;
-                if (accumulate) {
-                    #pragma omp simd
-                    for (int q = 0; q < nj; q++) c[q] += s[q];
-                } else {
-                    memcpy(c, s, (size_t)nj * sizeof(float));
-                }
-            }
-            if (bias) block_epilogue(C, ldc, i, j, mi, nj, bias, relu);
+            block_epilogue(e, blk, i, j);
         }
     }
+    if (N32 < N) edge_strip(A, lda, B, ldb, K, e, 0, N32, M, 0);
+    if (M32 < M) edge_strip(A, lda, B, ldb, K, e, M32, 0, N32, 1);
     _tile_release();
 }
 #else
-void gemm_amx_run_bias(float *C, int ldc, const uint16_t *Ap, const uint16_t *Bp, int M, int N, int K,
-                       int accumulate, const float *bias, int relu)
+void gemm_amx(const uint16_t *A, int lda, const uint16_t *B, int ldb, int M, int N, int K, const gemm_amx_epilogue *e)
 {
-    (void)C; (void)ldc; (void)Ap; (void)Bp; (void)M; (void)N; (void)K; (void)accumulate; (void)bias; (void)relu;
-}
-
-void gemm_amx_run(float *C, int ldc, const uint16_t *Ap, const uint16_t *Bp, int M, int N, int K, int accumulate)
-{
-    (void)C; (void)ldc; (void)Ap; (void)Bp; (void)M; (void)N; (void)K; (void)accumulate;
+    (void)A; (void)lda; (void)B; (void)ldb; (void)M; (void)N; (void)K; (void)e;
 }
 #endif

@@ -1,11 +1,14 @@
 /* gemm_amx.h - bf16 matrix multiply on Intel AMX tiles (f32 accumulation), for the MLP layers.
  *
- * C (M, N) = or += A (M, K) * B (K, N), where A and B were first packed to bf16:
- *   A: row-major (Mp, Kp) with Mp = round_up(M, 32), Kp = round_up(K, 32), zero padded;
- *   B: "VNNI" pairs (Kp/2, Np, 2) with Np = round_up(N, 32): Bp[(k/2)*Np*2 + n*2 + k%2] = b(k, n).
- * The packers take any strides (a(i,k) = src[i*rs + k*cs]), so transposed operands need no copy
- * beforehand. bf16 keeps 8 mantissa bits: products carry ~0.4% relative rounding, sums are exact
- * f32. Use gemm_amx_available() first; everything here is a no-op-safe stub on other CPUs.
+ * C (M, N) = A (M, K) * B (K, N) with K a multiple of 32 and M, N multiples of 32 (multiples of 16
+ * for an f32 output); callers pad with zeros:
+ *   A: bf16 row-major, row stride lda (elements);
+ *   B: bf16 "VNNI" pairs of rows: b(k, n) at B[(k/2)*ldb + 2n + k%2] (ldb = 2 * padded width).
+ * Sub-blocks of a bigger operand are plain pointer offsets (A + k0, B + (k0/2)*ldb + 2*n0).
+ * The result goes through an epilogue (gemm_amx_epilogue) applied per 32x32 block while it is in
+ * L1, so a layer's output is written once, already converted to the bf16 layouts the next GEMMs
+ * read. bf16 keeps 8 mantissa bits: products carry ~0.4% relative rounding, sums are exact f32.
+ * Use gemm_amx_available() first; on other CPUs gemm_amx is a no-op stub.
  */
 #ifndef PG_DEFORM_GEMM_AMX_H
 #define PG_DEFORM_GEMM_AMX_H
@@ -17,18 +20,43 @@
 int gemm_amx_available(void);
 
 static inline int gemm_amx_round(int x) { return (x + 31) & ~31; }
-/* Sizes (in uint16 elements) of the packed operands. */
+/* Sizes (in uint16 elements) of packed operands of M x K (A) or K x N (B), padded to 32. */
 static inline size_t gemm_amx_a_size(int M, int K) { return (size_t)gemm_amx_round(M) * gemm_amx_round(K); }
 static inline size_t gemm_amx_b_size(int K, int N) { return (size_t)gemm_amx_round(K) * gemm_amx_round(N); }
 
-void gemm_amx_pack_a(uint16_t *dst, const float *src, long rs, long cs, int M, int K);
+/* f32 -> bf16, round to nearest even (inputs here are finite). */
+static inline uint16_t gemm_amx_bf16(float f)
+{
+    union { float f; uint32_t u; } v = { f };
+    v.u += 0x7FFFu + ((v.u >> 16) & 1u);
+    return (uint16_t)(v.u >> 16);
+}
+
+/* Packers from f32 with any strides (a(i,k) = src[i*rs + k*cs]). pack_a writes A row-major
+ * (Mp, Kp) with row stride ld, zero outside (M, K); pack_b writes B as VNNI pairs
+ * (round(K)/2, round(N), 2), zero padded. */
+void gemm_amx_pack_a(uint16_t *dst, int ld, int Mp, int Kp, const float *src, long rs, long cs, int M, int K);
 void gemm_amx_pack_b(uint16_t *dst, const float *src, long rs, long cs, int K, int N);
 
-/* C (row stride ldc) = Ap * Bp (accumulate = 0) or += (accumulate = 1). Only the M x N valid part of
- * C is written. */
-void gemm_amx_run(float *C, int ldc, const uint16_t *Ap, const uint16_t *Bp, int M, int N, int K, int accumulate);
-/* Same, then C = max(C + bias, 0) (relu) or C + bias per 32x32 block while it is hot; bias (N). */
-void gemm_amx_run_bias(float *C, int ldc, const uint16_t *Ap, const uint16_t *Bp, int M, int N, int K,
-                       int accumulate, const float *bias, int relu);
+/* What happens to each block of the product v = A*B. Either an f32 output (c != NULL: c = v or
+ * c += v (accumulate), then c += bias[j] if bias), or bf16 outputs of
+ *     v = v + bias[j] (bias != NULL), v = max(v, 0) (relu), v = 0 where mask(i, j) == 0 (mask != NULL),
+ * written to any of rm (row-major), tr (transposed: tr[j*ldtr + i]) and vn (VNNI pairs of rows:
+ * vn[(i/2)*ldvn + 2j + i%2]); colsum[j] += sum of v over rows i < rows. All pointers are relative to
+ * the block (0, 0) of C, strides in elements. */
+typedef struct {
+    float *c;
+    int ldc, accumulate;
+    const float *bias;
+    int relu;
+    const uint16_t *mask;
+    int ldmask;
+    float *colsum;
+    int rows;
+    uint16_t *rm, *tr, *vn;
+    int ldrm, ldtr, ldvn;
+} gemm_amx_epilogue;
+
+void gemm_amx(const uint16_t *A, int lda, const uint16_t *B, int ldb, int M, int N, int K, const gemm_amx_epilogue *e);
 
 #endif

@@ -41,10 +41,20 @@ typedef struct {
     float dgdx; /* 0 where the coordinate was clamped */
 } hex_axis;
 
-/* The per-scale axis setup of one point (shared by prefetch, forward and backward). */
+/* The per-scale spatial axis setup of one point (shared by prefetch, forward and backward). */
 typedef struct {
-    hex_axis ax[HEX_MAX_SCALES][4];
+    hex_axis ax[HEX_MAX_SCALES][3];
 } hex_point;
+
+/* The time planes at one t, each collapsed to one row: slice(a) = (1-w) plane(row, a) + w plane(row+1, a).
+ * All points of a call share t, so a time-plane sample becomes a linear interpolation along its
+ * spatial axis (2 texels instead of 4); the backward accumulates into a slice-shaped gradient that
+ * hex_slice_backward spreads onto the two rows once per call. */
+typedef struct {
+    int row;                            /* first of the two time rows (of T) */
+    float w;                            /* weight of row + 1 */
+    float *s[HEX_MAX_SCALES][3];        /* (res_a, C) for time planes 3, 4, 5 (a = x, y, z) */
+} hex_slice;
 
 /* Resolution of coordinate axis d (0..3) at scale s. */
 static inline int hex_axis_res(const hex_grid *g, int s, int d) { return d == 3 ? g->T : g->R << s; }
@@ -57,22 +67,25 @@ size_t hex_total_size(const hex_grid *g);
  * hex_time_row(g, t) and +1 of the time planes. */
 int hex_time_row(const hex_grid *g, float t);
 
+/* Floats of one slice; hex_slice_layout points sl into buf (hex_slice_size floats) for time t,
+ * hex_slice_forward fills it from the planes, hex_slice_backward adds a slice gradient d_sl (laid
+ * out for the same t) into the two time rows of d_planes. */
+size_t hex_slice_size(const hex_grid *g);
+void hex_slice_layout(hex_slice *sl, float *buf, const hex_grid *g, float t);
+void hex_slice_forward(hex_slice *sl, const hex_grid *g);
+void hex_slice_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_slice *d_sl, const hex_grid *g);
+
 /* Sampling on a prepared point (hex_point_setup), so a caller that prefetches ahead computes the
- * axes once per point. hex_prefetch_point prefetches the texels (and, if d_planes != NULL, their
- * gradient lines) the point will touch; called a few points ahead it hides the cache misses of
- * the random plane accesses. */
-void hex_point_setup(hex_point *hp, const hex_grid *g, const float *pos, float t);
+ * axes once per point. hex_prefetch_point prefetches the spatial planes' texels (and, if
+ * d_planes != NULL, their gradient lines) the point will touch (time planes are read through the
+ * slice, which stays cached); called a few points ahead it hides the cache misses of the random
+ * plane accesses. feat (S*C); pos (3) in world units. The backward adds dL/dplanes into d_planes
+ * (spatial planes, same layout as the planes) and d_sl (time planes), and dL/dpos into d_pos (3;
+ * may be NULL). */
+void hex_point_setup(hex_point *hp, const hex_grid *g, const float *pos);
 void hex_prefetch_point(const hex_grid *g, float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_point *hp);
-void hex_sample_forward_point(float *feat, const hex_grid *g, const hex_point *hp);
-void hex_sample_backward_point(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], float *d_pos, const float *d_feat,
-                               const hex_grid *g, const hex_point *hp);
-
-/* Samples one point: feat (S*C). pos (3) in world units, t in [0,1]. */
-void hex_sample_forward(float *feat, const hex_grid *g, const float *pos, float t);
-
-/* Backward of one point: d_planes (same layout as the planes, offsets given by d_planes[s][p])
- * += dL/dplanes; d_pos (3) += dL/dpos (may be NULL). d_feat (S*C). Recomputes the samples. */
-void hex_sample_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], float *d_pos, const float *d_feat,
-                         const hex_grid *g, const float *pos, float t);
+void hex_sample_forward_point(float *feat, const hex_grid *g, const hex_slice *sl, const hex_point *hp);
+void hex_sample_backward_point(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_slice *d_sl, float *d_pos,
+                               const float *d_feat, const hex_grid *g, const hex_slice *sl, const hex_point *hp);
 
 #endif

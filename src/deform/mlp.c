@@ -1,8 +1,6 @@
 /* mlp.c - Linear (+ReLU) layers on cblas_sgemm, and the naive reference (see mlp.h). */
 #include "deform/mlp.h"
 
-#include "deform/gemm_amx.h"
-
 #include <cblas.h>
 #include <stddef.h>
 
@@ -55,28 +53,6 @@ void mlp_linear_backward(float *d_x, int lddx, float *d_w, float *d_b, float *d_
     /* d_x (M, in) = d_y (M, out) w (out, in) */
     if (d_x)
         cblas_sgemm(CblasRowMajor, CblasNoTrans, CblasNoTrans, M, in, out, 1.0f, d_y, lddy, w, in, 0.0f, d_x, lddx);
-}
-
-void mlp_linear_forward_amx(float *y, int ldy, const float *x, int ldx, const uint16_t *wt_pack, const float *b,
-                            int M, int in, int out, int relu, uint16_t *a_pack)
-{
-    gemm_amx_pack_a(a_pack, x, ldx, 1, M, in);
-    gemm_amx_run_bias(y, ldy, a_pack, wt_pack, M, out, in, 0, b, relu); /* bias + ReLU fused per block */
-}
-
-void mlp_linear_backward_amx(float *d_x, int lddx, float *d_wt, float *d_b, float *d_y, int lddy, const float *y,
-                             int ldy, const float *x, int ldx, const uint16_t *w_pack, int M, int in, int out,
-                             int relu, uint16_t *a_pack, uint16_t *b_pack)
-{
-    mlp_mask_and_bias(d_b, d_y, lddy, y, ldy, M, out, relu);
-    /* d_wt (in, out) += x^T d_y: A = x transposed (strided pack of the narrow operand), B = d_y */
-    gemm_amx_pack_a(a_pack, x, 1, ldx, in, M);
-    gemm_amx_pack_b(b_pack, d_y, lddy, 1, M, out);
-    gemm_amx_run(d_wt, out, a_pack, b_pack, in, out, M, 1);
-    if (d_x) {
-        gemm_amx_pack_a(a_pack, d_y, lddy, 1, M, out);
-        gemm_amx_run(d_x, lddx, a_pack, w_pack, M, in, out, 0);
-    }
 }
 
 void mlp_linear_forward_ref(float *y, int ldy, const float *x, int ldx, const float *w, const float *b, int M,

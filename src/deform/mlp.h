@@ -10,7 +10,6 @@
 #ifndef PG_DEFORM_MLP_H
 #define PG_DEFORM_MLP_H
 
-#include <stdint.h>
 
 void mlp_linear_forward(float *y, int ldy, const float *x, int ldx, const float *w, const float *b, int M, int in,
                         int out, int relu);
@@ -19,19 +18,6 @@ void mlp_linear_forward(float *y, int ldy, const float *x, int ldx, const float 
  * accumulator); d_w (out, in) and d_b (out) are ADDED to. */
 void mlp_linear_backward(float *d_x, int lddx, float *d_w, float *d_b, float *d_y, int lddy, const float *y,
                          int ldy, const float *x, int ldx, const float *w, int M, int in, int out, int relu);
-
-/* bf16 AMX variants (see gemm_amx.h; callers check gemm_amx_available()). wt_pack is the weight
- * packed as B of x w^T (gemm_amx_pack_b(wt_pack, w, 1, in, in, out)); w_pack is the weight packed
- * as B of d_y w (gemm_amx_pack_b(w_pack, w, in, 1, out, in)). a_pack / b_pack are scratch of
- * gemm_amx_a_size(max(M, out), max(in, out, M)) and gemm_amx_b_size(M, in) elements. */
-void mlp_linear_forward_amx(float *y, int ldy, const float *x, int ldx, const uint16_t *wt_pack, const float *b,
-                            int M, int in, int out, int relu, uint16_t *a_pack);
-/* Note: the AMX backward accumulates the TRANSPOSED weight gradient d_wt (in, out) += x^T d_y
- * (packing x^T is 5x cheaper than packing d_y^T for the wide layers); the caller adds it to the
- * (out, in) gradient once per backward. */
-void mlp_linear_backward_amx(float *d_x, int lddx, float *d_wt, float *d_b, float *d_y, int lddy, const float *y,
-                             int ldy, const float *x, int ldx, const uint16_t *w_pack, int M, int in, int out,
-                             int relu, uint16_t *a_pack, uint16_t *b_pack);
 
 void mlp_linear_forward_ref(float *y, int ldy, const float *x, int ldx, const float *w, const float *b, int M,
                             int in, int out, int relu);

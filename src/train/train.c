@@ -113,14 +113,21 @@ void train_session_destroy(train_session *s)
     free(s);
 }
 
+/* 24 MB per copy at 100k Gaussians, twice per iteration: split over the threads in blocks. */
 static void copy_gaussians(pg_gaussians *dst, const pg_gaussians *src)
 {
-    size_t n = (size_t)src->count;
-    memcpy(dst->means, src->means, n * 3 * sizeof(float));
-    memcpy(dst->log_scales, src->log_scales, n * 3 * sizeof(float));
-    memcpy(dst->quats, src->quats, n * 4 * sizeof(float));
-    memcpy(dst->opacity, src->opacity, n * sizeof(float));
-    memcpy(dst->sh, src->sh, n * PG_SH_COEFFS * 3 * sizeof(float));
+    const size_t n = (size_t)src->count, block = (size_t)1 << 14;
+    float *d[5] = { dst->means, dst->log_scales, dst->quats, dst->opacity, dst->sh };
+    const float *s[5] = { src->means, src->log_scales, src->quats, src->opacity, src->sh };
+    const size_t len[5] = { n * 3, n * 3, n * 4, n, n * PG_SH_COEFFS * 3 };
+    for (int a = 0; a < 5; a++) {
+        const long nb = (long)((len[a] + block - 1) / block);
+#pragma omp parallel for schedule(static)
+        for (long b = 0; b < nb; b++) {
+            size_t lo = (size_t)b * block;
+            memcpy(d[a] + lo, s[a] + lo, (len[a] - lo < block ? len[a] - lo : block) * sizeof(float));
+        }
+    }
     dst->sh_degree = src->sh_degree;
 }
 
@@ -406,6 +413,7 @@ pg_status train_session_step(train_session *s)
     }
     if (s->fine && nd > 0) {
         float md = s->max_disp;
+#pragma omp parallel for schedule(static) reduction(max : md)
         for (int k = 0; k < nd; k++) {
             int i = s->idx[k];
             float dx[3];
