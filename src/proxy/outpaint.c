@@ -65,18 +65,17 @@ static border_fit fit_border(const line_set *s, int line, int dir)
 static pg_status extend_lines(const line_set *s)
 {
     int L = s->lines;
-    border_fit *fits = pg_malloc((size_t)2 * L * sizeof *fits, "outpaint border fits");
+    border_fit *bf = pg_malloc((size_t)L * sizeof *bf, "outpaint border fits"); /* one side at a time */
     double *prefix = pg_malloc((size_t)(L + 1) * 3 * sizeof(double), "outpaint colour sums");
     float *slope = pg_malloc((size_t)L * sizeof(float), "outpaint slopes");
-    if (!fits || !prefix || !slope) {
-        free(fits);
+    if (!bf || !prefix || !slope) {
+        free(bf);
         free(prefix);
         free(slope);
         return PG_ERR_NOMEM;
     }
     for (int side = 0; side < 2; side++) {
         int dir = side ? 1 : -1;
-        border_fit *bf = fits + (size_t)side * L;
         for (int l = 0; l < L; l++) bf[l] = fit_border(s, s->first_line + l, dir);
         /* slope averaged over neighbouring lines (read from the unsmoothed copy in `slope`): one noisy
          * line would otherwise fan out */
@@ -112,7 +111,7 @@ static pg_status extend_lines(const line_set *s)
             }
         }
     }
-    free(fits);
+    free(bf);
     free(prefix);
     free(slope);
     return PG_OK;
