@@ -26,6 +26,7 @@ static pg_status bench_frame(void *ctx, int camera, int frame, pg_image *out)
 int bench_proxy(int argc, char **argv)
 {
     int width = 320, height = 240, num = 18, threads = 2, frames = 0, steps = 100, block = 1;
+    float pad = proxy_default_fit_options().pad;
     const char *out = NULL;
     cli_option opts[] = {
         { "--width", CLI_INT, &width, "frame width (320)" },
@@ -35,6 +36,7 @@ int bench_proxy(int argc, char **argv)
         { "--frames", CLI_INT, &frames, "frames to process (2 x threads)" },
         { "--steps", CLI_INT, &steps, "Adam steps per frame (100)" },
         { "--block", CLI_INT, &block, "one Gaussian per k x k block (1)" },
+        { "--pad", CLI_FLOAT, &pad, "outpainted margin, fraction of the larger side (0.3)" },
         { "--out", CLI_STR, &out, "scratch directory (/tmp/prodygs-bench-proxy-PID)" },
     };
     cli_spec spec = { "prodygs bench proxy", "[options]", "time the proxy stage on a synthetic RGB-D video",
@@ -46,6 +48,7 @@ int bench_proxy(int argc, char **argv)
     if (num < 1 || num > 256) return cli_usage_error("bench proxy: --num %d not in 1..256", num);
     if (threads < 1 || threads > 64) return cli_usage_error("bench proxy: --threads %d not in 1..64", threads);
     if (frames < 0) return cli_usage_error("bench proxy: --frames %d must be >= 1 (0 = 2 x threads)", frames);
+    if (!(pad >= 0 && pad <= 1)) return cli_usage_error("bench proxy: --pad %g not in [0, 1]", pad);
     if (frames == 0) frames = 2 * threads;
     if (frames > 1000) return cli_usage_error("bench proxy: --frames %d too many", frames);
     char dir[256];
@@ -81,6 +84,7 @@ int bench_proxy(int argc, char **argv)
     o.force = 1;
     o.fit.steps = steps;
     o.fit.block = block;
+    o.fit.pad = pad;
     proxy_result r;
     struct rusage ru0, ru1;
     getrusage(RUSAGE_SELF, &ru0);
@@ -94,10 +98,10 @@ int bench_proxy(int argc, char **argv)
     if (st) return cli_fail(st);
     double pf = 1.0 / frames;
     printf("{\"bench\": \"proxy\", \"width\": %d, \"height\": %d, \"num\": %d, \"threads\": %d, \"frames\": %d, "
-           "\"steps\": %d, \"block\": %d, \"seconds_per_frame\": %.3f, \"cpu_seconds_per_frame\": %.3f, \"worker_seconds_per_frame\": %.3f, "
+           "\"steps\": %d, \"block\": %d, \"pad\": %g, \"seconds_per_frame\": %.3f, \"cpu_seconds_per_frame\": %.3f, \"worker_seconds_per_frame\": %.3f, "
            "\"init_s\": %.3f, \"fit_s\": %.3f, \"render_s\": %.3f, \"write_s\": %.3f, \"source_psnr\": %.2f, "
            "\"mean_valid_fraction\": %.3f, \"out\": \"%s\"}\n",
-           width, height, num, threads, frames, steps, block, r.wall_s * pf, cpu * pf,
+           width, height, num, threads, frames, steps, block, pad, r.wall_s * pf, cpu * pf,
            (r.init_s + r.fit_s + r.render_s + r.write_s) * pf, r.init_s * pf, r.fit_s * pf, r.render_s * pf,
            r.write_s * pf, r.mean_source_psnr, r.mean_valid_fraction, dir);
     return 0;

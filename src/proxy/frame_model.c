@@ -15,11 +15,15 @@
 #include "splat/raster.h"
 
 #define SH_C0 0.28209479177387814f
+#define MARGIN_BLOCK 4 /* margin Gaussians cover MARGIN_BLOCK k x MARGIN_BLOCK k pixels: the outpainted
+                        * content is a smooth guess, and fewer Gaussians keep proxy renders cheap */
 
 struct proxy_frame_model {
     int W, H;              /* modelled frame size: the source frame plus the margin on each side */
     int src_W, src_H;      /* source frame size */
-    int pad;               /* margin in pixels (a multiple of the margin block 2k) */
+    int pad;               /* margin in pixels (a multiple of the margin block MARGIN_BLOCK * k) */
+    int n_fit;             /* the first n_fit Gaussians (the frame's and the margin blocks touching it)
+                            * are fitted; the outer margin's stay at their outpainted targets */
     proxy_fit_options opt;
     pg_gaussians g, grad;  /* parameters and their gradients (N) */
     optim_adam *adam;      /* shared Adam over the groups of fit_groups (N rows), rebuilt per frame */
@@ -109,7 +113,7 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
     if (!(opt.pad >= 0 && opt.pad <= 1)) return pg_fail(PG_ERR_ARG, "proxy model: pad %g not in [0, 1]", opt.pad);
     proxy_frame_model *m = pg_calloc(1, sizeof *m, "proxy model");
     if (!m) return PG_ERR_NOMEM;
-    int km = 2 * opt.block;
+    int km = MARGIN_BLOCK * opt.block;
     m->pad = (int)ceilf(opt.pad * (width > height ? width : height) / km) * km;
     m->src_W = width;
     m->src_H = height;
@@ -263,7 +267,8 @@ static int seed_block(proxy_frame_model *m, int bx, int by, int k, int interior,
     return 1;
 }
 
-/* Seeds the frame's k x k blocks, then the margin's 2k x 2k blocks (outpainted content is smooth). */
+/* Seeds the frame's k x k blocks, then the margin's larger blocks: the ring touching the frame
+ * (fitted with it), then the rest (not fitted). */
 pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const float *rgb, const float *depth)
 {
     double t0 = pg_time_seconds();
@@ -299,12 +304,22 @@ pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const flo
     for (int by = p; by < p + m->src_H; by += k)
         for (int bx = p; bx < p + m->src_W; bx += k)
             if (seed_block(m, bx, by, k, 1, n, logit, &d)) n++, dsum += d;
-    if (p > 0)
-        for (int by = 0; by < H; by += 2 * k)
-            for (int bx = 0; bx < W; bx += 2 * k)
-                if (seed_block(m, bx, by, 2 * k, 0, n, logit, &d)) n++, dsum += d;
+    m->median_depth = (float)(dsum / n);
+    /* Margin blocks touching the frame go first and are fitted with it (they spill into its border
+     * pixels); the outer ones only render. */
+    const int km = MARGIN_BLOCK * k;
+    for (int pass = 0; pass < 2 && p > 0; pass++) {
+        for (int by = 0; by < H; by += km)
+            for (int bx = 0; bx < W; bx += km) {
+                int touching = bx + km >= p && by + km >= p && bx <= p + m->src_W && by <= p + m->src_H;
+                if (touching == (pass == 0) && seed_block(m, bx, by, km, 0, n, logit, &d)) n++;
+            }
+        if (pass == 0) m->n_fit = n;
+    }
+    if (p == 0) m->n_fit = n;
     g->count = n;
     g->sh_degree = 0;
+    n = m->n_fit; /* the fit's arrays hold the frame's Gaussians only */
     PG_TRY(splat_gaussians_resize(&m->grad, n));
     m->grad.sh_degree = 0;
     for (int i = 0; i < n; i++)
@@ -316,8 +331,7 @@ pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const flo
     optim_adam_destroy(m->adam);
     m->adam = NULL;
     PG_TRY(optim_adam_create(&m->adam, fit_groups, FIT_GROUPS, n, 1e-15f));
-    m->median_depth = (float)(dsum / n);
-    m->stats.gaussians = n;
+    m->stats.gaussians = g->count;
     m->stats.init_s += pg_time_seconds() - t0;
     return PG_OK;
 }
@@ -420,9 +434,22 @@ static void source_psnr(proxy_frame_model *m, const pg_render_output *out)
     m->stats.source_psnr = cnt ? (float)(-10.0 * log10(fmax(se / cnt, 1e-12))) : 0;
 }
 
+static pg_status fit_steps(proxy_frame_model *m);
+
+/* Fits the frame's Gaussians alone: the margin's are hidden from the steps by the count. */
 pg_status proxy_model_fit(proxy_frame_model *m)
 {
     double t0 = pg_time_seconds();
+    int n_all = m->g.count;
+    m->g.count = m->n_fit;
+    pg_status st = fit_steps(m);
+    m->g.count = n_all;
+    m->stats.fit_s += pg_time_seconds() - t0;
+    return st;
+}
+
+static pg_status fit_steps(proxy_frame_model *m)
+{
     pg_render_settings s = model_settings();
     pg_render_output out;
     pg_gaussians *g = &m->g, *gr = &m->grad;
@@ -456,7 +483,6 @@ pg_status proxy_model_fit(proxy_frame_model *m)
         PG_TRY(splat_render_forward(m->raster, g, &m->src_cam, &s, &out));
         source_psnr(m, &out);
     }
-    m->stats.fit_s += pg_time_seconds() - t0;
     return PG_OK;
 }
 

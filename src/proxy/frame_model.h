@@ -12,7 +12,7 @@
  *
  * depth is in the pose units of the cameras (already multiplied by any pose scale), 0 = invalid.
  * With opt.pad > 0 the model also covers an outpainted margin around the frame (one Gaussian per
- * 2k x 2k block there), so proxies turned away from the real view have no empty borders.
+ * 4k x 4k block there, not fitted), so proxies turned away from the real view have no empty borders.
  */
 #ifndef PG_PROXY_FRAME_MODEL_H
 #define PG_PROXY_FRAME_MODEL_H
