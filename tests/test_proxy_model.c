@@ -111,6 +111,26 @@ int main(void)
         o.ssim_every = 0;
         CHECK(proxy_model_create(&m, W, H, &o) == PG_ERR_ARG && !m, "ssim_every 0 accepted");
     }
+    {
+        /* the largest block: margin blocks are MARGIN_BLOCK x 64 pixels wide (seeding scratch) */
+        pg_camera real;
+        pg_camera_from_fov(&real, W, H, 60);
+        float *rgb = malloc(sizeof(float) * W * H * 3), *depth = malloc(sizeof(float) * W * H);
+        proxy_procedural_render(&real, 0, 3, rgb, depth);
+        proxy_fit_options o = proxy_default_fit_options();
+        o.block = 64;
+        o.steps = 2;
+        proxy_frame_model *m = NULL;
+        CHECK_OK(proxy_model_create(&m, W, H, &o));
+        if (m) {
+            CHECK_OK(proxy_model_init(m, &real, rgb, depth));
+            CHECK_OK(proxy_model_fit(m));
+            CHECK(proxy_model_get_stats(m)->gaussians >= 4, "block 64: %d Gaussians", proxy_model_get_stats(m)->gaussians);
+        }
+        proxy_model_destroy(m);
+        free(rgb);
+        free(depth);
+    }
     run(1, 40, 25.0, 0.85);
     run(2, 10, 20.0, 0.80);
     return test_summary("test_proxy_model");

@@ -45,6 +45,7 @@ struct proxy_frame_model {
     float *d_alpha;        /* (SH, SW) w.r.t. rendered alpha */
     float *zmesh;          /* (view H, view W) mesh depth scratch for masks */
     unsigned char *vmargin; /* (view H, view W) 1 where the mesh shows the margin */
+    float *block_depths;   /* (MARGIN_BLOCK k)^2 scratch: the depths of one seeding block */
     size_t zmesh_size;
     float median_depth;
     int valid_pixels;
@@ -98,6 +99,7 @@ void proxy_model_destroy(proxy_frame_model *m)
     free(m->d_alpha);
     free(m->zmesh);
     free(m->vmargin);
+    free(m->block_depths);
     free(m);
 }
 
@@ -138,7 +140,8 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
     m->d_depth = pg_malloc(npix * sizeof(float), "proxy d_depth");
     m->d_alpha = pg_malloc(npix * sizeof(float), "proxy d_alpha");
     m->vmask = pg_malloc(npix * sizeof(float), "proxy loss mask");
-    if (!m->vmask || !m->dc || !m->d_dc || !m->rgb || !m->depth || !m->src_rgb || !m->src_depth || !m->d_rgb ||
+    m->block_depths = pg_malloc((size_t)km * km * sizeof(float), "proxy block depths");
+    if (!m->vmask || !m->block_depths || !m->dc || !m->d_dc || !m->rgb || !m->depth || !m->src_rgb || !m->src_depth || !m->d_rgb ||
         !m->d_depth || !m->d_alpha) {
         proxy_model_destroy(m);
         return PG_ERR_NOMEM;
@@ -229,7 +232,7 @@ static int seed_block(proxy_frame_model *m, int bx, int by, int k, int interior,
 {
     const int W = m->W, H = m->H;
     const pg_camera *cam = &m->cam;
-    float vals[128 * 128];
+    float *vals = m->block_depths;
     int cnt = 0;
     for (int y = by; y < by + k && y < H; y++)
         for (int x = bx; x < bx + k && x < W; x++)
