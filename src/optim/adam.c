@@ -121,25 +121,35 @@ static adam_run prepare_run(optim_adam *opt, const optim_group_step *st)
     return r;
 }
 
+/* The Adam update of n contiguous values: the one place its arithmetic is written, shared by the
+ * flat and the per-row (grouped) steps so both give the same bits. */
+static inline void adam_span(float *restrict p, const float *restrict gr, float *restrict m, float *restrict v,
+                             long n, float b1, float b2, float eps, float step_size, float inv_sqrt_c2)
+{
+    #pragma omp simd
+    for (long i = 0; i < n; i++) {
+        float gv = gr[i];
+        m[i] = b1 * m[i] + (1.0f - b1) * gv;
+        v[i] = b2 * v[i] + (1.0f - b2) * gv * gv;
+        p[i] -= step_size * m[i] / (sqrtf(v[i]) * inv_sqrt_c2 + eps);
+    }
+}
+
 pg_status optim_adam_step_group(optim_adam *opt, int gi, float *param, const float *grad, float lr)
 {
     if (gi < 0 || gi >= opt->ngroups) return pg_fail(PG_ERR_ARG, "adam: no group %d", gi);
     adam_group *g = &opt->g[gi];
     optim_group_step st = { gi, param, grad, lr, g->d.cols };
     if (g->d.row_stride != g->d.cols && opt->rows != 1) return optim_adam_step_groups(opt, &st, 1);
-    /* Contiguous run (full rows, or one row): one flat, vectorisable loop (the same arithmetic
-     * per element as in optim_adam_step_groups). */
+    /* Contiguous run (full rows, or one row): adam_span over blocks split across the threads. */
     adam_run r = prepare_run(opt, &st);
     float b1 = opt->beta1, b2 = opt->beta2, eps = opt->eps, step_size = r.step_size, inv_sqrt_c2 = r.inv_sqrt_c2;
     long n = (long)opt->rows * g->d.cols;
-    float *p = r.p, *m = g->m, *v = g->v;
-    const float *gr = r.gr;
-    #pragma omp parallel for simd schedule(static) if (n > 65536)
-    for (long i = 0; i < n; i++) {
-        float gv = gr[i];
-        m[i] = b1 * m[i] + (1.0f - b1) * gv;
-        v[i] = b2 * v[i] + (1.0f - b2) * gv * gv;
-        p[i] -= step_size * m[i] / (sqrtf(v[i]) * inv_sqrt_c2 + eps);
+    const long block = 16384, nb = (n + block - 1) / block;
+    #pragma omp parallel for schedule(static) if (n > 65536)
+    for (long b = 0; b < nb; b++) {
+        long o = b * block, len = n - o < block ? n - o : block;
+        adam_span(r.p + o, r.gr + o, g->m + o, g->v + o, len, b1, b2, eps, step_size, inv_sqrt_c2);
     }
     return PG_OK;
 }
@@ -170,14 +180,7 @@ pg_status optim_adam_step_groups(optim_adam *opt, const optim_group_step *steps,
             int stride = u->g->d.row_stride, cols = u->g->d.cols, ncols = u->ncols;
             float *p = u->p + (size_t)r * stride, *m = u->g->m + (size_t)r * cols, *v = u->g->v + (size_t)r * cols;
             const float *gr = u->gr + (size_t)r * stride;
-            float step_size = u->step_size, inv_sqrt_c2 = u->inv_sqrt_c2;
-            #pragma omp simd
-            for (int c = 0; c < ncols; c++) {
-                float gv = gr[c];
-                m[c] = b1 * m[c] + (1.0f - b1) * gv;
-                v[c] = b2 * v[c] + (1.0f - b2) * gv * gv;
-                p[c] -= step_size * m[c] / (sqrtf(v[c]) * inv_sqrt_c2 + eps);
-            }
+            adam_span(p, gr, m, v, ncols, b1, b2, eps, u->step_size, u->inv_sqrt_c2);
         }
     return PG_OK;
 }
