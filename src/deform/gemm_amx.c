@@ -39,7 +39,7 @@ int gemm_amx_available(void)
 #ifdef PG_HAVE_AMX_BUILD
 /* Row i of A from a strided column of src (a(i, q) = src[i*rs + q*cs]): 16 gathered values per
  * step. The transposing packs (features, d_out) would otherwise be scalar. */
-static __attribute__((target("avx512f,avx512bw,avx512bf16"))) void pack_row_gather(uint16_t *row, const float *s,
+static __attribute__((target("avx512f,avx512bw,avx512vl,avx512bf16"))) void pack_row_gather(uint16_t *row, const float *s,
                                                                                    long cs, int K)
 {
     const __m512i step = _mm512_mullo_epi32(_mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0),
@@ -90,7 +90,7 @@ void gemm_amx_pack_b(uint16_t *dst, const float *src, long rs, long cs, int K, i
 }
 
 #ifdef PG_HAVE_AMX_BUILD
-#define EPI_TARGET __attribute__((target("avx512f,avx512bw,avx512bf16")))
+#define EPI_TARGET __attribute__((target("avx512f,avx512bw,avx512vl,avx512bf16")))
 
 /* Two f32 halves -> 32 bf16 (round to nearest even, as gemm_amx_bf16 for normal numbers). */
 static inline EPI_TARGET __m512i to_bf16(__m512 lo, __m512 hi) { return (__m512i)_mm512_cvtne2ps_pbh(hi, lo); }

@@ -1,6 +1,7 @@
 /* project.c - EWA projection forward and backward (chain: conic <- Sigma2D <- J, Sigma <- R(q), S). */
 #include "splat/project.h"
 #include "core/mathx.h"
+#include "splat/raster_kernels.h"
 
 #include <math.h>
 
@@ -190,24 +191,12 @@ void splat_project_backward_lim(const float mean[3], const float log_scale[3], c
 }
 
 #if defined(__AVX512F__)
-#include <immintrin.h>
 
-/* exp(x) for |x| < 87 (2^n times a degree-6 polynomial, rel. error ~2e-7). */
+/* exp(x) for |x| < 87 (rel. error ~2e-7). */
 static inline __m512 exp16(__m512 x)
 {
     x = _mm512_min_ps(_mm512_max_ps(x, _mm512_set1_ps(-87.0f)), _mm512_set1_ps(87.0f));
-    __m512 n = _mm512_roundscale_ps(_mm512_mul_ps(x, _mm512_set1_ps(1.44269504088896341f)),
-                                    _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-    __m512 f = _mm512_fmadd_ps(n, _mm512_set1_ps(-0.693359375f), x);
-    f = _mm512_fmadd_ps(n, _mm512_set1_ps(2.12194440e-4f), f);
-    __m512 p = _mm512_set1_ps(1.0f / 720.0f);
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 120.0f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 24.0f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 6.0f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(0.5f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f));
-    return _mm512_scalef_ps(p, n);
+    return splat_exp_poly16(x);
 }
 
 /* t = W m + t_cam for 16 means (one vector per coordinate). */

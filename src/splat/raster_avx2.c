@@ -16,24 +16,11 @@
 int splat_simd_available(void) { return 1; }
 const char *splat_simd_name(void) { return "avx2"; }
 
-/* exp(-s), bit-identical to splat_exp_poly(-s) for the lanes that are used (s <= ln 255);
- * the clamp keeps unused lanes away from denormals. */
+/* exp(-s) = splat_exp_poly(-s) for the lanes that are used (s <= ln 255); the clamp keeps
+ * unused lanes away from denormals. */
 static inline __m256 exp_neg8(__m256 s)
 {
-    s = _mm256_min_ps(s, _mm256_set1_ps(20.0f));
-    __m256 n = _mm256_round_ps(_mm256_mul_ps(s, _mm256_set1_ps(-1.44269504088896341f)),
-                               _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-    __m256 f = _mm256_fnmsub_ps(n, _mm256_set1_ps(0.693359375f), s);
-    f = _mm256_fmadd_ps(n, _mm256_set1_ps(2.12194440e-4f), f);
-    __m256 p = _mm256_set1_ps(1.0f / 720.0f);
-    p = _mm256_fmadd_ps(p, f, _mm256_set1_ps(1.0f / 120.0f));
-    p = _mm256_fmadd_ps(p, f, _mm256_set1_ps(1.0f / 24.0f));
-    p = _mm256_fmadd_ps(p, f, _mm256_set1_ps(1.0f / 6.0f));
-    p = _mm256_fmadd_ps(p, f, _mm256_set1_ps(0.5f));
-    p = _mm256_fmadd_ps(p, f, _mm256_set1_ps(1.0f));
-    p = _mm256_fmadd_ps(p, f, _mm256_set1_ps(1.0f));
-    __m256i e = _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvtps_epi32(n), _mm256_set1_epi32(127)), 23);
-    return _mm256_mul_ps(p, _mm256_castsi256_ps(e));
+    return splat_exp_poly8(_mm256_sub_ps(_mm256_setzero_ps(), _mm256_min_ps(s, _mm256_set1_ps(20.0f))));
 }
 
 static inline __m256 lanes8(int x0)

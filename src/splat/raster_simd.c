@@ -17,26 +17,13 @@
 int splat_simd_available(void) { return 1; }
 const char *splat_simd_name(void) { return "avx512"; }
 
-/* exp(-s): the vector twin of splat_exp_poly(-s), with the negation folded into the range
- * reduction (bit-identical: every step is the exact negative of the scalar one). Lanes outside
- * a Gaussian's reach carry huge s; their results are masked off, but denormal intermediates
- * would still cost microcode assists (several times slower for small Gaussians). Used lanes
- * have s <= ln(255), so the clamp at 20 never changes them. */
+/* exp(-s) = splat_exp_poly(-s). Lanes outside a Gaussian's reach carry huge s; their results
+ * are masked off, but denormal intermediates would still cost microcode assists (several times
+ * slower for small Gaussians). Used lanes have s <= ln(255), so the clamp at 20 never changes
+ * them. */
 static inline __m512 exp_neg16(__m512 s)
 {
-    s = _mm512_min_ps(s, _mm512_set1_ps(20.0f));
-    __m512 n = _mm512_roundscale_ps(_mm512_mul_ps(s, _mm512_set1_ps(-1.44269504088896341f)),
-                                    _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-    __m512 f = _mm512_fnmsub_ps(n, _mm512_set1_ps(0.693359375f), s); /* -n ln2_hi - s */
-    f = _mm512_fmadd_ps(n, _mm512_set1_ps(2.12194440e-4f), f);
-    __m512 p = _mm512_set1_ps(1.0f / 720.0f);
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 120.0f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 24.0f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f / 6.0f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(0.5f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.0f));
-    return _mm512_scalef_ps(p, n); /* exact p * 2^n, like the scalar exponent-bits product */
+    return splat_exp_poly16(_mm512_sub_ps(_mm512_setzero_ps(), _mm512_min_ps(s, _mm512_set1_ps(20.0f))));
 }
 
 /* Lane sums of ten vectors at once (about a third of the shuffles of ten separate
