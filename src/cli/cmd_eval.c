@@ -9,6 +9,7 @@
 #include "eval/report.h"
 
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 /* Scores the model in OUT/model against DATASET; writes metrics.json, report.md, side_by_side/. */
@@ -27,10 +28,14 @@ int pipeline_evaluate(const pipeline_options *o, cJSON *seconds)
     if (st == PG_OK) st = pg_path_join(path, sizeof path, o->out, "report.md");
     if (st == PG_OK) st = eval_write_report_md(path, &r, config, seconds);
     if (st == PG_OK) {
-        eval_scores m;
-        eval_results_mean(&r, NULL, &m);
-        printf("{\"psnr\": %.3f, \"ssim\": %.4f, \"psnr_masked\": %.3f, \"ssim_masked\": %.4f, \"frames\": %d, \"metrics\": \"%s/metrics.json\"}\n",
-               m.psnr, m.ssim, m.psnr_masked, m.ssim_masked, r.count, o->out);
+        cJSON *summary = eval_summary_json(&r);
+        snprintf(path, sizeof path, "%s/metrics.json", o->out);
+        cJSON_AddStringToObject(summary, "metrics", path);
+        char *text = cJSON_PrintUnformatted(summary);
+        if (text) printf("%s\n", text);
+        fflush(stdout);
+        free(text);
+        cJSON_Delete(summary);
     }
     cJSON_Delete(config);
     eval_results_destroy(&r);

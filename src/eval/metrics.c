@@ -25,6 +25,7 @@ pg_status eval_score_image(optim_ssim_ws *ws, const pg_image *pred, const pg_ima
             covered += alpha[i] > 0.5f;
         }
     }
+    memset(out->region, 0, sizeof out->region);
     out->psnr = pg_image_psnr(pred, truth, NULL);
     out->ssim = optim_ssim_forward(ws, pred->data, truth->data, NULL, H, W, C);
     out->coverage = (double)covered / npix;
@@ -43,7 +44,50 @@ pg_status eval_score_image(optim_ssim_ws *ws, const pg_image *pred, const pg_ima
     return PG_OK;
 }
 
-pg_status eval_results_add(eval_results *r, const char *camera, int frame, const eval_scores *s)
+const char *const eval_region_names[EVAL_REGIONS] = { "moving", "static", "seen", "disoccluded", "outside" };
+
+pg_status eval_score_regions(optim_ssim_ws *ws, const pg_image *pred, const pg_image *truth, const uint8_t *labels,
+                             int first, int count, eval_scores *out)
+{
+    const int W = truth->width, H = truth->height, C = truth->channels;
+    const size_t npix = (size_t)W * H;
+    float *mask = pg_malloc(npix * sizeof(float), "region mask");
+    if (!mask) return PG_ERR_NOMEM;
+    for (int k = first; k < first + count; k++) {
+        double sse = 0, n = 0;
+        out->region[k].total += (double)npix;
+        int any = 0;
+        for (size_t i = 0; i < npix; i++) any |= labels[i] == k;
+        if (!any) continue;
+        for (size_t i = 0; i < npix; i++) {
+            mask[i] = labels[i] == k;
+            if (labels[i] != k) continue;
+            n += 1;
+            for (int c = 0; c < C; c++) {
+                double d = (double)pred->data[i * C + c] - truth->data[i * C + c];
+                sse += d * d;
+            }
+        }
+        float ssim = optim_ssim_forward(ws, pred->data, truth->data, mask, H, W, C);
+        eval_region *g = &out->region[k];
+        g->sse += sse;
+        g->ssim_sum += ssim * n;
+        g->pixels += n;
+    }
+    free(mask);
+    return PG_OK;
+}
+
+double eval_region_psnr(const eval_region *g)
+{
+    if (!(g->pixels > 0)) return NAN;
+    double mse = g->sse / (3.0 * g->pixels);
+    return mse > 1e-20 ? -10.0 * log10(mse) : 200.0;
+}
+double eval_region_ssim(const eval_region *g) { return g->pixels > 0 ? g->ssim_sum / g->pixels : NAN; }
+double eval_region_fraction(const eval_region *g) { return g->total > 0 ? g->pixels / g->total : NAN; }
+
+pg_status eval_results_add(eval_results *r, const char *camera, eval_role role, int frame, const eval_scores *s)
 {
     if (r->count == r->capacity) {
         int cap = r->capacity ? 2 * r->capacity : 64;
@@ -54,18 +98,25 @@ pg_status eval_results_add(eval_results *r, const char *camera, int frame, const
     }
     eval_frame_record *rec = &r->records[r->count++];
     snprintf(rec->camera, sizeof rec->camera, "%s", camera);
+    rec->role = role;
     rec->frame = frame;
     rec->s = *s;
     return PG_OK;
 }
 
-int eval_results_mean(const eval_results *r, const char *camera, eval_scores *mean)
+int eval_results_mean(const eval_results *r, const char *camera, eval_role role, eval_scores *mean)
 {
     memset(mean, 0, sizeof *mean);
     int n = 0;
     for (int i = 0; i < r->count; i++) {
         const eval_frame_record *rec = &r->records[i];
-        if (camera && strcmp(rec->camera, camera) != 0) continue;
+        if (camera ? strcmp(rec->camera, camera) != 0 : rec->role != role) continue;
+        for (int k = 0; k < EVAL_REGIONS; k++) {
+            mean->region[k].sse += rec->s.region[k].sse;
+            mean->region[k].ssim_sum += rec->s.region[k].ssim_sum;
+            mean->region[k].pixels += rec->s.region[k].pixels;
+            mean->region[k].total += rec->s.region[k].total;
+        }
         mean->psnr += rec->s.psnr;
         mean->ssim += rec->s.ssim;
         mean->psnr_masked += rec->s.psnr_masked;

@@ -1,31 +1,125 @@
-/* protocol.c - scores held-out cameras of a dataset against a trained model's renders. */
+/* protocol.c - scores a trained model against a dataset's cameras: the held-out test cameras
+ * (the headline numbers) and the real training camera, each split into moving and static pixels
+ * of its own video; test pixels are also split by what the real camera saw of them. */
 #include "eval/protocol.h"
 #include "core/fileutil.h"
 #include "core/progress.h"
+#include "depth/moving_mask.h"
 #include "eval/report.h"
+#include "eval/visibility.h"
 #include "io/dataset.h"
 #include "render/model_render.h"
 #include "render/scene_cameras.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+/* The moving-pixel definition of the evaluation: colour off the temporal median by > 0.12 in any
+ * channel, dilated 2 px. */
+#define EVAL_MOVING_THRESH 0.12f
+#define EVAL_MOVING_DILATE 2
+
+typedef struct {
+    const scene_cameras *sc;
+    render_model *rm;
+    pg_dataset *ds;
+    optim_ssim_ws *ws;
+    int frames, done, total;
+    const char *sbs_dir;
+    float *real_z;    /* (frames, H, W) alpha-normalised depth rendered at the real camera */
+    int have_real_z;
+    eval_results *results;
+} eval_ctx;
+
 /* Frames that get a side-by-side PNG: first, middle, last. */
 static int wants_side_by_side(int f, int frames) { return f == 0 || f == frames / 2 || f == frames - 1; }
+
+/* Every frame of dataset camera `cam` as bytes (F, H, W, 3), then its moving-pixel masks. */
+static pg_status camera_moving_masks(eval_ctx *c, int cam, int W, int H, uint8_t **moving)
+{
+    size_t px = (size_t)W * H;
+    uint8_t *rgb = pg_malloc((size_t)c->frames * px * 3, "evaluation frames");
+    *moving = pg_malloc((size_t)c->frames * px, "moving masks");
+    pg_status st = rgb && *moving ? PG_OK : PG_ERR_NOMEM;
+    for (int f = 0; st == PG_OK && f < c->frames; f++) {
+        pg_image img = {0};
+        st = io_dataset_frame(c->ds, cam, f, &img);
+        if (st == PG_OK && (img.width != W || img.height != H || img.channels != 3))
+            st = pg_fail(PG_ERR_SIZE, "camera %s: frame %d is %dx%d, the model renders %dx%d",
+                         io_dataset_camera_name(c->ds, cam), f, img.width, img.height, W, H);
+        for (size_t i = 0; st == PG_OK && i < px * 3; i++) {
+            float v = img.data[i] * 255.0f + 0.5f;
+            rgb[(size_t)f * px * 3 + i] = (uint8_t)(v < 0 ? 0 : v > 255 ? 255 : v);
+        }
+        pg_image_destroy(&img);
+    }
+    if (st == PG_OK) st = depth_moving_masks(rgb, c->frames, W, H, EVAL_MOVING_THRESH, EVAL_MOVING_DILATE, *moving);
+    free(rgb);
+    if (st) {
+        free(*moving);
+        *moving = NULL;
+    }
+    return st;
+}
+
+/* Renders and scores every frame of model camera k against dataset camera `cam`. */
+static pg_status score_camera(eval_ctx *c, int k, int cam, eval_role role)
+{
+    const scene_cameras *sc = c->sc;
+    const pg_camera *pc = &sc->cams[k];
+    const int W = pc->width, H = pc->height;
+    const size_t px = (size_t)W * H;
+    uint8_t *moving = NULL, *labels = pg_malloc(px, "evaluation labels");
+    pg_image pred = {0}, truth = {0};
+    pg_status st = labels ? PG_OK : PG_ERR_NOMEM;
+    if (st == PG_OK) st = camera_moving_masks(c, cam, W, H, &moving);
+    if (st == PG_OK) st = pg_image_create(&pred, W, H, 3);
+    for (int f = 0; st == PG_OK && f < c->frames; f++) {
+        pg_render_output out;
+        st = render_model_frame(c->rm, pc, train_frame_time(f, c->frames), &out);
+        if (st == PG_OK) st = io_dataset_frame(c->ds, cam, f, &truth);
+        if (st != PG_OK) break;
+        memcpy(pred.data, out.rgb, sizeof(float) * 3 * px);
+        eval_scores s;
+        st = eval_score_image(c->ws, &pred, &truth, out.alpha, &s);
+        for (size_t i = 0; i < px; i++) labels[i] = moving[(size_t)f * px + i] ? EVAL_MOVING : EVAL_STATIC;
+        if (st == PG_OK) st = eval_score_regions(c->ws, &pred, &truth, labels, EVAL_MOVING, 2, &s);
+        if (role == EVAL_ROLE_TRAIN) {
+            float *z = c->real_z + (size_t)f * px;
+            for (size_t i = 0; i < px; i++) z[i] = out.alpha[i] > 0.5f ? out.depth[i] / out.alpha[i] : 0.0f;
+        } else if (c->have_real_z) {
+            eval_visibility_labels(pc, out.depth, out.alpha, &sc->cams[sc->real], c->real_z + (size_t)f * px, labels);
+            if (st == PG_OK) st = eval_score_regions(c->ws, &pred, &truth, labels, EVAL_SEEN, 3, &s);
+        }
+        if (st == PG_OK) st = eval_results_add(c->results, sc->names[k], role, f, &s);
+        if (st == PG_OK && c->sbs_dir && wants_side_by_side(f, c->frames)) {
+            char file[96], path[4200];
+            snprintf(file, sizeof file, "%s_%04d.png", sc->names[k], f);
+            st = pg_path_join(path, sizeof path, c->sbs_dir, file);
+            if (st == PG_OK) st = eval_write_side_by_side(path, &truth, &pred);
+        }
+        pg_image_destroy(&truth);
+        pg_progress_report("eval", ++c->done, c->total, "camera=%s psnr=%.2f moving=%.2f", sc->names[k], s.psnr,
+                           eval_region_psnr(&s.region[EVAL_MOVING]));
+    }
+    io_dataset_release(c->ds, cam);
+    pg_image_destroy(&pred);
+    free(moving);
+    free(labels);
+    return st;
+}
 
 pg_status eval_protocol_run(const char *dataset, const char *model, const char *sbs_dir, eval_results *results)
 {
     scene_cameras *sc = pg_malloc(sizeof *sc, "cameras");
     if (!sc) return PG_ERR_NOMEM;
-    render_model *rm = NULL;
-    pg_dataset *ds = NULL;
-    optim_ssim_ws *ws = NULL;
-    pg_image pred = {0}, truth = {0};
+    eval_ctx c = { .sc = sc, .sbs_dir = sbs_dir, .results = results };
     pg_status st = scene_cameras_for_model(model, NULL, sc);
-    if (st == PG_OK) st = render_model_open(model, &rm);
+    if (st == PG_OK) st = render_model_open(model, &c.rm);
     const pg_camera *real = &sc->cams[sc->real];
-    int frames = rm ? render_model_frames(rm) : 0;
+    c.frames = c.rm ? render_model_frames(c.rm) : 0;
     int tests = 0;
     for (int k = 0; st == PG_OK && k < sc->count; k++) tests += sc->roles[k] == SCENE_ROLE_TEST;
     if (st == PG_OK && tests == 0) st = pg_fail(PG_ERR_ARG, "%s: the model's trainset.json lists no test cameras", model);
@@ -33,46 +127,34 @@ pg_status eval_protocol_run(const char *dataset, const char *model, const char *
         io_dataset_options opt = io_dataset_defaults();
         opt.width = real->width;
         opt.height = real->height;
-        opt.count = frames;
-        st = io_dataset_open(dataset, &opt, &ds);
+        opt.count = c.frames;
+        st = io_dataset_open(dataset, &opt, &c.ds);
     }
-    if (st == PG_OK && io_dataset_num_frames(ds) < frames)
-        st = pg_fail(PG_ERR_SIZE, "%s: has %d frames, the model was trained on %d", dataset, io_dataset_num_frames(ds), frames);
-    if (st == PG_OK) st = optim_ssim_create(&ws, real->height, real->width, 3);
-    if (st == PG_OK) st = pg_image_create(&pred, real->width, real->height, 3);
+    if (st == PG_OK && io_dataset_num_frames(c.ds) < c.frames)
+        st = pg_fail(PG_ERR_SIZE, "%s: has %d frames, the model was trained on %d", dataset, io_dataset_num_frames(c.ds), c.frames);
+    if (st == PG_OK) st = optim_ssim_create(&c.ws, real->height, real->width, 3);
     if (st == PG_OK && sbs_dir) st = pg_mkdir_p(sbs_dir);
-    int done = 0;
+    /* the real camera first: its renders give the depth the test pixels are checked against */
+    int real_cam = st == PG_OK ? io_dataset_find_camera(c.ds, sc->names[sc->real]) : -1;
+    c.total = (tests + (real_cam >= 0)) * c.frames;
+    if (st == PG_OK && real_cam >= 0) {
+        c.real_z = pg_malloc((size_t)c.frames * real->width * real->height * sizeof(float), "real-camera depth");
+        st = c.real_z ? score_camera(&c, sc->real, real_cam, EVAL_ROLE_TRAIN) : PG_ERR_NOMEM;
+        c.have_real_z = st == PG_OK;
+    }
     for (int k = 0; st == PG_OK && k < sc->count; k++) {
         if (sc->roles[k] != SCENE_ROLE_TEST) continue;
-        int cam = io_dataset_find_camera(ds, sc->names[k]);
+        int cam = io_dataset_find_camera(c.ds, sc->names[k]);
         if (cam < 0) {
             st = pg_fail(PG_ERR_ARG, "%s: no camera named %s (held out in the model)", dataset, sc->names[k]);
             break;
         }
-        for (int f = 0; st == PG_OK && f < frames; f++) {
-            pg_render_output out;
-            st = render_model_frame(rm, &sc->cams[k], train_frame_time(f, frames), &out);
-            if (st == PG_OK) st = io_dataset_frame(ds, cam, f, &truth);
-            if (st != PG_OK) break;
-            memcpy(pred.data, out.rgb, sizeof(float) * 3 * (size_t)pred.width * pred.height);
-            eval_scores s;
-            st = eval_score_image(ws, &pred, &truth, out.alpha, &s);
-            if (st == PG_OK) st = eval_results_add(results, sc->names[k], f, &s);
-            if (st == PG_OK && sbs_dir && wants_side_by_side(f, frames)) {
-                char file[96], path[4200];
-                snprintf(file, sizeof file, "%s_%04d.png", sc->names[k], f);
-                st = pg_path_join(path, sizeof path, sbs_dir, file);
-                if (st == PG_OK) st = eval_write_side_by_side(path, &truth, &pred);
-            }
-            pg_image_destroy(&truth);
-            pg_progress_report("eval", ++done, (long)tests * frames, "camera=%s psnr=%.2f", sc->names[k], s.psnr);
-        }
-        io_dataset_release(ds, cam);
+        st = score_camera(&c, k, cam, EVAL_ROLE_TEST);
     }
-    pg_image_destroy(&pred);
-    optim_ssim_destroy(ws);
-    io_dataset_close(ds);
-    render_model_close(rm);
+    free(c.real_z);
+    optim_ssim_destroy(c.ws);
+    io_dataset_close(c.ds);
+    render_model_close(c.rm);
     free(sc);
     return st;
 }

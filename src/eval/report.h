@@ -10,6 +10,9 @@
  * "per_camera": {name: {...}}, "per_frame": [...], "config": config, "seconds": seconds}.
  * config and seconds are copied (may be NULL). Atomic. */
 pg_status eval_write_metrics_json(const char *path, const eval_results *r, const cJSON *config, const cJSON *seconds);
+/* One line for stdout: the test cameras' psnr, ssim, masked scores and moving-pixel PSNR, and
+ * the training camera's moving / static PSNR (null when undefined). Caller frees. */
+cJSON *eval_summary_json(const eval_results *r);
 /* A short markdown report with the same numbers, the stage timings and a note on LPIPS. Atomic. */
 pg_status eval_write_report_md(const char *path, const eval_results *r, const cJSON *config, const cJSON *seconds);
 /* One PNG: truth | render | error (|difference| x 4, clamped). Atomic. */
