@@ -61,9 +61,9 @@ int cmd_train(int argc, char **argv)
 {
     const char *out = NULL, *real_cams = NULL, *test_cams = NULL, *depth = NULL;
     int iters = 3000, coarse = INT_MIN /* unset: iters/6 */, resume = 0, threads = 2, seed = 1, max_g = 200000, ck_every = 500;
-    int init_points = 30000, frames = 0, width = 0, no_static = 0, no_cull = 0, sh = 3, real_every = 3;
+    int init_points = 30000, frames = 0, width = 0, no_static = 0, no_cull = 0, sh = 3, views_per_step = 4;
     int eval_train = 0, proxies = -1, deform_res = 0, deform_width = 0, static_check = 0;
-    float lambda_depth = -1, lambda_dssim = -1;
+    float lambda_depth = -1, lambda_dssim = -1, real_weight = -1, moving_weight = -1;
     cli_option opts[] = {
         {"--out", CLI_STR, &out, "model directory to write (model.ckpt, train.json)"},
         {"--iters", CLI_INT, &iters, "total iterations, coarse included (3000)"},
@@ -81,7 +81,9 @@ int cmd_train(int argc, char **argv)
         {"--frames", CLI_INT, &frames, "DyNeRF input: use only the first N frames"},
         {"--width", CLI_INT, &width, "DyNeRF input: resize to this width"},
         {"--sh-degree", CLI_INT, &sh, "largest SH degree (3)"},
-        {"--real-every", CLI_INT, &real_every, "a real view at least every k iterations (3)"},
+        {"--views-per-step", CLI_INT, &views_per_step, "views trained per deformation: the real view + proxies of one time (4)"},
+        {"--real-weight", CLI_FLOAT, &real_weight, "share of a step's loss on the real view when proxies are in it (0.5)"},
+        {"--moving-weight", CLI_FLOAT, &moving_weight, "extra loss weight on the real view's moving pixels (4)"},
         {"--lambda-depth", CLI_FLOAT, &lambda_depth, "weight of the SSI depth loss (0.05)"},
         {"--lambda-dssim", CLI_FLOAT, &lambda_dssim, "weight of D-SSIM (0.2)"},
         {"--deform-res", CLI_INT, &deform_res, "HexPlane spatial resolution of the coarse scale (64)"},
@@ -104,7 +106,12 @@ int cmd_train(int argc, char **argv)
     if (coarse != INT_MIN && (coarse < 0 || coarse > iters))
         return cli_usage_error("train: --coarse-iters %d must be in 0..--iters (%d)", coarse, iters);
     if (init_points < 1) return cli_usage_error("train: --init-points %d must be >= 1", init_points);
-    if (real_every < 1) return cli_usage_error("train: --real-every %d must be >= 1", real_every);
+    if (views_per_step < 1 || views_per_step > TRAIN_MAX_BATCH)
+        return cli_usage_error("train: --views-per-step %d must be in 1..%d", views_per_step, TRAIN_MAX_BATCH);
+    if (real_weight != -1 && !(real_weight >= 0 && real_weight <= 1))
+        return cli_usage_error("train: --real-weight %g must be in [0, 1]", real_weight);
+    if (moving_weight != -1 && !(moving_weight >= 0 && moving_weight <= 100))
+        return cli_usage_error("train: --moving-weight %g must be in [0, 100]", moving_weight);
     if (frames < 0) return cli_usage_error("train: --frames %d must be >= 1 (0 = all)", frames);
     if (width < 0 || width > CLI_MAX_SIDE)
         return cli_usage_error("train: --width %d out of range 1..%d (0 = keep)", width, CLI_MAX_SIDE);
@@ -161,7 +168,9 @@ int cmd_train(int argc, char **argv)
     cfg.init_points = init_points;
     cfg.checkpoint_every = ck_every;
     cfg.sh_max_degree = sh;
-    cfg.real_every = real_every;
+    cfg.views_per_step = views_per_step;
+    if (real_weight >= 0) cfg.real_weight = real_weight;
+    if (moving_weight >= 0) cfg.moving_weight = moving_weight;
     if (lambda_depth >= 0) cfg.lambda_depth = lambda_depth;
     if (lambda_dssim >= 0) cfg.lambda_dssim = lambda_dssim;
     cfg.deform_res = deform_res;

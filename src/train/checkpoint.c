@@ -81,22 +81,23 @@ static void put_adam(buf *b, optim_adam *opt)
 static void config_text(const train_config *c, char *out, size_t size)
 {
     snprintf(out, size,
-             "iters=%d\ncoarse_iters=%d\nseed=%llu\nmax_gaussians=%d\ninit_points=%d\nreal_every=%d\n"
+             "iters=%d\ncoarse_iters=%d\nseed=%llu\nmax_gaussians=%d\ninit_points=%d\nviews_per_step=%d\n"
              "sh_max_degree=%d\nsh_ramp_every=%d\nbg=%.9g,%.9g,%.9g\nlambda_dssim=%.9g\nlambda_depth=%.9g\n"
              "reg_tv=%.9g\nreg_time=%.9g\nreg_l1=%.9g\nlr_means=%.9g\nlr_means_final=%.9g\nlr_scales=%.9g\n"
              "lr_quats=%.9g\nlr_opacity=%.9g\nlr_sh_dc=%.9g\nlr_sh_rest=%.9g\nlr_net=%.9g\nlr_net_final=%.9g\n"
              "lr_grid=%.9g\nlr_grid_final=%.9g\ndensify_from=%d\ndensify_until=%d\ndensify_every=%d\n"
              "opacity_reset_every=%d\ndensify_grad=%.9g\npercent_dense=%.9g\nprune_opacity=%.9g\n"
              "prune_big_scale=%.9g\nuse_static_flags=%d\nuse_frustum_cull=%d\nstatic_check_every=%d\n"
-             "static_eps=%.9g\ndeform_width=%d\ndeform_res=%d\ndeform_tres=%d\ndeform_channels=%d\n",
-             c->iters, c->coarse_iters, (unsigned long long)c->seed, c->max_gaussians, c->init_points, c->real_every,
+             "static_eps=%.9g\ndeform_width=%d\ndeform_res=%d\ndeform_tres=%d\ndeform_channels=%d\n"
+             "real_weight=%.9g\nmoving_weight=%.9g\n",
+             c->iters, c->coarse_iters, (unsigned long long)c->seed, c->max_gaussians, c->init_points, c->views_per_step,
              c->sh_max_degree, c->sh_ramp_every, c->bg[0], c->bg[1], c->bg[2], c->lambda_dssim, c->lambda_depth,
              c->reg_tv, c->reg_time, c->reg_l1, c->lr_means, c->lr_means_final, c->lr_scales, c->lr_quats,
              c->lr_opacity, c->lr_sh_dc, c->lr_sh_rest, c->lr_net, c->lr_net_final, c->lr_grid, c->lr_grid_final,
              c->densify_from, c->densify_until, c->densify_every, c->opacity_reset_every, c->densify_grad,
              c->percent_dense, c->prune_opacity, c->prune_big_scale, c->use_static_flags, c->use_frustum_cull,
              c->static_check_every, c->static_eps, c->deform_width, c->deform_res, c->deform_tres,
-             c->deform_channels);
+             c->deform_channels, c->real_weight, c->moving_weight);
 }
 
 static int cfg_get(const char *text, const char *key, char *val, size_t size)
@@ -122,14 +123,14 @@ static void config_parse(const char *text, train_config *c)
     char v[256];
 #define GI(name) if (cfg_get(text, #name, v, sizeof v)) c->name = atoi(v)
 #define GF(name) if (cfg_get(text, #name, v, sizeof v)) c->name = strtof(v, NULL)
-    GI(iters); GI(coarse_iters); GI(max_gaussians); GI(init_points); GI(real_every); GI(sh_max_degree);
+    GI(iters); GI(coarse_iters); GI(max_gaussians); GI(init_points); GI(views_per_step); GI(sh_max_degree);
     GI(sh_ramp_every); GF(lambda_dssim); GF(lambda_depth); GF(reg_tv); GF(reg_time); GF(reg_l1);
     GF(lr_means); GF(lr_means_final); GF(lr_scales); GF(lr_quats); GF(lr_opacity); GF(lr_sh_dc);
     GF(lr_sh_rest); GF(lr_net); GF(lr_net_final); GF(lr_grid); GF(lr_grid_final); GI(densify_from);
     GI(densify_until); GI(densify_every); GI(opacity_reset_every); GF(densify_grad); GF(percent_dense);
     GF(prune_opacity); GF(prune_big_scale); GI(use_static_flags); GI(use_frustum_cull);
     GI(static_check_every); GF(static_eps); GI(deform_width); GI(deform_res); GI(deform_tres);
-    GI(deform_channels);
+    GI(deform_channels); GF(real_weight); GF(moving_weight);
 #undef GI
 #undef GF
     if (cfg_get(text, "seed", v, sizeof v)) c->seed = strtoull(v, NULL, 10);

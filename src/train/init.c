@@ -1,9 +1,13 @@
 /* init.c - initial canonical Gaussians from the views' depth (or the frustum when there is none).
  *
- * Every frame's depth is back-projected (static pixels only from frame 0), then voxel-
- * downsampled so the moving objects are covered at every position they visit. A pixel is
- * dynamic when its depth or colour changes over the video; voxels holding a dynamic point
- * get a dynamic flag, the others are static and are never sent through the network.
+ * Moving pixels come from colour alone (off the pixel's temporal median, depth/moving_mask.h):
+ * monocular depth flickers everywhere, so a depth test would call the whole scene dynamic.
+ * A pixel that never moves is back-projected once; a pixel that moves at some frames gives a
+ * DYNAMIC point at each of those frames (the object where it is then) and one static point
+ * from a frame where it shows the background. The two sets are voxel-downsampled apart, the
+ * dynamic one to its own share of the budget, so the moving objects get Gaussians at every
+ * place they visit however small they are in the frame. Dynamic points make movable Gaussians
+ * (sent through the network); static ones never are.
  */
 #include "train/train_internal.h"
 
@@ -12,6 +16,7 @@
 #include <string.h>
 
 #include "core/mathx.h"
+#include "depth/moving_mask.h"
 
 #define SH_C0 0.28209479177387814f
 
@@ -44,36 +49,40 @@ static pg_status points_push(point_list *p, const float x[3], const float c[3], 
     return PG_OK;
 }
 
-/* Back-projects the depth of view vi (every `stride` pixels). */
+/* Colour threshold for the trainer's moving pixels: a little below the evaluation's 0.12 so
+ * faint parts of a mover (shadows, soft edges) go to the network too, dilated 3 px. */
+#define INIT_MOVING_THRESH 0.08f
+#define INIT_MOVING_DILATE 3
+
+/* Back-projects the depth of view vi (every `stride` pixels): static pixels once, moving ones
+ * at each frame they move (dynamic) plus once as background (static). */
 static pg_status points_from_depth(const train_set *ts, int vi, int stride, point_list *pts)
 {
     const train_view *v = &ts->views[vi];
     int W = ts->width, H = ts->height, F = ts->frames;
     size_t px = (size_t)W * H;
-    for (int y = stride / 2; y < H; y += stride)
-        for (int x = stride / 2; x < W; x += stride) {
+    uint8_t *moving = pg_malloc((size_t)F * px, "init moving masks");
+    if (!moving) return PG_ERR_NOMEM;
+    pg_status st = depth_moving_masks(v->rgb, F, W, H, INIT_MOVING_THRESH, INIT_MOVING_DILATE, moving);
+    for (int y = stride / 2; y < H && !st; y += stride)
+        for (int x = stride / 2; x < W && !st; x += stride) {
             size_t p = (size_t)y * W + x;
-            /* dynamic: depth or colour differs from frame 0 somewhere in the video */
-            int dyn = 0;
-            float d0 = v->depth[p];
-            const uint8_t *c0 = v->rgb + p * 3;
-            for (int f = 1; f < F && !dyn; f++) {
-                float df = v->depth[(size_t)f * px + p];
-                const uint8_t *cf = v->rgb + ((size_t)f * px + p) * 3;
-                int dc = abs(cf[0] - c0[0]) + abs(cf[1] - c0[1]) + abs(cf[2] - c0[2]);
-                if ((d0 > 0) != (df > 0) || (d0 > 0 && fabsf(df - d0) > 0.03f * d0) || dc > 3 * 25) dyn = 1;
-            }
-            for (int f = 0; f < (dyn ? F : 1); f++) {
+            int background_done = 0;
+            for (int f = 0; f < F && !st; f++) {
                 size_t q = (size_t)f * px + p;
+                int dyn = moving[q];
+                if (!dyn && background_done) continue;
                 float d = v->depth[q];
                 if (!(d > 0) || (v->mask && !v->mask[q])) continue;
                 float X[3], c[3];
                 pg_camera_unproject(&v->cam, x + 0.5f, y + 0.5f, d, X);
                 for (int k = 0; k < 3; k++) c[k] = v->rgb[q * 3 + k] / 255.0f;
-                PG_TRY(points_push(pts, X, c, dyn));
+                st = points_push(pts, X, c, dyn);
+                background_done |= !dyn;
             }
         }
-    return PG_OK;
+    free(moving);
+    return st;
 }
 
 /* Random points in the frusta of the training views between near and far (uniform in
@@ -175,35 +184,121 @@ static uint64_t hash64(uint64_t x)
     return x;
 }
 
-/* Fills slot[] (one per point) with the hash-table slot of its voxel; returns unique count. */
-static size_t voxel_assign(const point_list *p, const float lo[3], float vox, uint64_t *keys, uint8_t *used,
-                           size_t tsize, uint32_t *slot)
+/* Hash table of voxel keys shared by the searches below (sized for every point). */
+typedef struct {
+    uint64_t *keys;
+    uint8_t *used;
+    size_t size;
+    uint32_t *slot; /* (points) the table slot of each point's voxel */
+} voxel_table;
+
+static size_t voxel_lookup(const voxel_table *t, uint64_t k)
 {
-    memset(used, 0, tsize);
+    size_t h = hash64(k) & (t->size - 1);
+    while (t->used[h] && t->keys[h] != k) h = (h + 1) & (t->size - 1);
+    return h;
+}
+
+/* Puts the points with dyn == want into voxels of size vox; fills their slot; returns the
+ * number of distinct voxels. */
+static size_t voxel_assign(voxel_table *t, const point_list *p, int want, const float lo[3], float vox)
+{
+    memset(t->used, 0, t->size);
     size_t uniq = 0;
     for (size_t i = 0; i < p->n; i++) {
+        if (p->dyn[i] != want) continue;
         uint64_t k = voxel_key(p->xyz + 3 * i, lo, vox);
-        size_t h = hash64(k) & (tsize - 1);
-        while (used[h] && keys[h] != k) h = (h + 1) & (tsize - 1);
-        if (!used[h]) {
-            used[h] = 1;
-            keys[h] = k;
+        size_t h = voxel_lookup(t, k);
+        if (!t->used[h]) {
+            t->used[h] = 1;
+            t->keys[h] = k;
             uniq++;
         }
-        slot[i] = (uint32_t)h;
+        t->slot[i] = (uint32_t)h;
     }
     return uniq;
 }
+
+/* Voxel size giving between 85 % and 100 % of `target` voxels for the points with dyn == want
+ * (the table holds that assignment on return); *uniq gets the voxel count. */
+static float voxel_search(voxel_table *t, const point_list *p, int want, const float lo[3], float diag, int target,
+                          size_t *uniq)
+{
+    float vox = diag / sqrtf((float)target) + 1e-6f;
+    for (int iter = 0; iter < 12; iter++) {
+        *uniq = voxel_assign(t, p, want, lo, vox);
+        float ratio = (float)*uniq / (float)target;
+        if (ratio <= 1.0f && (ratio > 0.85f || iter == 11)) break;
+        vox *= ratio > 1 ? sqrtf(ratio) * 1.02f : fmaxf(sqrtf(ratio), 0.5f);
+        if (iter == 11) {
+            vox *= 1.3f;
+            *uniq = voxel_assign(t, p, want, lo, vox);
+        }
+    }
+    return vox;
+}
+
+/* Static points right next to moving ones (the same or a neighbouring dynamic voxel) become
+ * dynamic: the inside of a uniformly coloured mover does not change colour, yet moves. */
+static void promote_near_dynamic(voxel_table *t, point_list *p, const float lo[3], float vox)
+{
+    voxel_assign(t, p, 1, lo, vox);
+    for (size_t i = 0; i < p->n; i++) {
+        if (p->dyn[i]) continue;
+        const float *x = p->xyz + 3 * i;
+        int near = 0;
+        for (int d = 0; d < 27 && !near; d++) {
+            float y[3] = { x[0] + (d % 3 - 1) * vox, x[1] + (d / 3 % 3 - 1) * vox, x[2] + (d / 9 - 1) * vox };
+            near = t->used[voxel_lookup(t, voxel_key(y, lo, vox))];
+        }
+        p->dyn[i] = (uint8_t)(near ? 2 : 0); /* 2: promoted, becomes 1 after the loop */
+    }
+    for (size_t i = 0; i < p->n; i++) p->dyn[i] = p->dyn[i] != 0;
+}
+
+/* One Gaussian per voxel of the points with dyn == want (after voxel_assign): mean position and
+ * colour, isotropic scale 0.6 voxel, opacity 0.3. Appends at row *n. */
+static pg_status voxels_to_gaussians(train_session *s, const voxel_table *t, const point_list *p, int want, float vox,
+                                     int *n)
+{
+    double *acc = pg_calloc(t->size * 7, sizeof(double), "init voxel sums");
+    if (!acc) return PG_ERR_NOMEM;
+    for (size_t i = 0; i < p->n; i++) {
+        if (p->dyn[i] != want) continue;
+        double *a = acc + (size_t)t->slot[i] * 7;
+        for (int k = 0; k < 3; k++) {
+            a[k] += p->xyz[3 * i + k];
+            a[3 + k] += p->rgb[3 * i + k];
+        }
+        a[6] += 1;
+    }
+    float log_s = logf(0.6f * vox), opacity_logit = logf(0.3f / 0.7f);
+    for (size_t h = 0; h < t->size; h++) {
+        if (!t->used[h]) continue;
+        const double *a = acc + h * 7;
+        int r = (*n)++;
+        for (int k = 0; k < 3; k++) {
+            s->g.means[3 * r + k] = (float)(a[k] / a[6]);
+            s->g.log_scales[3 * r + k] = log_s;
+            s->g.sh[(size_t)r * PG_SH_COEFFS * 3 + k] = (float)((a[3 + k] / a[6] - 0.5) / SH_C0);
+        }
+        s->g.quats[4 * r] = 1.0f;
+        s->g.opacity[r] = opacity_logit;
+        s->is_static[r] = !want;
+    }
+    free(acc);
+    return PG_OK;
+}
+
+/* Share of the initial budget for the moving points (when there are enough of them). */
+#define INIT_DYNAMIC_SHARE 0.35f
 
 pg_status train_init_gaussians(train_session *s)
 {
     const train_set *ts = s->ts;
     point_list pts = {0};
+    voxel_table t = {0};
     pg_status st = PG_OK;
-    uint64_t *keys = NULL;
-    uint8_t *used = NULL;
-    uint32_t *slot = NULL;
-    double *acc = NULL;
     int target = s->cfg.init_points < s->cfg.max_gaussians ? s->cfg.init_points : s->cfg.max_gaussians;
     if (target < 16) target = 16;
 
@@ -211,7 +306,7 @@ pg_status train_init_gaussians(train_session *s)
     size_t cand = 0;
     for (int i = 0; i < ts->num_views; i++)
         if (ts->views[i].depth && ts->views[i].role != TRAIN_ROLE_TEST)
-            cand += (size_t)ts->width * ts->height * (size_t)ts->frames;
+            cand += (size_t)ts->width * ts->height * 2;
     int stride = 1;
     while (cand / ((size_t)stride * stride) > 3000000) stride++;
     for (int i = 0; i < ts->num_views && !st; i++)
@@ -226,13 +321,16 @@ pg_status train_init_gaussians(train_session *s)
 
     float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
     double cen[3] = {0, 0, 0};
-    for (size_t i = 0; i < pts.n; i++)
+    size_t ndyn_pts = 0;
+    for (size_t i = 0; i < pts.n; i++) {
+        ndyn_pts += pts.dyn[i] != 0;
         for (int a = 0; a < 3; a++) {
             float x = pts.xyz[3 * i + a];
             lo[a] = fminf(lo[a], x);
             hi[a] = fmaxf(hi[a], x);
             cen[a] += x;
         }
+    }
     double r2 = 0;
     for (int a = 0; a < 3; a++) cen[a] /= (double)pts.n;
     for (size_t i = 0; i < pts.n; i++)
@@ -244,76 +342,46 @@ pg_status train_init_gaussians(train_session *s)
     s->extent = ts->has_scene && ts->radius > 0 ? ts->radius : (float)sqrt(r2 / (double)pts.n) * 1.1f;
     if (!(s->extent > 0)) s->extent = 1.0f;
 
-    size_t tsize = 1;
-    while (tsize < pts.n * 2) tsize <<= 1;
-    keys = pg_malloc(tsize * sizeof(uint64_t), "init voxel keys");
-    used = pg_malloc(tsize, "init voxel table");
-    slot = pg_malloc(pts.n * sizeof(uint32_t), "init voxel slots");
-    if (!keys || !used || !slot) {
+    t.size = 1;
+    while (t.size < pts.n * 2) t.size <<= 1;
+    t.keys = pg_malloc(t.size * sizeof(uint64_t), "init voxel keys");
+    t.used = pg_malloc(t.size, "init voxel table");
+    t.slot = pg_malloc(pts.n * sizeof(uint32_t), "init voxel slots");
+    if (!t.keys || !t.used || !t.slot) {
         st = PG_ERR_NOMEM;
         goto done;
     }
     float diag = 0;
     for (int a = 0; a < 3; a++) diag += (hi[a] - lo[a]) * (hi[a] - lo[a]);
-    float vox = sqrtf(diag) / sqrtf((float)target) + 1e-6f;
-    size_t uniq = 0;
-    for (int iter = 0; iter < 12; iter++) {
-        uniq = voxel_assign(&pts, lo, vox, keys, used, tsize, slot);
-        float ratio = (float)uniq / (float)target;
-        if (ratio > 0.85f && ratio <= 1.0f) break;
-        vox *= ratio > 1 ? sqrtf(ratio) * 1.02f : fmaxf(sqrtf(ratio), 0.5f);
-        if (iter == 11 && uniq > (size_t)target) {
-            vox *= 1.3f;
-            uniq = voxel_assign(&pts, lo, vox, keys, used, tsize, slot);
-        }
-    }
-    if (uniq > (size_t)s->cfg.max_gaussians) {
-        st = pg_fail(PG_ERR_INTERNAL, "init: voxel downsampling kept %zu points", uniq);
-        goto done;
-    }
+    diag = sqrtf(diag);
 
-    /* accumulate per slot: x y z r g b count dyn */
-    acc = pg_calloc(tsize * 8, sizeof(double), "init voxel sums");
-    if (!acc) {
-        st = PG_ERR_NOMEM;
+    size_t udyn = 0, ustat = 0;
+    float vox_dyn = 0;
+    int target_dyn = ndyn_pts > 0 ? (int)(INIT_DYNAMIC_SHARE * target) : 0;
+    if (target_dyn > 0) {
+        vox_dyn = voxel_search(&t, &pts, 1, lo, diag, target_dyn, &udyn);
+        promote_near_dynamic(&t, &pts, lo, vox_dyn);
+        vox_dyn = voxel_search(&t, &pts, 1, lo, diag, target_dyn, &udyn);
+        if ((st = train_resize_all(s, (int)udyn))) goto done;
+        int n = 0;
+        if ((st = voxels_to_gaussians(s, &t, &pts, 1, vox_dyn, &n))) goto done;
+    }
+    int target_stat = target - (int)udyn > 16 ? target - (int)udyn : 16;
+    float vox_stat = voxel_search(&t, &pts, 0, lo, diag, target_stat, &ustat);
+    if (udyn + ustat > (size_t)s->cfg.max_gaussians) {
+        st = pg_fail(PG_ERR_INTERNAL, "init: voxel downsampling kept %zu points", udyn + ustat);
         goto done;
     }
-    for (size_t i = 0; i < pts.n; i++) {
-        double *a = acc + (size_t)slot[i] * 8;
-        for (int k = 0; k < 3; k++) {
-            a[k] += pts.xyz[3 * i + k];
-            a[3 + k] += pts.rgb[3 * i + k];
-        }
-        a[6] += 1;
-        if (pts.dyn[i]) a[7] = 1;
-    }
-    if ((st = train_resize_all(s, (int)uniq))) goto done;
-    int n = 0, ndyn = 0;
-    float log_s = logf(0.6f * vox);
-    float opacity_logit = logf(0.3f / 0.7f);
-    for (size_t h = 0; h < tsize; h++) {
-        if (!used[h]) continue;
-        const double *a = acc + h * 8;
-        for (int k = 0; k < 3; k++) {
-            s->g.means[3 * n + k] = (float)(a[k] / a[6]);
-            s->g.log_scales[3 * n + k] = log_s;
-            s->g.sh[(size_t)n * PG_SH_COEFFS * 3 + k] = (float)((a[3 + k] / a[6] - 0.5) / SH_C0);
-        }
-        s->g.quats[4 * n] = 1.0f;
-        s->g.opacity[n] = opacity_logit;
-        s->is_static[n] = a[7] == 0;
-        ndyn += a[7] != 0;
-        n++;
-    }
+    if ((st = train_resize_all(s, (int)(udyn + ustat)))) goto done;
+    int n = (int)udyn;
+    if (ustat > 0 && (st = voxels_to_gaussians(s, &t, &pts, 0, vox_stat, &n))) goto done;
     s->g.sh_degree = 0;
-    (void)ndyn;
 done:
     free(pts.xyz);
     free(pts.rgb);
     free(pts.dyn);
-    free(keys);
-    free(used);
-    free(slot);
-    free(acc);
+    free(t.keys);
+    free(t.used);
+    free(t.slot);
     return st;
 }

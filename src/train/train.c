@@ -1,9 +1,11 @@
 /* train.c - the training loop: sampling, deformation, rendering, loss, Adam, density control.
  *
- * One iteration (fine stage):
- *   1. pick (view, frame), t = frame / (F - 1)
- *   2. d = canonical copy; rows of movable, possibly visible Gaussians go through the network
- *   3. rasterize d, loss, backward -> dg
+ * One iteration (fine stage) trains several views of ONE time against one deformation, because
+ * the network is the expensive part and every view of a time shares its output:
+ *   1. pick a frame (every frame once per epoch, in a shuffled order), t = frame / (F - 1), and the
+ *      batch: the real view and views_per_step - 1 proxies of that frame
+ *   2. d = canonical copy; rows of movable Gaussians that may be in any batch view go through the network
+ *   3. per view: rasterize d, weighted loss, backward -> dg (summed in batch order)
  *   4. gg = dg (identity path); network backward adds the deformation path into gg and its params
  *   5. K-Planes regularisers, Adam on the Gaussians and the network (train_adam.c), density statistics
  * The coarse stage is the same without step 2/4 (d = g).
@@ -20,6 +22,7 @@
 #include "core/progress.h"
 #include "optim/loss_depth.h"
 #include "optim/loss_image.h"
+#include "depth/moving_mask.h"
 
 train_config train_default_config(void)
 {
@@ -32,7 +35,9 @@ train_config train_default_config(void)
     c.max_gaussians = 200000;
     c.init_points = 30000;
     c.checkpoint_every = 0;
-    c.real_every = 3;
+    c.views_per_step = 4;
+    c.real_weight = 0.5f;
+    c.moving_weight = 4.0f;
     c.sh_max_degree = 3;
     c.sh_ramp_every = 500;
     c.lambda_dssim = 0.2f;
@@ -99,6 +104,9 @@ void train_session_destroy(train_session *s)
     free(s->grad_denom);
     free(s->vs_grad);
     free(s->idx);
+    if (s->moving)
+        for (int v = 0; v < s->ts->num_views; v++) free(s->moving[v]);
+    free(s->moving);
     optim_adam_destroy(s->gopt);
     train_net_destroy(s->net);
     optim_adam_destroy(s->nopt);
@@ -131,6 +139,8 @@ static void copy_gaussians(pg_gaussians *dst, const pg_gaussians *src)
     dst->sh_degree = src->sh_degree;
 }
 
+static pg_status find_moving_pixels(train_session *s);
+
 /* Creates the network (fine stage) over the box of the current canonical means. */
 static pg_status start_fine(train_session *s)
 {
@@ -150,7 +160,8 @@ static pg_status start_fine(train_session *s)
     }
     nc.width = s->cfg.deform_width;
     nc.res = s->cfg.deform_res;
-    nc.tres = s->cfg.deform_tres > 0 ? s->cfg.deform_tres : (s->ts->frames / 2 > 2 ? s->ts->frames / 2 : 2);
+    /* one time texel per frame: motion that changes between frames needs its own texel */
+    nc.tres = s->cfg.deform_tres > 0 ? s->cfg.deform_tres : (s->ts->frames > 2 ? s->ts->frames : 2);
     nc.channels = s->cfg.deform_channels;
     nc.seed = s->cfg.seed * 7919u + 17u;
     s->net_cfg = nc;
@@ -191,7 +202,7 @@ pg_status train_session_create(train_session **out, const train_set *ts, const t
     if (!s) return PG_ERR_NOMEM;
     s->ts = ts;
     s->cfg = *cfg;
-    if (s->cfg.real_every < 1) s->cfg.real_every = 1;
+    if (s->cfg.views_per_step < 1) s->cfg.views_per_step = 1;
     if (s->cfg.densify_until <= 0) s->cfg.densify_until = (int)(0.7 * cfg->iters);
     if (ckpt_path) snprintf(s->ckpt_path, sizeof s->ckpt_path, "%s", ckpt_path);
     pg_status st;
@@ -208,6 +219,7 @@ pg_status train_session_create(train_session **out, const train_set *ts, const t
         st = PG_ERR_NOMEM;
         goto fail;
     }
+    if ((st = find_moving_pixels(s))) goto fail;
     if (resume && ckpt_path && pg_path_exists(ckpt_path)) {
         if ((st = train_checkpoint_read(s, ckpt_path))) goto fail;
         /* options that may legitimately change on resume */
@@ -227,52 +239,116 @@ fail:
     return st;
 }
 
-/* Picks a training (view, frame): a real view every real_every iterations (and whenever there
- * are no proxies), otherwise a proxy view uniformly; the frame uniformly. */
-static void pick_sample(train_session *s, int *view, int *frame)
+/* Moving pixels of each real view (colour off the temporal median by > 0.1, dilated 2 px):
+ * they get 1 + moving_weight times the loss weight, because they are a few percent of the frame
+ * yet all of what the product is for. Derived from the training set, so not checkpointed. */
+#define TRAIN_MOVING_THRESH 0.1f
+#define TRAIN_MOVING_DILATE 2
+static pg_status find_moving_pixels(train_session *s)
+{
+    const train_set *ts = s->ts;
+    if (s->cfg.moving_weight <= 0 || ts->frames < 2) return PG_OK;
+    s->moving = pg_calloc((size_t)ts->num_views, sizeof *s->moving, "moving masks");
+    if (!s->moving) return PG_ERR_NOMEM;
+    size_t n = (size_t)ts->frames * ts->width * ts->height;
+    for (int v = 0; v < ts->num_views; v++) {
+        if (ts->views[v].role != TRAIN_ROLE_REAL) continue;
+        s->moving[v] = pg_malloc(n, "moving masks");
+        if (!s->moving[v]) return PG_ERR_NOMEM;
+        PG_TRY(depth_moving_masks(ts->views[v].rgb, ts->frames, ts->width, ts->height, TRAIN_MOVING_THRESH,
+                                  TRAIN_MOVING_DILATE, s->moving[v]));
+    }
+    return PG_OK;
+}
+
+/* The frame of iteration it: every frame once per epoch of F iterations, in an order shuffled by
+ * (seed, epoch). Derived from the iteration alone, so resuming needs no extra state. */
+static int pick_frame(const train_session *s, int it)
+{
+    int F = s->ts->frames, epoch = it / F, pos = it % F;
+    pg_rng r;
+    pg_rng_seed(&r, s->cfg.seed * 0x9E3779B97F4A7C15ULL + (uint64_t)epoch * 0xBF58476D1CE4E5B9ULL + 1);
+    int perm[F];
+    for (int i = 0; i < F; i++) perm[i] = i;
+    for (int i = F - 1; i > 0; i--) {
+        int j = (int)pg_rng_below(&r, (uint32_t)(i + 1)), tmp = perm[i];
+        perm[i] = perm[j];
+        perm[j] = tmp;
+    }
+    return perm[pos];
+}
+
+/* Draws k distinct views of a role into out (k <= the role's count); returns k. */
+static int pick_views(train_session *s, train_role role, int k, int *out)
+{
+    const train_set *ts = s->ts;
+    int n = train_set_count_role(ts, role);
+    if (k > n) k = n;
+    for (int got = 0; got < k;) {
+        int pick = (int)pg_rng_below(&s->rng, (uint32_t)n), vi = -1;
+        for (int i = 0; i < ts->num_views; i++)
+            if (ts->views[i].role == role && pick-- == 0) {
+                vi = i;
+                break;
+            }
+        int dup = 0;
+        for (int j = 0; j < got; j++) dup |= out[j] == vi;
+        if (!dup) out[got++] = vi;
+    }
+    return k;
+}
+
+/* The batch of one step: one real view and views_per_step - 1 proxies (real views only when
+ * there are no proxies, proxies only when there is no real view), with their loss weights
+ * (real_weight on the real view when proxies share the batch, the rest split evenly). */
+static int pick_batch(train_session *s, int *views, float *weights)
 {
     const train_set *ts = s->ts;
     int nreal = train_set_count_role(ts, TRAIN_ROLE_REAL), nproxy = train_set_count_role(ts, TRAIN_ROLE_PROXY);
-    train_role role;
-    int n;
-    if (nproxy == 0 || (nreal > 0 && s->iter % s->cfg.real_every == 0)) {
-        role = TRAIN_ROLE_REAL;
-        n = nreal;
-    } else {
-        role = TRAIN_ROLE_PROXY;
-        n = nproxy;
+    int k = s->cfg.views_per_step, n;
+    if (nproxy == 0) {
+        n = pick_views(s, TRAIN_ROLE_REAL, k, views);
+        for (int i = 0; i < n; i++) weights[i] = 1.0f / n;
+        return n;
     }
-    int k = (int)pg_rng_below(&s->rng, (uint32_t)n);
-    for (int i = 0; i < ts->num_views; i++)
-        if (ts->views[i].role == role && k-- == 0) {
-            *view = i;
-            break;
-        }
-    *frame = (int)pg_rng_below(&s->rng, (uint32_t)ts->frames);
+    n = nreal > 0 ? pick_views(s, TRAIN_ROLE_REAL, 1, views) : 0;
+    int np = pick_views(s, TRAIN_ROLE_PROXY, k - n > 0 ? k - n : 1, views + n);
+    float wr = n ? s->cfg.real_weight : 0.0f;
+    if (n) weights[0] = np ? wr : 1.0f;
+    for (int i = 0; i < np; i++) weights[n + i] = (1.0f - wr) / np;
+    return n + np;
 }
 
 float train_frame_time(int f, int frames) { return frames > 1 ? (float)f / (float)(frames - 1) : 0.0f; }
 
+/* Whether a Gaussian at camera-space (xc, yc, zc) with margin m may land in the camera's frame. */
+static int may_be_visible(const pg_camera *cam, const float *x, float m)
+{
+    float zc = cam->R[6] * x[0] + cam->R[7] * x[1] + cam->R[8] * x[2] + cam->t[2];
+    float xc = cam->R[0] * x[0] + cam->R[1] * x[1] + cam->R[2] * x[2] + cam->t[0];
+    float yc = cam->R[3] * x[0] + cam->R[4] * x[1] + cam->R[5] * x[2] + cam->t[1];
+    if (zc + m < 0.01f) return 0;
+    if (zc <= m) return 1;
+    float mx = cam->fx * m / zc + 0.15f * cam->width, my = cam->fy * m / zc + 0.15f * cam->height;
+    float u = cam->fx * xc / zc + cam->cx, v = cam->fy * yc / zc + cam->cy;
+    return !(u < -mx || u > cam->width + mx || v < -my || v > cam->height + my);
+}
+
 /* Selects the Gaussians to send through the network: not static and (if culling) within the
- * view frustum enlarged by the largest displacement seen plus the Gaussian's own size. */
-static int build_subset(train_session *s, const pg_camera *cam, int use_cull)
+ * frustum of one of the ncam cameras, enlarged by the largest displacement seen plus the
+ * Gaussian's own size. */
+static int build_subset(train_session *s, const pg_camera *const *cams, int ncam)
 {
     int n = 0;
     const pg_gaussians *g = &s->g;
     for (int i = 0; i < g->count; i++) {
         if (s->cfg.use_static_flags && s->is_static[i]) continue;
-        if (use_cull && cam) {
-            const float *x = g->means + 3 * i;
-            float zc = cam->R[6] * x[0] + cam->R[7] * x[1] + cam->R[8] * x[2] + cam->t[2];
-            float xc = cam->R[0] * x[0] + cam->R[1] * x[1] + cam->R[2] * x[2] + cam->t[0];
-            float yc = cam->R[3] * x[0] + cam->R[4] * x[1] + cam->R[5] * x[2] + cam->t[1];
+        if (ncam > 0) {
             const float *ls = g->log_scales + 3 * i;
             float m = s->max_disp + 3.0f * expf(fmaxf(ls[0], fmaxf(ls[1], ls[2])));
-            if (zc + m < 0.01f) continue;
-            float z = fmaxf(zc, 0.01f);
-            float mx = cam->fx * m / z + 0.15f * cam->width, my = cam->fy * m / z + 0.15f * cam->height;
-            float u = cam->fx * xc / z + cam->cx, v = cam->fy * yc / z + cam->cy;
-            if (zc > m && (u < -mx || u > cam->width + mx || v < -my || v > cam->height + my)) continue;
+            int vis = 0;
+            for (int c = 0; c < ncam && !vis; c++) vis = may_be_visible(cams[c], g->means + 3 * i, m);
+            if (!vis) continue;
         }
         s->idx[n++] = i;
     }
@@ -280,8 +356,10 @@ static int build_subset(train_session *s, const pg_camera *cam, int use_cull)
 }
 
 
-/* Loads the target image, mask and depth of (view, frame) into the session buffers. */
-static int load_target(train_session *s, int vi, int f)
+/* Loads the target image, loss weights and depth of (view, frame) into the session buffers;
+ * returns whether the view has depth. Weights: the view's mask, times 1 + moving_weight on
+ * moving pixels when moving (training) is set. */
+static int load_target(train_session *s, int vi, int f, int moving)
 {
     const train_set *ts = s->ts;
     const train_view *v = &ts->views[vi];
@@ -289,17 +367,21 @@ static int load_target(train_session *s, int vi, int f)
     train_set_frame_rgb(ts, vi, f, &s->target);
     for (size_t i = 0; i < px; i++)
         s->mask[i] = v->mask ? v->mask[(size_t)f * px + i] * (1.0f / TRAIN_MASK_FULL) : 1.0f;
+    const uint8_t *mv = moving && s->moving ? s->moving[vi] : NULL;
+    if (mv)
+        for (size_t i = 0; i < px; i++) s->mask[i] *= 1.0f + s->cfg.moving_weight * mv[(size_t)f * px + i];
     if (v->depth) memcpy(s->depth_t, v->depth + (size_t)f * px, px * sizeof(float));
     return v->depth != NULL;
 }
 
-/* Deformed copy d of the canonical set for camera cam at time t (cam NULL: no culling). */
-static pg_status deform_all(train_session *s, const pg_camera *cam, float t, int *n_deformed)
+/* Deformed copy d of the canonical set at time t for the ncam cameras (culling to their frusta
+ * when enabled; ncam 0: no culling). */
+static pg_status deform_all(train_session *s, const pg_camera *const *cams, int ncam, float t, int *n_deformed)
 {
     copy_gaussians(&s->d, &s->g);
     *n_deformed = 0;
     if (!s->fine) return PG_OK;
-    int n = build_subset(s, cam, cam && s->cfg.use_frustum_cull);
+    int n = build_subset(s, cams, s->cfg.use_frustum_cull ? ncam : 0);
     *n_deformed = n;
     if (n == 0) return PG_OK;
     return train_net_forward(s->net, &s->g, s->idx, n, t, &s->d);
@@ -307,7 +389,7 @@ static pg_status deform_all(train_session *s, const pg_camera *cam, float t, int
 
 /* lambda_d * scale-and-shift-invariant L2 of the rendered depth against the target, divided by
  * the target's variance on valid pixels so the weight does not depend on the depth units. */
-static double depth_loss(train_session *s, const float *depth, int W, int H)
+static double depth_loss(train_session *s, const float *depth, int W, int H, float weight)
 {
     size_t px = (size_t)W * H;
     double n = 0, sum = 0, sum2 = 0;
@@ -325,7 +407,7 @@ static double depth_loss(train_session *s, const float *depth, int W, int H)
     if (!(var > 1e-12)) return 0;
     optim_ssi_depth fit;
     double l = optim_ssi_depth_forward(&fit, depth, s->depth_t, s->depth_mask, (long)px);
-    float w = (float)(s->cfg.lambda_depth / var);
+    float w = (float)(weight * s->cfg.lambda_depth / var);
     optim_ssi_depth_backward(s->d_depth, w, &fit, depth, s->depth_t, s->depth_mask, (long)px);
     return w * l;
 }
@@ -386,23 +468,85 @@ static pg_status check_static(train_session *s)
     return st;
 }
 
+/* Renders view vi at frame f from the deformed set d, adds its weighted loss gradient into dg
+ * and its view-space gradients into the density statistics (measured at unit weight, so the
+ * 3DGS threshold keeps its meaning); returns the weighted loss. */
+static pg_status step_view(train_session *s, int vi, int f, float weight, double *loss_out)
+{
+    const train_set *ts = s->ts;
+    const train_config *c = &s->cfg;
+    const int W = ts->width, H = ts->height;
+    const size_t px = (size_t)W * H;
+    const pg_camera *cam = &ts->views[vi].cam;
+    int real = ts->views[vi].role == TRAIN_ROLE_REAL;
+    int has_depth = load_target(s, vi, f, real);
+    double t0 = pg_time_seconds(), t1;
+    pg_render_settings rs = splat_default_settings();
+    memcpy(rs.background, c->bg, sizeof rs.background);
+    pg_render_output out;
+    PG_TRY(splat_render_forward(s->raster, &s->d, cam, &rs, &out));
+    t1 = pg_time_seconds();
+    s->timing.raster_forward += (t1 - t0) * 1e3;
+    t0 = t1;
+
+    memset(s->d_rgb, 0, px * 3 * sizeof(float));
+    memset(s->d_depth, 0, px * sizeof(float));
+    int weighted = ts->views[vi].mask != NULL || (real && s->moving && s->moving[vi]);
+    const float *mk = weighted ? s->mask : NULL;
+    double loss = optim_l1_forward(out.rgb, s->target.data, mk, H, W, 3);
+    optim_l1_backward(s->d_rgb, weight, out.rgb, s->target.data, mk, H, W, 3);
+    if (c->lambda_dssim > 0) {
+        float ssim = optim_ssim_forward(s->ssim, out.rgb, s->target.data, mk, H, W, 3);
+        optim_ssim_backward(s->ssim, s->d_rgb, -c->lambda_dssim * weight, out.rgb, s->target.data, mk, H, W, 3);
+        loss += c->lambda_dssim * (1.0 - ssim);
+    }
+    loss *= weight;
+    if (has_depth && c->lambda_depth > 0) loss += depth_loss(s, out.depth, W, H, weight); /* weighted inside */
+    if (real) {
+        pg_image rendered = {W, H, 3, out.rgb};
+        s->last_psnr = pg_image_psnr(&rendered, &s->target, ts->views[vi].mask ? s->mask : NULL);
+    }
+    t1 = pg_time_seconds();
+    s->timing.loss += (t1 - t0) * 1e3;
+    t0 = t1;
+
+    memset(s->vs_grad, 0, (size_t)s->g.count * sizeof(float));
+    PG_TRY(splat_render_backward(s->raster, &s->d, cam, &rs, s->d_rgb, has_depth ? s->d_depth : NULL, NULL, &s->dg,
+                                 s->vs_grad));
+    t1 = pg_time_seconds();
+    s->timing.raster_backward += (t1 - t0) * 1e3;
+
+    const float unit = weight > 0 ? 1.0f / weight : 0.0f;
+    for (int i = 0; i < s->d.count; i++) {
+        float uv[2];
+        float z = pg_camera_project(cam, s->d.means + 3 * i, uv);
+        if (z > 0.01f && uv[0] >= 0 && uv[0] < W && uv[1] >= 0 && uv[1] < H) {
+            s->grad_accum[i] += s->vs_grad[i] * unit;
+            s->grad_denom[i] += 1;
+        }
+    }
+    *loss_out = loss;
+    return PG_OK;
+}
+
 pg_status train_session_step(train_session *s)
 {
     const train_set *ts = s->ts;
     const train_config *c = &s->cfg;
-    int W = ts->width, H = ts->height;
-    size_t px = (size_t)W * H;
     if (!s->fine && s->iter >= c->coarse_iters) PG_TRY(start_fine(s));
     double t0 = pg_time_seconds(), t1;
-    int vi = 0, f = 0;
-    pick_sample(s, &vi, &f);
-    const pg_camera *cam = &ts->views[vi].cam;
+    int f = pick_frame(s, s->iter);
+    int views[TRAIN_MAX_BATCH];
+    float weights[TRAIN_MAX_BATCH];
+    if (s->cfg.views_per_step > TRAIN_MAX_BATCH) s->cfg.views_per_step = TRAIN_MAX_BATCH;
+    int nb = pick_batch(s, views, weights);
+    const pg_camera *cams[TRAIN_MAX_BATCH];
+    for (int b = 0; b < nb; b++) cams[b] = &ts->views[views[b]].cam;
     float t = train_frame_time(f, ts->frames);
-    int has_depth = load_target(s, vi, f);
     memset(&s->timing, 0, sizeof s->timing);
 
     int nd = 0;
-    PG_TRY(deform_all(s, cam, t, &nd));
+    PG_TRY(deform_all(s, cams, nb, t, &nd));
     s->timing.deformed = nd;
     if (s->fine) {
         int movable = 0;
@@ -424,43 +568,16 @@ pg_status train_session_step(train_session *s)
     }
     t1 = pg_time_seconds();
     s->timing.deform_forward = (t1 - t0) * 1e3;
-    t0 = t1;
 
-    pg_render_settings rs = splat_default_settings();
-    memcpy(rs.background, c->bg, sizeof rs.background);
-    pg_render_output out;
-    PG_TRY(splat_render_forward(s->raster, &s->d, cam, &rs, &out));
-    t1 = pg_time_seconds();
-    s->timing.raster_forward = (t1 - t0) * 1e3;
-    t0 = t1;
-
-    memset(s->d_rgb, 0, px * 3 * sizeof(float));
-    memset(s->d_depth, 0, px * sizeof(float));
-    int any_mask = ts->views[vi].mask != NULL;
-    const float *mk = any_mask ? s->mask : NULL;
-    double loss = optim_l1_forward(out.rgb, s->target.data, mk, H, W, 3);
-    optim_l1_backward(s->d_rgb, 1.0f, out.rgb, s->target.data, mk, H, W, 3);
-    if (c->lambda_dssim > 0) {
-        float ssim = optim_ssim_forward(s->ssim, out.rgb, s->target.data, mk, H, W, 3);
-        optim_ssim_backward(s->ssim, s->d_rgb, -c->lambda_dssim, out.rgb, s->target.data, mk, H, W, 3);
-        loss += c->lambda_dssim * (1.0 - ssim);
-    }
-    if (has_depth && c->lambda_depth > 0) loss += depth_loss(s, out.depth, W, H);
-    if (ts->views[vi].role == TRAIN_ROLE_REAL) {
-        pg_image rendered = {W, H, 3, out.rgb};
-        s->last_psnr = pg_image_psnr(&rendered, &s->target, any_mask ? s->mask : NULL);
-    }
-    t1 = pg_time_seconds();
-    s->timing.loss = (t1 - t0) * 1e3;
-    t0 = t1;
-
+    /* every view's gradient sums into dg in batch order (deterministic) */
     splat_gaussians_zero(&s->dg);
-    memset(s->vs_grad, 0, (size_t)s->g.count * sizeof(float));
-    PG_TRY(splat_render_backward(s->raster, &s->d, cam, &rs, s->d_rgb, has_depth ? s->d_depth : NULL, NULL, &s->dg,
-                                 s->vs_grad));
-    t1 = pg_time_seconds();
-    s->timing.raster_backward = (t1 - t0) * 1e3;
-    t0 = t1;
+    double loss = 0;
+    for (int b = 0; b < nb; b++) {
+        double lv;
+        PG_TRY(step_view(s, views[b], f, weights[b], &lv));
+        loss += lv;
+    }
+    t0 = pg_time_seconds();
 
     /* identity path, then the deformation path for the deformed rows */
     copy_gaussians(&s->gg, &s->dg);
@@ -479,16 +596,6 @@ pg_status train_session_step(train_session *s)
     t1 = pg_time_seconds();
     s->timing.optimizer = (t1 - t0) * 1e3;
     t0 = t1;
-
-    /* density statistics: view-space gradient (the rasterizer gives it in 3DGS's NDC units) */
-    for (int i = 0; i < s->d.count; i++) {
-        float uv[2];
-        float z = pg_camera_project(cam, s->d.means + 3 * i, uv);
-        if (z > 0.01f && uv[0] >= 0 && uv[0] < W && uv[1] >= 0 && uv[1] < H) {
-            s->grad_accum[i] += s->vs_grad[i];
-            s->grad_denom[i] += 1;
-        }
-    }
     s->last_loss = loss;
     s->iter++;
 
@@ -541,8 +648,9 @@ pg_status train_session_evaluate(train_session *s, train_role role, double *psnr
         if (ts->views[vi].role != role) continue;
         for (int f = 0; f < ts->frames; f++) {
             int nd;
-            load_target(s, vi, f);
-            PG_TRY(deform_all(s, &ts->views[vi].cam, train_frame_time(f, ts->frames), &nd));
+            load_target(s, vi, f, 0);
+            const pg_camera *cam = &ts->views[vi].cam;
+            PG_TRY(deform_all(s, &cam, 1, train_frame_time(f, ts->frames), &nd));
             pg_render_output out;
             PG_TRY(splat_render_forward(s->raster, &s->d, &ts->views[vi].cam, &rs, &out));
             pg_image rendered = {ts->width, ts->height, 3, out.rgb};

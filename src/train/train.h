@@ -31,7 +31,9 @@ typedef struct {
     int init_points;      /* target number of Gaussians after voxel downsampling */
     int checkpoint_every; /* 0 = only at the end */
     int stop_at_iter;     /* testing: return PG_OK after saving at this iteration (0 = off) */
-    int real_every;       /* a real view at least every k iterations (when proxies exist) */
+    int views_per_step;   /* views trained per deformation: the real view + (this - 1) proxies of one time */
+    float real_weight;    /* share of the step's loss on the real view when proxies are in the batch */
+    float moving_weight;  /* extra loss weight on the real view's moving pixels (1 + this) */
     int sh_max_degree;
     int sh_ramp_every;
     float bg[3];
@@ -50,6 +52,9 @@ typedef struct {
     float static_eps;        /* max |delta position| / extent to call a Gaussian static */
     int deform_width, deform_res, deform_tres, deform_channels; /* 0 = library defaults */
 } train_config;
+
+/* Most views trained against one deformation (views_per_step is clamped to it). */
+#define TRAIN_MAX_BATCH 16
 
 train_config train_default_config(void);
 

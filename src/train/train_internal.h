@@ -34,6 +34,7 @@ struct train_session {
     float *grad_denom;   /* (side_cap) times visible */
     float *vs_grad;      /* (side_cap) this iteration's view-space gradient norm */
     int *idx;            /* (side_cap) Gaussians sent through the network */
+    uint8_t **moving;    /* (num_views) per real view (F, H, W) moving pixels, else NULL; may be NULL */
     train_net *net;
     optim_adam *nopt;    /* Adam of the network parameters: TRAIN_NET_* groups, one row */
 
