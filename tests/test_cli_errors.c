@@ -293,7 +293,7 @@ int main(void)
     expect_error("train @/ds --out @/t --iters 2 --width -3", "--width");
     expect_error("train @/ds --out @/t --iters 2 --coarse-iters -1", "--coarse-iters");
     expect_error("train @/ds --out @/t --iters 2 --init-points -1", "--init-points");
-    expect_error("train @/ds --out @/t --iters 2 --real-every 0", "--real-every");
+    expect_error("train @/ds --out @/t --iters 2 --views-per-step 0", "--views-per-step");
     expect_error("train @/ds --out @/t --iters 2 --frames -1", "--frames");
     expect_error("train @/ds --out @/t --iters 2 --proxies -2", "--proxies");
 

@@ -6,6 +6,7 @@
  */
 #include <cjson/cJSON.h>
 #include <limits.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,7 +27,7 @@ static cJSON *camera_json(const train_view *v)
 }
 
 static pg_status write_summary(const char *path, const train_set *ts, const train_config *cfg, train_session *s,
-                               double test_psnr, double train_psnr, double seconds, const char *source)
+                               double test_psnr, const train_eval_scores *train_eval, double seconds, const char *source)
 {
     cJSON *root = cJSON_CreateObject();
     cJSON_AddNumberToObject(root, "version", 1);
@@ -45,7 +46,12 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
     cJSON_AddNumberToObject(root, "seed", (double)cfg->seed);
     cJSON_AddNumberToObject(root, "coarse_iters", cfg->coarse_iters);
     if (test_psnr > 0) cJSON_AddNumberToObject(root, "test_psnr", test_psnr);
-    if (train_psnr > 0) cJSON_AddNumberToObject(root, "train_real_psnr", train_psnr);
+    if (train_eval) {
+        cJSON_AddNumberToObject(root, "train_real_psnr", train_eval->psnr);
+        if (isfinite(train_eval->psnr_moving)) cJSON_AddNumberToObject(root, "train_real_psnr_moving", train_eval->psnr_moving);
+        if (isfinite(train_eval->psnr_static)) cJSON_AddNumberToObject(root, "train_real_psnr_static", train_eval->psnr_static);
+        cJSON_AddNumberToObject(root, "train_real_moving_fraction", train_eval->moving_fraction);
+    }
     cJSON_AddNumberToObject(root, "seconds", seconds);
     cJSON *cams = cJSON_AddArrayToObject(root, "cameras");
     for (int i = 0; i < ts->num_views; i++) cJSON_AddItemToArray(cams, camera_json(&ts->views[i]));
@@ -184,7 +190,8 @@ int cmd_train(int argc, char **argv)
 
     train_session *s = NULL;
     char ckpt[4096], summary[4096];
-    double t0 = pg_time_seconds(), test_psnr = 0, train_psnr = 0;
+    double t0 = pg_time_seconds(), test_psnr = 0;
+    train_eval_scores tr = {0};
     if ((st = pg_mkdir_p(out)) || (st = pg_path_join(ckpt, sizeof ckpt, out, "model.ckpt")) ||
         (st = pg_path_join(summary, sizeof summary, out, "train.json")))
         goto done;
@@ -193,14 +200,23 @@ int cmd_train(int argc, char **argv)
     if (cfg.stop_at_iter > 0 && train_session_iteration(s) < cfg.iters) goto done; /* simulated kill */
     if (train_set_count_role(&ts, TRAIN_ROLE_TEST) > 0 && (st = train_session_evaluate(s, TRAIN_ROLE_TEST, &test_psnr)))
         goto done;
-    if (eval_train && (st = train_session_evaluate(s, TRAIN_ROLE_REAL, &train_psnr))) goto done;
-    if ((st = write_summary(summary, &ts, &cfg, s, test_psnr, train_psnr, pg_time_seconds() - t0, source))) goto done;
-    char train_text[32] = "null"; /* only measured with --eval-train */
-    if (eval_train) snprintf(train_text, sizeof train_text, "%.3f", train_psnr);
+    if (eval_train && (st = train_session_evaluate_parts(s, TRAIN_ROLE_REAL, &tr))) goto done;
+    if ((st = write_summary(summary, &ts, &cfg, s, test_psnr, eval_train ? &tr : NULL, pg_time_seconds() - t0, source)))
+        goto done;
+    /* train_real_*: only measured with --eval-train (null otherwise, and for an empty part) */
+    char v[3][32];
+    double vals[3] = { eval_train ? tr.psnr : NAN, eval_train ? tr.psnr_moving : NAN, eval_train ? tr.psnr_static : NAN };
+    for (int k = 0; k < 3; k++) {
+        if (isfinite(vals[k]))
+            snprintf(v[k], sizeof v[k], "%.3f", vals[k]);
+        else
+            snprintf(v[k], sizeof v[k], "null");
+    }
     printf("{\"iterations\": %d, \"gaussians\": %d, \"static\": %d, \"test_psnr\": %.3f, \"train_real_psnr\": %s, "
-           "\"seconds\": %.1f}\n",
-           train_session_iteration(s), train_session_gaussians(s), train_session_static_count(s), test_psnr, train_text,
-           pg_time_seconds() - t0);
+           "\"train_real_psnr_moving\": %s, \"train_real_psnr_static\": %s, \"seconds\": %.1f}\n",
+           train_session_iteration(s), train_session_gaussians(s), train_session_static_count(s), test_psnr, v[0], v[1],
+           v[2], pg_time_seconds() - t0);
+    fflush(stdout);
 done:
     train_session_destroy(s);
     train_set_destroy(&ts);

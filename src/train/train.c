@@ -639,26 +639,56 @@ pg_status train_session_run(train_session *s)
 
 pg_status train_session_evaluate(train_session *s, train_role role, double *psnr)
 {
+    train_eval_scores e;
+    PG_TRY(train_session_evaluate_parts(s, role, &e));
+    *psnr = e.psnr;
+    return PG_OK;
+}
+
+static double psnr_of(double sse, double n) { return n > 0 ? (sse > 0 ? -10.0 * log10(sse / n) : 200.0) : NAN; }
+
+pg_status train_session_evaluate_parts(train_session *s, train_role role, train_eval_scores *e)
+{
     const train_set *ts = s->ts;
-    double sum = 0;
+    const size_t px = (size_t)ts->width * ts->height;
+    double sum = 0, sse[2] = {0, 0}, cnt[2] = {0, 0};
     int n = 0;
     pg_render_settings rs = splat_default_settings();
     memcpy(rs.background, s->cfg.bg, sizeof rs.background);
-    for (int vi = 0; vi < ts->num_views; vi++) {
+    uint8_t *moving = pg_malloc((size_t)ts->frames * px, "evaluation moving masks");
+    if (!moving) return PG_ERR_NOMEM;
+    pg_status st = PG_OK;
+    for (int vi = 0; vi < ts->num_views && !st; vi++) {
         if (ts->views[vi].role != role) continue;
-        for (int f = 0; f < ts->frames; f++) {
+        st = depth_moving_masks(ts->views[vi].rgb, ts->frames, ts->width, ts->height, 0.12f, 2, moving);
+        for (int f = 0; f < ts->frames && !st; f++) {
             int nd;
             load_target(s, vi, f, 0);
             const pg_camera *cam = &ts->views[vi].cam;
-            PG_TRY(deform_all(s, &cam, 1, train_frame_time(f, ts->frames), &nd));
+            if ((st = deform_all(s, &cam, 1, train_frame_time(f, ts->frames), &nd))) break;
             pg_render_output out;
-            PG_TRY(splat_render_forward(s->raster, &s->d, &ts->views[vi].cam, &rs, &out));
+            if ((st = splat_render_forward(s->raster, &s->d, cam, &rs, &out))) break;
             pg_image rendered = {ts->width, ts->height, 3, out.rgb};
-            sum += pg_image_psnr(&rendered, &s->target, ts->views[vi].mask ? s->mask : NULL);
+            const float *mask = ts->views[vi].mask ? s->mask : NULL;
+            sum += pg_image_psnr(&rendered, &s->target, mask);
             n++;
+            for (size_t i = 0; i < px; i++) {
+                if (mask && mask[i] <= 0) continue;
+                int k = moving[(size_t)f * px + i] != 0;
+                for (int c = 0; c < 3; c++) {
+                    double d = (double)out.rgb[3 * i + c] - s->target.data[3 * i + c];
+                    sse[k] += d * d;
+                }
+                cnt[k] += 3;
+            }
         }
     }
+    free(moving);
+    if (st) return st;
     if (n == 0) return pg_fail(PG_ERR_ARG, "evaluate: no views with that role in the training set");
-    *psnr = sum / n;
+    e->psnr = sum / n;
+    e->psnr_moving = psnr_of(sse[1], cnt[1]);
+    e->psnr_static = psnr_of(sse[0], cnt[0]);
+    e->moving_fraction = cnt[0] + cnt[1] > 0 ? cnt[1] / (cnt[0] + cnt[1]) : 0;
     return PG_OK;
 }
