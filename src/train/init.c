@@ -55,11 +55,14 @@ static pg_status points_push(point_list *p, const float x[3], const float c[3], 
 #define INIT_MOVING_DILATE 3
 
 /* Back-projects the depth of view vi (every `stride` pixels): static pixels once, moving ones
- * at each frame they move (dynamic) plus once as background (static). */
+ * at each frame they move (dynamic) plus once as background (static). Proxy views give static
+ * points only, from a frame where the pixel is not moving: their colours and masks change from
+ * frame to frame where a disocclusion moves, and the real view already places the movers. */
 static pg_status points_from_depth(const train_set *ts, int vi, int stride, point_list *pts)
 {
     const train_view *v = &ts->views[vi];
     int W = ts->width, H = ts->height, F = ts->frames;
+    int real = v->role == TRAIN_ROLE_REAL;
     size_t px = (size_t)W * H;
     uint8_t *moving = pg_malloc((size_t)F * px, "init moving masks");
     if (!moving) return PG_ERR_NOMEM;
@@ -71,7 +74,7 @@ static pg_status points_from_depth(const train_set *ts, int vi, int stride, poin
             for (int f = 0; f < F && !st; f++) {
                 size_t q = (size_t)f * px + p;
                 int dyn = moving[q];
-                if (!dyn && background_done) continue;
+                if ((!dyn && background_done) || (dyn && !real)) continue;
                 float d = v->depth[q];
                 if (!(d > 0) || (v->mask && !v->mask[q])) continue;
                 float X[3], c[3];
@@ -79,6 +82,7 @@ static pg_status points_from_depth(const train_set *ts, int vi, int stride, poin
                 for (int k = 0; k < 3; k++) c[k] = v->rgb[q * 3 + k] / 255.0f;
                 st = points_push(pts, X, c, dyn);
                 background_done |= !dyn;
+                if (!real && background_done) break;
             }
         }
     free(moving);

@@ -141,14 +141,20 @@ static void copy_gaussians(pg_gaussians *dst, const pg_gaussians *src)
 
 static pg_status find_moving_pixels(train_session *s);
 
-/* Creates the network (fine stage) over the box of the current canonical means. */
+/* Creates the network (fine stage) over the box of the canonical means that go through it (the
+ * movable ones; all when static flags are off or none is movable): the HexPlane's texels then
+ * sit where the motion is instead of spreading over the whole room. Points outside the box
+ * (densified later) read the border texels. */
 static pg_status start_fine(train_session *s)
 {
     train_net_config nc;
     memset(&nc, 0, sizeof nc);
     float lo[3] = {1e30f, 1e30f, 1e30f}, hi[3] = {-1e30f, -1e30f, -1e30f};
+    int movable = 0;
+    for (int i = 0; i < s->g.count && s->cfg.use_static_flags; i++) movable += !s->is_static[i];
+    int only_movable = movable > 0 && s->cfg.use_static_flags;
     for (int i = 0; i < s->g.count; i++)
-        for (int k = 0; k < 3; k++) {
+        for (int k = 0; k < 3 && !(only_movable && s->is_static[i]); k++) {
             float x = s->g.means[3 * i + k];
             lo[k] = fminf(lo[k], x);
             hi[k] = fmaxf(hi[k], x);
