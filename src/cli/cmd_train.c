@@ -89,7 +89,7 @@ int cmd_train(int argc, char **argv)
         {"--sh-degree", CLI_INT, &sh, "largest SH degree (3)"},
         {"--views-per-step", CLI_INT, &views_per_step, "views trained per deformation: the real view + proxies of one time (4)"},
         {"--real-weight", CLI_FLOAT, &real_weight, "share of a step's loss on the real view when proxies are in it (0.5)"},
-        {"--moving-weight", CLI_FLOAT, &moving_weight, "extra loss weight on the real view's moving pixels (4)"},
+        {"--moving-weight", CLI_FLOAT, &moving_weight, "extra loss weight on the real view's moving pixels (9)"},
         {"--lambda-depth", CLI_FLOAT, &lambda_depth, "weight of the SSI depth loss (0.05)"},
         {"--lambda-dssim", CLI_FLOAT, &lambda_dssim, "weight of D-SSIM (0.2)"},
         {"--deform-res", CLI_INT, &deform_res, "HexPlane spatial resolution of the coarse scale (64)"},

@@ -37,7 +37,7 @@ train_config train_default_config(void)
     c.checkpoint_every = 0;
     c.views_per_step = 4;
     c.real_weight = 0.5f;
-    c.moving_weight = 4.0f;
+    c.moving_weight = 9.0f;
     c.sh_max_degree = 3;
     c.sh_ramp_every = 500;
     c.lambda_dssim = 0.2f;
