@@ -88,13 +88,13 @@ int cmd_prepare(int argc, char **argv)
     dopt.count = frames_n;
     if ((st = io_dataset_open(pos[0], &dopt, &ds))) return cli_fail(st);
     int cam = 0;
-    if (train_cam) {
-        cam = io_dataset_find_camera(ds, train_cam);
-        if (cam < 0) {
-            io_dataset_close(ds);
-            return cli_usage_error("prepare: %s: no camera named '%s'", pos[0], train_cam);
-        }
+    if (train_cam && io_dataset_resolve_camera(ds, train_cam, &cam) != PG_OK) {
+        io_dataset_close(ds);
+        return cli_usage_error("prepare: %s: --train-cam: %s", pos[0], pg_last_error());
     }
+    char label[96];
+    io_dataset_camera_label(ds, cam, label, sizeof label);
+    fprintf(stderr, "prodygs: prepare: training camera %s\n", label);
     const int F = io_dataset_num_frames(ds), W = io_dataset_width(ds), H = io_dataset_height(ds);
     pg_image *frames = calloc((size_t)(F > 0 ? F : 1), sizeof(pg_image));
     io_depth depth;

@@ -147,29 +147,35 @@ int cmd_proxies(int argc, char **argv)
     if (st) return cli_fail(st);
     int ncam = io_dataset_num_cameras(ds), F = io_dataset_num_frames(ds);
     int W = io_dataset_width(ds), H = io_dataset_height(ds);
-    if (train_text) {
-        char *end;
-        long v = strtol(train_text, &end, 10);
-        train_cam = (*end || end == train_text) ? io_dataset_find_camera(ds, train_text) : (int)v;
-        if (train_cam < 0 || train_cam >= ncam) {
-            io_dataset_close(ds);
-            return cli_usage_error("proxies: --train-cam '%s' is not a camera of %s (%d camera(s))", train_text, input,
-                                   ncam);
-        }
+    if (train_text && io_dataset_resolve_camera(ds, train_text, &train_cam) != PG_OK) {
+        io_dataset_close(ds);
+        return cli_usage_error("proxies: %s: --train-cam: %s", input, pg_last_error());
     }
     int tests[MAX_CAMS], ntest = 0;
     if (test_list) {
-        ntest = cli_parse_int_list(test_list, tests, MAX_CAMS);
-        if (ntest < 0) { io_dataset_close(ds); return cli_usage_error("proxies: bad --test-cams '%s'", test_list); }
+        if (io_dataset_resolve_cameras(ds, test_list, tests, MAX_CAMS, &ntest) != PG_OK) {
+            io_dataset_close(ds);
+            return cli_usage_error("proxies: %s: --test-cams: %s", input, pg_last_error());
+        }
         for (int k = 0; k < ntest; k++)
-            if (tests[k] < 0 || tests[k] >= ncam || tests[k] == train_cam) {
+            if (tests[k] == train_cam) {
                 io_dataset_close(ds);
-                return cli_usage_error("proxies: test camera %d is not a camera of %s other than the real one",
-                                       tests[k], input);
+                return cli_usage_error("proxies: test camera %s is the training camera", io_dataset_camera_name(ds, train_cam));
             }
     } else if (ncam >= 7) {
-        tests[0] = 5; tests[1] = 6; ntest = 2; /* the DyNeRF protocol */
+        /* the DyNeRF protocol: cam05 and cam06 held out (unless one of them is the real camera) */
+        tests[0] = 5; tests[1] = 6; ntest = 2;
         if (train_cam == 5 || train_cam == 6) ntest = 0;
+    }
+    {
+        char label[96];
+        io_dataset_camera_label(ds, train_cam, label, sizeof label);
+        fprintf(stderr, "prodygs: proxies: training camera %s", label);
+        for (int k = 0; k < ntest; k++) {
+            io_dataset_camera_label(ds, tests[k], label, sizeof label);
+            fprintf(stderr, "%s%s", k ? ", " : "; test cameras ", label);
+        }
+        fprintf(stderr, "\n");
     }
     if (use_dataset_poses < 0) use_dataset_poses = ncam > 1;
     if (use_dataset_poses && ncam - 1 - ntest < 1) {

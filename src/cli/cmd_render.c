@@ -74,7 +74,12 @@ int cmd_render(int argc, char **argv)
         const char *name = path_name;
         if (use_dataset_cam) {
             int k = scene_cameras_find(sc, dataset_cam);
-            if (k < 0) st = pg_fail(PG_ERR_ARG, "render: no camera named '%s' in the model's trainset.json", dataset_cam);
+            if (k < 0) {
+                char names[1024] = "";
+                for (int c = 0; c < sc->count && strlen(names) + 40 < sizeof names; c++)
+                    snprintf(names + strlen(names), sizeof names - strlen(names), "%s%s", c ? ", " : "", sc->names[c]);
+                st = pg_fail(PG_ERR_ARG, "render: no camera named '%s' in the model (cameras: %s)", dataset_cam, names);
+            }
             vo.use_camera = 1;
             if (k >= 0) vo.camera = sc->cams[k];
             name = dataset_cam;

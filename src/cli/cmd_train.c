@@ -13,6 +13,7 @@
 
 #include "cli/cli.h"
 #include "core/fileutil.h"
+#include "io/dataset.h"
 #include "io/json.h"
 #include "core/parallel.h"
 #include "train/train.h"
@@ -143,16 +144,21 @@ int cmd_train(int argc, char **argv)
         source = "dynerf";
         int tlist[64], rlist[64];
         train_set_dynerf_options o = train_set_dynerf_defaults();
-        if (test_cams) {
-            o.num_test = cli_parse_int_list(test_cams, tlist, 64);
-            if (o.num_test < 0) return cli_usage_error("train: bad --test-cams '%s'", test_cams);
-            o.test_cams = tlist;
-        }
-        if (real_cams && strcmp(real_cams, "all") != 0) {
-            o.all_real = 0;
-            o.num_real = cli_parse_int_list(real_cams, rlist, 64);
-            if (o.num_real < 1) return cli_usage_error("train: bad --real-cams '%s'", real_cams);
-            o.real_cams = rlist;
+        if (test_cams || (real_cams && strcmp(real_cams, "all") != 0)) {
+            /* camera tokens: names first, then indices (io_dataset_resolve_camera) */
+            pg_dataset *ds = NULL;
+            io_dataset_options dopt = io_dataset_defaults();
+            if ((st = io_dataset_open(pos[0], &dopt, &ds))) return cli_fail(st);
+            if (test_cams && io_dataset_resolve_cameras(ds, test_cams, tlist, 64, &o.num_test) != PG_OK)
+                st = PG_ERR_ARG;
+            if (!st && real_cams && strcmp(real_cams, "all") != 0) {
+                o.all_real = 0;
+                if (io_dataset_resolve_cameras(ds, real_cams, rlist, 64, &o.num_real) != PG_OK) st = PG_ERR_ARG;
+            }
+            io_dataset_close(ds);
+            if (st) return cli_usage_error("train: %s: %s", pos[0], pg_last_error());
+            if (test_cams) o.test_cams = tlist;
+            if (!o.all_real) o.real_cams = rlist;
         }
         o.depth_path = depth;
         o.max_frames = frames;

@@ -69,10 +69,49 @@ static int validate_options(const pipeline_options *o)
     return 0;
 }
 
+/* Resolves --train-cam and --test-cams against the input once (io_dataset_resolve_camera) and
+ * rewrites them as camera names, so every stage picks the same cameras whatever the spelling.
+ * A single video has one camera and nothing to resolve. */
+static int resolve_cameras(pipeline_options *o)
+{
+    pg_dataset *ds = NULL;
+    io_dataset_options opt = io_dataset_defaults();
+    if (io_dataset_open(o->input, &opt, &ds) != PG_OK) return 0; /* the first stage reports the input */
+    int rc = 0, cam = 0, tests[64], nt = 0;
+    if (o->train_cam && io_dataset_resolve_camera(ds, o->train_cam, &cam) != PG_OK)
+        rc = cli_usage_error("%s: --train-cam: %s", o->input, pg_last_error());
+    if (!rc && o->test_cams && io_dataset_resolve_cameras(ds, o->test_cams, tests, 64, &nt) != PG_OK)
+        rc = cli_usage_error("%s: --test-cams: %s", o->input, pg_last_error());
+    for (int k = 0; !rc && k < nt; k++)
+        if (tests[k] == cam)
+            rc = cli_usage_error("%s: camera %s is both the training camera and a test camera", o->input,
+                                 io_dataset_camera_name(ds, cam));
+    if (!rc) {
+        if (o->train_cam) {
+            snprintf(o->train_cam_buf, sizeof o->train_cam_buf, "%s", io_dataset_camera_name(ds, cam));
+            o->train_cam = o->train_cam_buf;
+        }
+        io_dataset_camera_label(ds, cam, o->train_label, sizeof o->train_label);
+        o->test_cams_buf[0] = o->test_labels[0] = '\0';
+        for (int k = 0; k < nt; k++) {
+            char label[160];
+            io_dataset_camera_label(ds, tests[k], label, sizeof label);
+            size_t a = strlen(o->test_cams_buf), b = strlen(o->test_labels);
+            snprintf(o->test_cams_buf + a, sizeof o->test_cams_buf - a, "%s%s", k ? "," : "", io_dataset_camera_name(ds, tests[k]));
+            snprintf(o->test_labels + b, sizeof o->test_labels - b, "%s%s", k ? ", " : "", label);
+        }
+        if (nt > 0) o->test_cams = o->test_cams_buf;
+        fprintf(stderr, "prodygs: training camera %s%s%s\n", o->train_label, nt ? "; test cameras " : "", o->test_labels);
+    }
+    io_dataset_close(ds);
+    return rc;
+}
+
 int pipeline_apply_preset(pipeline_options *o)
 {
     int rc = validate_options(o);
     if (rc) return rc;
+    if ((rc = resolve_cameras(o))) return rc;
     if (!o->preset) o->preset = "fast";
     for (size_t i = 0; i < sizeof presets / sizeof presets[0]; i++) {
         if (strcmp(o->preset, presets[i].name) != 0) continue;
@@ -262,6 +301,8 @@ cJSON *pipeline_config_json(const pipeline_options *o)
     if (o->pad >= 0) cJSON_AddNumberToObject(c, "pad", o->pad);
     if (o->train_cam) cJSON_AddStringToObject(c, "train_cam", o->train_cam);
     if (o->test_cams) cJSON_AddStringToObject(c, "test_cams", o->test_cams);
+    if (o->train_label[0]) cJSON_AddStringToObject(c, "train_camera", o->train_label);
+    if (o->test_labels[0]) cJSON_AddStringToObject(c, "test_cameras", o->test_labels);
     cJSON_AddBoolToObject(c, "refine", !o->no_refine);
     cJSON_AddBoolToObject(c, "align", !o->no_align);
     cJSON_AddNumberToObject(c, "iters", o->iters);

@@ -33,6 +33,10 @@ typedef struct {
     int iters;               /* 0 = preset default */
     int threads, seed;
     float pose_scale;        /* 0 = fit */
+    /* filled by pipeline_apply_preset: the cameras resolved once (names win over indices), passed
+     * to every stage by NAME so each resolves the same camera, and recorded as "name (index i)" */
+    char train_cam_buf[128], test_cams_buf[1024];
+    char train_label[160], test_labels[2048];
 } pipeline_options;
 
 /* Runs prepare -> proxies -> train. Adds {stage: seconds} to `seconds`. Returns an exit code. */

@@ -3,7 +3,9 @@
 #include "core/fileutil.h"
 #include "io/image_io.h"
 
+#include <errno.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -168,6 +170,73 @@ int io_dataset_find_camera(const pg_dataset *ds, const char *name)
     for (int i = 0; i < ds->num_cams; i++)
         if (!strcmp(ds->cams[i].name, name)) return i;
     return -1;
+}
+
+/* The camera names, comma-separated, cut short for very long lists. */
+static void list_names(const pg_dataset *ds, char *out, size_t size)
+{
+    size_t len = 0;
+    out[0] = '\0';
+    for (int i = 0; i < ds->num_cams && len + 8 < size; i++) {
+        int n = snprintf(out + len, size - len, "%s%s", i ? ", " : "", ds->cams[i].name);
+        if (n < 0 || (size_t)n >= size - len) {
+            snprintf(out + (size > 4 ? size - 4 : 0), 4, "...");
+            return;
+        }
+        len += (size_t)n;
+    }
+}
+
+pg_status io_dataset_resolve_camera(const pg_dataset *ds, const char *token, int *index)
+{
+    int by_name = io_dataset_find_camera(ds, token);
+    if (by_name >= 0) {
+        *index = by_name;
+        return PG_OK;
+    }
+    char *end;
+    errno = 0;
+    long v = strtol(token, &end, 10);
+    int plain = end != token && *end == '\0' && !errno && token[0] >= '0' && token[0] <= '9';
+    if (plain && v >= 0 && v < ds->num_cams) {
+        *index = (int)v;
+        return PG_OK;
+    }
+    char names[1024];
+    list_names(ds, names, sizeof names);
+    if (plain)
+        return pg_fail(PG_ERR_ARG, "camera '%s': no camera has that name and index %ld is out of range 0..%d (cameras: %s)",
+                       token, v, ds->num_cams - 1, names);
+    return pg_fail(PG_ERR_ARG, "camera '%s': no camera has that name (cameras: %s)", token, names);
+}
+
+pg_status io_dataset_resolve_cameras(const pg_dataset *ds, const char *list, int *out, int max, int *count)
+{
+    *count = 0;
+    const char *p = list;
+    while (*p) {
+        const char *e = strchr(p, ',');
+        size_t n = e ? (size_t)(e - p) : strlen(p);
+        char token[128];
+        if (n == 0 || n >= sizeof token) return pg_fail(PG_ERR_ARG, "camera list '%s': empty or overlong entry", list);
+        memcpy(token, p, n);
+        token[n] = '\0';
+        int idx;
+        PG_TRY(io_dataset_resolve_camera(ds, token, &idx));
+        for (int k = 0; k < *count; k++)
+            if (out[k] == idx) return pg_fail(PG_ERR_ARG, "camera list '%s': camera %s named twice", list, token);
+        if (*count >= max) return pg_fail(PG_ERR_ARG, "camera list '%s': more than %d cameras", list, max);
+        out[(*count)++] = idx;
+        p += n;
+        if (*p == ',') p++;
+    }
+    if (*count == 0) return pg_fail(PG_ERR_ARG, "camera list '%s' is empty", list);
+    return PG_OK;
+}
+
+void io_dataset_camera_label(const pg_dataset *ds, int cam, char *out, size_t size)
+{
+    snprintf(out, size, "%s (index %d)", io_dataset_camera_name(ds, cam), cam);
 }
 
 void io_dataset_camera_at(const pg_dataset *ds, int cam, int t, pg_camera *out)

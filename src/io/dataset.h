@@ -56,6 +56,15 @@ int io_dataset_num_cameras(const pg_dataset *ds);
 const char *io_dataset_camera_name(const pg_dataset *ds, int cam);
 /* Index of the camera with this name, or -1. */
 int io_dataset_find_camera(const pg_dataset *ds, const char *name);
+/* The one rule every option that names a camera follows (--train-cam, --test-cams, --real-cams,
+ * --camera): a token equal to a camera name means that camera; otherwise a plain integer is an
+ * index. Anything else fails (PG_ERR_ARG) with a message listing the camera names. On Panoptic
+ * data names are numbers out of index order, so the name must win. */
+pg_status io_dataset_resolve_camera(const pg_dataset *ds, const char *token, int *index);
+/* A comma-separated list of such tokens; *count gets how many (at most max, no duplicates). */
+pg_status io_dataset_resolve_cameras(const pg_dataset *ds, const char *list, int *out, int max, int *count);
+/* "cam00 (index 0)" for messages and reports. */
+void io_dataset_camera_label(const pg_dataset *ds, int cam, char *out, size_t size);
 /* "train" / "test" for Panoptic cameras (from which meta file they came), "" otherwise. */
 const char *io_dataset_camera_role(const pg_dataset *ds, int cam);
 /* Camera (intrinsics scaled to the output frame size) at the first selected frame. */
