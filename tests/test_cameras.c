@@ -116,8 +116,17 @@ int main(void)
     snprintf(a, sizeof a, "%s/zero", dir);
     snprintf(args, sizeof args, "proxies '%s' --depth '%s' --out '%s' --train-cam 0 --test-cams 27 --steps 2", data,
              depth, a);
-    CHECK(test_run_cli(args, err, sizeof err) == 0 && strstr(err, "training camera 0 (index 1)"),
-          "--train-cam 0 must be the camera named 0: %s", err);
+    CHECK(test_run_cli(args, err, sizeof err) == 0, "proxies --train-cam 0: %s", err);
+    {
+        char path[1300];
+        snprintf(path, sizeof path, "%s/trainset.json", a);
+        cJSON *t = NULL;
+        CHECK_OK(io_json_load(path, &t));
+        const cJSON *c0 = cJSON_GetArrayItem(cJSON_GetObjectItem(t, "cameras"), 0);
+        CHECK(strcmp(io_json_string_or(c0, "name", ""), "0") == 0 && strcmp(io_json_string_or(c0, "role", ""), "real") == 0,
+              "--train-cam 0 must be the camera named 0, got %s", io_json_string_or(c0, "name", "?"));
+        cJSON_Delete(t);
+    }
     /* a token that is neither a name nor an index: usage error listing the names */
     snprintf(args, sizeof args, "eval '%s' --depth '%s' --out '%s/bad' --train-cam cam99", data, depth, dir);
     CHECK(test_run_cli(args, err, sizeof err) == 2 && strstr(err, "cam99") && strstr(err, "12, 0, 27, 3, 10"),

@@ -94,7 +94,8 @@ int cmd_prepare(int argc, char **argv)
     }
     char label[96];
     io_dataset_camera_label(ds, cam, label, sizeof label);
-    fprintf(stderr, "prodygs: prepare: training camera %s\n", label);
+    printf("prepare: training camera %s\n", label);
+    fflush(stdout);
     const int F = io_dataset_num_frames(ds), W = io_dataset_width(ds), H = io_dataset_height(ds);
     pg_image *frames = calloc((size_t)(F > 0 ? F : 1), sizeof(pg_image));
     io_depth depth;

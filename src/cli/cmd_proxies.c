@@ -170,12 +170,13 @@ int cmd_proxies(int argc, char **argv)
     {
         char label[96];
         io_dataset_camera_label(ds, train_cam, label, sizeof label);
-        fprintf(stderr, "prodygs: proxies: training camera %s", label);
+        printf("proxies: training camera %s", label);
         for (int k = 0; k < ntest; k++) {
             io_dataset_camera_label(ds, tests[k], label, sizeof label);
-            fprintf(stderr, "%s%s", k ? ", " : "; test cameras ", label);
+            printf("%s%s", k ? ", " : "; test cameras ", label);
         }
-        fprintf(stderr, "\n");
+        printf("\n");
+        fflush(stdout);
     }
     if (use_dataset_poses < 0) use_dataset_poses = ncam > 1;
     if (use_dataset_poses && ncam - 1 - ntest < 1) {

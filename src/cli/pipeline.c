@@ -101,7 +101,8 @@ static int resolve_cameras(pipeline_options *o)
             snprintf(o->test_labels + b, sizeof o->test_labels - b, "%s%s", k ? ", " : "", label);
         }
         if (nt > 0) o->test_cams = o->test_cams_buf;
-        fprintf(stderr, "prodygs: training camera %s%s%s\n", o->train_label, nt ? "; test cameras " : "", o->test_labels);
+        printf("training camera %s%s%s\n", o->train_label, nt ? "; test cameras " : "", o->test_labels);
+        fflush(stdout);
     }
     io_dataset_close(ds);
     return rc;
@@ -111,7 +112,6 @@ int pipeline_apply_preset(pipeline_options *o)
 {
     int rc = validate_options(o);
     if (rc) return rc;
-    if ((rc = resolve_cameras(o))) return rc;
     if (!o->preset) o->preset = "fast";
     for (size_t i = 0; i < sizeof presets / sizeof presets[0]; i++) {
         if (strcmp(o->preset, presets[i].name) != 0) continue;
@@ -119,7 +119,7 @@ int pipeline_apply_preset(pipeline_options *o)
         if (o->proxies < 0 && presets[i].proxies >= 0 && !o->test_cams) o->proxies = presets[i].proxies;
         if (!o->size) pick_size(o, presets[i].max_side);
         if (!o->poses) o->poses = o->test_cams ? "dataset" : "hemisphere";
-        return 0;
+        return resolve_cameras(o);
     }
     return cli_usage_error("unknown preset '%s' (fast, quality)", o->preset);
 }
