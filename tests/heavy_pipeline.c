@@ -28,7 +28,13 @@ int main(void)
         CHECK(psnr > 16.0 && masked > 18.0, "held-out PSNR %.2f / masked %.2f too low", psnr, masked);
         const cJSON *cams = cJSON_GetObjectItem(m, "per_camera");
         CHECK(cJSON_GetObjectItem(cams, "cam05") && cJSON_GetObjectItem(cams, "cam06"), "test cameras missing");
-        CHECK(cJSON_GetArraySize(cJSON_GetObjectItem(m, "per_frame")) == 12, "expected 2 cameras x 6 frames");
+        CHECK(cJSON_GetArraySize(cJSON_GetObjectItem(m, "per_frame")) == 18,
+              "expected 2 test cameras + the training camera x 6 frames");
+        const cJSON *tc = cJSON_GetObjectItem(m, "train_camera");
+        const cJSON *mv = cJSON_GetObjectItem(cJSON_GetObjectItem(tc, "regions"), "moving");
+        double mp = io_json_number_or(mv, "psnr", 0);
+        printf("demo: training camera moving-pixel PSNR %.2f dB\n", mp);
+        CHECK(mp > 20.0, "training camera moving-pixel PSNR %.2f too low (or missing)", mp);
         cJSON_Delete(m);
     }
     const char *outputs[] = { "report.md", "renders/fixed.mp4", "renders/fixed_compare.mp4", "renders/orbit.mp4",
