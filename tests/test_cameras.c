@@ -59,11 +59,12 @@ static cJSON *run_eval(const char *data, const char *depth, const char *out, con
     return m;
 }
 
-/* The role of each camera in the run's training set, as "name:role," for the real and test ones. */
-static void trainset_roles(const char *out, char *roles, size_t size)
+/* The role of each camera in the training set DIR/trainset.json, as "name:role," for the real
+ * and test ones. */
+static void trainset_roles(const char *dir, char *roles, size_t size)
 {
-    char path[1200];
-    snprintf(path, sizeof path, "%s/proxies/trainset.json", out);
+    char path[1300];
+    snprintf(path, sizeof path, "%s/trainset.json", dir);
     roles[0] = '\0';
     cJSON *t = NULL;
     CHECK_OK(io_json_load(path, &t));
@@ -77,9 +78,24 @@ static void trainset_roles(const char *out, char *roles, size_t size)
     cJSON_Delete(t);
 }
 
+/* Two spellings of the same cameras: run b trained and scored `want` and both give the same
+ * metrics. Deletes both. */
+static void check_same_cameras(const char *what, cJSON *ma, cJSON *mb, const char *out_b, const char *want)
+{
+    char dir[1300], roles[512];
+    snprintf(dir, sizeof dir, "%s/proxies", out_b);
+    trainset_roles(dir, roles, sizeof roles);
+    CHECK(strcmp(roles, want) == 0, "%s: cameras and roles %s, want %s", what, roles, want);
+    CHECK(ma && mb && io_json_number_or(ma, "psnr", -1) == io_json_number_or(mb, "psnr", -2),
+          "%s: the spellings give different metrics: %f vs %f", what, io_json_number_or(ma, "psnr", -1),
+          io_json_number_or(mb, "psnr", -2));
+    cJSON_Delete(ma);
+    cJSON_Delete(mb);
+}
+
 int main(void)
 {
-    char dir[1024], data[1100], depth[1200], args[4096], err[8192], a[1200], b[1200], roles[512];
+    char dir[1024], data[1100], depth[1200], args[4096], err[8192], a[1200], b[1200], roles[512], path[1300];
     test_tmpdir("cameras", dir, sizeof dir);
 
     /* Panoptic layout, numeric ids out of order */
@@ -91,7 +107,8 @@ int main(void)
 
     snprintf(a, sizeof a, "%s/by_name", dir);
     cJSON *ma = run_eval(data, depth, a, "--train-cam 12 --test-cams 27,0");
-    trainset_roles(a, roles, sizeof roles);
+    snprintf(path, sizeof path, "%s/proxies", a);
+    trainset_roles(path, roles, sizeof roles);
     CHECK(strcmp(roles, "12:real,27:test,0:test,") == 0, "by name: cameras and roles %s", roles);
     const cJSON *cfg = cJSON_GetObjectItem(ma, "config");
     CHECK(strcmp(io_json_string_or(cfg, "train_camera", ""), "12 (index 0)") == 0 &&
@@ -104,29 +121,15 @@ int main(void)
     /* the same test cameras by index ("2" and "1" are no camera's name) */
     snprintf(b, sizeof b, "%s/by_index", dir);
     cJSON *mb = run_eval(data, depth, b, "--train-cam 12 --test-cams 2,1");
-    trainset_roles(b, roles, sizeof roles);
-    CHECK(strcmp(roles, "12:real,27:test,0:test,") == 0, "by index: cameras and roles %s", roles);
-    CHECK(ma && mb && io_json_number_or(ma, "psnr", -1) == io_json_number_or(mb, "psnr", -2),
-          "name and index spellings give different metrics: %f vs %f", io_json_number_or(ma, "psnr", -1),
-          io_json_number_or(mb, "psnr", -2));
-    cJSON_Delete(ma);
-    cJSON_Delete(mb);
+    check_same_cameras("Panoptic, test cameras by index", ma, mb, b, "12:real,27:test,0:test,");
 
     /* "0" is a name: it means the camera at index 1, not index 0 */
     snprintf(a, sizeof a, "%s/zero", dir);
     snprintf(args, sizeof args, "proxies '%s' --depth '%s' --out '%s' --train-cam 0 --test-cams 27 --steps 2", data,
              depth, a);
     CHECK(test_run_cli(args, err, sizeof err) == 0, "proxies --train-cam 0: %s", err);
-    {
-        char path[1300];
-        snprintf(path, sizeof path, "%s/trainset.json", a);
-        cJSON *t = NULL;
-        CHECK_OK(io_json_load(path, &t));
-        const cJSON *c0 = cJSON_GetArrayItem(cJSON_GetObjectItem(t, "cameras"), 0);
-        CHECK(strcmp(io_json_string_or(c0, "name", ""), "0") == 0 && strcmp(io_json_string_or(c0, "role", ""), "real") == 0,
-              "--train-cam 0 must be the camera named 0, got %s", io_json_string_or(c0, "name", "?"));
-        cJSON_Delete(t);
-    }
+    trainset_roles(a, roles, sizeof roles);
+    CHECK(strcmp(roles, "0:real,27:test,") == 0, "--train-cam 0 must be the camera named 0: %s", roles);
     /* a token that is neither a name nor an index: usage error listing the names */
     snprintf(args, sizeof args, "eval '%s' --depth '%s' --out '%s/bad' --train-cam cam99", data, depth, dir);
     CHECK(test_run_cli(args, err, sizeof err) == 2 && strstr(err, "cam99") && strstr(err, "12, 0, 27, 3, 10"),
@@ -144,12 +147,6 @@ int main(void)
     snprintf(b, sizeof b, "%s/dyn_index", dir);
     ma = run_eval(data, depth, a, "--train-cam cam00 --test-cams cam05,cam06");
     mb = run_eval(data, depth, b, "--train-cam 0 --test-cams 5,6");
-    trainset_roles(b, roles, sizeof roles);
-    CHECK(strcmp(roles, "cam00:real,cam05:test,cam06:test,") == 0, "DyNeRF by index: %s", roles);
-    CHECK(ma && mb && io_json_number_or(ma, "psnr", -1) == io_json_number_or(mb, "psnr", -2),
-          "DyNeRF name and index spellings differ: %f vs %f", io_json_number_or(ma, "psnr", -1),
-          io_json_number_or(mb, "psnr", -2));
-    cJSON_Delete(ma);
-    cJSON_Delete(mb);
+    check_same_cameras("DyNeRF, by index", ma, mb, b, "cam00:real,cam05:test,cam06:test,");
     return test_summary("test_cameras");
 }

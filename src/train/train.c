@@ -139,7 +139,27 @@ static void copy_gaussians(pg_gaussians *dst, const pg_gaussians *src)
     dst->sh_degree = src->sh_degree;
 }
 
-static pg_status find_moving_pixels(train_session *s);
+/* Moving pixels of each real view (colour off the temporal median by > 0.1, dilated 2 px):
+ * they get 1 + moving_weight times the loss weight, because they are a few percent of the frame
+ * yet all of what the product is for. Derived from the training set, so not checkpointed. */
+#define TRAIN_MOVING_THRESH 0.1f
+#define TRAIN_MOVING_DILATE 2
+static pg_status find_moving_pixels(train_session *s)
+{
+    const train_set *ts = s->ts;
+    if (s->cfg.moving_weight <= 0 || ts->frames < 2) return PG_OK;
+    s->moving = pg_calloc((size_t)ts->num_views, sizeof *s->moving, "moving masks");
+    if (!s->moving) return PG_ERR_NOMEM;
+    size_t n = (size_t)ts->frames * ts->width * ts->height;
+    for (int v = 0; v < ts->num_views; v++) {
+        if (ts->views[v].role != TRAIN_ROLE_REAL) continue;
+        s->moving[v] = pg_malloc(n, "moving masks");
+        if (!s->moving[v]) return PG_ERR_NOMEM;
+        PG_TRY(depth_moving_masks(ts->views[v].rgb, ts->frames, ts->width, ts->height, TRAIN_MOVING_THRESH,
+                                  TRAIN_MOVING_DILATE, s->moving[v]));
+    }
+    return PG_OK;
+}
 
 /* Creates the network (fine stage) over the box of the canonical means that go through it (the
  * movable ones; all when static flags are off or none is movable): the HexPlane's texels then
@@ -243,28 +263,6 @@ pg_status train_session_create(train_session **out, const train_set *ts, const t
 fail:
     train_session_destroy(s);
     return st;
-}
-
-/* Moving pixels of each real view (colour off the temporal median by > 0.1, dilated 2 px):
- * they get 1 + moving_weight times the loss weight, because they are a few percent of the frame
- * yet all of what the product is for. Derived from the training set, so not checkpointed. */
-#define TRAIN_MOVING_THRESH 0.1f
-#define TRAIN_MOVING_DILATE 2
-static pg_status find_moving_pixels(train_session *s)
-{
-    const train_set *ts = s->ts;
-    if (s->cfg.moving_weight <= 0 || ts->frames < 2) return PG_OK;
-    s->moving = pg_calloc((size_t)ts->num_views, sizeof *s->moving, "moving masks");
-    if (!s->moving) return PG_ERR_NOMEM;
-    size_t n = (size_t)ts->frames * ts->width * ts->height;
-    for (int v = 0; v < ts->num_views; v++) {
-        if (ts->views[v].role != TRAIN_ROLE_REAL) continue;
-        s->moving[v] = pg_malloc(n, "moving masks");
-        if (!s->moving[v]) return PG_ERR_NOMEM;
-        PG_TRY(depth_moving_masks(ts->views[v].rgb, ts->frames, ts->width, ts->height, TRAIN_MOVING_THRESH,
-                                  TRAIN_MOVING_DILATE, s->moving[v]));
-    }
-    return PG_OK;
 }
 
 /* The frame of iteration it: every frame once per epoch of F iterations, in an order shuffled by
