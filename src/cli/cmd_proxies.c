@@ -159,8 +159,10 @@ int cmd_proxies(int argc, char **argv)
         }
         for (int k = 0; k < ntest; k++)
             if (tests[k] == train_cam) {
+                char label[96];
+                io_dataset_camera_label(ds, train_cam, label, sizeof label);
                 io_dataset_close(ds);
-                return cli_usage_error("proxies: test camera %s is the training camera", io_dataset_camera_name(ds, train_cam));
+                return cli_usage_error("proxies: test camera %s is the training camera", label);
             }
     } else if (ncam >= 7) {
         /* the DyNeRF protocol: cam05 and cam06 held out (unless one of them is the real camera) */
