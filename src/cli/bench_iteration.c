@@ -62,7 +62,7 @@ int bench_iteration(int argc, char **argv)
     ts.fps = 30;
     pg_camera cam;
     pg_camera_from_fov(&cam, width, height, 60.0f);
-    pg_status st = train_set_add_view(&ts, "cam00", TRAIN_ROLE_REAL, &cam, 0, 1, NULL);
+    pg_status st = train_set_add_view(&ts, "cam00", IO_ROLE_REAL, &cam, 0, 1, NULL);
     pg_gaussians g = {0};
     uint8_t *flags = NULL;
     train_session *s = NULL;

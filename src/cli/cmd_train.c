@@ -21,9 +21,8 @@
 
 static cJSON *camera_json(const train_view *v)
 {
-    static const char *roles[] = {"real", "proxy", "test"};
     cJSON *c = io_json_from_camera(&v->cam, v->name);
-    if (c) cJSON_AddStringToObject(c, "role", roles[v->role]);
+    if (c) cJSON_AddStringToObject(c, "role", io_view_role_name(v->role));
     return c;
 }
 
@@ -204,9 +203,9 @@ int cmd_train(int argc, char **argv)
     if ((st = train_session_create(&s, &ts, &cfg, ckpt, resume))) goto done;
     if ((st = train_session_run(s))) goto done;
     if (cfg.stop_at_iter > 0 && train_session_iteration(s) < cfg.iters) goto done; /* simulated kill */
-    if (train_set_count_role(&ts, TRAIN_ROLE_TEST) > 0 && (st = train_session_evaluate(s, TRAIN_ROLE_TEST, &test_psnr)))
+    if (train_set_count_role(&ts, IO_ROLE_TEST) > 0 && (st = train_session_evaluate(s, IO_ROLE_TEST, &test_psnr)))
         goto done;
-    if (eval_train && (st = train_session_evaluate_parts(s, TRAIN_ROLE_REAL, &tr))) goto done;
+    if (eval_train && (st = train_session_evaluate_parts(s, IO_ROLE_REAL, &tr))) goto done;
     if ((st = write_summary(summary, &ts, &cfg, s, test_psnr, eval_train ? &tr : NULL, pg_time_seconds() - t0, source)))
         goto done;
     /* train_real_*: only measured with --eval-train (null otherwise, and for an empty part) */

@@ -121,7 +121,7 @@ pg_status eval_protocol_run(const char *dataset, const char *model, const char *
     const pg_camera *real = &sc->cams[sc->real];
     c.frames = c.rm ? render_model_frames(c.rm) : 0;
     int tests = 0;
-    for (int k = 0; st == PG_OK && k < sc->count; k++) tests += sc->roles[k] == SCENE_ROLE_TEST;
+    for (int k = 0; st == PG_OK && k < sc->count; k++) tests += sc->roles[k] == IO_ROLE_TEST;
     if (st == PG_OK && tests == 0) st = pg_fail(PG_ERR_ARG, "%s: the model's trainset.json lists no test cameras", model);
     if (st == PG_OK) {
         io_dataset_options opt = io_dataset_defaults();
@@ -143,7 +143,7 @@ pg_status eval_protocol_run(const char *dataset, const char *model, const char *
         c.have_real_z = st == PG_OK;
     }
     for (int k = 0; st == PG_OK && k < sc->count; k++) {
-        if (sc->roles[k] != SCENE_ROLE_TEST) continue;
+        if (sc->roles[k] != IO_ROLE_TEST) continue;
         int cam = io_dataset_find_camera(c.ds, sc->names[k]);
         if (cam < 0) {
             st = pg_fail(PG_ERR_ARG, "%s: no camera named %s (held out in the model)", dataset, sc->names[k]);

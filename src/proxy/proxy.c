@@ -11,7 +11,7 @@
 #include "core/progress.h"
 #include "io/image_io.h"
 #include "io/npy.h"
-#include "proxy/trainset.h"
+#include "io/trainset.h"
 
 proxy_options proxy_default_options(void)
 {
@@ -131,7 +131,7 @@ static pg_status process_frame(const proxy_job *j, const char *dir, const char *
             break;
         }
         double t0 = pg_time_seconds();
-        st = proxy_frame_path(path, sizeof path, dir, c ? j->test_names[c - 1] : j->real_name, "rgb", f);
+        st = io_trainset_frame_path(path, sizeof path, dir, c ? j->test_names[c - 1] : j->real_name, "rgb", f);
         if (!st) st = io_image_save_png(path, &img);
         w->write_s += pg_time_seconds() - t0;
         if (c == 0) frame = img;
@@ -171,9 +171,9 @@ static pg_status process_frame(const proxy_job *j, const char *dir, const char *
         w->views++;
         double t0 = pg_time_seconds();
         pg_image img = { W, H, 3, w->rgb };
-        PG_TRY(proxy_frame_path(path, sizeof path, dir, j->proxy_names[k], "rgb", f));
+        PG_TRY(io_trainset_frame_path(path, sizeof path, dir, j->proxy_names[k], "rgb", f));
         PG_TRY(io_image_save_png(path, &img));
-        PG_TRY(proxy_frame_path(path, sizeof path, dir, j->proxy_names[k], "mask", f));
+        PG_TRY(io_trainset_frame_path(path, sizeof path, dir, j->proxy_names[k], "mask", f));
         PG_TRY(save_mask_png(path, w->mask, W, H, w->fmask));
         PG_TRY(cache_path(path, sizeof path, dir, "depth", j->proxy_names[k], f, "npy"));
         size_t shape[2] = { (size_t)H, (size_t)W };
@@ -269,10 +269,10 @@ pg_status proxy_generate(const proxy_options *opt_in, const proxy_job *j, const 
     snprintf(hash_hex, sizeof hash_hex, "%016llx", res->settings_hash);
 
     PG_TRY(pg_mkdir_p(dir));
-    PG_TRY(proxy_trainset_make_dirs(dir, j->real_name, 0));
-    for (int k = 0; k < j->num_tests; k++) PG_TRY(proxy_trainset_make_dirs(dir, j->test_names[k], 0));
+    PG_TRY(io_trainset_make_dirs(dir, j->real_name, 0));
+    for (int k = 0; k < j->num_tests; k++) PG_TRY(io_trainset_make_dirs(dir, j->test_names[k], 0));
     for (int k = 0; k < j->num_proxies; k++) {
-        PG_TRY(proxy_trainset_make_dirs(dir, j->proxy_names[k], 1));
+        PG_TRY(io_trainset_make_dirs(dir, j->proxy_names[k], 1));
         int n = snprintf(path, sizeof path, "%s/.cache/depth/%s", dir, j->proxy_names[k]);
         if (n < 0 || (size_t)n >= sizeof path) return pg_fail(PG_ERR_ARG, "%s: path too long", dir);
         PG_TRY(pg_mkdir_p(path));
@@ -386,29 +386,29 @@ pg_status proxy_generate(const proxy_options *opt_in, const proxy_job *j, const 
     PG_TRY(st);
 
     int ncam = 1 + j->num_proxies + j->num_tests;
-    proxy_trainset_camera *cams = pg_calloc((size_t)ncam, sizeof *cams, "trainset cameras");
+    io_trainset_camera *cams = pg_calloc((size_t)ncam, sizeof *cams, "trainset cameras");
     if (!cams) return PG_ERR_NOMEM;
     snprintf(cams[0].name, sizeof cams[0].name, "%s", j->real_name);
     cams[0].cam = j->real;
-    cams[0].role = PROXY_ROLE_REAL;
+    cams[0].role = IO_ROLE_REAL;
     cams[0].has_rgb = cams[0].has_depth = 1;
     for (int k = 0; k < j->num_proxies; k++) {
-        proxy_trainset_camera *c = &cams[1 + k];
+        io_trainset_camera *c = &cams[1 + k];
         snprintf(c->name, sizeof c->name, "%s", j->proxy_names[k]);
         c->cam = j->proxies[k];
-        c->role = PROXY_ROLE_PROXY;
+        c->role = IO_ROLE_PROXY;
         c->has_rgb = c->has_mask = c->has_depth = 1;
     }
     for (int k = 0; k < j->num_tests; k++) {
-        proxy_trainset_camera *c = &cams[1 + j->num_proxies + k];
+        io_trainset_camera *c = &cams[1 + j->num_proxies + k];
         snprintf(c->name, sizeof c->name, "%s", j->test_names[k]);
         c->cam = j->tests[k];
-        c->role = PROXY_ROLE_TEST;
+        c->role = IO_ROLE_TEST;
         c->has_rgb = 1;
     }
-    proxy_trainset_info info = { j->frames, j->width, j->height, j->fps, { j->center[0], j->center[1], j->center[2] },
+    io_trainset_info info = { j->frames, j->width, j->height, j->fps, { j->center[0], j->center[1], j->center[2] },
                                  j->radius, far > 0 ? near : 0, far, j->input_path, j->depth_path, j->pose_scale };
-    st = proxy_trainset_write_json(dir, &info, cams, ncam);
+    st = io_trainset_write_json(dir, &info, cams, ncam);
     free(cams);
     res->write_s += pg_time_seconds() - t0;
     res->wall_s = pg_time_seconds() - t_start;

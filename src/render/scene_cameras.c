@@ -33,9 +33,14 @@ pg_status scene_cameras_load(const char *path, scene_cameras *sc)
         snprintf(what, sizeof what, "%s: camera %d", file, k);
         st = io_json_to_camera(c, what, &sc->cams[k], sc->names[k], sizeof sc->names[k]);
         if (st != PG_OK) goto done;
-        const char *role = io_json_string_or(c, "role", "proxy");
-        sc->roles[k] = strcmp(role, "real") == 0 ? SCENE_ROLE_REAL : strcmp(role, "test") == 0 ? SCENE_ROLE_TEST : SCENE_ROLE_PROXY;
-        if (sc->roles[k] == SCENE_ROLE_REAL && sc->real < 0) sc->real = k;
+        const char *role_text = io_json_string_or(c, "role", "proxy");
+        int role = io_view_role_parse(role_text);
+        if (role < 0) {
+            st = pg_fail(PG_ERR_FORMAT, "%s: camera %s has unknown role \"%.32s\"", file, sc->names[k], role_text);
+            goto done;
+        }
+        sc->roles[k] = (io_view_role)role;
+        if (sc->roles[k] == IO_ROLE_REAL && sc->real < 0) sc->real = k;
         sc->count++;
     }
     if (sc->real < 0) {

@@ -9,16 +9,16 @@
 
 #include "core/camera.h"
 #include "core/status.h"
+#include "io/trainset.h"
 
 #define RENDER_MAX_CAMERAS 256
 
-typedef enum { SCENE_ROLE_REAL = 0, SCENE_ROLE_PROXY, SCENE_ROLE_TEST } scene_role;
 
 typedef struct {
     int count, real;                        /* real: index of the real camera */
     pg_camera cams[RENDER_MAX_CAMERAS];
     char names[RENDER_MAX_CAMERAS][32];
-    scene_role roles[RENDER_MAX_CAMERAS];
+    io_view_role roles[RENDER_MAX_CAMERAS];
     float center[3];                        /* what camera paths look at */
     int frames;
     double fps;

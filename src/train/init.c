@@ -62,7 +62,7 @@ static pg_status points_from_depth(const train_set *ts, int vi, int stride, poin
 {
     const train_view *v = &ts->views[vi];
     int W = ts->width, H = ts->height, F = ts->frames;
-    int real = v->role == TRAIN_ROLE_REAL;
+    int real = v->role == IO_ROLE_REAL;
     size_t px = (size_t)W * H;
     uint8_t *moving = pg_malloc((size_t)F * px, "init moving masks");
     if (!moving) return PG_ERR_NOMEM;
@@ -96,11 +96,11 @@ static pg_status points_from_frustum(train_session *s, point_list *pts, int n)
     const train_set *ts = s->ts;
     float zn = ts->near_z > 0 ? ts->near_z : 0.5f, zf = ts->far_z > zn ? ts->far_z : zn * 20;
     int nv = 0;
-    for (int i = 0; i < ts->num_views; i++) nv += ts->views[i].role != TRAIN_ROLE_TEST;
+    for (int i = 0; i < ts->num_views; i++) nv += ts->views[i].role != IO_ROLE_TEST;
     for (int k = 0; k < n; k++) {
         int pick = (int)pg_rng_below(&s->rng, (uint32_t)nv), vi = 0;
         for (int i = 0; i < ts->num_views; i++)
-            if (ts->views[i].role != TRAIN_ROLE_TEST && pick-- == 0) {
+            if (ts->views[i].role != IO_ROLE_TEST && pick-- == 0) {
                 vi = i;
                 break;
             }
@@ -133,7 +133,7 @@ static pg_status points_fill_uncovered(train_session *s, point_list *pts)
     pg_status st = PG_OK;
     for (int vi = 0; vi < ts->num_views && !st; vi++) {
         const train_view *v = &ts->views[vi];
-        if (v->role == TRAIN_ROLE_TEST || v->depth) continue;
+        if (v->role == IO_ROLE_TEST || v->depth) continue;
         memset(cov, 0, (size_t)bw * bh);
         for (size_t i = 0; i < n0; i++) {
             float uv[2];
@@ -309,12 +309,12 @@ pg_status train_init_gaussians(train_session *s)
     /* budget: at most ~3M candidate points */
     size_t cand = 0;
     for (int i = 0; i < ts->num_views; i++)
-        if (ts->views[i].depth && ts->views[i].role != TRAIN_ROLE_TEST)
+        if (ts->views[i].depth && ts->views[i].role != IO_ROLE_TEST)
             cand += (size_t)ts->width * ts->height * 2;
     int stride = 1;
     while (cand / ((size_t)stride * stride) > 3000000) stride++;
     for (int i = 0; i < ts->num_views && !st; i++)
-        if (ts->views[i].depth && ts->views[i].role != TRAIN_ROLE_TEST) st = points_from_depth(ts, i, stride, &pts);
+        if (ts->views[i].depth && ts->views[i].role != IO_ROLE_TEST) st = points_from_depth(ts, i, stride, &pts);
     if (!st && pts.n < (size_t)target / 4) st = points_from_frustum(s, &pts, target - (int)pts.n);
     if (!st && pts.n > 0) st = points_fill_uncovered(s, &pts);
     if (st) goto done;

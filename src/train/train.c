@@ -152,7 +152,7 @@ static pg_status find_moving_pixels(train_session *s)
     if (!s->moving) return PG_ERR_NOMEM;
     size_t n = (size_t)ts->frames * ts->width * ts->height;
     for (int v = 0; v < ts->num_views; v++) {
-        if (ts->views[v].role != TRAIN_ROLE_REAL) continue;
+        if (ts->views[v].role != IO_ROLE_REAL) continue;
         s->moving[v] = pg_malloc(n, "moving masks");
         if (!s->moving[v]) return PG_ERR_NOMEM;
         PG_TRY(depth_moving_masks(ts->views[v].rgb, ts->frames, ts->width, ts->height, TRAIN_MOVING_THRESH,
@@ -222,7 +222,7 @@ pg_status train_session_create(train_session **out, const train_set *ts, const t
     *out = NULL;
     if (cfg->iters < 1 || cfg->coarse_iters < 0 || cfg->max_gaussians < 1)
         return pg_fail(PG_ERR_ARG, "train: bad iteration counts or Gaussian cap");
-    if (train_set_count_role(ts, TRAIN_ROLE_REAL) + train_set_count_role(ts, TRAIN_ROLE_PROXY) == 0)
+    if (train_set_count_role(ts, IO_ROLE_REAL) + train_set_count_role(ts, IO_ROLE_PROXY) == 0)
         return pg_fail(PG_ERR_ARG, "train: the training set has no real or proxy views");
     train_session *s = pg_calloc(1, sizeof *s, "training session");
     if (!s) return PG_ERR_NOMEM;
@@ -283,7 +283,7 @@ static int pick_frame(const train_session *s, int it)
 }
 
 /* Draws k distinct views of a role into out (k <= the role's count); returns k. */
-static int pick_views(train_session *s, train_role role, int k, int *out)
+static int pick_views(train_session *s, io_view_role role, int k, int *out)
 {
     const train_set *ts = s->ts;
     int n = train_set_count_role(ts, role);
@@ -308,15 +308,15 @@ static int pick_views(train_session *s, train_role role, int k, int *out)
 static int pick_batch(train_session *s, int *views, float *weights)
 {
     const train_set *ts = s->ts;
-    int nreal = train_set_count_role(ts, TRAIN_ROLE_REAL), nproxy = train_set_count_role(ts, TRAIN_ROLE_PROXY);
+    int nreal = train_set_count_role(ts, IO_ROLE_REAL), nproxy = train_set_count_role(ts, IO_ROLE_PROXY);
     int k = s->cfg.views_per_step, n;
     if (nproxy == 0) {
-        n = pick_views(s, TRAIN_ROLE_REAL, k, views);
+        n = pick_views(s, IO_ROLE_REAL, k, views);
         for (int i = 0; i < n; i++) weights[i] = 1.0f / n;
         return n;
     }
-    n = nreal > 0 ? pick_views(s, TRAIN_ROLE_REAL, 1, views) : 0;
-    int np = pick_views(s, TRAIN_ROLE_PROXY, k - n > 0 ? k - n : 1, views + n);
+    n = nreal > 0 ? pick_views(s, IO_ROLE_REAL, 1, views) : 0;
+    int np = pick_views(s, IO_ROLE_PROXY, k - n > 0 ? k - n : 1, views + n);
     float wr = n ? s->cfg.real_weight : 0.0f;
     if (n) weights[0] = np ? wr : 1.0f;
     for (int i = 0; i < np; i++) weights[n + i] = (1.0f - wr) / np;
@@ -482,7 +482,7 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, double
     const int W = ts->width, H = ts->height;
     const size_t px = (size_t)W * H;
     const pg_camera *cam = &ts->views[vi].cam;
-    int real = ts->views[vi].role == TRAIN_ROLE_REAL;
+    int real = ts->views[vi].role == IO_ROLE_REAL;
     int has_depth = load_target(s, vi, f, real);
     double t0 = pg_time_seconds(), t1;
     pg_render_settings rs = splat_default_settings();
@@ -641,7 +641,7 @@ pg_status train_session_run(train_session *s)
     return PG_OK;
 }
 
-pg_status train_session_evaluate(train_session *s, train_role role, double *psnr)
+pg_status train_session_evaluate(train_session *s, io_view_role role, double *psnr)
 {
     train_eval_scores e;
     PG_TRY(train_session_evaluate_parts(s, role, &e));
@@ -651,7 +651,7 @@ pg_status train_session_evaluate(train_session *s, train_role role, double *psnr
 
 static double psnr_of(double sse, double n) { return n > 0 ? (sse > 0 ? -10.0 * log10(sse / n) : 200.0) : NAN; }
 
-pg_status train_session_evaluate_parts(train_session *s, train_role role, train_eval_scores *e)
+pg_status train_session_evaluate_parts(train_session *s, io_view_role role, train_eval_scores *e)
 {
     const train_set *ts = s->ts;
     const size_t px = (size_t)ts->width * ts->height;

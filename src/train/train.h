@@ -6,7 +6,7 @@
  *   train_session *s;
  *   PG_TRY(train_session_create(&s, &ts, &cfg, "out/model.ckpt", resume));  // resume: load if present
  *   PG_TRY(train_session_run(s));      // checkpoints every K iterations and at the end
- *   double psnr; train_session_evaluate(s, TRAIN_ROLE_TEST, &psnr);
+ *   double psnr; train_session_evaluate(s, IO_ROLE_TEST, &psnr);
  *   train_session_destroy(s);
  *
  * The model is rendered later from the checkpoint alone (render/model_render.h). Same seed,
@@ -70,14 +70,14 @@ pg_status train_session_run(train_session *s);
 /* One iteration (exposed for benchmarks and tests). */
 pg_status train_session_step(train_session *s);
 /* Mean PSNR over every frame of every view with the role (only frames where ts has them). */
-pg_status train_session_evaluate(train_session *s, train_role role, double *psnr);
+pg_status train_session_evaluate(train_session *s, io_view_role role, double *psnr);
 /* The same, plus PSNR over the moving and the static pixels of those views (eval's definition:
  * colour off the pixel's temporal median by > 0.12, dilated 2 px; squared error pooled over
  * all frames; NaN for an empty part). */
 typedef struct {
     double psnr, psnr_moving, psnr_static, moving_fraction;
 } train_eval_scores;
-pg_status train_session_evaluate_parts(train_session *s, train_role role, train_eval_scores *out);
+pg_status train_session_evaluate_parts(train_session *s, io_view_role role, train_eval_scores *out);
 pg_status train_session_save(train_session *s, const char *path);
 int train_session_iteration(const train_session *s);
 int train_session_gaussians(const train_session *s);

@@ -36,7 +36,7 @@ int train_set_find(const train_set *ts, const char *name)
     return -1;
 }
 
-int train_set_count_role(const train_set *ts, train_role role)
+int train_set_count_role(const train_set *ts, io_view_role role)
 {
     int n = 0;
     for (int i = 0; i < ts->num_views; i++) n += ts->views[i].role == role;
@@ -50,7 +50,7 @@ void train_set_frame_rgb(const train_set *ts, int v, int f, pg_image *img)
     for (size_t i = 0; i < px * 3; i++) img->data[i] = src[i] * (1.0f / 255.0f);
 }
 
-pg_status train_set_add_view(train_set *ts, const char *name, train_role role, const pg_camera *cam,
+pg_status train_set_add_view(train_set *ts, const char *name, io_view_role role, const pg_camera *cam,
                              int with_mask, int with_depth, int *index)
 {
     if (ts->num_views >= TS_MAX_VIEWS) return pg_fail(PG_ERR_SIZE, "training set: more than %d views", TS_MAX_VIEWS);
@@ -83,13 +83,13 @@ pg_status train_set_add_view(train_set *ts, const char *name, train_role role, c
 
 void train_set_limit_proxies(train_set *ts, int n)
 {
-    int P = train_set_count_role(ts, TRAIN_ROLE_PROXY);
+    int P = train_set_count_role(ts, IO_ROLE_PROXY);
     if (n < 0 || n >= P) return;
     int k = 0, w = 0, next = 0;
     for (int i = 0; i < ts->num_views; i++) {
         train_view *v = &ts->views[i];
         int keep = 1;
-        if (v->role == TRAIN_ROLE_PROXY) {
+        if (v->role == IO_ROLE_PROXY) {
             /* keep proxy k when it is the next of the n evenly spaced picks */
             keep = next < n && k == (int)((long)next * P / n);
             if (keep) next++;
@@ -234,11 +234,8 @@ pg_status train_set_load(const char *dir, train_set *ts)
             st = pg_fail(PG_ERR_FORMAT, "%s: every camera needs \"name\", \"role\" and \"rgb\"", path);
             goto done;
         }
-        train_role role;
-        if (strcmp(role_s, "real") == 0) role = TRAIN_ROLE_REAL;
-        else if (strcmp(role_s, "proxy") == 0) role = TRAIN_ROLE_PROXY;
-        else if (strcmp(role_s, "test") == 0) role = TRAIN_ROLE_TEST;
-        else {
+        int role = io_view_role_parse(role_s);
+        if (role < 0) {
             st = pg_fail(PG_ERR_FORMAT, "%s: camera %s has unknown role \"%s\"", path, name, role_s);
             goto done;
         }
@@ -248,7 +245,7 @@ pg_status train_set_load(const char *dir, train_set *ts)
             goto done;
         }
         int vi;
-        if ((st = train_set_add_view(ts, name, role, &cam, mask != NULL, depth != NULL, &vi))) goto done;
+        if ((st = train_set_add_view(ts, name, (io_view_role)role, &cam, mask != NULL, depth != NULL, &vi))) goto done;
         if ((st = load_view_files(ts, vi, dir, rgb, mask, depth))) goto done;
     }
 done:
@@ -345,7 +342,7 @@ pg_status train_set_from_dynerf(const char *dir, const train_set_dynerf_options 
         if (zf > far_max) far_max = zf;
         int want_depth = is_real && depth_view < 0 && opt->depth_path;
         int vi;
-        if ((st = train_set_add_view(ts, io_dataset_camera_name(ds, c), is_test ? TRAIN_ROLE_TEST : TRAIN_ROLE_REAL,
+        if ((st = train_set_add_view(ts, io_dataset_camera_name(ds, c), is_test ? IO_ROLE_TEST : IO_ROLE_REAL,
                                      &cam, 0, want_depth, &vi)))
             goto done;
         if (want_depth) depth_view = vi;

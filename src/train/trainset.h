@@ -20,14 +20,14 @@
 #include "core/camera.h"
 #include "core/image.h"
 #include "core/status.h"
+#include "io/trainset.h"
 
 #define TRAIN_MASK_FULL 255 /* mask byte of a fully trusted pixel (mask PNG value 1) */
 
-typedef enum { TRAIN_ROLE_REAL = 0, TRAIN_ROLE_PROXY, TRAIN_ROLE_TEST } train_role;
 
 typedef struct {
     char name[64];
-    train_role role;
+    io_view_role role;
     pg_camera cam;
     uint8_t *rgb;   /* (F, H, W, 3) */
     uint8_t *mask;  /* (F, H, W) loss weight x TRAIN_MASK_FULL (0 = invalid), or NULL (all valid) */
@@ -69,7 +69,7 @@ void train_set_destroy(train_set *ts);
 /* Index of the view with this name, or -1. */
 int train_set_find(const train_set *ts, const char *name);
 /* Counts views of a role. */
-int train_set_count_role(const train_set *ts, train_role role);
+int train_set_count_role(const train_set *ts, io_view_role role);
 /* Frame f of view v as a float (H, W, 3) image (img must be created with the set's size). */
 void train_set_frame_rgb(const train_set *ts, int v, int f, pg_image *img);
 
@@ -77,7 +77,7 @@ void train_set_frame_rgb(const train_set *ts, int v, int f, pg_image *img);
 void train_set_limit_proxies(train_set *ts, int n);
 
 /* Appends an empty view with allocated rgb (and mask/depth if asked); returns its index. */
-pg_status train_set_add_view(train_set *ts, const char *name, train_role role, const pg_camera *cam,
+pg_status train_set_add_view(train_set *ts, const char *name, io_view_role role, const pg_camera *cam,
                              int with_mask, int with_depth, int *index);
 
 #endif

@@ -1,5 +1,5 @@
 /* trainset.c - writes the training-set directory layout and trainset.json (docs/FORMATS.md). */
-#include "proxy/trainset.h"
+#include "io/trainset.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -10,17 +10,24 @@
 #include "core/fileutil.h"
 #include "io/json.h"
 
-const char *proxy_role_name(proxy_role role)
+const char *io_view_role_name(io_view_role role)
 {
     switch (role) {
-    case PROXY_ROLE_REAL: return "real";
-    case PROXY_ROLE_PROXY: return "proxy";
-    case PROXY_ROLE_TEST: return "test";
+    case IO_ROLE_REAL: return "real";
+    case IO_ROLE_PROXY: return "proxy";
+    case IO_ROLE_TEST: return "test";
     }
     return "proxy";
 }
 
-pg_status proxy_frame_path(char *out, size_t size, const char *dir, const char *camera, const char *kind,
+int io_view_role_parse(const char *name)
+{
+    for (int r = IO_ROLE_REAL; r <= IO_ROLE_TEST; r++)
+        if (name && strcmp(name, io_view_role_name((io_view_role)r)) == 0) return r;
+    return -1;
+}
+
+pg_status io_trainset_frame_path(char *out, size_t size, const char *dir, const char *camera, const char *kind,
                            int frame)
 {
     int n = snprintf(out, size, "%s/%s/%s/%04d.png", dir, camera, kind, frame);
@@ -28,7 +35,7 @@ pg_status proxy_frame_path(char *out, size_t size, const char *dir, const char *
     return PG_OK;
 }
 
-pg_status proxy_trainset_make_dirs(const char *dir, const char *camera, int with_mask)
+pg_status io_trainset_make_dirs(const char *dir, const char *camera, int with_mask)
 {
     char path[4096];
     int n = snprintf(path, sizeof path, "%s/%s/rgb", dir, camera);
@@ -41,12 +48,12 @@ pg_status proxy_trainset_make_dirs(const char *dir, const char *camera, int with
     return PG_OK;
 }
 
-static cJSON *camera_json(const proxy_trainset_camera *c)
+static cJSON *camera_json(const io_trainset_camera *c)
 {
     char path[160];
     cJSON *o = io_json_from_camera(&c->cam, c->name);
     if (!o) return NULL;
-    cJSON_AddStringToObject(o, "role", proxy_role_name(c->role));
+    cJSON_AddStringToObject(o, "role", io_view_role_name(c->role));
     if (c->has_rgb) {
         snprintf(path, sizeof path, "%s/rgb", c->name);
         cJSON_AddStringToObject(o, "rgb", path);
@@ -68,8 +75,8 @@ static cJSON *camera_json(const proxy_trainset_camera *c)
     return o;
 }
 
-pg_status proxy_trainset_write_json(const char *dir, const proxy_trainset_info *info,
-                                    const proxy_trainset_camera *cams, int n)
+pg_status io_trainset_write_json(const char *dir, const io_trainset_info *info,
+                                    const io_trainset_camera *cams, int n)
 {
     char path[4096];
     PG_TRY(pg_path_join(path, sizeof path, dir, "trainset.json"));
