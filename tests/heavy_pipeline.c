@@ -38,7 +38,7 @@ int main(void)
         cJSON_Delete(m);
     }
     const char *outputs[] = { "report.md", "renders/fixed.mp4", "renders/fixed_compare.mp4", "renders/orbit.mp4",
-                              "renders/spiral_depth.mp4", "side_by_side/cam05_0000.png", "model/trainset.json" };
+                              "renders/spiral_depth.mp4", "side_by_side/cam05_0000.png", "model/cameras.json" };
     for (size_t i = 0; i < sizeof outputs / sizeof outputs[0]; i++) {
         snprintf(path, sizeof path, "%s/demo/%s", dir, outputs[i]);
         CHECK(pg_path_exists(path), "missing %s", path);
@@ -54,7 +54,7 @@ int main(void)
     rc = test_run_cli(args, err, sizeof err);
     snprintf(path, sizeof path, "%s/r/cam05.mp4", dir);
     CHECK(rc == 0 && pg_path_exists(path), "render dataset-cam exit %d: %s", rc, err);
-    snprintf(args, sizeof args, "export '%s/demo/model' --out '%s/ply' --frames 0,5", dir, dir);
+    snprintf(args, sizeof args, "export '%s/demo/model' --out '%s/ply' --frame-list 0,5", dir, dir);
     rc = test_run_cli(args, err, sizeof err);
     snprintf(path, sizeof path, "%s/ply/frame_0005.ply", dir);
     io_ply_info info;

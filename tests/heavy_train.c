@@ -30,7 +30,7 @@ static double run(const train_set *ts, int coarse, int iters, int static_check, 
     CHECK_OK(train_session_create(&s, ts, &c, NULL, 0));
     if (!s) return 0;
     CHECK_OK(train_session_run(s));
-    CHECK_OK(train_session_evaluate(s, TRAIN_ROLE_REAL, &psnr));
+    CHECK_OK(train_session_evaluate(s, IO_ROLE_REAL, &psnr));
     *n_static = train_session_static_count(s);
     *n_total = train_session_gaussians(s);
     train_session_destroy(s);

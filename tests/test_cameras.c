@@ -125,7 +125,7 @@ int main(void)
 
     /* "0" is a name: it means the camera at index 1, not index 0 */
     snprintf(a, sizeof a, "%s/zero", dir);
-    snprintf(args, sizeof args, "proxies '%s' --depth '%s' --out '%s' --train-cam 0 --test-cams 27 --steps 2", data,
+    snprintf(args, sizeof args, "proxies '%s' --depth '%s' --out '%s' --train-cam 0 --test-cams 27 --fit-steps 2", data,
              depth, a);
     CHECK(test_run_cli(args, err, sizeof err) == 0, "proxies --train-cam 0: %s", err);
     trainset_roles(a, roles, sizeof roles);

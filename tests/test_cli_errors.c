@@ -189,7 +189,9 @@ static void make_fixtures(void)
     snprintf(sub, sizeof sub, "%s/m_garb", dir);
     CHECK_OK(pg_mkdir_p(sub));
     write_bytes("m_garb/model.ckpt", NULL, 4000);
-    write_text("bad.json", "{\"version\": 1, \"cameras\": [");
+    snprintf(sub, sizeof sub, "%s/m_badcam", dir);
+    CHECK_OK(pg_mkdir_p(sub));
+    write_text("m_badcam/cameras.json", "{\"version\": 1, \"cameras\": [");
 
     /* a depth folder whose frames disagree in size */
     snprintf(sub, sizeof sub, "%s/dfold", dir);
@@ -271,8 +273,8 @@ int main(void)
     expect_error("proxies @/ds --depth @/missing.npy --out @/x", "missing.npy");
     expect_error("proxies @/ds --depth @/wrongshape.npy --out @/x", "wrongshape.npy");
     expect_error("proxies @/ds --depth @/nan.npy --out @/x", "nan.npy: no valid depth");
-    snprintf(a, sizeof a, "proxies @/ds %s --out @/x --num -5", dep);
-    expect_error(a, "--num");
+    snprintf(a, sizeof a, "proxies @/ds %s --out @/x --proxies -5", dep);
+    expect_error(a, "--proxies");
     snprintf(a, sizeof a, "proxies @/ds %s --out @/x --poses foo", dep);
     expect_error(a, "--poses");
     snprintf(a, sizeof a, "proxies @/ds %s --out @/x --threads -2", dep);
@@ -301,7 +303,7 @@ int main(void)
     expect_error("render @/m_garb", "--out");
     expect_error("render @/missing_model --out @/r", "missing_model");
     expect_error("render @/m_garb --out @/r", "m_garb");
-    expect_error("render @/m_garb --out @/r --cameras @/bad.json", "bad.json");
+    expect_error("render @/m_badcam --out @/r", "cameras.json");
     expect_error("render @/m_garb --out @/r --path foo", "foo");
     expect_error("render @/m_garb --out @/r --time 5", "--time");
     expect_error("render @/m_garb --out @/r --steps -1", "--steps");

@@ -51,7 +51,7 @@ int main(void)
     CHECK_OK(synth_write_dataset(data, &so));
 
     /* Dataset poses: cam00 real, cam05/06 test, the 5 others proxies; scale fitted on depth_gt = 1. */
-    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s' --steps 3", data, data, out);
+    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s' --fit-steps 3", data, data, out);
     int rc = test_run_cli(args, err, sizeof err);
     CHECK(rc == 0, "proxies failed (%d): %s", rc, err);
     snprintf(path, sizeof path, "%s/trainset.json", out);
@@ -73,8 +73,8 @@ int main(void)
 
     /* Hemisphere poses on the single camera's frame folder, with a given scale. */
     snprintf(args, sizeof args,
-             "proxies '%s/cam00/images' --depth '%s/depth_gt/cam00.npy' --out '%s' --poses hemisphere --num 3 "
-             "--max-angle 12 --steps 2 --block 2 --frames 1 --pose-scale 2",
+             "proxies '%s/cam00/images' --depth '%s/depth_gt/cam00.npy' --out '%s' --poses hemisphere --proxies 3 "
+             "--max-angle 12 --fit-steps 2 --fit-block 2 --frames 1 --pose-scale 2",
              data, data, out2);
     rc = test_run_cli(args, err, sizeof err);
     CHECK(rc == 0, "hemisphere proxies failed (%d): %s", rc, err);
@@ -93,14 +93,14 @@ int main(void)
     pg_array_destroy(&a);
 
     /* Dataset poses limited to the 2 cameras closest to the real one, real camera given by name. */
-    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s/two' --steps 1 --num 2 "
+    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s/two' --fit-steps 1 --proxies 2 "
              "--train-cam cam00 --pose-scale 1", data, data, dir);
     rc = test_run_cli(args, err, sizeof err);
-    CHECK(rc == 0, "--num 2 failed (%d): %s", rc, err);
+    CHECK(rc == 0, "--proxies 2 failed (%d): %s", rc, err);
     snprintf(path, sizeof path, "%s/two/trainset.json", dir);
     j = load_json(path);
     if (j) {
-        CHECK(count_role(j, "proxy") == 2 && count_role(j, "test") == 2, "--num 2: %d proxies", count_role(j, "proxy"));
+        CHECK(count_role(j, "proxy") == 2 && count_role(j, "test") == 2, "--proxies 2: %d proxies", count_role(j, "proxy"));
         cJSON_Delete(j);
     }
 

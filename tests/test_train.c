@@ -42,7 +42,7 @@ int main(void)
     train_set ts;
     CHECK_OK(train_set_load(data, &ts));
     CHECK(ts.num_views == 5 && ts.frames == 4 && ts.width == 64, "loaded %d views %d frames", ts.num_views, ts.frames);
-    CHECK(train_set_count_role(&ts, TRAIN_ROLE_PROXY) == 3, "proxies");
+    CHECK(train_set_count_role(&ts, IO_ROLE_PROXY) == 3, "proxies");
     CHECK(ts.views[1].mask && ts.views[1].mask[0] == 0 && ts.views[1].mask[63] == TRAIN_MASK_FULL, "proxy mask loaded");
     CHECK(ts.views[0].depth && ts.views[0].depth[64 * 24 + 32] > 3, "depth loaded");
 
@@ -50,7 +50,7 @@ int main(void)
         train_set t2;
         CHECK_OK(train_set_load(data, &t2));
         train_set_limit_proxies(&t2, 2);
-        CHECK(t2.num_views == 4 && train_set_count_role(&t2, TRAIN_ROLE_PROXY) == 2 &&
+        CHECK(t2.num_views == 4 && train_set_count_role(&t2, IO_ROLE_PROXY) == 2 &&
                   strcmp(t2.views[1].name, "proxy01") == 0 && strcmp(t2.views[2].name, "proxy02") == 0,
               "limit proxies: %d views", t2.num_views);
         train_set_destroy(&t2);
@@ -83,10 +83,10 @@ int main(void)
     double psnr0 = 0, psnr1 = 0, test_psnr = 0;
     CHECK_OK(train_session_create(&s, &ts, &cfg, a, 0));
     if (s) {
-        CHECK_OK(train_session_evaluate(s, TRAIN_ROLE_REAL, &psnr0));
+        CHECK_OK(train_session_evaluate(s, IO_ROLE_REAL, &psnr0));
         CHECK_OK(train_session_run(s));
-        CHECK_OK(train_session_evaluate(s, TRAIN_ROLE_REAL, &psnr1));
-        CHECK_OK(train_session_evaluate(s, TRAIN_ROLE_TEST, &test_psnr));
+        CHECK_OK(train_session_evaluate(s, IO_ROLE_REAL, &psnr1));
+        CHECK_OK(train_session_evaluate(s, IO_ROLE_TEST, &test_psnr));
         CHECK(psnr1 > psnr0 + 3, "training should help: real-view PSNR %.2f -> %.2f", psnr0, psnr1);
         fprintf(stderr, "toy: real PSNR %.2f -> %.2f, test %.2f, %d Gaussians\n", psnr0, psnr1, test_psnr,
                 train_session_gaussians(s));

@@ -130,6 +130,36 @@ int cli_parse_int_list(const char *text, int *out, int n)
     return count;
 }
 
+int cli_parse_size(const char *option, const char *text, int *w, int *h)
+{
+    if (!text) return 0;
+    long lw = -1, lh = -1;
+    char tail;
+    if (sscanf(text, "%ldx%ld%c", &lw, &lh, &tail) != 2 || lw < 0 || lh < 0 || (lw == 0 && lh == 0) ||
+        (lw != 0 && lw < 8) || (lh != 0 && lh < 8) || lw > CLI_MAX_SIDE || lh > CLI_MAX_SIDE)
+        return cli_usage_error("%s '%s' is not WxH or out of range (sides 8..%d, 0 for one side keeps the aspect)", option,
+                               text, CLI_MAX_SIDE);
+    *w = (int)lw;
+    *h = (int)lh;
+    return 0;
+}
+
+int cli_parse_count_or_all(const char *option, const char *text, int *n)
+{
+    if (!text) return 0;
+    if (strcmp(text, "all") == 0) {
+        *n = -1;
+        return 0;
+    }
+    char *end;
+    errno = 0;
+    long v = strtol(text, &end, 10);
+    if (errno || *end || end == text || v < 0 || v > 100000)
+        return cli_usage_error("%s expects a count or 'all', got '%s'", option, text);
+    *n = (int)v;
+    return 0;
+}
+
 typedef struct {
     int tty;
     double start;

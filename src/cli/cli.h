@@ -7,6 +7,7 @@
 #define PG_CLI_H
 
 #include "core/status.h"
+#include "prodygs.h"
 
 typedef enum { CLI_STR, CLI_INT, CLI_FLOAT, CLI_FLAG } cli_kind;
 
@@ -38,6 +39,11 @@ int cli_usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 void cli_install_progress(void);
 /* Parses "a,b,c" integers into out (max n); returns the count or -1 on a bad list. */
 int cli_parse_int_list(const char *text, int *out, int n);
+/* The option kinds every command shares, one parser each (0 ok, else 2 after a usage error):
+ * --size WxH (0 for one side keeps the aspect; NULL text leaves *w, *h alone), and counts that
+ * also take "all" (--proxies N|all: *n = -1 for all). */
+int cli_parse_size(const char *option, const char *text, int *w, int *h);
+int cli_parse_count_or_all(const char *option, const char *text, int *n);
 /* Largest image side the commands accept for a requested size (--width, --size). */
 #define CLI_MAX_SIDE 8192
 

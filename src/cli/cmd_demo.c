@@ -1,14 +1,11 @@
 /* cmd_demo.c - `prodygs demo [--out DIR]`: builds the sample scene, runs the whole pipeline with
  * the fast preset on its centre camera and simulated monocular depth, evaluates on two held-out
  * cameras and renders the novel-view videos. The README's first command. */
-#include "cli/cli.h"
-#include "cli/pipeline.h"
+#include "cli/pipeline_cli.h"
 #include "core/fileutil.h"
-#include "core/parallel.h"
 #include "synth/synth.h"
 
 #include <stdio.h>
-#include <stdlib.h>
 
 int cmd_demo(int argc, char **argv)
 {
@@ -24,14 +21,12 @@ int cmd_demo(int argc, char **argv)
                             "Renders the built-in sample scene (10 cameras, moving objects), then runs the\n"
                             "pipeline on cam00 with its simulated monocular depth (fast preset), scores the\n"
                             "held-out cameras cam05/cam06 and renders novel-view videos. Results:\n"
-                            "DIR/report.md, DIR/metrics.json, DIR/renders/*.mp4.",
+                            "DIR/report.md, DIR/metrics.json, DIR/renders/*.mp4.\n\n"
+                            "example: prodygs demo --out demo-out",
                             options, (int)(sizeof options / sizeof options[0]), 0, 0 };
     int rc = cli_parse(&spec, argc, argv, NULL, NULL);
     if (rc) return rc < 0 ? 0 : rc;
     if (frames < 0 || frames > 1000) return cli_usage_error("demo: --frames %d is out of range", frames);
-    if (iters < 0) return cli_usage_error("demo: --iters must be >= 1 (got %d)", iters);
-    if (threads < 0 || threads > 256) return cli_usage_error("demo: --threads must be in 1..256 (got %d)", threads);
-    if (threads > 0) pg_set_threads(threads);
 
     char scene_dir[4096], depth[4200], marker[4200];
     snprintf(scene_dir, sizeof scene_dir, "%s/scene", out);
@@ -47,22 +42,18 @@ int cmd_demo(int argc, char **argv)
     }
     if (st) return cli_fail(st);
 
-    pipeline_options o;
-    const char *proxies_text;
-    cli_option unused[40];
-    pipeline_cli_options(&o, &proxies_text, unused, 40);
-    o.input = scene_dir;
-    o.depth = depth;
-    o.out = out;
-    o.preset = "fast";
-    o.test_cams = "5,6";
-    o.iters = iters;
-    if ((rc = pipeline_apply_preset(&o))) return rc;
-    cJSON *seconds = cJSON_CreateObject();
-    rc = pipeline_run_stages(&o, seconds);
-    if (rc == 0) rc = pipeline_evaluate(&o, seconds);
-    if (rc == 0) rc = pipeline_render_videos(&o, seconds);
+    pg_pipeline_config c;
+    pg_pipeline_defaults(&c);
+    c.input = scene_dir;
+    c.depth = depth;
+    c.out = out;
+    c.test_cameras = "cam05,cam06";
+    c.iters = iters;
+    c.threads = threads;
+    c.evaluate = 1;
+    c.render_videos = 1;
+    c.command = "prodygs demo";
+    rc = pipeline_cli_run(&c);
     if (rc == 0) fprintf(stderr, "prodygs: demo done: see %s/report.md and %s/renders/\n", out, out);
-    cJSON_Delete(seconds);
     return rc;
 }

@@ -26,7 +26,7 @@ static const command commands[] = {
 
 static void usage(FILE *out)
 {
-    fprintf(out, "usage: prodygs COMMAND [options]   (prodygs COMMAND --help for details)\n\ncommands:\n");
+    fprintf(out, "usage: prodygs COMMAND [options]   (prodygs COMMAND --help for details; prodygs --version)\n\ncommands:\n");
     for (size_t i = 0; i < sizeof commands / sizeof commands[0]; i++)
         fprintf(out, "  %-8s %s\n", commands[i].name, commands[i].summary);
 }
@@ -46,6 +46,10 @@ int main(int argc, char **argv)
     }
     if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0 || strcmp(argv[1], "help") == 0) {
         usage(stdout);
+        return 0;
+    }
+    if (strcmp(argv[1], "--version") == 0 || strcmp(argv[1], "version") == 0) {
+        printf("prodygs %s\n", PRODYGS_VERSION);
         return 0;
     }
     cli_install_progress();

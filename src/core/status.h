@@ -14,23 +14,12 @@
 
 #include <stddef.h>
 
-typedef enum {
-    PG_OK = 0,
-    PG_ERR_ARG,         /* bad argument or option value (user error) */
-    PG_ERR_IO,          /* file missing, unreadable or unwritable */
-    PG_ERR_FORMAT,      /* file content corrupt, truncated or unsupported */
-    PG_ERR_SIZE,        /* dimensions disagree or exceed limits */
-    PG_ERR_NOMEM,       /* allocation failed */
-    PG_ERR_INTERNAL,    /* a bug or an unexpected library failure */
-    PG_STATUS_COUNT
-} pg_status;
+#include "prodygs.h" /* pg_status, pg_last_error: part of the public API */
 
 /* Records the message and returns code, so callers can `return pg_fail(...)`. */
 pg_status pg_fail(pg_status code, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 /* Prefixes the current message with more context ("frame 3: " + old message). */
 pg_status pg_fail_context(pg_status code, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
-const char *pg_last_error(void);
-const char *pg_status_name(pg_status code);
 /* Process exit code for a status: 0 ok, 2 user/input error, 1 internal failure. */
 int pg_status_exit_code(pg_status code);
 

@@ -122,7 +122,7 @@ pg_status eval_protocol_run(const char *dataset, const char *model, const char *
     c.frames = c.rm ? render_model_frames(c.rm) : 0;
     int tests = 0;
     for (int k = 0; st == PG_OK && k < sc->count; k++) tests += sc->roles[k] == IO_ROLE_TEST;
-    if (st == PG_OK && tests == 0) st = pg_fail(PG_ERR_ARG, "%s: the model's trainset.json lists no test cameras", model);
+    if (st == PG_OK && tests == 0) st = pg_fail(PG_ERR_ARG, "%s: the model's cameras.json lists no test cameras", model);
     if (st == PG_OK) {
         io_dataset_options opt = io_dataset_defaults();
         opt.width = real->width;

@@ -67,7 +67,7 @@ static int list_cameras(const eval_results *r, const char **names, int max)
     return n;
 }
 
-pg_status eval_write_metrics_json(const char *path, const eval_results *r, const cJSON *config, const cJSON *seconds)
+pg_status eval_write_metrics_json(const char *path, const eval_results *r, const cJSON *config, const cJSON *stages)
 {
     eval_scores mean, train;
     int ntest = eval_results_mean(r, NULL, EVAL_ROLE_TEST, &mean);
@@ -101,7 +101,12 @@ pg_status eval_write_metrics_json(const char *path, const eval_results *r, const
         cJSON_AddItemToArray(frames, f);
     }
     cJSON_AddItemToObject(root, "config", config ? cJSON_Duplicate(config, 1) : cJSON_CreateObject());
-    cJSON_AddItemToObject(root, "seconds", seconds ? cJSON_Duplicate(seconds, 1) : cJSON_CreateObject());
+    cJSON *seconds = cJSON_AddObjectToObject(root, "seconds");
+    const cJSON *it;
+    if (stages) {
+        cJSON_ArrayForEach(it, stages) cJSON_AddNumberToObject(seconds, it->string, io_json_number_or(it, "seconds", 0));
+        cJSON_AddItemToObject(root, "stages", cJSON_Duplicate(stages, 1));
+    }
     pg_status st = io_json_write_atomic(path, root);
     cJSON_Delete(root);
     return st;
@@ -125,7 +130,7 @@ cJSON *eval_summary_json(const eval_results *r)
     return o;
 }
 
-pg_status eval_write_report_md(const char *path, const eval_results *r, const cJSON *config, const cJSON *seconds)
+pg_status eval_write_report_md(const char *path, const eval_results *r, const cJSON *config, const cJSON *stages)
 {
     size_t cap = 1 << 16, len = 0;
     char *buf = pg_malloc(cap, "report");
@@ -177,10 +182,12 @@ pg_status eval_write_report_md(const char *path, const eval_results *r, const cJ
     EMIT("\n");
     EMIT("LPIPS: not reported. It needs the AlexNet or VGG backbone weights, which are not available on this\n"
          "machine (only the LPIPS linear heads are); `metrics.json` has `\"lpips\": null`.\n\n");
-    if (seconds && cJSON_GetArraySize(seconds) > 0) {
-        EMIT("## Wall time per stage\n\n| stage | seconds |\n|---|---|\n");
+    if (stages && cJSON_GetArraySize(stages) > 0) {
+        EMIT("## Stages\n\n| stage | seconds | threads | |\n|---|---|---|---|\n");
         const cJSON *it;
-        cJSON_ArrayForEach(it, seconds) if (cJSON_IsNumber(it)) EMIT("| %s | %.1f |\n", it->string, it->valuedouble);
+        cJSON_ArrayForEach(it, stages)
+            EMIT("| %s | %.1f | %d | %s |\n", it->string, io_json_number_or(it, "seconds", 0),
+                 (int)io_json_number_or(it, "threads", 0), cJSON_IsTrue(cJSON_GetObjectItem(it, "ran")) ? "ran" : "already done");
         EMIT("\n");
     }
     if (config) {

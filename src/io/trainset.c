@@ -75,11 +75,16 @@ static cJSON *camera_json(const io_trainset_camera *c)
     return o;
 }
 
-pg_status io_trainset_write_json(const char *dir, const io_trainset_info *info,
-                                    const io_trainset_camera *cams, int n)
+pg_status io_trainset_write_json(const char *dir, const io_trainset_info *info, const io_trainset_camera *cams, int n)
+{
+    return io_trainset_write_json_named(dir, "trainset.json", info, cams, n);
+}
+
+pg_status io_trainset_write_json_named(const char *dir, const char *file, const io_trainset_info *info,
+                                       const io_trainset_camera *cams, int n)
 {
     char path[4096];
-    PG_TRY(pg_path_join(path, sizeof path, dir, "trainset.json"));
+    PG_TRY(pg_path_join(path, sizeof path, dir, file));
     cJSON *root = cJSON_CreateObject();
     if (!root) return pg_fail(PG_ERR_NOMEM, "%s: out of memory building JSON", path);
     cJSON_AddNumberToObject(root, "version", 1);

@@ -45,7 +45,9 @@ pg_status io_trainset_frame_path(char *out, size_t size, const char *dir, const 
 pg_status io_trainset_make_dirs(const char *dir, const char *camera, int with_mask);
 
 /* Writes DIR/trainset.json atomically. */
-pg_status io_trainset_write_json(const char *dir, const io_trainset_info *info,
-                                    const io_trainset_camera *cams, int n);
+pg_status io_trainset_write_json(const char *dir, const io_trainset_info *info, const io_trainset_camera *cams, int n);
+/* The same layout under another name (a model's cameras.json: cameras without image paths). */
+pg_status io_trainset_write_json_named(const char *dir, const char *file, const io_trainset_info *info,
+                                       const io_trainset_camera *cams, int n);
 
 #endif

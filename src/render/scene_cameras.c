@@ -1,4 +1,4 @@
-/* scene_cameras.c - reads cameras and the scene centre from trainset.json. */
+/* scene_cameras.c - reads cameras and the scene centre from a trainset.json-layout file. */
 #include "render/scene_cameras.h"
 #include "core/fileutil.h"
 #include "core/mathx.h"
@@ -72,11 +72,13 @@ pg_status scene_cameras_for_model(const char *model, const char *explicit_path, 
         if (slash) *slash = '\0';
         else snprintf(dir, sizeof dir, ".");
     }
-    PG_TRY(pg_path_join(path, sizeof path, dir, "trainset.json"));
-    if (pg_path_exists(path)) return scene_cameras_load(path, sc);
-    PG_TRY(pg_path_join(path, sizeof path, dir, "../proxies/trainset.json"));
-    if (pg_path_exists(path)) return scene_cameras_load(path, sc);
-    return pg_fail(PG_ERR_IO, "%s: no trainset.json next to the model (give --cameras PATH)", model);
+    /* cameras.json is what training writes; trainset.json beside older models */
+    static const char *names[] = { "cameras.json", "trainset.json" };
+    for (int k = 0; k < 2; k++) {
+        PG_TRY(pg_path_join(path, sizeof path, dir, names[k]));
+        if (pg_path_exists(path)) return scene_cameras_load(path, sc);
+    }
+    return pg_fail(PG_ERR_IO, "%s: no cameras.json next to the model (retrain, or give --cameras PATH)", model);
 }
 
 int scene_cameras_find(const scene_cameras *sc, const char *name)

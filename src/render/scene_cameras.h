@@ -26,7 +26,7 @@ typedef struct {
 
 /* Loads path (a trainset.json file or a directory holding one). */
 pg_status scene_cameras_load(const char *path, scene_cameras *sc);
-/* Finds trainset.json for a model: explicit (may be NULL), MODEL/trainset.json, MODEL/../proxies/. */
+/* Finds a model's cameras: explicit (may be NULL), MODEL/cameras.json, MODEL/trainset.json. */
 pg_status scene_cameras_for_model(const char *model, const char *explicit_path, scene_cameras *sc);
 int scene_cameras_find(const scene_cameras *sc, const char *name);
 

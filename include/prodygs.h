@@ -1,0 +1,220 @@
+/* prodygs.h - the public C API: the ProDyGS pipeline's stages as library calls.
+ *
+ * Each stage takes a typed config (start from its _defaults function; strings are borrowed and
+ * NULL means "the default"), validates it, does its work and fills a report. On failure it
+ * returns a pg_status and pg_last_error() holds one line naming the file or value at fault.
+ *
+ *   pg_prepare_config pc;  pg_prepare_defaults(&pc);
+ *   pc.input = "clip.mp4"; pc.depth = "depth.npy"; pc.out = "out/prepare";
+ *   pg_prepare_report pr;
+ *   if (pg_prepare_run(&pc, &pr) != PG_OK) fprintf(stderr, "%s\n", pg_last_error());
+ *
+ * prepare -> proxies -> train -> evaluate / render / export, or all of them with resumable
+ * stage markers through pg_pipeline_run (what `prodygs run` and `prodygs eval` call).
+ * docs/example_pipeline.c runs the whole pipeline in-process.
+ *
+ * Cameras (train_camera, test_cameras, real_cameras, camera): a token equal to a camera name
+ * means that camera; otherwise a plain integer is an index; anything else is an error that
+ * lists the names. Reports give cameras as "name (index i)".
+ */
+#ifndef PRODYGS_H
+#define PRODYGS_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define PRODYGS_VERSION "0.4.0"
+
+typedef enum {
+    PG_OK = 0,
+    PG_ERR_ARG,      /* bad argument or option value (user error) */
+    PG_ERR_IO,       /* file missing, unreadable or unwritable */
+    PG_ERR_FORMAT,   /* file content corrupt, truncated or unsupported */
+    PG_ERR_SIZE,     /* dimensions disagree or exceed limits */
+    PG_ERR_NOMEM,    /* allocation failed */
+    PG_ERR_INTERNAL, /* a bug or an unexpected library failure */
+    PG_STATUS_COUNT
+} pg_status;
+
+/* The message of the last failure on this thread. */
+const char *pg_last_error(void);
+const char *pg_status_name(pg_status code);
+
+#define PG_CAMERA_LABEL 160  /* "name (index i)" */
+#define PG_CAMERA_LABELS 2048 /* a comma-separated list of labels */
+
+/* ---- prepare: refine and temporally align per-frame depth (paper 3.1) ---- */
+typedef struct {
+    const char *input;        /* video, frame folder or dataset (required) */
+    const char *depth;        /* per-frame depth: (F,H,W) .npy or a folder (required) */
+    const char *out;          /* output directory (required) */
+    const char *train_camera; /* dataset camera (NULL: the first) */
+    const char *depth_kind;   /* "depth" (default) or "disparity" */
+    float depth_scale;        /* multiply raw depth by this (1) */
+    const char *refine;       /* "edge-snap" (default), "bilateral" or "none" */
+    int align;                /* per-frame scale/shift alignment (1) */
+    int frames;               /* first N frames (0: all) */
+    int width, height;        /* resize (0, 0: keep; one side 0 keeps the aspect) */
+    int threads;              /* worker threads (0: all cores) */
+    int keep_flow_vis;        /* keep flow fields for vis/flow_*.png (1; off above 1 GiB) */
+} pg_prepare_config;
+
+typedef struct {
+    char train_camera[PG_CAMERA_LABEL];
+    int frames, width, height, reference, fallback_frames, threads;
+    double residual_before, residual_after, seconds;
+} pg_prepare_report;
+
+void pg_prepare_defaults(pg_prepare_config *c);
+pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r);
+
+/* ---- proxies: virtual views rendered from per-frame RGB-D Gaussians (paper 3.2) ---- */
+typedef struct {
+    const char *input, *depth, *out; /* depth: prepare's depth_aligned.npy (required) */
+    const char *train_camera;        /* NULL: the first */
+    const char *test_cameras;        /* held out, never used (NULL: cam05,cam06 on a >= 7-camera dataset) */
+    const char *poses;               /* "hemisphere" or "dataset" (NULL: dataset for a multi-camera input) */
+    int proxies;                     /* proxy cameras (-1: 18 on the hemisphere, every other camera for dataset) */
+    float max_angle;                 /* hemisphere cap angle in degrees (20) */
+    float fov;                       /* single video: horizontal field of view in degrees (60) */
+    float pad;                       /* outpainted margin, fraction of the larger side (< 0: default 0.3) */
+    float pose_scale;                /* pose units per depth unit (0: fitted on a dataset, 1 otherwise) */
+    int fit_steps, fit_block;        /* per-frame Gaussian fit: Adam steps (100), pixel block (1) */
+    int frames, width, height, threads, force; /* force: recompute cached frames */
+} pg_proxies_config;
+
+typedef struct {
+    char train_camera[PG_CAMERA_LABEL], test_cameras[PG_CAMERA_LABELS], poses[16];
+    int frames, computed, reused, proxies, threads, pose_scale_fitted;
+    double pose_scale, pose_scale_cost, mean_valid_fraction, mean_source_psnr, seconds;
+} pg_proxies_report;
+
+void pg_proxies_defaults(pg_proxies_config *c);
+pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r);
+
+/* ---- train: canonical Gaussians + HexPlane deformation (paper 3.3) ---- */
+typedef struct {
+    const char *input;      /* training set (proxies' output) or a DyNeRF dataset (required) */
+    const char *out;        /* model directory (required) */
+    int iters;              /* total iterations, coarse included (3000) */
+    int coarse_iters;       /* static iterations first (-1: iters / 6) */
+    int resume;             /* continue from OUT/model.ckpt when it exists */
+    int threads;            /* 0: all cores */
+    int seed;               /* (1) */
+    int max_gaussians, init_points, checkpoint_every, sh_degree;
+    int proxies;            /* training set: use N of the proxy views, evenly spaced (-1: all) */
+    const char *real_cameras, *test_cameras, *depth; /* DyNeRF input only */
+    int frames, width;      /* DyNeRF input: first N frames, resize to this width (0: all / keep) */
+    int views_per_step;     /* real view + proxies of one time per deformation (4) */
+    float real_weight, moving_weight, lambda_depth, lambda_dssim; /* < 0: defaults */
+    int deform_res, deform_width, static_check_every; /* 0: defaults / off */
+    int use_static, use_cull; /* static Gaussians skip the network; frustum culling (1, 1) */
+    int eval_train;         /* also score the real views, moving and static pixels apart */
+    int stop_at_iter;       /* tests: stop after this iteration as if killed (0: off) */
+} pg_train_config;
+
+typedef struct {
+    int iterations, gaussians, static_gaussians, threads, seed, finished;
+    double test_psnr;       /* NaN without test cameras */
+    double train_psnr, train_psnr_moving, train_psnr_static; /* NaN unless eval_train (or empty) */
+    double seconds;
+} pg_train_report;
+
+void pg_train_defaults(pg_train_config *c);
+pg_status pg_train_run(const pg_train_config *c, pg_train_report *r);
+
+/* ---- evaluate: the DyNeRF protocol on held-out cameras ---- */
+typedef struct {
+    const char *dataset, *model, *out; /* writes OUT/metrics.json, OUT/report.md, OUT/side_by_side */
+    const char *config_json;           /* optional JSON object recorded as "config" */
+    const char *stages_json;           /* optional JSON object of per-stage {seconds, threads} */
+    int threads;
+} pg_evaluate_config;
+
+typedef struct {
+    int frames;                 /* scored test frames */
+    double psnr, ssim;          /* test cameras (NaN without) */
+    double psnr_moving;         /* test cameras' moving pixels */
+    double train_psnr_moving, train_psnr_static; /* the training camera */
+    double seconds;
+} pg_evaluate_report;
+
+void pg_evaluate_defaults(pg_evaluate_config *c);
+pg_status pg_evaluate_run(const pg_evaluate_config *c, pg_evaluate_report *r);
+
+/* ---- render: videos of a trained model along a camera path ---- */
+typedef struct {
+    const char *model, *out;
+    const char *path;       /* "fixed" (default), "orbit", "spiral" or "dataset-cam" */
+    const char *camera;     /* dataset-cam: the camera (name or index) */
+    const char *name;       /* output file stem (NULL: the path's name or the camera's) */
+    const char *reference_frames; /* fixed path: folder of NNNN.png shown beside it (NULL: none) */
+    int steps;              /* path frames (0: the video's frame count) */
+    float angle, yaw, pitch, time, fps; /* fps 0: the input's */
+    int write_depth, write_frames, threads;
+} pg_render_config;
+
+typedef struct {
+    int frames, fallback_png;
+    double seconds;
+} pg_render_report;
+
+void pg_render_defaults(pg_render_config *c);
+pg_status pg_render_run(const pg_render_config *c, pg_render_report *r);
+
+/* ---- export: deformed Gaussians as standard 3DGS PLY ---- */
+typedef struct {
+    const char *model, *out;
+    const float *times; int num_times;   /* times in [0, 1] */
+    const int *frames; int num_frames;   /* frames of the training video */
+    int all_frames;                      /* one PLY per frame (with none of the above: time 0) */
+} pg_export_config;
+
+typedef struct {
+    int files, gaussians; /* gaussians: of the last file */
+} pg_export_report;
+
+void pg_export_defaults(pg_export_config *c);
+pg_status pg_export_run(const pg_export_config *c, pg_export_report *r);
+
+/* ---- pipeline: prepare -> proxies -> train (-> evaluate, -> render) with stage markers ----
+ * Each finished stage writes OUT/<stage>.done holding its config and the content hashes of its
+ * inputs; a rerun skips a stage only when both match, else reruns it and every later stage and
+ * says why on stderr. Training resumes from its last checkpoint. */
+typedef struct {
+    const char *input, *depth, *out;  /* required */
+    const char *preset;               /* "fast" (default) or "quality" */
+    const char *train_camera, *test_cameras;
+    const char *poses;                /* NULL: dataset with test cameras, else hemisphere */
+    int proxies;                      /* -1: the preset's */
+    float max_angle, fov, pad, pose_scale; /* 0 (pad < 0): defaults */
+    const char *depth_kind;
+    float depth_scale;                /* 0: 1 */
+    int refine, align;                /* (1, 1) */
+    int frames, width, height, iters; /* 0: all / the preset's */
+    int threads;                      /* 0: all cores; every stage uses this count */
+    int seed;                         /* (1) */
+    int evaluate;                     /* score the test cameras into OUT/metrics.json, report.md */
+    int render_videos;                /* fixed/orbit/spiral videos into OUT/renders */
+    const char *command;              /* recorded in report.md and metrics.json (may be NULL) */
+} pg_pipeline_config;
+
+typedef struct {
+    char train_camera[PG_CAMERA_LABEL], test_cameras[PG_CAMERA_LABELS];
+    int width, height, iters, proxies, threads;
+    int ran[5];                       /* prepare, proxies, train, evaluate, render: 1 ran, 0 skipped/off */
+    double seconds[5];
+    pg_train_report train;
+    pg_evaluate_report evaluation;
+    double seconds_total;
+    long peak_rss_kb;
+} pg_pipeline_report;
+
+void pg_pipeline_defaults(pg_pipeline_config *c);
+pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,91 @@
+/* pipeline_cli.c - options and output shared by `run`, `eval` and `demo` (see pipeline_cli.h). */
+#include "cli/pipeline_cli.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option *opts, int max)
+{
+    pg_pipeline_defaults(c);
+    memset(t, 0, sizeof *t);
+    const cli_option shared[] = {
+        { "--depth", CLI_STR, &c->depth, "per-frame depth of the training camera: .npy (F,H,W) or a folder (required)" },
+        { "--out", CLI_STR, &c->out, "output directory (required)" },
+        { "--preset", CLI_STR, &c->preset, "fast (default) or quality" },
+        { "--train-cam", CLI_STR, &c->train_camera, "dataset camera that is the real view: name or index (default: the first)" },
+        { "--test-cams", CLI_STR, &c->test_cameras, "held-out dataset cameras: names or indices, e.g. cam05,cam06" },
+        { "--proxies", CLI_STR, &t->proxies, "proxy cameras: a count or all (default: the preset's; all with --test-cams)" },
+        { "--poses", CLI_STR, &c->poses, "proxy poses: hemisphere or dataset (default: dataset with --test-cams)" },
+        { "--max-angle", CLI_FLOAT, &c->max_angle, "hemisphere cap angle in degrees (default 20)" },
+        { "--fov", CLI_FLOAT, &c->fov, "single video: horizontal field of view in degrees (default 60)" },
+        { "--pad", CLI_FLOAT, &c->pad, "proxies: outpainted margin, fraction of the larger side (0.3; 0 = none)" },
+        { "--no-refine", CLI_FLAG, &t->no_refine, "skip edge-aware depth refinement (ablation)" },
+        { "--no-align", CLI_FLAG, &t->no_align, "skip temporal scale/shift alignment (ablation)" },
+        { "--depth-kind", CLI_STR, &c->depth_kind, "depth (default) or disparity" },
+        { "--depth-scale", CLI_FLOAT, &c->depth_scale, "multiply raw depth by S" },
+        { "--frames", CLI_INT, &c->frames, "use only the first N frames (default: all)" },
+        { "--size", CLI_STR, &t->size, "resize to WxH (default: the preset's longest side)" },
+        { "--iters", CLI_INT, &c->iters, "training iterations (default: the preset's)" },
+        { "--pose-scale", CLI_FLOAT, &c->pose_scale, "depth-to-pose scale instead of fitting it (dataset poses)" },
+        { "--threads", CLI_INT, &c->threads, "worker threads for every stage (default: all cores)" },
+        { "--seed", CLI_INT, &c->seed, "random seed (default 1)" },
+    };
+    int n = (int)(sizeof shared / sizeof shared[0]);
+    if (n > max) n = max;
+    memcpy(opts, shared, (size_t)n * sizeof *opts);
+    return n;
+}
+
+int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pg_pipeline_config *c, pipeline_cli_text *t)
+{
+    int rc = cli_parse(spec, argc, argv, &c->input, NULL);
+    if (rc) return rc;
+    const char *verb = strchr(spec->command, ' ') ? strchr(spec->command, ' ') + 1 : spec->command;
+    if (!c->depth || !c->out) return cli_usage_error("%s: --depth and --out are required", verb);
+    if ((rc = cli_parse_size("--size", t->size, &c->width, &c->height))) return rc;
+    if ((rc = cli_parse_count_or_all("--proxies", t->proxies, &c->proxies))) return rc;
+    c->refine = !t->no_refine;
+    c->align = !t->no_align;
+    size_t len = (size_t)snprintf(t->command, sizeof t->command, "prodygs");
+    for (int i = 0; i < argc && len < sizeof t->command; i++)
+        len += (size_t)snprintf(t->command + len, sizeof t->command - len, " %s", argv[i]);
+    c->command = t->command;
+    return 0;
+}
+
+static void add_score(char *buf, size_t size, const char *name, double v)
+{
+    size_t n = strlen(buf);
+    if (isfinite(v)) snprintf(buf + n, size - n, ", \"%s\": %.3f", name, v);
+    else snprintf(buf + n, size - n, ", \"%s\": null", name);
+}
+
+int pipeline_cli_run(const pg_pipeline_config *c)
+{
+    pg_pipeline_report r;
+    pg_status st = pg_pipeline_run(c, &r);
+    if (st) {
+        if (pg_status_exit_code(st) != 2)
+            fprintf(stderr, "prodygs: %s\nprodygs: rerun the same command to continue from the last finished stage\n",
+                    pg_last_error());
+        else
+            fprintf(stderr, "prodygs: %s\n", pg_last_error());
+        return pg_status_exit_code(st);
+    }
+    char line[2048];
+    snprintf(line, sizeof line, "{\"out\": \"%s\", \"train_camera\": \"%s\", \"threads\": %d, \"seconds\": %.1f", c->out,
+             r.train_camera, r.threads, r.seconds_total);
+    if (c->evaluate) {
+        add_score(line, sizeof line, "psnr", r.evaluation.psnr);
+        add_score(line, sizeof line, "ssim", r.evaluation.ssim);
+        add_score(line, sizeof line, "psnr_moving", r.evaluation.psnr_moving);
+        add_score(line, sizeof line, "train_psnr_moving", r.evaluation.train_psnr_moving);
+        add_score(line, sizeof line, "train_psnr_static", r.evaluation.train_psnr_static);
+        size_t n = strlen(line);
+        snprintf(line + n, sizeof line - n, ", \"frames\": %d, \"metrics\": \"%s/metrics.json\"", r.evaluation.frames, c->out);
+    }
+    printf("%s, \"peak_rss_mib\": %.1f}\n", line, r.peak_rss_kb / 1024.0);
+    fflush(stdout);
+    return 0;
+}

@@ -1,0 +1,23 @@
+/* pipeline_cli.h - the options `run`, `eval` and `demo` share, bound to a pg_pipeline_config,
+ * and the summary line they print after pg_pipeline_run. */
+#ifndef PG_PIPELINE_CLI_H
+#define PG_PIPELINE_CLI_H
+
+#include "cli/cli.h"
+
+typedef struct {
+    const char *size, *proxies; /* parsed by cli_parse_size / cli_parse_count_or_all */
+    int no_refine, no_align;
+    char command[4096];         /* the command line, recorded in report.md */
+} pipeline_cli_text;
+
+/* Sets c to the defaults and writes the shared options (bound to c and t) into opts; returns
+ * how many (at most max). */
+int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option *opts, int max);
+/* Parses argv with spec (one positional: INPUT) and finishes c. Returns 0, -1 after --help, or
+ * an exit code. */
+int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pg_pipeline_config *c, pipeline_cli_text *t);
+/* Runs the pipeline and prints its one-line JSON summary on stdout; returns the exit code. */
+int pipeline_cli_run(const pg_pipeline_config *c);
+
+#endif

@@ -1,0 +1,425 @@
+/* pipeline.c - prepare -> proxies -> train (-> evaluate, -> render) as typed stage calls with
+ * markers (marker.h): a stage reruns when its settings or the content of its inputs changed,
+ * and then so does every stage after it. */
+#include "stage/stage_internal.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+
+#include "core/fileutil.h"
+#include "core/parallel.h"
+#include "core/status.h"
+#include "io/dataset.h"
+#include "stage/marker.h"
+
+enum { ST_PREPARE, ST_PROXIES, ST_TRAIN, ST_EVALUATE, ST_RENDER, ST_COUNT };
+static const char *stage_names[ST_COUNT] = { "prepare", "proxies", "train", "evaluate", "render" };
+
+typedef struct {
+    const char *name;
+    int iters;
+    int proxies;  /* hemisphere proxy cameras (-1: all dataset cameras) */
+    int max_side; /* shrink larger inputs so the longer side is at most this */
+} preset;
+
+/* fast: minutes on 2 cores for a short clip at up to 320 px; quality: 5x the iterations at up to 640 px. */
+static const preset presets[] = {
+    { "fast", 1500, 8, 320 },
+    { "quality", 8000, -1, 640 },
+};
+
+void pg_pipeline_defaults(pg_pipeline_config *c)
+{
+    memset(c, 0, sizeof *c);
+    c->preset = "fast";
+    c->proxies = -1;
+    c->pad = -1;
+    c->refine = c->align = 1;
+    c->seed = 1;
+}
+
+/* What a pipeline run settles before its first stage: the cameras by name, the size and the
+ * preset's numbers, so every stage gets the same values. */
+typedef struct {
+    char train_camera[128], test_cameras[1024];
+    int width, height, iters, proxies, threads;
+    const char *poses;
+} pipeline_plan;
+
+static pg_status check_config(const pg_pipeline_config *c, const preset **p)
+{
+    if (!c->input || !c->depth || !c->out) return pg_fail(PG_ERR_ARG, "input, depth and out are required");
+    if (c->iters < 0) return pg_fail(PG_ERR_ARG, "--iters must be >= 1 (got %d)", c->iters);
+    if (c->frames < 0) return pg_fail(PG_ERR_ARG, "--frames must be >= 1 (got %d)", c->frames);
+    PG_TRY(stage_check_threads("pipeline", c->threads));
+    if (c->seed < 0) return pg_fail(PG_ERR_ARG, "--seed must be >= 0 (got %d)", c->seed);
+    if (c->depth_scale < 0) return pg_fail(PG_ERR_ARG, "--depth-scale must be > 0 (got %g)", c->depth_scale);
+    if (c->pose_scale < 0) return pg_fail(PG_ERR_ARG, "--pose-scale must be > 0 (got %g)", c->pose_scale);
+    if (c->max_angle < 0 || c->max_angle >= 90)
+        return pg_fail(PG_ERR_ARG, "--max-angle must be in (0, 90) degrees (got %g)", c->max_angle);
+    if (c->fov < 0 || c->fov >= 180) return pg_fail(PG_ERR_ARG, "--fov must be in (0, 180) degrees (got %g)", c->fov);
+    if (c->pad > 1 || (c->pad < 0 && c->pad != -1)) return pg_fail(PG_ERR_ARG, "--pad must be in [0, 1] (got %g)", c->pad);
+    if (c->proxies < -1 || c->proxies > 256) return pg_fail(PG_ERR_ARG, "--proxies must be in 0..256 or all (got %d)", c->proxies);
+    if (c->poses && strcmp(c->poses, "hemisphere") != 0 && strcmp(c->poses, "dataset") != 0)
+        return pg_fail(PG_ERR_ARG, "--poses must be hemisphere or dataset (got '%s')", c->poses);
+    if (c->depth_kind && strcmp(c->depth_kind, "depth") != 0 && strcmp(c->depth_kind, "disparity") != 0)
+        return pg_fail(PG_ERR_ARG, "--depth-kind must be depth or disparity (got '%s')", c->depth_kind);
+    PG_TRY(stage_check_size("pipeline", c->width, c->height));
+    const char *name = c->preset ? c->preset : "fast";
+    for (size_t i = 0; i < sizeof presets / sizeof presets[0]; i++)
+        if (strcmp(name, presets[i].name) == 0) {
+            *p = &presets[i];
+            return PG_OK;
+        }
+    return pg_fail(PG_ERR_ARG, "unknown preset '%s' (fast, quality)", name);
+}
+
+/* Resolves the cameras once (a name wins over an index) and picks the training size: an even
+ * WxH with the input's aspect and the longer side at most the preset's. */
+static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipeline_plan *plan, pg_pipeline_report *r)
+{
+    memset(plan, 0, sizeof *plan);
+    pg_dataset *ds = NULL;
+    io_dataset_options opt = io_dataset_defaults();
+    PG_TRY(io_dataset_open(c->input, &opt, &ds));
+    int cam = 0, tests[64], nt = 0;
+    pg_status st = PG_OK;
+    if (c->train_camera && io_dataset_resolve_camera(ds, c->train_camera, &cam) != PG_OK)
+        st = pg_fail_context(PG_ERR_ARG, "%s: --train-cam: ", c->input);
+    if (!st && c->test_cameras && io_dataset_resolve_cameras(ds, c->test_cameras, tests, 64, &nt) != PG_OK)
+        st = pg_fail_context(PG_ERR_ARG, "%s: --test-cams: ", c->input);
+    for (int k = 0; !st && k < nt; k++)
+        if (tests[k] == cam)
+            st = pg_fail(PG_ERR_ARG, "%s: camera %s is both the training camera and a test camera", c->input,
+                         io_dataset_camera_name(ds, cam));
+    if (!st) {
+        snprintf(plan->train_camera, sizeof plan->train_camera, "%s", io_dataset_camera_name(ds, cam));
+        io_dataset_camera_label(ds, cam, r->train_camera, sizeof r->train_camera);
+        for (int k = 0; k < nt; k++) {
+            char label[PG_CAMERA_LABEL];
+            io_dataset_camera_label(ds, tests[k], label, sizeof label);
+            size_t a = strlen(plan->test_cameras), b = strlen(r->test_cameras);
+            snprintf(plan->test_cameras + a, sizeof plan->test_cameras - a, "%s%s", k ? "," : "", io_dataset_camera_name(ds, tests[k]));
+            snprintf(r->test_cameras + b, sizeof r->test_cameras - b, "%s%s", k ? ", " : "", label);
+        }
+        plan->width = c->width;
+        plan->height = c->height;
+        int w = io_dataset_width(ds), h = io_dataset_height(ds), side = w > h ? w : h;
+        if (!c->width && !c->height && side > p->max_side) {
+            plan->width = (int)((double)w * p->max_side / side + 0.5) & ~1;
+            plan->height = (int)((double)h * p->max_side / side + 0.5) & ~1;
+        }
+    }
+    io_dataset_close(ds);
+    PG_TRY(st);
+    plan->iters = c->iters > 0 ? c->iters : p->iters;
+    plan->proxies = c->proxies >= 0 ? c->proxies : (nt > 0 ? -1 : p->proxies);
+    plan->poses = c->poses ? c->poses : nt > 0 ? "dataset" : "hemisphere";
+    plan->threads = stage_use_threads(c->threads);
+    r->width = plan->width;
+    r->height = plan->height;
+    r->iters = plan->iters;
+    r->proxies = plan->proxies;
+    r->threads = plan->threads;
+    return PG_OK;
+}
+
+/* The pipeline's view of one stage: its marker decides whether it runs. */
+typedef struct {
+    const pg_pipeline_config *c;
+    pg_pipeline_report *r;
+    cJSON *stages; /* {stage: {seconds, threads, ran}} for metrics.json and report.md */
+    int rerun_rest;
+} pipeline_run;
+
+/* 1 when the stage can be skipped; otherwise logs why it runs, and from then on every later
+ * stage runs too (its inputs are being rebuilt). */
+static int stage_is_current(pipeline_run *p, int stage, const cJSON *config, const cJSON *inputs)
+{
+    char why[512];
+    const char *name = stage_names[stage];
+    if (!p->rerun_rest && stage_marker_matches(p->c->out, name, "done", config, inputs, why, sizeof why)) {
+        fprintf(stderr, "prodygs: %s: already done with these settings and inputs, skipping\n", name);
+        p->r->seconds[stage] = stage_marker_number(p->c->out, name, "seconds");
+        cJSON *me = cJSON_AddObjectToObject(p->stages, name);
+        cJSON_AddNumberToObject(me, "seconds", p->r->seconds[stage]);
+        cJSON_AddNumberToObject(me, "threads", stage_marker_number(p->c->out, name, "threads"));
+        cJSON_AddBoolToObject(me, "ran", 0);
+        return 1;
+    }
+    /* a first run says nothing; a rerun says why the earlier result does not count */
+    if (p->rerun_rest) snprintf(why, sizeof why, "an earlier stage ran again");
+    char path[4200];
+    snprintf(path, sizeof path, "%s/%s.done", p->c->out, name);
+    if (pg_path_exists(path)) fprintf(stderr, "prodygs: %s: running again: %s\n", name, why);
+    p->rerun_rest = 1;
+    stage_marker_remove(p->c->out, name, "done");
+    return 0;
+}
+
+static pg_status stage_finished(pipeline_run *p, int stage, const cJSON *config, const cJSON *inputs, double seconds,
+                                int threads)
+{
+    const char *name = stage_names[stage];
+    p->r->ran[stage] = 1;
+    p->r->seconds[stage] = seconds;
+    cJSON *extra = cJSON_CreateObject();
+    cJSON_AddNumberToObject(extra, "seconds", seconds);
+    cJSON_AddNumberToObject(extra, "threads", threads);
+    cJSON *me = cJSON_AddObjectToObject(p->stages, name);
+    cJSON_AddNumberToObject(me, "seconds", seconds);
+    cJSON_AddNumberToObject(me, "threads", threads);
+    cJSON_AddBoolToObject(me, "ran", 1);
+    pg_status st = stage_marker_write(p->c->out, name, "done", config, inputs, extra);
+    cJSON_Delete(extra);
+    return st;
+}
+
+static pg_status run_prepare(pipeline_run *p, const pipeline_plan *plan, const char *dir)
+{
+    const pg_pipeline_config *c = p->c;
+    pg_prepare_config pc;
+    pg_prepare_defaults(&pc);
+    pc.input = c->input;
+    pc.depth = c->depth;
+    pc.out = dir;
+    pc.train_camera = plan->train_camera;
+    if (c->depth_kind) pc.depth_kind = c->depth_kind;
+    if (c->depth_scale > 0) pc.depth_scale = c->depth_scale;
+    if (!c->refine) pc.refine = "none";
+    pc.align = c->align;
+    pc.frames = c->frames;
+    pc.width = plan->width;
+    pc.height = plan->height;
+    pc.threads = plan->threads;
+    cJSON *config = stage_prepare_config_json(&pc), *inputs = cJSON_CreateObject();
+    pg_status st = stage_hash_input(inputs, "input", c->input);
+    if (!st) st = stage_hash_input(inputs, "depth", c->depth);
+    if (!st && !stage_is_current(p, ST_PREPARE, config, inputs)) {
+        pg_prepare_report pr;
+        st = pg_prepare_run(&pc, &pr);
+        if (!st) st = stage_finished(p, ST_PREPARE, config, inputs, pr.seconds, pr.threads);
+    }
+    cJSON_Delete(config);
+    cJSON_Delete(inputs);
+    return st;
+}
+
+static pg_status run_proxies(pipeline_run *p, const pipeline_plan *plan, const char *prepare_dir, const char *dir)
+{
+    const pg_pipeline_config *c = p->c;
+    char depth[4200];
+    PG_TRY(pg_path_join(depth, sizeof depth, prepare_dir, "depth_aligned.npy"));
+    pg_proxies_config xc;
+    pg_proxies_defaults(&xc);
+    xc.input = c->input;
+    xc.depth = depth;
+    xc.out = dir;
+    xc.train_camera = plan->train_camera;
+    xc.test_cameras = plan->test_cameras[0] ? plan->test_cameras : NULL;
+    xc.poses = plan->poses;
+    xc.proxies = plan->proxies;
+    if (c->max_angle > 0) xc.max_angle = c->max_angle;
+    if (c->fov > 0) xc.fov = c->fov;
+    if (c->pad >= 0) xc.pad = c->pad;
+    xc.pose_scale = c->pose_scale;
+    xc.frames = c->frames;
+    xc.width = plan->width;
+    xc.height = plan->height;
+    xc.threads = plan->threads;
+    cJSON *config = stage_proxies_config_json(&xc), *inputs = cJSON_CreateObject();
+    pg_status st = stage_hash_input(inputs, "input", c->input);
+    if (!st) st = stage_hash_input(inputs, "depth", depth);
+    if (!st && !stage_is_current(p, ST_PROXIES, config, inputs)) {
+        pg_proxies_report xr;
+        st = pg_proxies_run(&xc, &xr);
+        if (!st) st = stage_finished(p, ST_PROXIES, config, inputs, xr.seconds, xr.threads);
+    }
+    cJSON_Delete(config);
+    cJSON_Delete(inputs);
+    return st;
+}
+
+/* Training resumes its checkpoint only when OUT/train.started shows the same settings and
+ * inputs (an interrupted run); a checkpoint of other settings or data is removed first. */
+static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const char *proxies_dir, const char *dir)
+{
+    const pg_pipeline_config *c = p->c;
+    char set_file[4200], proxies_done[4200];
+    PG_TRY(pg_path_join(set_file, sizeof set_file, proxies_dir, "trainset.json"));
+    snprintf(proxies_done, sizeof proxies_done, "%s/proxies.done", c->out);
+    pg_train_config tc;
+    pg_train_defaults(&tc);
+    tc.input = proxies_dir;
+    tc.out = dir;
+    tc.iters = plan->iters;
+    tc.seed = c->seed;
+    tc.threads = plan->threads;
+    cJSON *config = stage_train_config_json(&tc), *inputs = cJSON_CreateObject();
+    pg_status st = stage_hash_input(inputs, "trainset", set_file);
+    /* the proxies' marker holds the hashes of the video and depth they were made from */
+    if (!st) st = stage_hash_input(inputs, "proxies", proxies_done);
+    if (!st && !stage_is_current(p, ST_TRAIN, config, inputs)) {
+        char why[512], ckpt[4200];
+        st = pg_path_join(ckpt, sizeof ckpt, dir, "model.ckpt");
+        tc.resume = stage_marker_matches(c->out, "train", "started", config, inputs, why, sizeof why);
+        if (!st && !tc.resume && pg_path_exists(ckpt)) {
+            fprintf(stderr, "prodygs: train: starting over; the checkpoint in %s is from another run (%s)\n", dir, why);
+            remove(ckpt);
+        }
+        if (!st) st = stage_marker_write(c->out, "train", "started", config, inputs, NULL);
+        if (!st) st = pg_train_run(&tc, &p->r->train);
+        if (!st && p->r->train.finished)
+            st = stage_finished(p, ST_TRAIN, config, inputs, p->r->train.seconds, p->r->train.threads);
+        if (!st && !p->r->train.finished) st = pg_fail(PG_ERR_INTERNAL, "train: stopped before the last iteration");
+    }
+    cJSON_Delete(config);
+    cJSON_Delete(inputs);
+    return st;
+}
+
+static cJSON *config_record(const pg_pipeline_config *c, const pipeline_plan *plan, const pg_pipeline_report *r)
+{
+    cJSON *j = cJSON_CreateObject();
+    if (c->command) cJSON_AddStringToObject(j, "command", c->command);
+    cJSON_AddStringToObject(j, "input", c->input);
+    cJSON_AddStringToObject(j, "depth", c->depth);
+    cJSON_AddStringToObject(j, "preset", c->preset ? c->preset : "fast");
+    cJSON_AddStringToObject(j, "train_camera", r->train_camera);
+    if (r->test_cameras[0]) cJSON_AddStringToObject(j, "test_cameras", r->test_cameras);
+    cJSON_AddStringToObject(j, "poses", plan->poses);
+    cJSON_AddNumberToObject(j, "proxies", plan->proxies);
+    if (c->pad >= 0) cJSON_AddNumberToObject(j, "pad", c->pad);
+    cJSON_AddBoolToObject(j, "refine", c->refine);
+    cJSON_AddBoolToObject(j, "align", c->align);
+    cJSON_AddNumberToObject(j, "iters", plan->iters);
+    cJSON_AddNumberToObject(j, "frames", c->frames);
+    if (plan->width || plan->height) {
+        char size[32];
+        snprintf(size, sizeof size, "%dx%d", plan->width, plan->height);
+        cJSON_AddStringToObject(j, "size", size);
+    }
+    cJSON_AddNumberToObject(j, "threads", plan->threads);
+    cJSON_AddNumberToObject(j, "seed", c->seed);
+    return j;
+}
+
+static long peak_rss_kb(void)
+{
+    struct rusage u;
+    return getrusage(RUSAGE_SELF, &u) == 0 ? u.ru_maxrss : 0;
+}
+
+/* OUT/run.md for a run without evaluation: the command, settings, stages and peak memory. */
+static pg_status write_run_report(const pg_pipeline_config *c, const cJSON *config, const cJSON *stages,
+                                  const pg_pipeline_report *r)
+{
+    char path[4200];
+    PG_TRY(pg_path_join(path, sizeof path, c->out, "report.md"));
+    char *cfg = cJSON_Print(config);
+    size_t cap = 16384 + (cfg ? strlen(cfg) : 0), len = 0;
+    char *buf = pg_malloc(cap, "run report");
+    if (!buf) {
+        free(cfg);
+        return PG_ERR_NOMEM;
+    }
+#define EMIT(...) do { if (len < cap) len += (size_t)snprintf(buf + len, cap - len, __VA_ARGS__); } while (0)
+    EMIT("# prodygs run\n\n");
+    if (c->command) EMIT("```\n%s\n```\n\n", c->command);
+    EMIT("Training camera %s. Peak memory %.1f MiB. Total %.1f s.\n\n", r->train_camera, r->peak_rss_kb / 1024.0,
+         r->seconds_total);
+    EMIT("| stage | seconds | threads | |\n|---|---|---|---|\n");
+    const cJSON *it;
+    cJSON_ArrayForEach(it, stages)
+        EMIT("| %s | %.1f | %d | %s |\n", it->string, cJSON_GetObjectItem(it, "seconds")->valuedouble,
+             (int)cJSON_GetObjectItem(it, "threads")->valuedouble,
+             cJSON_IsTrue(cJSON_GetObjectItem(it, "ran")) ? "ran" : "already done");
+    if (r->train.iterations)
+        EMIT("\nTraining: %d iterations, %d Gaussians (%d static).\n", r->train.iterations, r->train.gaussians,
+             r->train.static_gaussians);
+    if (cfg) EMIT("\n## Configuration\n\n```json\n%s\n```\n", cfg);
+#undef EMIT
+    free(cfg);
+    if (len >= cap) len = cap - 1;
+    pg_status st = pg_write_file_atomic(path, buf, len);
+    free(buf);
+    return st;
+}
+
+pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
+{
+    memset(r, 0, sizeof *r);
+    r->train.test_psnr = r->train.train_psnr = r->train.train_psnr_moving = r->train.train_psnr_static = NAN;
+    r->evaluation.psnr = r->evaluation.ssim = r->evaluation.psnr_moving = NAN;
+    r->evaluation.train_psnr_moving = r->evaluation.train_psnr_static = NAN;
+    const preset *ps = NULL;
+    PG_TRY(check_config(c, &ps));
+    pipeline_plan plan;
+    PG_TRY(make_plan(c, ps, &plan, r));
+    printf("training camera %s%s%s\n", r->train_camera, r->test_cameras[0] ? "; test cameras " : "", r->test_cameras);
+    fflush(stdout); /* before the long stages: a redirected log keeps it on Ctrl-C */
+
+    double t0 = pg_time_seconds();
+    char prepare_dir[4200], proxies_dir[4200], model_dir[4200];
+    PG_TRY(pg_mkdir_p(c->out));
+    PG_TRY(pg_path_join(prepare_dir, sizeof prepare_dir, c->out, "prepare"));
+    PG_TRY(pg_path_join(proxies_dir, sizeof proxies_dir, c->out, "proxies"));
+    PG_TRY(pg_path_join(model_dir, sizeof model_dir, c->out, "model"));
+    pipeline_run p = { c, r, cJSON_CreateObject(), 0 };
+    cJSON *config = config_record(c, &plan, r);
+    pg_status st = run_prepare(&p, &plan, prepare_dir);
+    if (!st) st = run_proxies(&p, &plan, prepare_dir, proxies_dir);
+    if (!st) st = run_train(&p, &plan, proxies_dir, model_dir);
+    if (!st && c->evaluate) {
+        pg_evaluate_config ec;
+        pg_evaluate_defaults(&ec);
+        ec.dataset = c->input;
+        ec.model = model_dir;
+        ec.out = c->out;
+        ec.threads = plan.threads;
+        char *cfg = cJSON_PrintUnformatted(config), *stages = cJSON_PrintUnformatted(p.stages);
+        ec.config_json = cfg;
+        ec.stages_json = stages;
+        st = pg_evaluate_run(&ec, &r->evaluation);
+        free(cfg);
+        free(stages);
+        r->ran[ST_EVALUATE] = st == PG_OK;
+        r->seconds[ST_EVALUATE] = r->evaluation.seconds;
+    }
+    if (!st && c->render_videos) {
+        static const char *paths[3] = { "fixed", "orbit", "spiral" };
+        char renders[4300], reference[4500];
+        snprintf(renders, sizeof renders, "%s/renders", c->out);
+        snprintf(reference, sizeof reference, "%s/%s/rgb", proxies_dir, plan.train_camera);
+        int fallback = 0;
+        double tr = pg_time_seconds();
+        for (int k = 0; k < 3 && !st; k++) {
+            pg_render_config rc;
+            pg_render_defaults(&rc);
+            rc.model = model_dir;
+            rc.out = renders;
+            rc.path = paths[k];
+            rc.threads = plan.threads;
+            rc.reference_frames = k == 0 && pg_path_is_dir(reference) ? reference : NULL;
+            pg_render_report rr;
+            st = pg_render_run(&rc, &rr);
+            fallback |= rr.fallback_png;
+        }
+        if (fallback) fprintf(stderr, "prodygs: warning: no H.264/MPEG-4 encoder; wrote PNG sequences instead of MP4\n");
+        r->ran[ST_RENDER] = st == PG_OK;
+        r->seconds[ST_RENDER] = pg_time_seconds() - tr;
+        cJSON *me = cJSON_AddObjectToObject(p.stages, "render");
+        cJSON_AddNumberToObject(me, "seconds", r->seconds[ST_RENDER]);
+        cJSON_AddNumberToObject(me, "threads", plan.threads);
+        cJSON_AddBoolToObject(me, "ran", 1);
+    }
+    r->seconds_total = pg_time_seconds() - t0;
+    r->peak_rss_kb = peak_rss_kb();
+    if (!st && !c->evaluate) st = write_run_report(c, config, p.stages, r);
+    cJSON_Delete(config);
+    cJSON_Delete(p.stages);
+    return st;
+}

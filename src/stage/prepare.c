@@ -1,0 +1,141 @@
+/* prepare.c - the prepare stage: refine and temporally align the training camera's depth
+ * (paper 3.1); writes OUT/depth_aligned.npy, static_masks.npy, prepare.json, vis/. */
+#include "stage/stage_internal.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/parallel.h"
+#include "core/status.h"
+#include "depth/prepare.h"
+#include "io/dataset.h"
+#include "io/depth_io.h"
+
+void pg_prepare_defaults(pg_prepare_config *c)
+{
+    memset(c, 0, sizeof *c);
+    c->depth_kind = "depth";
+    c->depth_scale = 1.0f;
+    c->refine = "edge-snap";
+    c->align = 1;
+    c->keep_flow_vis = 1;
+}
+
+cJSON *stage_prepare_config_json(const pg_prepare_config *c)
+{
+    cJSON *j = cJSON_CreateObject();
+    cJSON_AddStringToObject(j, "train_camera", c->train_camera ? c->train_camera : "");
+    cJSON_AddStringToObject(j, "depth_kind", c->depth_kind ? c->depth_kind : "depth");
+    cJSON_AddNumberToObject(j, "depth_scale", c->depth_scale);
+    cJSON_AddStringToObject(j, "refine", c->refine ? c->refine : "edge-snap");
+    cJSON_AddBoolToObject(j, "align", c->align);
+    cJSON_AddNumberToObject(j, "frames", c->frames);
+    cJSON_AddNumberToObject(j, "width", c->width);
+    cJSON_AddNumberToObject(j, "height", c->height);
+    return j;
+}
+
+static pg_status check_config(const pg_prepare_config *c, io_depth_kind *kind, depth_prepare_options *popt)
+{
+    if (!c->input || !c->depth || !c->out) return pg_fail(PG_ERR_ARG, "prepare: input, depth and out are required");
+    PG_TRY(stage_check_size("prepare", c->width, c->height));
+    PG_TRY(stage_check_threads("prepare", c->threads));
+    if (c->frames < 0) return pg_fail(PG_ERR_ARG, "prepare: --frames %d must be >= 1 (0 = all)", c->frames);
+    if (!(c->depth_scale > 0.0f)) return pg_fail(PG_ERR_ARG, "prepare: --depth-scale %g must be > 0", c->depth_scale);
+    const char *k = c->depth_kind ? c->depth_kind : "depth";
+    if (strcmp(k, "depth") == 0) *kind = IO_DEPTH_KIND_DEPTH;
+    else if (strcmp(k, "disparity") == 0) *kind = IO_DEPTH_KIND_DISPARITY;
+    else return pg_fail(PG_ERR_ARG, "prepare: --depth-kind must be depth or disparity, not '%s'", k);
+    depth_prepare_defaults(popt);
+    if (c->refine) {
+        popt->refine = depth_refine_kind_parse(c->refine);
+        if (popt->refine == DEPTH_REFINE_COUNT)
+            return pg_fail(PG_ERR_ARG, "prepare: --refine must be edge-snap, bilateral or none, not '%s'", c->refine);
+    }
+    popt->align = c->align;
+    popt->keep_flow = c->keep_flow_vis;
+    return PG_OK;
+}
+
+pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
+{
+    memset(r, 0, sizeof *r);
+    io_depth_kind dkind = IO_DEPTH_KIND_DEPTH;
+    depth_prepare_options popt;
+    PG_TRY(check_config(c, &dkind, &popt));
+    r->threads = stage_use_threads(c->threads);
+
+    pg_dataset *ds = NULL;
+    io_dataset_options dopt = io_dataset_defaults();
+    dopt.width = c->width;
+    dopt.height = c->height;
+    dopt.count = c->frames;
+    PG_TRY(io_dataset_open(c->input, &dopt, &ds));
+    int cam = 0;
+    if (c->train_camera && io_dataset_resolve_camera(ds, c->train_camera, &cam) != PG_OK) {
+        io_dataset_close(ds);
+        return pg_fail_context(PG_ERR_ARG, "%s: --train-cam: ", c->input);
+    }
+    io_dataset_camera_label(ds, cam, r->train_camera, sizeof r->train_camera);
+    const int F = io_dataset_num_frames(ds), W = io_dataset_width(ds), H = io_dataset_height(ds);
+    pg_image *frames = calloc((size_t)(F > 0 ? F : 1), sizeof(pg_image));
+    io_depth depth;
+    memset(&depth, 0, sizeof depth);
+    depth_prepare_result res;
+    memset(&res, 0, sizeof res);
+    pg_status st = frames ? PG_OK : pg_fail(PG_ERR_NOMEM, "prepare: out of memory for %d frames", F);
+    for (int t = 0; t < F && !st; t++) st = io_dataset_frame(ds, cam, t, &frames[t]);
+    io_dataset_release(ds, -1);
+    if (!st) {
+        io_depth_options o = io_depth_defaults();
+        o.kind = dkind;
+        o.scale = c->depth_scale;
+        o.width = W;
+        o.height = H;
+        o.count = c->frames; /* the first N depth frames go with the first N video frames */
+        o.expect_frames = F;
+        st = io_depth_load(c->depth, &o, &depth);
+        if (!st && !(depth.max > 0))
+            st = pg_fail(PG_ERR_FORMAT, "%s: no valid depth in any frame (every value is NaN, inf or <= 0)", c->depth);
+    }
+    /* Flow fields are kept only for the pictures; skip them when they would be large. */
+    if (popt.keep_flow && (double)F * W * H * 2 * sizeof(float) > 1024.0 * 1024 * 1024) popt.keep_flow = 0;
+    if (!st) st = depth_prepare_run(&popt, frames, F, depth.data, &res);
+    if (!st) {
+        cJSON *src = cJSON_CreateObject();
+        cJSON_AddStringToObject(src, "input", c->input);
+        cJSON_AddStringToObject(src, "camera", io_dataset_camera_name(ds, cam));
+        cJSON_AddStringToObject(src, "depth", c->depth);
+        cJSON_AddStringToObject(src, "depth_kind", c->depth_kind ? c->depth_kind : "depth");
+        cJSON_AddNumberToObject(src, "depth_scale", c->depth_scale);
+        cJSON_AddNumberToObject(src, "depth_invalid_input_pixels", (double)depth.invalid);
+        cJSON_AddNumberToObject(src, "fps", io_dataset_fps(ds));
+        char *text = cJSON_PrintUnformatted(src);
+        cJSON_Delete(src);
+        st = depth_prepare_write(c->out, &popt, &res, frames, depth.data, text);
+        free(text);
+    }
+    if (!st) {
+        r->frames = F;
+        r->width = W;
+        r->height = H;
+        r->reference = res.reference;
+        r->seconds = res.seconds_total;
+        for (int i = 0; i < F; i++) {
+            r->residual_before += res.info[i].resid_before / F;
+            r->residual_after += res.info[i].resid_after / F;
+            r->fallback_frames += res.info[i].fallback != DEPTH_FALLBACK_NONE;
+            if (res.info[i].fallback == DEPTH_FALLBACK_COPIED)
+                fprintf(stderr, "prodygs: warning: frame %d has no valid depth; copied frame %d\n", i,
+                        res.info[i].source_frame);
+        }
+    }
+    depth_prepare_result_destroy(&res);
+    io_depth_destroy(&depth);
+    if (frames)
+        for (int t = 0; t < F; t++) pg_image_destroy(&frames[t]);
+    free(frames);
+    io_dataset_close(ds);
+    return st;
+}

@@ -1,0 +1,317 @@
+/* proxies.c - the proxies stage: per-frame RGB-D Gaussians of the real view rendered from
+ * virtual cameras into a training-set directory (paper 3.2, docs/proxy.md, docs/FORMATS.md). */
+#include "stage/stage_internal.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/parallel.h"
+#include "core/status.h"
+#include "io/dataset.h"
+#include "io/depth_io.h"
+#include "proxy/poses.h"
+#include "proxy/proxy.h"
+
+#define MAX_CAMS 256
+
+typedef struct {
+    pg_dataset *ds;
+    int cams[1 + MAX_CAMS]; /* dataset index of the real camera, then of each test camera */
+} frame_source;
+
+static pg_status source_frame(void *ctx, int camera, int frame, pg_image *out)
+{
+    frame_source *s = ctx;
+    return io_dataset_frame(s->ds, s->cams[camera], frame, out);
+}
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+static float median_valid(const float *d, size_t n)
+{
+    float *t = malloc(n * sizeof(float));
+    if (!t) return 0;
+    size_t k = 0;
+    for (size_t i = 0; i < n; i++)
+        if (d[i] > 0) t[k++] = d[i];
+    qsort(t, k, sizeof(float), cmp_float);
+    float m = k ? t[k / 2] : 0;
+    free(t);
+    return m;
+}
+
+/* Fits the depth-to-pose scale on frame 0 against the proxy (training) cameras. */
+static pg_status fit_scale(pg_dataset *ds, int real_idx, const pg_camera *real, const float *depth0, int n,
+                           const int *idx, const pg_camera *cams, float *scale, proxy_scale_report *rep)
+{
+    int W = real->width, H = real->height;
+    pg_image real_img = { 0 };
+    pg_image *imgs = calloc((size_t)n, sizeof(pg_image));
+    const float **ptrs = calloc((size_t)n, sizeof(float *));
+    pg_status st = (!imgs || !ptrs) ? pg_fail(PG_ERR_NOMEM, "pose scale fit: out of memory") : PG_OK;
+    if (!st) st = io_dataset_frame(ds, real_idx, 0, &real_img);
+    for (int k = 0; k < n && !st; k++) {
+        st = io_dataset_frame(ds, idx[k], 0, &imgs[k]);
+        ptrs[k] = imgs[k].data;
+    }
+    if (!st) {
+        proxy_scale_options so = proxy_default_scale_options();
+        float near_z = 0, far_z = 0, med = median_valid(depth0, (size_t)W * H);
+        io_dataset_near_far(ds, real_idx, &near_z, &far_z);
+        if (near_z > 0 && far_z > near_z && med > 0) {
+            /* The bounds say roughly where the scene is in pose units. */
+            float s0 = sqrtf(near_z * far_z) / med;
+            so.scale_min = s0 / 4;
+            so.scale_max = s0 * 4;
+        } else {
+            so.scale_min = 1.0f / 16;
+            so.scale_max = 16;
+            so.coarse_steps = 64;
+        }
+        st = proxy_fit_pose_scale(real, real_img.data, depth0, n, cams, ptrs, &so, rep);
+        *scale = rep->scale;
+    }
+    pg_image_destroy(&real_img);
+    for (int k = 0; k < n && imgs; k++) pg_image_destroy(&imgs[k]);
+    free(imgs);
+    free(ptrs);
+    for (int k = 0; k < n; k++) io_dataset_release(ds, idx[k]);
+    return st;
+}
+
+void pg_proxies_defaults(pg_proxies_config *c)
+{
+    memset(c, 0, sizeof *c);
+    c->proxies = -1;
+    c->max_angle = 20;
+    c->fov = 60;
+    c->pad = -1;
+    c->fit_steps = 100;
+    c->fit_block = 1;
+}
+
+cJSON *stage_proxies_config_json(const pg_proxies_config *c)
+{
+    cJSON *j = cJSON_CreateObject();
+    cJSON_AddStringToObject(j, "train_camera", c->train_camera ? c->train_camera : "");
+    cJSON_AddStringToObject(j, "test_cameras", c->test_cameras ? c->test_cameras : "");
+    cJSON_AddStringToObject(j, "poses", c->poses ? c->poses : "");
+    cJSON_AddNumberToObject(j, "proxies", c->proxies);
+    cJSON_AddNumberToObject(j, "max_angle", c->max_angle);
+    cJSON_AddNumberToObject(j, "fov", c->fov);
+    cJSON_AddNumberToObject(j, "pad", c->pad);
+    cJSON_AddNumberToObject(j, "pose_scale", c->pose_scale);
+    cJSON_AddNumberToObject(j, "fit_steps", c->fit_steps);
+    cJSON_AddNumberToObject(j, "fit_block", c->fit_block);
+    cJSON_AddNumberToObject(j, "frames", c->frames);
+    cJSON_AddNumberToObject(j, "width", c->width);
+    cJSON_AddNumberToObject(j, "height", c->height);
+    return j;
+}
+
+/* Rejects bad values before the dataset is opened; *dataset_poses: 1 dataset poses asked
+ * for, 0 the hemisphere, -1 the default (dataset poses for a multi-camera input). */
+static pg_status check_config(const pg_proxies_config *c, int *dataset_poses)
+{
+    if (!c->input || !c->depth || !c->out) return pg_fail(PG_ERR_ARG, "proxies: input, depth and out are required");
+    if (c->proxies < -1 || c->proxies > MAX_CAMS)
+        return pg_fail(PG_ERR_ARG, "proxies: --proxies %d not in 0..%d", c->proxies, MAX_CAMS);
+    if (!(c->max_angle > 0 && c->max_angle < 90))
+        return pg_fail(PG_ERR_ARG, "proxies: --max-angle %g not in (0, 90) degrees", c->max_angle);
+    if (!(c->fov > 0 && c->fov < 180)) return pg_fail(PG_ERR_ARG, "proxies: --fov %g not in (0, 180)", c->fov);
+    if (c->fit_steps < 0 || c->fit_steps > 100000)
+        return pg_fail(PG_ERR_ARG, "proxies: --fit-steps %d out of range 0..100000", c->fit_steps);
+    if (c->fit_block < 1 || c->fit_block > 64) return pg_fail(PG_ERR_ARG, "proxies: --fit-block %d not in 1..64", c->fit_block);
+    if (c->pad > 1 || (c->pad < 0 && c->pad != -1)) return pg_fail(PG_ERR_ARG, "proxies: --pad %g not in [0, 1]", c->pad);
+    if (c->frames < 0) return pg_fail(PG_ERR_ARG, "proxies: --frames %d is negative", c->frames);
+    if (c->pose_scale < 0 || !isfinite(c->pose_scale)) return pg_fail(PG_ERR_ARG, "proxies: --pose-scale must be positive");
+    PG_TRY(stage_check_size("proxies", c->width, c->height));
+    PG_TRY(stage_check_threads("proxies", c->threads));
+    *dataset_poses = -1;
+    if (c->poses) {
+        if (!strcmp(c->poses, "hemisphere")) *dataset_poses = 0;
+        else if (!strcmp(c->poses, "dataset")) *dataset_poses = 1;
+        else return pg_fail(PG_ERR_ARG, "proxies: --poses '%s' is not hemisphere or dataset", c->poses);
+    }
+    return PG_OK;
+}
+
+pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
+{
+    memset(r, 0, sizeof *r);
+    int use_dataset_poses;
+    PG_TRY(check_config(c, &use_dataset_poses));
+    const char *input = c->input, *depth_path = c->depth, *out = c->out;
+    int num = c->proxies, train_cam = 0;
+    float pose_scale = c->pose_scale;
+    r->threads = stage_use_threads(c->threads);
+    io_dataset_options dopt = io_dataset_defaults();
+    dopt.width = c->width;
+    dopt.height = c->height;
+    dopt.count = c->frames;
+    dopt.fov_deg = c->fov;
+    io_depth depth = { 0 };
+    pg_camera *cams = NULL;
+    const char **names = NULL;
+    char(*hnames)[16] = NULL;
+    int *idx = NULL;
+    frame_source src = { 0 };
+    pg_dataset *ds = NULL;
+    pg_status st = io_dataset_open(input, &dopt, &ds);
+    if (st) return st;
+    int ncam = io_dataset_num_cameras(ds), F = io_dataset_num_frames(ds);
+    int W = io_dataset_width(ds), H = io_dataset_height(ds);
+    if (c->train_camera && io_dataset_resolve_camera(ds, c->train_camera, &train_cam) != PG_OK) {
+        io_dataset_close(ds);
+        return pg_fail_context(PG_ERR_ARG, "proxies: %s: --train-cam: ", input);
+    }
+    int tests[MAX_CAMS], ntest = 0;
+    if (c->test_cameras) {
+        if (io_dataset_resolve_cameras(ds, c->test_cameras, tests, MAX_CAMS, &ntest) != PG_OK) {
+            io_dataset_close(ds);
+            return pg_fail_context(PG_ERR_ARG, "proxies: %s: --test-cams: ", input);
+        }
+        for (int k = 0; k < ntest; k++)
+            if (tests[k] == train_cam) {
+                char label[96];
+                io_dataset_camera_label(ds, train_cam, label, sizeof label);
+                io_dataset_close(ds);
+                return pg_fail(PG_ERR_ARG, "proxies: %s: test camera %s is the training camera", input, label);
+            }
+    } else if (ncam >= 7) {
+        /* the DyNeRF protocol: cam05 and cam06 held out (unless one of them is the real camera) */
+        tests[0] = 5; tests[1] = 6; ntest = 2;
+        if (train_cam == 5 || train_cam == 6) ntest = 0;
+    }
+    io_dataset_camera_label(ds, train_cam, r->train_camera, sizeof r->train_camera);
+    for (int k = 0; k < ntest; k++) {
+        char label[PG_CAMERA_LABEL];
+        io_dataset_camera_label(ds, tests[k], label, sizeof label);
+        size_t n = strlen(r->test_cameras);
+        snprintf(r->test_cameras + n, sizeof r->test_cameras - n, "%s%s", k ? ", " : "", label);
+    }
+    if (use_dataset_poses < 0) use_dataset_poses = ncam > 1;
+    if (use_dataset_poses && ncam - 1 - ntest < 1) {
+        io_dataset_close(ds);
+        return pg_fail(PG_ERR_ARG, "proxies: %s has no camera left for dataset poses (use --poses hemisphere)", input);
+    }
+
+    io_depth_options zo = io_depth_defaults();
+    zo.width = W;
+    zo.height = H;
+    zo.count = F;
+    st = io_depth_load(depth_path, &zo, &depth);
+    if (!st && depth.frames != F)
+        st = pg_fail(PG_ERR_SIZE, "%s: %d depth frames for %d video frames", depth_path, depth.frames, F);
+    if (!st) {
+        /* The scene centre and the scale fit read frame 0: it must have some depth. */
+        size_t valid0 = 0;
+        for (size_t i = 0; i < (size_t)W * H; i++) valid0 += depth.data[i] > 0;
+        if (!valid0)
+            st = pg_fail(PG_ERR_FORMAT, "%s: no valid depth in frame 0 (every value is NaN, inf or <= 0)", depth_path);
+    }
+    if (st) goto done;
+
+    pg_camera real;
+    io_dataset_camera(ds, train_cam, &real);
+    int M = use_dataset_poses ? ncam - 1 - ntest : (num < 0 ? 18 : num);
+    cams = calloc((size_t)M + 1, sizeof *cams);
+    names = calloc((size_t)M + MAX_CAMS, sizeof *names);
+    hnames = calloc((size_t)M + 1, sizeof *hnames);
+    idx = calloc((size_t)M + 1, sizeof *idx);
+    pg_camera *tcams = calloc((size_t)ntest + 1, sizeof *tcams);
+    const char **tnames = names + M;
+    if (!cams || !names || !hnames || !idx || !tcams) {
+        free(tcams);
+        st = pg_fail(PG_ERR_NOMEM, "proxies: out of memory");
+        goto done;
+    }
+    src.ds = ds;
+    src.cams[0] = train_cam;
+    for (int k = 0; k < ntest; k++) {
+        src.cams[1 + k] = tests[k];
+        io_dataset_camera(ds, tests[k], &tcams[k]);
+        tnames[k] = io_dataset_camera_name(ds, tests[k]);
+    }
+    proxy_scale_report rep = { 0 };
+    int fitted = 0;
+    if (use_dataset_poses) {
+        int m = 0;
+        for (int c = 0; c < ncam; c++) {
+            int is_test = 0;
+            for (int k = 0; k < ntest; k++) is_test |= tests[k] == c;
+            if (c == train_cam || is_test) continue;
+            io_dataset_camera(ds, c, &cams[m]);
+            names[m] = io_dataset_camera_name(ds, c);
+            idx[m++] = c;
+        }
+        if (pose_scale == 0) {
+            st = fit_scale(ds, train_cam, &real, depth.data, M, idx, cams, &pose_scale, &rep);
+            if (st) { free(tcams); goto done; }
+            fitted = 1;
+        }
+        if (num >= 0 && num < M) {
+            /* keep the num cameras closest in viewing direction to the real one (stable order) */
+            for (int a = 1; a < M; a++)
+                for (int b = a; b > 0 && proxy_camera_angle_deg(&real, &cams[b]) < proxy_camera_angle_deg(&real, &cams[b - 1]); b--) {
+                    pg_camera tc = cams[b]; cams[b] = cams[b - 1]; cams[b - 1] = tc;
+                    const char *tn = names[b]; names[b] = names[b - 1]; names[b - 1] = tn;
+                }
+            M = num;
+        }
+    } else {
+        if (pose_scale == 0) pose_scale = 1;
+    }
+    proxy_job job = { 0 };
+    st = proxy_scene_center(&real, depth.data, pose_scale, job.center, &job.radius);
+    if (!st && !use_dataset_poses) {
+        if (M > 0) st = proxy_poses_hemisphere(&real, job.center, M, c->max_angle, cams);
+        for (int k = 0; k < M; k++) {
+            snprintf(hnames[k], sizeof hnames[k], "proxy%02d", k);
+            names[k] = hnames[k];
+        }
+    }
+    if (st) { free(tcams); goto done; }
+    job.frames = F; job.width = W; job.height = H; job.fps = io_dataset_fps(ds);
+    job.get_frame = source_frame; job.frame_ctx = &src;
+    job.depth = depth.data; job.pose_scale = pose_scale;
+    job.real_name = io_dataset_camera_name(ds, train_cam); job.real = real;
+    job.num_proxies = M; job.proxy_names = names; job.proxies = cams;
+    job.num_tests = ntest; job.test_names = tnames; job.tests = tcams;
+    job.input_path = input; job.depth_path = depth_path;
+    proxy_options po = proxy_default_options();
+    po.threads = r->threads;
+    po.force = c->force;
+    po.fit.steps = c->fit_steps;
+    po.fit.block = c->fit_block;
+    if (c->pad >= 0) po.fit.pad = c->pad;
+    proxy_result res;
+    st = proxy_generate(&po, &job, out, &res);
+    free(tcams);
+    if (st) goto done;
+    r->frames = F;
+    r->computed = res.frames_done;
+    r->reused = res.frames_skipped;
+    r->proxies = M;
+    snprintf(r->poses, sizeof r->poses, "%s", use_dataset_poses ? "dataset" : "hemisphere");
+    r->pose_scale = pose_scale;
+    r->pose_scale_fitted = fitted;
+    r->pose_scale_cost = rep.cost;
+    r->mean_valid_fraction = res.mean_valid_fraction;
+    r->mean_source_psnr = res.mean_source_psnr;
+    r->seconds = res.wall_s;
+done:
+    free(cams);
+    free(names);
+    free(hnames);
+    free(idx);
+    io_depth_destroy(&depth);
+    io_dataset_close(ds);
+    return st;
+}

@@ -1,0 +1,106 @@
+/* render.c - the render stage: a trained model along a camera path as MP4 (or PNG) videos of
+ * colour and depth, the cameras read from the model directory. */
+#include "stage/stage_internal.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/fileutil.h"
+#include "core/status.h"
+#include "io/image_io.h"
+#include "render/render_video.h"
+#include "render/scene_cameras.h"
+
+void pg_render_defaults(pg_render_config *c)
+{
+    memset(c, 0, sizeof *c);
+    c->path = "fixed";
+    c->angle = 15.0f;
+    c->yaw = 10.0f;
+    c->pitch = 5.0f;
+    c->time = 0.5f;
+    c->write_depth = 1;
+}
+
+/* A camera of the model by name, else by its position in the model's camera list. */
+static pg_status find_camera(const scene_cameras *sc, const char *model, const char *token, int *out)
+{
+    *out = scene_cameras_find(sc, token);
+    char *end;
+    long v = strtol(token, &end, 10);
+    if (*out < 0 && end != token && *end == '\0' && v >= 0 && v < sc->count) *out = (int)v;
+    if (*out >= 0) return PG_OK;
+    char names[1024] = "";
+    for (int c = 0; c < sc->count && strlen(names) + 40 < sizeof names; c++)
+        snprintf(names + strlen(names), sizeof names - strlen(names), "%s%s", c ? ", " : "", sc->names[c]);
+    return pg_fail(PG_ERR_ARG, "render: %s: no camera '%.64s' (cameras: %s)", model, token, names);
+}
+
+/* The fixed path's side-by-side partner: frame NNNN.png of a folder for each step. */
+static pg_status reference_frame(void *ctx, int step, float time, pg_image *img)
+{
+    (void)time;
+    char file[32], path[4300];
+    snprintf(file, sizeof file, "%04d.png", step);
+    PG_TRY(pg_path_join(path, sizeof path, (const char *)ctx, file));
+    return io_image_load(path, img);
+}
+
+pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
+{
+    memset(r, 0, sizeof *r);
+    if (!c->model || !c->out) return pg_fail(PG_ERR_ARG, "render: model and out are required");
+    render_video_options vo = { 0 };
+    const char *path_name = c->path ? c->path : "fixed";
+    int dataset_cam = strcmp(path_name, "dataset-cam") == 0;
+    if (!dataset_cam) PG_TRY(render_path_parse(path_name, &vo.path.kind));
+    else if (!c->camera) return pg_fail(PG_ERR_ARG, "render: --path dataset-cam needs --camera NAME");
+    if (c->time < 0 || c->time > 1) return pg_fail(PG_ERR_ARG, "render: --time must be in [0, 1], got %g", c->time);
+    if (c->steps < 0 || c->steps > 100000) return pg_fail(PG_ERR_ARG, "render: --steps %d out of range 0..100000", c->steps);
+    if (c->fps < 0 || c->fps > 1000) return pg_fail(PG_ERR_ARG, "render: --fps must be in (0, 1000], got %g", c->fps);
+    if (c->angle < 0 || c->angle > 89) return pg_fail(PG_ERR_ARG, "render: --angle must be in [0, 89] degrees, got %g", c->angle);
+    if (c->yaw < -89 || c->yaw > 89 || c->pitch < -89 || c->pitch > 89)
+        return pg_fail(PG_ERR_ARG, "render: --yaw/--pitch must be in [-89, 89] degrees, got %g/%g", c->yaw, c->pitch);
+    PG_TRY(stage_check_threads("render", c->threads));
+    stage_use_threads(c->threads);
+
+    scene_cameras *sc = pg_malloc(sizeof *sc, "cameras");
+    if (!sc) return PG_ERR_NOMEM;
+    render_model *rm = NULL;
+    pg_status st = scene_cameras_for_model(c->model, NULL, sc);
+    if (st == PG_OK) st = render_model_open(c->model, &rm);
+    int k = -1;
+    if (st == PG_OK && dataset_cam) st = find_camera(sc, c->model, c->camera, &k);
+    if (st == PG_OK) {
+        int frames = render_model_frames(rm);
+        vo.path.steps = c->steps > 0 ? c->steps : (frames > 1 ? frames : 60);
+        if (vo.path.kind == RENDER_PATH_ORBIT && c->steps == 0 && vo.path.steps < 60) vo.path.steps = 60;
+        vo.path.max_angle_deg = c->angle;
+        vo.path.time = c->time;
+        vo.path.fixed_yaw_deg = c->yaw;
+        vo.path.fixed_pitch_deg = c->pitch;
+        vo.write_depth = c->write_depth;
+        vo.write_frames = c->write_frames;
+        vo.fps = c->fps > 0 ? c->fps : sc->fps;
+        if (c->reference_frames && !dataset_cam && vo.path.kind == RENDER_PATH_FIXED) {
+            vo.reference = reference_frame;
+            vo.reference_ctx = (void *)c->reference_frames;
+        }
+        const char *name = c->name ? c->name : dataset_cam ? sc->names[k] : path_name;
+        if (dataset_cam) {
+            vo.use_camera = 1;
+            vo.camera = sc->cams[k];
+        }
+        render_video_report rep;
+        st = render_video_write(rm, &sc->cams[sc->real], sc->center, &vo, c->out, name, &rep);
+        if (st == PG_OK) {
+            r->frames = rep.frames;
+            r->fallback_png = rep.fallback_png;
+            r->seconds = rep.seconds;
+        }
+    }
+    render_model_close(rm);
+    free(sc);
+    return st;
+}

@@ -1,0 +1,28 @@
+/* stage_internal.h - what the stage implementations share: thread setup, config records for
+ * the pipeline's stage markers, and limits on sizes a config may ask for. */
+#ifndef PG_STAGE_INTERNAL_H
+#define PG_STAGE_INTERNAL_H
+
+#include <cjson/cJSON.h>
+
+#include "prodygs.h"
+
+/* Image sides a config may ask for (resize options). */
+#define STAGE_MIN_SIDE 8
+#define STAGE_MAX_SIDE 8192
+
+/* Sets the worker threads for a stage (<= 0: all cores) and returns the count in use. */
+int stage_use_threads(int threads);
+/* Checks a thread count: 0 (all cores) .. 256. */
+pg_status stage_check_threads(const char *stage, int threads);
+/* Checks a requested size: 0x0 keeps the input's, one side 0 keeps the aspect, else sides in
+ * STAGE_MIN_SIDE..STAGE_MAX_SIDE. */
+pg_status stage_check_size(const char *stage, int width, int height);
+
+/* The settings that decide a stage's result, as JSON (threads and output paths left out), so
+ * a marker can tell whether a finished stage is still current. */
+cJSON *stage_prepare_config_json(const pg_prepare_config *c);
+cJSON *stage_proxies_config_json(const pg_proxies_config *c);
+cJSON *stage_train_config_json(const pg_train_config *c);
+
+#endif
