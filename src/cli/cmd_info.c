@@ -292,7 +292,8 @@ int cmd_info(int argc, char **argv)
     cli_option opts[] = { { "--json", CLI_FLAG, &json, "print JSON instead of text" } };
     cli_spec spec = { "prodygs info", "PATH [--json]",
                       "Describe a video, frame folder, dataset (DyNeRF/Panoptic), training set, depth file/folder,\n"
-                      "Gaussian PLY or training checkpoint (.ckpt).",
+                      "Gaussian PLY or training checkpoint (.ckpt).\n\n"
+                      "example: prodygs info depth.npy",
                       opts, 1, 1, 1 };
     const char *pos[1];
     int npos = 0;

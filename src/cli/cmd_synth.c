@@ -27,7 +27,8 @@ int cmd_synth(int argc, char **argv)
     const cli_spec spec = { "prodygs synth", "OUT [options]",
                             "Ray-trace the built-in dynamic tabletop scene into a multi-camera dataset with ground-truth\n"
                             "depth (depth_gt/), moving-object masks (masks_dynamic/) and a simulated monocular depth of\n"
-                            "cam00 (depth_mono/). World frame = cam00's camera frame.",
+                            "cam00 (depth_mono/). World frame = cam00's camera frame.\n\n"
+                            "example: prodygs synth data/sample --cams 10 --frames 30",
                             opts, (int)(sizeof opts / sizeof opts[0]), 1, 1 };
     const char *pos[1];
     int npos = 0;

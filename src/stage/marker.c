@@ -2,6 +2,7 @@
 #include "stage/marker.h"
 
 #include <dirent.h>
+#include <errno.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -70,7 +71,7 @@ static pg_status hash_path(content_hash *h, const char *path, int depth)
 {
     if (pg_path_is_dir(path)) return hash_dir(h, path, depth);
     FILE *f = fopen(path, "rb");
-    if (!f) return pg_fail(PG_ERR_IO, "%s: cannot open to check whether it changed", path);
+    if (!f) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
     static _Thread_local unsigned char buf[1 << 16];
     size_t got;
     while ((got = fread(buf, 1, sizeof buf, f)) > 0) hash_bytes(h, buf, got);
