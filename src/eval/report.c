@@ -112,24 +112,6 @@ pg_status eval_write_metrics_json(const char *path, const eval_results *r, const
     return st;
 }
 
-cJSON *eval_summary_json(const eval_results *r)
-{
-    eval_scores m, tr;
-    int n = eval_results_mean(r, NULL, EVAL_ROLE_TEST, &m);
-    int ntr = eval_results_mean(r, NULL, EVAL_ROLE_TRAIN, &tr);
-    cJSON *o = cJSON_CreateObject();
-    add_number_or_null(o, "psnr", n ? m.psnr : NAN);
-    add_number_or_null(o, "ssim", n ? m.ssim : NAN);
-    add_number_or_null(o, "psnr_masked", n ? m.psnr_masked : NAN);
-    add_number_or_null(o, "ssim_masked", n ? m.ssim_masked : NAN);
-    add_number_or_null(o, "psnr_moving", eval_region_psnr(&m.region[EVAL_MOVING]));
-    add_number_or_null(o, "train_psnr", ntr ? tr.psnr : NAN);
-    add_number_or_null(o, "train_psnr_moving", eval_region_psnr(&tr.region[EVAL_MOVING]));
-    add_number_or_null(o, "train_psnr_static", eval_region_psnr(&tr.region[EVAL_STATIC]));
-    cJSON_AddNumberToObject(o, "frames", n);
-    return o;
-}
-
 pg_status eval_write_report_md(const char *path, const eval_results *r, const cJSON *config, const cJSON *stages)
 {
     size_t cap = 1 << 16, len = 0;

@@ -11,9 +11,6 @@
  * {stage: seconds}}. stages ({stage: {"seconds", "threads", "ran"}}) and config are copied (may be
  * NULL). Atomic. */
 pg_status eval_write_metrics_json(const char *path, const eval_results *r, const cJSON *config, const cJSON *stages);
-/* One line for stdout: the test cameras' psnr, ssim, masked scores and moving-pixel PSNR, and
- * the training camera's moving / static PSNR (null when undefined). Caller frees. */
-cJSON *eval_summary_json(const eval_results *r);
 /* A short markdown report with the same numbers, the stages (time, threads) and a note on LPIPS. Atomic. */
 pg_status eval_write_report_md(const char *path, const eval_results *r, const cJSON *config, const cJSON *stages);
 /* One PNG: truth | render | error (|difference| x 4, clamped). Atomic. */

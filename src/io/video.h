@@ -107,8 +107,6 @@ pg_status io_video_writer_close(io_video_writer *w);
 /* Frees the writer and removes partial output without committing. Accepts NULL. */
 void io_video_writer_abort(io_video_writer *w);
 io_video_backend io_video_writer_backend(const io_video_writer *w);
-/* Where the output goes: the path itself, or the PNG folder on fallback. */
-const char *io_video_writer_output(const io_video_writer *w);
 /* One-shot helper: writes count frames. *backend (may be NULL) gets the backend used. */
 pg_status io_video_write(const char *path, const pg_image *frames, int count, const io_video_write_options *opt,
                          io_video_backend *backend);

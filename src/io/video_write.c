@@ -43,7 +43,6 @@ io_video_write_options io_video_write_defaults(void)
 }
 
 io_video_backend io_video_writer_backend(const io_video_writer *w) { return w->backend; }
-const char *io_video_writer_output(const io_video_writer *w) { return w->path; }
 
 static void free_codec(io_video_writer *w)
 {

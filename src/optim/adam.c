@@ -96,7 +96,6 @@ pg_status optim_adam_create_flat(optim_adam **opt, int n, float eps)
     return optim_adam_create(opt, &d, 1, n, eps);
 }
 
-void optim_adam_set_betas(optim_adam *opt, float beta1, float beta2) { opt->beta1 = beta1; opt->beta2 = beta2; }
 int optim_adam_rows(const optim_adam *opt) { return opt->rows; }
 
 /* A group's step prepared for the loops: its Adam state, where its columns start in param and

@@ -59,7 +59,6 @@ pg_status optim_adam_create_gaussians(optim_adam **opt, int rows, float eps);
 /* One group of n scalars (row_stride = cols = 1, rows = n). */
 pg_status optim_adam_create_flat(optim_adam **opt, int n, float eps);
 void optim_adam_destroy(optim_adam *opt);
-void optim_adam_set_betas(optim_adam *opt, float beta1, float beta2);
 
 /* One Adam step of group gi: param -= lr * mhat / (sqrt(vhat) + eps) over its rows x cols.
  * param and grad are the full (rows, row_stride) arrays. */

@@ -63,5 +63,4 @@ pg_status render_model_frame(render_model *rm, const pg_camera *cam, float t, pg
     return splat_render_forward(rm->raster, g, cam, &s, out);
 }
 
-const train_model *render_model_get(const render_model *rm) { return &rm->model; }
 int render_model_frames(const render_model *rm) { return rm->model.frames; }

@@ -27,7 +27,6 @@ void render_model_close(render_model *rm);
 pg_status render_model_checkpoint_path(const char *path, char *out, size_t size);
 pg_status render_model_frame(render_model *rm, const pg_camera *cam, float t, pg_render_output *out);
 pg_status render_model_gaussians_at(render_model *rm, float t, const pg_gaussians **g);
-const train_model *render_model_get(const render_model *rm);
 /* Frames of the training video (t = f / (frames - 1)). */
 int render_model_frames(const render_model *rm);
 

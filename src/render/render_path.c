@@ -17,7 +17,6 @@ pg_status render_path_parse(const char *name, render_path_kind *kind)
     return pg_fail(PG_ERR_ARG, "unknown camera path '%s' (fixed, orbit, spiral, dataset-cam NAME)", name);
 }
 
-const char *render_path_name(render_path_kind kind) { return path_names[kind]; }
 
 /* Rotates the real camera's centre about `center` by yaw (around the camera's up axis) and
  * pitch (around its right axis), then looks back at the centre with the same up vector. */

@@ -25,7 +25,6 @@ typedef struct {
 
 /* Parses "fixed", "orbit" or "spiral". */
 pg_status render_path_parse(const char *name, render_path_kind *kind);
-const char *render_path_name(render_path_kind kind);
 /* Camera i (of opt->steps) of the path and its time in [0, 1]. `center` is the point the
  * cameras look at (e.g. median depth on the real camera's optical axis). */
 void render_path_camera(const render_path_options *opt, const pg_camera *real, const float center[3], int i,

@@ -45,8 +45,6 @@ pg_status train_net_backward(train_net *net, const pg_gaussians *g, const int *i
                              const pg_gaussians *d_out, pg_gaussians *d_canon);
 /* K-Planes regularisers: adds their gradients, returns the loss value. */
 float train_net_regularize(train_net *net, float w_tv, float w_time, float w_l1);
-/* The config the network was created with (checkpoints store it next to the parameters). */
-void train_net_config_of(const train_net *n, train_net_config *cfg);
 
 /* ---- the model ---- */
 typedef struct {

@@ -85,11 +85,6 @@ void train_session_deform_stats(const train_session *s, double *mean_deformed, d
     *mean_movable = s->fine_steps ? s->sum_movable / (double)s->fine_steps : 0;
 }
 
-void train_session_last(const train_session *s, double *loss, double *real_psnr)
-{
-    if (loss) *loss = s->last_loss;
-    if (real_psnr) *real_psnr = s->last_psnr;
-}
 void train_session_timing(const train_session *s, train_timing *t) { *t = s->timing; }
 
 void train_session_destroy(train_session *s)
@@ -359,7 +354,6 @@ static int build_subset(train_session *s, const pg_camera *const *cams, int ncam
     return n;
 }
 
-
 /* Loads the target image, loss weights and depth of (view, frame) into the session buffers;
  * returns whether the view has depth. Weights: the view's mask, times 1 + moving_weight on
  * moving pixels when moving (training) is set. */
@@ -616,7 +610,6 @@ pg_status train_session_step(train_session *s)
     return PG_OK;
 }
 
-pg_status train_session_save(train_session *s, const char *path) { return train_checkpoint_write(s, path); }
 
 pg_status train_session_run(train_session *s)
 {

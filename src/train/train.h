@@ -78,7 +78,6 @@ typedef struct {
     double psnr, psnr_moving, psnr_static, moving_fraction;
 } train_eval_scores;
 pg_status train_session_evaluate_parts(train_session *s, io_view_role role, train_eval_scores *out);
-pg_status train_session_save(train_session *s, const char *path);
 int train_session_iteration(const train_session *s);
 int train_session_gaussians(const train_session *s);
 /* Mean number of Gaussians sent through the network per fine iteration (after static flags and
@@ -86,8 +85,6 @@ int train_session_gaussians(const train_session *s);
 void train_session_deform_stats(const train_session *s, double *mean_deformed, double *mean_movable);
 /* Gaussians flagged static (never sent through the network). */
 int train_session_static_count(const train_session *s);
-/* Loss and real-view PSNR of the latest iteration that used a real view. */
-void train_session_last(const train_session *s, double *loss, double *real_psnr);
 
 /* Per-phase timings of the last step in milliseconds (bench iteration). */
 typedef struct {

@@ -122,4 +122,3 @@ float train_net_regularize(train_net *t, float w_tv, float w_time, float w_l1)
 }
 
 
-void train_net_config_of(const train_net *n, train_net_config *cfg) { *cfg = n->cfg; }

@@ -29,13 +29,6 @@ void train_set_destroy(train_set *ts)
     memset(ts, 0, sizeof *ts);
 }
 
-int train_set_find(const train_set *ts, const char *name)
-{
-    for (int i = 0; i < ts->num_views; i++)
-        if (strcmp(ts->views[i].name, name) == 0) return i;
-    return -1;
-}
-
 int train_set_count_role(const train_set *ts, io_view_role role)
 {
     int n = 0;
@@ -255,7 +248,6 @@ done:
 }
 
 /* ---------- DyNeRF dataset (real cameras) ---------- */
-
 
 train_set_dynerf_options train_set_dynerf_defaults(void)
 {

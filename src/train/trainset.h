@@ -66,8 +66,6 @@ pg_status train_set_from_dynerf(const char *dir, const train_set_dynerf_options 
 
 void train_set_destroy(train_set *ts);
 
-/* Index of the view with this name, or -1. */
-int train_set_find(const train_set *ts, const char *name);
 /* Counts views of a role. */
 int train_set_count_role(const train_set *ts, io_view_role role);
 /* Frame f of view v as a float (H, W, 3) image (img must be created with the set's size). */
