@@ -37,9 +37,8 @@ int bench_flow(int argc, char **argv)
     int rc = cli_parse(&spec, argc, argv, NULL, &np);
     if (rc) return rc < 0 ? 0 : rc;
     int W = 0, H = 0;
-    char tail;
-    if (sscanf(size, "%dx%d%c", &W, &H, &tail) != 2 || W < 16 || H < 16 || W > 8192 || H > 8192)
-        return cli_usage_error("bench flow: --size '%s' is not WxH (16..8192)", size);
+    if ((rc = cli_parse_size("--size", size, &W, &H))) return rc;
+    if (W < 16 || H < 16) return cli_usage_error("bench flow: --size '%s' needs both sides >= 16", size);
     if (reps < 1 || reps > 1000) return cli_usage_error("bench flow: --reps must be in 1..1000");
     pg_set_threads(1);
     pg_image i0, i1;

@@ -27,6 +27,9 @@ int cmd_demo(int argc, char **argv)
     int rc = cli_parse(&spec, argc, argv, NULL, NULL);
     if (rc) return rc < 0 ? 0 : rc;
     if (frames < 0 || frames > 1000) return cli_usage_error("demo: --frames %d is out of range", frames);
+    /* checked here as well as in the pipeline: before minutes of rendering the scene */
+    if (iters < 0) return cli_usage_error("demo: --iters must be >= 1 (got %d)", iters);
+    if (threads < 0 || threads > 256) return cli_usage_error("demo: --threads must be in 1..256 (got %d)", threads);
 
     char scene_dir[4096], depth[4200], marker[4200];
     snprintf(scene_dir, sizeof scene_dir, "%s/scene", out);

@@ -34,14 +34,9 @@ int cmd_synth(int argc, char **argv)
     int npos = 0;
     int rc = cli_parse(&spec, argc, argv, pos, &npos);
     if (rc) return rc < 0 ? 0 : rc;
-    if (size) {
-        int w = 0, h = 0;
-        char tail = 0;
-        if (sscanf(size, "%dx%d%c", &w, &h, &tail) != 2 || w < 8 || h < 8 || w > 4096 || h > 4096)
-            return cli_usage_error("synth: --size expects WxH with sides 8..4096, got '%s'", size);
-        o.width = w;
-        o.height = h;
-    }
+    if ((rc = cli_parse_size("--size", size, &o.width, &o.height))) return rc;
+    if (o.width < 8 || o.height < 8 || o.width > 4096 || o.height > 4096) /* a render needs both sides */
+        return cli_usage_error("synth: --size '%s' needs both sides in 8..4096", size);
     if (strcmp(layout, "dynerf") == 0) o.layout = SYNTH_LAYOUT_DYNERF;
     else if (strcmp(layout, "panoptic") == 0) o.layout = SYNTH_LAYOUT_PANOPTIC;
     else return cli_usage_error("synth: --layout must be dynerf or panoptic, got '%s'", layout);
