@@ -178,6 +178,14 @@ static pg_status stage_finished(pipeline_run *p, int stage, const cJSON *config,
     return st;
 }
 
+/* The content hashes of a stage's two inputs. */
+static pg_status hash_inputs(cJSON **inputs, const char *name_a, const char *path_a, const char *name_b, const char *path_b)
+{
+    *inputs = cJSON_CreateObject();
+    PG_TRY(stage_hash_input(*inputs, name_a, path_a));
+    return stage_hash_input(*inputs, name_b, path_b);
+}
+
 static pg_status run_prepare(pipeline_run *p, const pipeline_plan *plan, const char *dir)
 {
     const pg_pipeline_config *c = p->c;
@@ -195,9 +203,8 @@ static pg_status run_prepare(pipeline_run *p, const pipeline_plan *plan, const c
     pc.width = plan->width;
     pc.height = plan->height;
     pc.threads = plan->threads;
-    cJSON *config = stage_prepare_config_json(&pc), *inputs = cJSON_CreateObject();
-    pg_status st = stage_hash_input(inputs, "input", c->input);
-    if (!st) st = stage_hash_input(inputs, "depth", c->depth);
+    cJSON *config = stage_prepare_config_json(&pc), *inputs;
+    pg_status st = hash_inputs(&inputs, "input", c->input, "depth", c->depth);
     if (!st && !stage_is_current(p, ST_PREPARE, config, inputs)) {
         pg_prepare_report pr;
         st = pg_prepare_run(&pc, &pr);
@@ -230,9 +237,8 @@ static pg_status run_proxies(pipeline_run *p, const pipeline_plan *plan, const c
     xc.width = plan->width;
     xc.height = plan->height;
     xc.threads = plan->threads;
-    cJSON *config = stage_proxies_config_json(&xc), *inputs = cJSON_CreateObject();
-    pg_status st = stage_hash_input(inputs, "input", c->input);
-    if (!st) st = stage_hash_input(inputs, "depth", depth);
+    cJSON *config = stage_proxies_config_json(&xc), *inputs;
+    pg_status st = hash_inputs(&inputs, "input", c->input, "depth", depth);
     if (!st && !stage_is_current(p, ST_PROXIES, config, inputs)) {
         pg_proxies_report xr;
         st = pg_proxies_run(&xc, &xr);
@@ -258,10 +264,9 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.iters = plan->iters;
     tc.seed = c->seed;
     tc.threads = plan->threads;
-    cJSON *config = stage_train_config_json(&tc), *inputs = cJSON_CreateObject();
-    pg_status st = stage_hash_input(inputs, "trainset", set_file);
     /* the proxies' marker holds the hashes of the video and depth they were made from */
-    if (!st) st = stage_hash_input(inputs, "proxies", proxies_done);
+    cJSON *config = stage_train_config_json(&tc), *inputs;
+    pg_status st = hash_inputs(&inputs, "trainset", set_file, "proxies", proxies_done);
     if (!st && !stage_is_current(p, ST_TRAIN, config, inputs)) {
         char why[512], ckpt[4200];
         st = pg_path_join(ckpt, sizeof ckpt, dir, "model.ckpt");
