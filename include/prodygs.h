@@ -182,6 +182,17 @@ pg_status pg_export_run(const pg_export_config *c, pg_export_report *r);
  * Each finished stage writes OUT/<stage>.done holding its config and the content hashes of its
  * inputs; a rerun skips a stage only when both match, else reruns it and every later stage and
  * says why on stderr. Training resumes from its last checkpoint. */
+typedef struct pg_pipeline_report {
+    char train_camera[PG_CAMERA_LABEL], test_cameras[PG_CAMERA_LABELS];
+    int width, height, iters, proxies, threads;
+    int ran[5];                       /* prepare, proxies, train, evaluate, render: 1 ran, 0 skipped/off */
+    double seconds[5];
+    pg_train_report train;
+    pg_evaluate_report evaluation;
+    double seconds_total;
+    long peak_rss_kb;
+} pg_pipeline_report;
+
 typedef struct {
     const char *input, *depth, *out;  /* required */
     const char *preset;               /* "fast" (default) or "quality" */
@@ -198,18 +209,11 @@ typedef struct {
     int evaluate;                     /* score the test cameras into OUT/metrics.json, report.md */
     int render_videos;                /* fixed/orbit/spiral videos into OUT/renders */
     const char *command;              /* recorded in report.md and metrics.json (may be NULL) */
+    /* called once the cameras, size and thread count are settled, before the first stage (a
+     * caller prints them; may be NULL) */
+    void (*on_plan)(const struct pg_pipeline_report *plan, void *user);
+    void *user;
 } pg_pipeline_config;
-
-typedef struct {
-    char train_camera[PG_CAMERA_LABEL], test_cameras[PG_CAMERA_LABELS];
-    int width, height, iters, proxies, threads;
-    int ran[5];                       /* prepare, proxies, train, evaluate, render: 1 ran, 0 skipped/off */
-    double seconds[5];
-    pg_train_report train;
-    pg_evaluate_report evaluation;
-    double seconds_total;
-    long peak_rss_kb;
-} pg_pipeline_report;
 
 void pg_pipeline_defaults(pg_pipeline_config *c);
 pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r);

@@ -61,9 +61,20 @@ static void add_score(char *buf, size_t size, const char *name, double v)
     else snprintf(buf + n, size - n, ", \"%s\": null", name);
 }
 
-int pipeline_cli_run(const pg_pipeline_config *c)
+/* The resolved cameras, printed before the long stages (and flushed: a redirected log keeps
+ * them on Ctrl-C). */
+static void print_plan(const pg_pipeline_report *plan, void *user)
+{
+    (void)user;
+    printf("training camera %s%s%s\n", plan->train_camera, plan->test_cameras[0] ? "; test cameras " : "",
+           plan->test_cameras);
+    fflush(stdout);
+}
+
+int pipeline_cli_run(pg_pipeline_config *c)
 {
     pg_pipeline_report r;
+    c->on_plan = print_plan;
     pg_status st = pg_pipeline_run(c, &r);
     if (st) {
         if (pg_status_exit_code(st) != 2)

@@ -17,7 +17,8 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
 /* Parses argv with spec (one positional: INPUT) and finishes c. Returns 0, -1 after --help, or
  * an exit code. */
 int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pg_pipeline_config *c, pipeline_cli_text *t);
-/* Runs the pipeline and prints its one-line JSON summary on stdout; returns the exit code. */
-int pipeline_cli_run(const pg_pipeline_config *c);
+/* Runs the pipeline, printing the resolved cameras first and a one-line JSON summary at the
+ * end on stdout; returns the exit code. */
+int pipeline_cli_run(pg_pipeline_config *c);
 
 #endif

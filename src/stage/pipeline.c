@@ -364,8 +364,7 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
     PG_TRY(check_config(c, &ps));
     pipeline_plan plan;
     PG_TRY(make_plan(c, ps, &plan, r));
-    printf("training camera %s%s%s\n", r->train_camera, r->test_cameras[0] ? "; test cameras " : "", r->test_cameras);
-    fflush(stdout); /* before the long stages: a redirected log keeps it on Ctrl-C */
+    if (c->on_plan) c->on_plan(r, c->user);
 
     double t0 = pg_time_seconds();
     char prepare_dir[4200], proxies_dir[4200], model_dir[4200];
