@@ -523,15 +523,11 @@ static float bf16_round(float f)
     return f;
 }
 
-/* AMX GEMM vs a double product of the bf16-rounded inputs: f32 accumulate into a sub-block of a
- * bigger C (operands packed from a transposed A and a ragged B), then the bf16 epilogue (bias, ReLU,
- * mask, column sums, row-major / transposed / VNNI outputs). */
-static void test_gemm_amx(void)
+/* The bf16 GEMM backend in use vs a double product of the bf16-rounded inputs: f32 accumulate into
+ * a sub-block of a bigger C (operands packed from a transposed A and a ragged B), then the bf16
+ * epilogue (bias, ReLU, mask, column sums, row-major / transposed / VNNI outputs). */
+static void test_gemm_bf16(const char *name)
 {
-    if (!gemm_amx_available()) {
-        printf("gemm_amx: AMX not available, skipped\n");
-        return;
-    }
     enum { M = 37, N = 45, K = 50, MP = 64, NP = 64, KP = 64, LDC = 80 };
     pg_rng rng;
     pg_rng_seed(&rng, 8);
@@ -553,7 +549,7 @@ static void test_gemm_amx(void)
     gemm_amx_pack_b(bp, B, N, 1, K, N);
     /* f32, accumulate into C at column offset 16 */
     gemm_amx_epilogue ef = { .c = Cm + 16, .ldc = LDC, .accumulate = 1 };
-    gemm_amx(ap, KP, bp, 2 * NP, MP, NP, KP, &ef);
+    gemm_bf16(ap, KP, bp, 2 * NP, MP, NP, KP, &ef);
     double e = 0;
     int outside = 0;
     for (int i = 0; i < MP; i++)
@@ -563,21 +559,21 @@ static void test_gemm_amx(void)
             if (!in) outside |= Cm[i * LDC + j] != C0[i * LDC + j];
             else e = fmax(e, fabs(Cm[i * LDC + j] - ref));
         }
-    CHECK(e < 1e-4 && !outside, "amx gemm f32 accumulate: err %g, wrote outside %d", e, outside);
+    CHECK(e < 1e-4 && !outside, "%s gemm f32 accumulate: err %g, wrote outside %d", name, e, outside);
     /* 16-wide edges (M = 48, N = 48: a 32-block plus a row strip and a column strip), with bias */
     static float Ce[48 * 48];
     gemm_amx_epilogue ee = { .c = Ce, .ldc = 48, .bias = bias };
-    gemm_amx(ap, KP, bp, 2 * NP, 48, 48, KP, &ee);
+    gemm_bf16(ap, KP, bp, 2 * NP, 48, 48, KP, &ee);
     double e_edge = 0;
     for (int i = 0; i < 48; i++)
         for (int j = 0; j < 48; j++)
             e_edge = fmax(e_edge, fabs(Ce[i * 48 + j] - ((i < M && j < N ? R[i * N + j] : 0.0) + bias[j])));
-    CHECK(e_edge < 1e-4, "amx gemm 16-wide edges: err %g", e_edge);
+    CHECK(e_edge < 1e-4, "%s gemm 16-wide edges: err %g", name, e_edge);
     /* bf16 epilogue */
     float colsum[NP] = { 0 };
     gemm_amx_epilogue eb = { .bias = bias, .relu = 1, .mask = mask, .ldmask = NP, .colsum = colsum, .rows = M,
                              .rm = rm, .ldrm = NP, .tr = tr, .ldtr = MP, .vn = vn, .ldvn = 2 * NP };
-    gemm_amx(ap, KP, bp, 2 * NP, MP, NP, KP, &eb);
+    gemm_bf16(ap, KP, bp, 2 * NP, MP, NP, KP, &eb);
     double e2 = 0, es = 0;
     int layout = 0;
     for (int j = 0; j < NP; j++) {
@@ -595,19 +591,15 @@ static void test_gemm_amx(void)
         }
         es = fmax(es, fabs(colsum[j] - cs));
     }
-    CHECK(e2 < 1e-2 && es < 1e-3 && !layout, "amx gemm epilogue: rel err %g, colsum err %g, layouts differ %d", e2, es,
-          layout);
-    printf("gemm_amx (37x45x50 padded to 64): f32 accumulate max err %.2e, epilogue rel err %.2e colsum %.2e\n", e, e2,
-           es);
+    CHECK(e2 < 1e-2 && es < 1e-3 && !layout, "%s gemm epilogue: rel err %g, colsum err %g, layouts differ %d", name, e2,
+          es, layout);
+    printf("gemm %s (37x45x50 padded to 64): f32 accumulate max err %.2e, epilogue rel err %.2e colsum %.2e\n", name, e,
+           e2, es);
 }
 
-/* The bf16 AMX network path agrees with the f32 path to bf16 accuracy. */
-static void test_network_bf16(void)
+/* The bf16 network path (backend `name`) agrees with the f32 path to bf16 accuracy. */
+static void test_network_bf16(const char *name)
 {
-    if (!gemm_amx_available()) {
-        printf("network bf16: AMX not available, skipped\n");
-        return;
-    }
     deform_config cfg;
     small_config(&cfg);
     cfg.channels = 8;
@@ -655,10 +647,10 @@ static void test_network_bf16(void)
     }
     for (int i = 0; i < N * 3; i++) { e[3] += pow(dm32[i] - dm16[i], 2); n[3] += pow(dm32[i], 2); }
     for (int k = 0; k < 4; k++) e[k] = sqrt(e[k] / n[k]);
-    CHECK(e[0] < 1e-2 && e[1] < 0.15 && e[2] < 0.15 && e[3] < 0.15, "bf16 vs f32 rel L2: out %g planes %g mlp %g means %g",
-          e[0], e[1], e[2], e[3]);
-    printf("network bf16 vs f32 (relative L2): out %.1e, d/dplanes %.1e, d/dmlp %.1e, d/dmeans %.1e\n", e[0], e[1],
-           e[2], e[3]);
+    CHECK(e[0] < 1e-2 && e[1] < 0.15 && e[2] < 0.15 && e[3] < 0.15,
+          "%s bf16 vs f32 rel L2: out %g planes %g mlp %g means %g", name, e[0], e[1], e[2], e[3]);
+    printf("network %s bf16 vs f32 (relative L2): out %.1e, d/dplanes %.1e, d/dmlp %.1e, d/dmeans %.1e\n", name, e[0],
+           e[1], e[2], e[3]);
     /* bf16 path determinism with 2 threads: two runs give the same bytes */
     {
         float *ga = malloc(P * sizeof(float)), *oa = malloc(N * DEFORM_OUT_DIM * sizeof(float));
@@ -742,18 +734,14 @@ static double fit_field(int bf16, int steps)
     return mse;
 }
 
-/* Training quality: bf16 (AMX) reaches the same fit as f32 on a small regression. */
-static void test_fit_bf16(void)
+/* Training quality: the bf16 backend `name` reaches the same fit as f32 on a small regression. */
+static void test_fit_bf16(const char *name)
 {
     double e32 = fit_field(0, 300);
     CHECK(e32 < 0.15 * 0.0025, "f32 fit did not learn the field: mse %g (field variance ~2.5e-3)", e32);
-    if (!gemm_amx_available()) {
-        printf("fit: f32 mse %.3e (AMX not available, bf16 skipped)\n", e32);
-        return;
-    }
     double e16 = fit_field(1, 300);
-    CHECK(e16 < 1.5 * e32 + 1e-6, "bf16 fit mse %g vs f32 %g", e16, e32);
-    printf("fit (300 Adam steps): mse f32 %.3e, bf16 %.3e\n", e32, e16);
+    CHECK(e16 < 1.5 * e32 + 1e-6, "%s bf16 fit mse %g vs f32 %g", name, e16, e32);
+    printf("fit (300 Adam steps): mse f32 %.3e, %s bf16 %.3e\n", e32, name, e16);
 }
 
 int main(void)
@@ -763,12 +751,21 @@ int main(void)
     test_linear();
     test_network_fd();
     test_identity_blob_reg();
-    test_gemm_amx();
-    test_network_bf16();
+    /* every bf16 backend this CPU can run, each forced in turn */
+    const gemm_bf16_kind kinds[2] = { GEMM_BF16_AMX, GEMM_BF16_AVX512 };
+    for (int k = 0; k < 2; k++) {
+        const char *name = gemm_bf16_name(kinds[k]);
+        if (gemm_bf16_force(kinds[k]) != 0) {
+            printf("bf16 backend %s: not supported by this CPU, skipped\n", name);
+            continue;
+        }
+        test_gemm_bf16(name);
+        test_network_bf16(name);
 #ifndef __SANITIZE_ADDRESS__ /* a training-quality check; the sanitizer pass covers the same code above */
-    test_fit_bf16();
+        test_fit_bf16(name);
 #else
-    (void)test_fit_bf16;
+        (void)test_fit_bf16;
 #endif
+    }
     return test_summary("test_deform");
 }

@@ -4,6 +4,7 @@
  * JSON line with the medians over --reps repetitions after one warm-up.
  */
 #include "cli/cli.h"
+#include "deform/gemm_amx.h"
 #include "core/mathx.h"
 #include "core/parallel.h"
 #include "core/rng.h"
@@ -26,7 +27,7 @@ int bench_deform(int argc, char **argv)
         { "--chunk", CLI_INT, &chunk, "points per chunk (default 128 with AMX, else 256)" },
         { "--store", CLI_INT, &store, "1: keep activations for the backward, 0: recompute (default 1)" },
         { "--sorted", CLI_INT, &sorted, "1: points ordered along x (spatially coherent), 0: random (default)" },
-        { "--bf16", CLI_INT, &cfg.bf16, "1: Linear layers in bf16 on AMX if available (default), 0: f32" },
+        { "--bf16", CLI_INT, &cfg.bf16, "1: Linear layers in bf16 where the CPU has AMX or AVX512-BF16 (default), 0: f32" },
         { "--channels", CLI_INT, &cfg.channels, "plane channels C (default 16)" },
         { "--res", CLI_INT, &cfg.res_space, "spatial resolution R (default 64)" },
         { "--res-time", CLI_INT, &cfg.res_time, "time resolution T (default 150)" },
@@ -89,9 +90,10 @@ int bench_deform(int argc, char **argv)
         qsort(tb, reps, sizeof(double), pg_cmp_double);
         printf("{\"bench\":\"deform\",\"points\":%d,\"threads\":%d,\"forward_ms\":%.2f,\"backward_ms\":%.2f,\"forward_min_ms\":%.2f,\"backward_min_ms\":%.2f,"
                "\"forward_cpu_ms\":%.2f,\"backward_cpu_ms\":%.2f,\"regularize_ms\":%.2f,"
-               "\"params\":%zu,\"channels\":%d,\"res\":%d,\"res_time\":%d,\"width\":%d,\"chunk\":%d,\"store\":%d,\"sorted\":%d,\"amx\":%d}\n",
+               "\"params\":%zu,\"channels\":%d,\"res\":%d,\"res_time\":%d,\"width\":%d,\"chunk\":%d,\"store\":%d,\"sorted\":%d,\"deform_kernel\":\"%s\"}\n",
                points, threads, tf[reps / 2], tb[reps / 2], tf[0], tb[0], cpu_f, cpu_b, reg_ms, net->num_params, cfg.channels, cfg.res_space,
-               cfg.res_time, cfg.width, deform_ws_chunk(ws), store, sorted, deform_ws_uses_amx(ws));
+               cfg.res_time, cfg.width, deform_ws_chunk(ws), store, sorted,
+               deform_ws_uses_amx(ws) ? gemm_bf16_name(gemm_bf16_backend()) : "f32");
     }
     free(means); free(out); free(dout); free(dmeans); free(tf); free(tb);
     deform_ws_destroy(ws);

@@ -13,6 +13,7 @@
 #include <time.h>
 
 #include "cli/cli.h"
+#include "deform/gemm_amx.h"
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "train/train.h"
@@ -144,10 +145,10 @@ int bench_iteration(int argc, char **argv)
     printf("{\"ms_per_iteration\": %.2f, \"cpu_ms_per_iteration\": %.2f, \"deform_forward\": %.2f, \"deform_backward\": %.2f, "
            "\"regularize\": %.2f, \"raster_forward\": %.2f, \"raster_backward\": %.2f, \"loss\": %.2f, \"optimizer\": %.2f, "
            "\"other\": %.2f, \"deformed\": %d, \"gaussians\": %d, \"width\": %d, \"height\": %d, \"threads\": %d, "
-           "\"static_fraction\": %.2f, \"cull\": %s}\n",
+           "\"static_fraction\": %.2f, \"cull\": %s, \"deform_kernel\": \"%s\"}\n",
            pg_median(t[0], reps), pg_median(t[9], reps), pg_median(t[1], reps), pg_median(t[2], reps), pg_median(t[8], reps), pg_median(t[3], reps), pg_median(t[4], reps),
            pg_median(t[5], reps), pg_median(t[6], reps), pg_median(t[7], reps), deformed, n, width, height, threads,
-           static_fraction, no_cull ? "false" : "true");
+           static_fraction, no_cull ? "false" : "true", gemm_bf16_name(gemm_bf16_backend()));
 done:
     for (int k = 0; k < 10; k++) free(t[k]);
     free(flags);

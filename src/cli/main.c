@@ -1,5 +1,6 @@
 /* main.c - `prodygs` entry point: dispatches to the subcommands. */
 #include "cli/cli.h"
+#include "deform/gemm_amx.h"
 
 #include <stdio.h>
 #include <string.h>
@@ -49,7 +50,8 @@ int main(int argc, char **argv)
         return 0;
     }
     if (strcmp(argv[1], "--version") == 0 || strcmp(argv[1], "version") == 0) {
-        printf("prodygs %s\n", PRODYGS_VERSION);
+        printf("prodygs %s (deformation network kernels: %s; PG_KERNELS=amx|avx512bf16|f32 to force)\n", PRODYGS_VERSION,
+               gemm_bf16_name(gemm_bf16_backend()));
         return 0;
     }
     cli_install_progress();

@@ -264,7 +264,7 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
 {
     *out = NULL;
     if (max_points < 0) return pg_fail(PG_ERR_ARG, "deform_ws_create: max_points %ld < 0", max_points);
-    if (chunk <= 0) chunk = net->cfg.bf16 && gemm_amx_available() ? DEFAULT_CHUNK_AMX : DEFAULT_CHUNK;
+    if (chunk <= 0) chunk = net->cfg.bf16 && gemm_bf16_backend() != GEMM_BF16_NONE ? DEFAULT_CHUNK_AMX : DEFAULT_CHUNK;
     deform_ws *ws = pg_calloc(1, sizeof(*ws), "deform workspace");
     if (!ws) return PG_ERR_NOMEM;
     ws->chunk = chunk;
@@ -273,7 +273,7 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
     ws->L = net->num_layers;
     ws->act_pp = (size_t)ws->F + (size_t)(ws->L - 1) * ws->W + (size_t)DEFORM_HEADS * ws->W;
     ws->num_params = net->num_params;
-    ws->amx = net->cfg.bf16 && gemm_amx_available();
+    ws->amx = net->cfg.bf16 && gemm_bf16_backend() != GEMM_BF16_NONE;
     ws->scratch_floats = ws_scratch_floats(ws);
     ws->slice_off = ws->scratch_floats;
     ws->scratch_floats += (hex_slice_size(&net->grid) + 15) & ~(size_t)15;

@@ -237,7 +237,7 @@ void deform_amx_chunk_forward(deform_amx *a, int tid, long k, const float *feat,
             e.vn = t->avn;
             e.ldvn = 2 * a->d[L];
         }
-        gemm_amx(xin, a->d[l], a->wf[l], 2 * a->d[l + 1], mp, a->d[l + 1], a->d[l], &e);
+        gemm_bf16(xin, a->d[l], a->wf[l], 2 * a->d[l + 1], mp, a->d[l + 1], a->d[l], &e);
         xin = o;
     }
     if (!y) return;
@@ -246,9 +246,9 @@ void deform_amx_chunk_forward(deform_amx *a, int tid, long k, const float *feat,
     const uint16_t *act = xin;
     const int dL = a->d[L], k4 = a->k4;
     gemm_amx_epilogue e0 = { .c = y, .ldc = DEFORM_AMX_OUT_LD, .bias = a->hbias };
-    gemm_amx(act, dL, a->hf, 2 * HEAD_N, mp, 16, dL, &e0);
+    gemm_bf16(act, dL, a->hf, 2 * HEAD_N, mp, 16, dL, &e0);
     gemm_amx_epilogue e1 = { .c = y + 16, .ldc = DEFORM_AMX_OUT_LD, .bias = a->hbias + 16 };
-    gemm_amx(act + k4, dL, a->hf + (size_t)(k4 / 2) * 2 * HEAD_N + 32, 2 * HEAD_N, mp, 48, dL - k4, &e1);
+    gemm_bf16(act + k4, dL, a->hf + (size_t)(k4 / 2) * 2 * HEAD_N + 32, 2 * HEAD_N, mp, 48, dL - k4, &e1);
 }
 
 void deform_amx_backward_begin(deform_amx *a, int tid)
@@ -271,32 +271,32 @@ const float *deform_amx_chunk_backward(deform_amx *a, int tid, long k, const flo
     /* heads' weight gradients: rows [0, 16) over all inputs, rows [16, 64) (SH only) over [k4, dL) */
     const uint16_t *act = t->acts + a->rm_off[L];
     gemm_amx_epilogue w0 = { .c = t->dwh, .ldc = dL, .accumulate = 1 };
-    gemm_amx(t->dyt, mp, t->avn, 2 * dL, 16, dL, mp, &w0);
+    gemm_bf16(t->dyt, mp, t->avn, 2 * dL, 16, dL, mp, &w0);
     gemm_amx_epilogue w1 = { .c = t->dwh + (size_t)16 * dL + k4, .ldc = dL, .accumulate = 1 };
-    gemm_amx(t->dyt + (size_t)16 * mp, mp, t->avn + 2 * k4, 2 * dL, 48, dL - k4, mp, &w1);
+    gemm_bf16(t->dyt + (size_t)16 * mp, mp, t->avn + 2 * k4, 2 * dL, 48, dL - k4, mp, &w1);
     /* d a = d_out W_heads, masked by a > 0: inputs [0, k4) belong to heads 0-3 whose outputs are the
      * first 32 columns of d_out; [k4, dL) need all 64 */
     int cur = 0;
     gemm_amx_epilogue g = { .mask = act, .ldmask = dL, .colsum = t->db[L - 1], .rows = m, .rm = t->grm[cur],
                             .ldrm = dL, .vn = t->gvn[cur], .ldvn = 2 * dL };
-    gemm_amx(t->dya, HEAD_N, a->hb, 2 * dL, mp, k4, 32, &g);
+    gemm_bf16(t->dya, HEAD_N, a->hb, 2 * dL, mp, k4, 32, &g);
     g.mask += k4;
     g.colsum += k4;
     g.rm += k4;
     g.vn += 2 * k4;
-    gemm_amx(t->dya, HEAD_N, a->hb + 2 * k4, 2 * dL, mp, dL - k4, HEAD_N, &g);
+    gemm_bf16(t->dya, HEAD_N, a->hb + 2 * k4, 2 * dL, mp, dL - k4, HEAD_N, &g);
     for (int l = L - 1; l >= 0; l--) {
         const int din = a->d[l], dout = a->d[l + 1];
         gemm_amx_epilogue w = { .c = t->dwt[l], .ldc = dout, .accumulate = 1 };
-        gemm_amx((l ? t->acts : fk) + a->tr_off[l], mp, t->gvn[cur], 2 * dout, din, dout, mp, &w);
+        gemm_bf16((l ? t->acts : fk) + a->tr_off[l], mp, t->gvn[cur], 2 * dout, din, dout, mp, &w);
         if (l == 0) {
             gemm_amx_epilogue f = { .c = t->dfeat, .ldc = din };
-            gemm_amx(t->grm[cur], dout, a->wb[0], 2 * din, mp, din, dout, &f);
+            gemm_bf16(t->grm[cur], dout, a->wb[0], 2 * din, mp, din, dout, &f);
             break;
         }
         gemm_amx_epilogue n = { .mask = t->acts + a->rm_off[l], .ldmask = din, .colsum = t->db[l - 1], .rows = m,
                                 .rm = t->grm[!cur], .ldrm = din, .vn = t->gvn[!cur], .ldvn = 2 * din };
-        gemm_amx(t->grm[cur], dout, a->wb[l], 2 * din, mp, din, dout, &n);
+        gemm_bf16(t->grm[cur], dout, a->wb[l], 2 * din, mp, din, dout, &n);
         cur = !cur;
     }
     *ld = a->d[0];

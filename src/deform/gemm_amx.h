@@ -58,5 +58,22 @@ typedef struct {
 } gemm_amx_epilogue;
 
 void gemm_amx(const uint16_t *A, int lda, const uint16_t *B, int ldb, int M, int N, int K, const gemm_amx_epilogue *e);
+/* The same product and epilogues on AVX512-BF16 (vdpbf16ps) for CPUs without AMX
+ * (gemm_avx512bf16.c); M and N multiples of 16 for an f32 output, of 32 for bf16 outputs. */
+void gemm_avx512bf16(const uint16_t *A, int lda, const uint16_t *B, int ldb, int M, int N, int K,
+                     const gemm_amx_epilogue *e);
+/* The bf16 epilogue of one 32x32 f32 block v (row stride 32) at C position (i, j) (gemm_epilogue.c). */
+void gemm_block_epilogue(const gemm_amx_epilogue *e, const float *v, int i, int j);
+
+/* Backends, chosen once at run time (gemm_dispatch.c): the best the CPU has, or PG_KERNELS=amx|
+ * avx512bf16|f32 (PG_NO_AMX=1 skips AMX). GEMM_BF16_NONE: no bf16 GEMM; the network runs in f32. */
+typedef enum { GEMM_BF16_NONE = 0, GEMM_BF16_AMX, GEMM_BF16_AVX512 } gemm_bf16_kind;
+gemm_bf16_kind gemm_bf16_backend(void);
+int gemm_bf16_supported(gemm_bf16_kind k);
+const char *gemm_bf16_name(gemm_bf16_kind k);
+/* Tests and benchmarks: use backend k from now on (-1 if the CPU lacks it). */
+int gemm_bf16_force(gemm_bf16_kind k);
+/* gemm_amx or gemm_avx512bf16, whichever the backend is (not for GEMM_BF16_NONE). */
+void gemm_bf16(const uint16_t *A, int lda, const uint16_t *B, int ldb, int M, int N, int K, const gemm_amx_epilogue *e);
 
 #endif
