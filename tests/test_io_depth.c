@@ -1,6 +1,7 @@
 /* test_io_depth.c - depth inputs: npy dtypes, PFM round trip, 16-bit PNG, OpenEXR (files made by
  * libavcodec's independent EXR encoder), disparity, resize, invalid counting, bad files. */
 #include "testlib.h"
+#include "core/image.h"
 #include "core/fileutil.h"
 #include "io/depth_io.h"
 #include "io/npy.h"
@@ -329,6 +330,118 @@ static void test_exr(const char *dir)
     }
 }
 
+/* A minimal uncompressed scanline EXR: one FLOAT channel Z, the given dataWindow and one chunk
+ * per row whose y values are ys[] (crafted files: overflowing windows, repeated rows). */
+static void write_exr_raw(const char *path, int32_t xmin, int32_t ymin, int32_t xmax, int32_t ymax, const int32_t *ys,
+                          int nchunks, float value)
+{
+    uint8_t buf[4096];
+    size_t n = 0;
+#define PUT(ptr, len) do { memcpy(buf + n, (ptr), (len)); n += (len); } while (0)
+#define PUT32(v) do { uint32_t u_ = (uint32_t)(v); uint8_t b_[4] = { (uint8_t)u_, (uint8_t)(u_ >> 8), (uint8_t)(u_ >> 16), (uint8_t)(u_ >> 24) }; PUT(b_, 4); } while (0)
+    PUT32(20000630u);
+    PUT32(2);
+    PUT("channels\0chlist\0", 16);
+    PUT32(19); /* "Z\0", type, pLinear + 3 reserved, x/y sampling, list terminator */
+    PUT("Z\0", 2);
+    PUT32(2); /* FLOAT */
+    PUT("\0\0\0\0", 4);
+    PUT32(1);
+    PUT32(1);
+    PUT("\0", 1);
+    PUT("compression\0compression\0", 24);
+    PUT32(1);
+    PUT("\0", 1);
+    PUT("dataWindow\0box2i\0", 17);
+    PUT32(16);
+    PUT32(xmin);
+    PUT32(ymin);
+    PUT32(xmax);
+    PUT32(ymax);
+    PUT("\0", 1);
+    int w = xmax - xmin + 1;
+    size_t table = n;
+    n += (size_t)nchunks * 8;
+    for (int c = 0; c < nchunks; c++) {
+        uint64_t off = n;
+        for (int k = 0; k < 8; k++) buf[table + 8 * (size_t)c + k] = (uint8_t)(off >> (8 * k));
+        PUT32(ys[c]);
+        PUT32(4 * w);
+        for (int x = 0; x < w; x++) PUT(&value, 4);
+    }
+#undef PUT32
+#undef PUT
+    pg_write_file_atomic(path, buf, n);
+}
+
+static void test_exr_hostile(const char *dir)
+{
+    char path[4096];
+    pg_array arr;
+    /* dataWindow at the ends of int32: legal, must load without signed overflow */
+    pg_path_join(path, sizeof path, dir, "ymin_intmin.exr");
+    int32_t lo[2] = { INT32_MIN, INT32_MIN + 1 };
+    write_exr_raw(path, 0, INT32_MIN, 2, INT32_MIN + 1, lo, 2, 3.0f);
+    pg_status st = io_exr_load(path, &arr);
+    CHECK(st == PG_OK && arr.shape[0] == 2 && arr.shape[1] == 3 && arr.data[5] == 3.0f, "ymin INT_MIN: %s",
+          st ? pg_last_error() : "ok");
+    if (st == PG_OK) pg_array_destroy(&arr);
+    pg_path_join(path, sizeof path, dir, "ymax_intmax.exr");
+    int32_t hi[2] = { INT32_MAX - 1, INT32_MAX };
+    write_exr_raw(path, 0, INT32_MAX - 1, 2, INT32_MAX, hi, 2, 4.0f);
+    st = io_exr_load(path, &arr);
+    CHECK(st == PG_OK && arr.data[0] == 4.0f, "ymax INT_MAX: %s", st ? pg_last_error() : "ok");
+    if (st == PG_OK) pg_array_destroy(&arr);
+    /* a chunk y far from ymin = INT_MIN: y - ymin overflowed int32 (UBSan) before the fix */
+    pg_path_join(path, sizeof path, dir, "far_y.exr");
+    int32_t far[2] = { 0, INT32_MIN };
+    write_exr_raw(path, 0, INT32_MIN, 2, INT32_MIN + 1, far, 2, 1.0f);
+    CHECK(io_exr_load(path, &arr) == PG_ERR_FORMAT && strstr(pg_last_error(), "bad y"), "far y: %s", pg_last_error());
+    /* a window whose height overflows int32 arithmetic */
+    pg_path_join(path, sizeof path, dir, "huge_window.exr");
+    write_exr_raw(path, 0, INT32_MIN, 2, INT32_MAX, lo, 1, 1.0f);
+    CHECK(io_exr_load(path, &arr) == PG_ERR_SIZE && strstr(pg_last_error(), "huge_window.exr"), "huge window: %s",
+          pg_last_error());
+    /* every chunk carries the same y: the other rows would be read uninitialised */
+    pg_path_join(path, sizeof path, dir, "same_y.exr");
+    int32_t same[3] = { 0, 0, 0 };
+    write_exr_raw(path, 0, 0, 3, 2, same, 3, 2.0f);
+    CHECK(io_exr_load(path, &arr) == PG_ERR_FORMAT && strstr(pg_last_error(), "repeats"), "repeated y: %s",
+          pg_last_error());
+}
+
+/* npy header that ends right after 'descr': '< (read past the header before the fix), and depth
+ * values below FLT_MIN (their inverse overflowed into a NaN colour index in prepare). */
+static void test_npy_hostile(const char *dir)
+{
+    char path[4096];
+    pg_path_join(path, sizeof path, dir, "descr_cut.npy");
+    const char head[] = "{'descr': '<";
+    uint8_t file[10 + sizeof head - 1];
+    uint8_t pre[10] = { 0x93, 'N', 'U', 'M', 'P', 'Y', 1, 0, (uint8_t)(sizeof head - 1), 0 };
+    memcpy(file, pre, 10);
+    memcpy(file + 10, head, sizeof head - 1);
+    pg_write_file_atomic(path, file, sizeof file);
+    pg_array arr;
+    CHECK(io_npy_load(path, &arr) == PG_ERR_FORMAT && strstr(pg_last_error(), "descr_cut.npy"), "cut descr: %s",
+          pg_last_error());
+    enum { H = 10, W = 10 };
+    float v[H * W];
+    for (int i = 0; i < H * W; i++) v[i] = i % 3 ? 2.0f : 1e-40f; /* a third subnormal */
+    size_t shape[3] = { 1, H, W };
+    pg_path_join(path, sizeof path, dir, "subnormal.npy");
+    CHECK_OK(io_npy_save(path, v, 3, shape));
+    io_depth d;
+    io_depth_options o = io_depth_defaults();
+    CHECK_OK(io_depth_load(path, &o, &d));
+    CHECK(d.invalid == 34 && d.data && d.data[0] == 0.0f && d.data[1] == 2.0f, "subnormal depth: %zu invalid", d.invalid);
+    io_depth_destroy(&d);
+    float rgb[3];
+    static const float stops[2][3] = { { 0, 0, 0 }, { 1, 1, 1 } };
+    pg_color_ramp(stops, 2, NAN, rgb);
+    CHECK(rgb[0] == 0.0f, "colour ramp of NaN: %g", rgb[0]);
+}
+
 static void test_bad(const char *dir)
 {
     char path[4096], err[1024], args[8300];
@@ -411,6 +524,8 @@ int main(void)
     test_pfm(dir);
     test_png16(dir);
     test_exr(dir);
+    test_exr_hostile(dir);
+    test_npy_hostile(dir);
     test_bad(dir);
     return test_summary("test_io_depth");
 }

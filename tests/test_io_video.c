@@ -269,6 +269,15 @@ static void test_bad(const char *dir)
     pg_path_join(path, sizeof path, dir, "empty_dir");
     pg_mkdir_p(path);
     CHECK(io_frames_read(path, &opt, &fr) == PG_ERR_FORMAT, "empty folder: %s", pg_last_error());
+
+    /* A y4m header claiming 16385 x 16: the size error read the closed input (ASan use-after-free)
+     * and printed garbage; it must name the claimed size. */
+    pg_path_join(path, sizeof path, dir, "wide.y4m");
+    const char y4m[] = "YUV4MPEG2 W16385 H16 F30:1 Ip A1:1 C420jpeg\nFRAME\n";
+    pg_write_file_atomic(path, y4m, sizeof y4m - 1);
+    st = io_frames_read(path, &opt, &fr);
+    CHECK(st == PG_ERR_SIZE && strstr(pg_last_error(), "16385 x 16") && strstr(pg_last_error(), "wide.y4m"),
+          "oversized y4m: %s", pg_last_error());
 }
 
 int main(void)

@@ -100,7 +100,7 @@ double pg_image_psnr(const pg_image *a, const pg_image *b, const float *mask)
 
 void pg_color_ramp(const float (*stops)[3], int n, float s, float rgb[3])
 {
-    s = s < 0 ? 0 : (s > 1 ? 1 : s);
+    s = s >= 0 ? (s > 1 ? 1 : s) : 0; /* NaN -> 0: it must never reach the (int) below */
     float x = s * (float)(n - 1);
     int i = (int)x;
     if (i > n - 2) i = n - 2;

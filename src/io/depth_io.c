@@ -11,6 +11,7 @@
 
 #include <ctype.h>
 #include <dirent.h>
+#include <float.h>
 #include <math.h>
 #include <setjmp.h>
 #include <stdint.h>
@@ -296,7 +297,7 @@ pg_status io_exr_load(const char *path, pg_array *arr)
     PG_TRY(pg_read_file(path, (size_t)1 << 31, &file, &size));
     const uint8_t *d = (const uint8_t *)file, *end = d + size;
     pg_status st = PG_OK;
-    uint8_t *block = NULL, *tmp = NULL;
+    uint8_t *block = NULL, *tmp = NULL, *seen = NULL;
     exr_channel ch[EXR_MAX_CHANNELS];
     int nch = 0, compression = -1, have_dw = 0;
     int32_t xmin = 0, ymin = 0, xmax = -1, ymax = -1;
@@ -373,7 +374,8 @@ pg_status io_exr_load(const char *path, pg_array *arr)
     size_t block_bytes = line_bytes * lines;
     block = pg_malloc(block_bytes, path);
     tmp = pg_malloc(block_bytes, path);
-    if (!block || !tmp) { st = PG_ERR_NOMEM; goto done; }
+    seen = pg_calloc((size_t)nchunks, 1, path);
+    if (!block || !tmp || !seen) { st = PG_ERR_NOMEM; goto done; }
     for (int c = 0; c < nchunks; c++) {
         uint64_t off = rd64(p + (size_t)c * 8);
         if (off > size || size - off < 8) EXR_FAIL(PG_ERR_FORMAT, "%s: truncated: chunk %d lies past the end", path, c);
@@ -381,8 +383,12 @@ pg_status io_exr_load(const char *path, pg_array *arr)
         int32_t y0 = (int32_t)rd32(chunk);
         uint32_t dsz = rd32(chunk + 4);
         if (dsz > size - off - 8) EXR_FAIL(PG_ERR_FORMAT, "%s: truncated: chunk %d data past the end", path, c);
-        int row0 = y0 - ymin;
-        if (row0 < 0 || row0 >= h || row0 % lines) EXR_FAIL(PG_ERR_FORMAT, "%s: chunk %d has bad y %d", path, c, y0);
+        int64_t row64 = (int64_t)y0 - ymin; /* 64-bit: ymin may be INT_MIN */
+        if (row64 < 0 || row64 >= h || row64 % lines) EXR_FAIL(PG_ERR_FORMAT, "%s: chunk %d has bad y %d", path, c, y0);
+        int row0 = (int)row64;
+        /* every block of lines exactly once: a repeated y would leave other rows unwritten */
+        if (seen[row0 / lines]) EXR_FAIL(PG_ERR_FORMAT, "%s: chunk %d repeats y %d (rows left unwritten)", path, c, y0);
+        seen[row0 / lines] = 1;
         int nl = h - row0 < lines ? h - row0 : lines;
         size_t want = line_bytes * nl;
         const uint8_t *src = chunk + 8;
@@ -414,6 +420,7 @@ done:
     free(file);
     free(block);
     free(tmp);
+    free(seen);
     if (st) pg_array_destroy(arr);
     return st;
 }
@@ -496,7 +503,7 @@ static void convert_frame(io_depth *d, float *v, size_t n, const io_depth_option
     for (size_t i = 0; i < n; i++) {
         float x = v[i] * o->scale;
         if (o->kind == IO_DEPTH_KIND_DISPARITY && isfinite(x) && x > 0) x = 1.0f / x;
-        if (!isfinite(x) || x <= 0) {
+        if (!(x >= FLT_MIN) || !isfinite(x)) { /* NaN, inf, <= 0 and subnormal (1/x would overflow) */
             x = 0;
             d->invalid++;
         }

@@ -32,12 +32,15 @@ static int parse_descr(const char *h, npy_dtype *dt)
     p = strchr(p, '\'');
     if (!p) return -1;
     p++;
-    char order = *p++;
+    char order = *p;
     if (order != '<' && order != '>' && order != '|' && order != '=') return -1;
     dt->big_endian = order == '>';
-    dt->kind = *p++;
-    dt->bytes = atoi(p);
-    if (strchr("fuib", dt->kind) == NULL) return -1;
+    dt->kind = p[1]; /* the header is NUL-terminated: stop at its end, never step over it */
+    if (dt->kind == '\0' || strchr("fuib", dt->kind) == NULL) return -1;
+    p += 2;
+    if (*p < '1' || *p > '9') return -1;
+    dt->bytes = *p - '0';
+    if (p[1] >= '0' && p[1] <= '9') return -1; /* no supported type is 10 bytes or more */
     if (dt->kind == 'f' && dt->bytes != 4 && dt->bytes != 8 && dt->bytes != 2) return -1;
     if ((dt->kind == 'u' || dt->kind == 'i') && dt->bytes != 1 && dt->bytes != 2 && dt->bytes != 4 && dt->bytes != 8) return -1;
     if (dt->kind == 'b' && dt->bytes != 1) return -1;

@@ -311,8 +311,10 @@ static pg_status av_input_open(const char *path, av_input *in, int open_decoder)
     in->stream = r;
     AVCodecParameters *par = in->fmt->streams[r]->codecpar;
     if (par->width <= 0 || par->height <= 0 || par->width > PG_MAX_IMAGE_SIDE || par->height > PG_MAX_IMAGE_SIDE) {
+        int w = par->width, h = par->height; /* par belongs to the input closed below */
         av_input_close(in);
-        return pg_fail(PG_ERR_SIZE, "%s: video size %d x %d is out of range", path, par->width, par->height);
+        return pg_fail(PG_ERR_SIZE, "%s: video size %d x %d is out of range (sides up to %d)", path, w, h,
+                       PG_MAX_IMAGE_SIDE);
     }
     if (!open_decoder) return PG_OK;
     in->dec = avcodec_alloc_context3(codec);
