@@ -3,11 +3,13 @@
  * byte-identical final checkpoint (in process and through the CLI), clean CLI errors. */
 #include <stdlib.h>
 #include <string.h>
+#include <zlib.h>
 
 #include "core/fileutil.h"
 #include "core/parallel.h"
 #include "render/model_render.h"
 #include "testlib.h"
+#include "core/rng.h"
 #include "train/train.h"
 #include "train/trainset.h"
 #include "train_toy.h"
@@ -147,7 +149,51 @@ int main(void)
         train_session *sv = NULL;
         CHECK(train_session_create(&sv, &ts, &c2, c, 1) == PG_ERR_FORMAT && !sv && strstr(pg_last_error(), "cut.ckpt"),
               "resume from a version 1 checkpoint: %s", pg_last_error());
-        blob[8] = 2;
+        blob[8] = 3;
+        /* every flipped bit is caught (the CRC), in one line naming the file */
+        pg_rng fr;
+        pg_rng_seed(&fr, 99);
+        int accepted = 0;
+        for (int k = 0; k < 50; k++) {
+            size_t bit = (size_t)(pg_rng_uniform(&fr) * (double)(n * 8));
+            blob[bit / 8] ^= (char)(1 << (bit % 8));
+            pg_write_file_atomic(c, blob, n);
+            if (train_model_load(c, &m) == PG_OK) {
+                accepted++;
+                train_model_destroy(&m);
+            }
+            blob[bit / 8] ^= (char)(1 << (bit % 8));
+        }
+        CHECK(accepted == 0, "%d of 50 bit-flipped checkpoints accepted", accepted);
+        /* a crafted file with a valid CRC: iteration -1000000 in the header */
+        char *crafted = malloc(n);
+        if (crafted) {
+            memcpy(crafted, blob, n);
+            uint32_t tl;
+            memcpy(&tl, crafted + 12, 4);
+            int32_t iter = -1000000;
+            memcpy(crafted + 16 + tl, &iter, 4);
+            uint32_t crc = (uint32_t)crc32(crc32(0L, Z_NULL, 0), (const unsigned char *)crafted, (uInt)(n - 4));
+            memcpy(crafted + n - 4, &crc, 4);
+            pg_write_file_atomic(c, crafted, n);
+            CHECK(train_model_load(c, &m) == PG_ERR_FORMAT && strstr(pg_last_error(), "iteration -1000000"),
+                  "negative iteration: %s", pg_last_error());
+            free(crafted);
+        }
+        /* resuming with other settings is refused, naming the setting */
+        pg_write_file_atomic(c, blob, n);
+        train_config c3 = c2;
+        c3.lambda_dssim = 0.5f;
+        train_session *sr = NULL;
+        CHECK(train_session_create(&sr, &ts, &c3, c, 1) == PG_ERR_ARG && !sr && strstr(pg_last_error(), "lambda_dssim"),
+              "resume with another lambda_dssim: %s", pg_last_error());
+        /* a temporary file of a killed checkpoint write is removed by the next run */
+        char tmp[1300];
+        snprintf(tmp, sizeof tmp, "%s.tmp.12345", c);
+        pg_write_file_atomic(tmp, "x", 1);
+        CHECK_OK(train_session_create(&sr, &ts, &c2, c, 1));
+        train_session_destroy(sr);
+        CHECK(!pg_path_exists(tmp), "stale %s left behind", tmp);
         blob[0] = 'X';
         pg_write_file_atomic(c, blob, n);
         CHECK(train_model_load(c, &m) == PG_ERR_FORMAT, "bad magic rejected");

@@ -176,7 +176,20 @@ void deform_network_destroy(deform_network *net)
     free(net);
 }
 
-size_t deform_network_num_params(const deform_network *net) { return net->num_params; }
+size_t deform_config_num_params(const deform_config *cfg)
+{
+    if (deform_config_validate(cfg)) return 0;
+    deform_network *net = pg_calloc(1, sizeof(*net), "deform layout");
+    if (!net) return 0;
+    net->cfg = *cfg;
+    net->grid.C = cfg->channels;
+    net->grid.S = cfg->num_scales;
+    net->grid.R = cfg->res_space;
+    net->grid.T = cfg->res_time;
+    size_t n = plan_layout(net);
+    free(net);
+    return n;
+}
 
 /* 10 MB with the defaults, every iteration: split over the threads (memory bandwidth per core is
  * the limit). */

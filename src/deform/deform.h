@@ -102,7 +102,9 @@ pg_status deform_config_validate(const deform_config *cfg);
  * Gradients start at zero. */
 pg_status deform_network_create(deform_network **net, const deform_config *cfg, const float aabb[6]);
 void deform_network_destroy(deform_network *net);
-size_t deform_network_num_params(const deform_network *net);
+/* Parameters a network of this config has, without allocating it (0 for an invalid config): files
+ * that claim a network are checked against it before anything big is allocated. */
+size_t deform_config_num_params(const deform_config *cfg);
 void deform_network_zero_grad(deform_network *net);
 
 /* Workspace: per-thread chunk scratch, per-thread gradient buffers, and (f32 path only) stored

@@ -3,7 +3,7 @@
  *
  * Layout (little-endian, written in one go to a temporary file then renamed):
  *   "PGDYCKP1"                              magic
- *   u32 version (2), u32 config text length, config text ("key=value\n" lines)
+ *   u32 version (3), u32 config text length, config text ("key=value\n" lines)
  *   i32 iter, fine, frames, width, height, num_views; u64 rng[4]
  *   f32 extent, center[3], max_disp, bg[3]
  *   i32 N, sh_degree; Gaussians (means, log_scales, quats, opacity, sh for N rows)
@@ -13,21 +13,27 @@
  *   if fine: network config (f32 aabb[6], i32 width, res, tres, channels, u64 seed),
  *       u64 P, f32 params[P], Adam of the network: i32 step[2], then per group m, v
  *       (groups HexPlane grids [0, grid_end) and MLP [grid_end, P))
- *   "PGEND\0\0\0"
- * Adam sections are the optimiser's groups in order (src/optim/adam). Nothing time- or
+ *   "PGEND\0\0\0", u32 CRC-32 (zlib) of every byte before it
+ * The CRC is checked before anything is parsed, and every field is range-checked before it sizes
+ * an allocation, so a damaged or crafted file fails with one message. Adam sections are the optimiser's groups in order (src/optim/adam). Nothing time- or
  * machine-dependent is stored, so equal training gives equal bytes. Version 1 (one step count
  * for all Gaussian groups, moments stored like Gaussians) is not read.
  */
 #include "train/train_internal.h"
 
+#include <dirent.h>
+#include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <zlib.h>
 
 #include "core/fileutil.h"
 
 #define CKPT_MAGIC "PGDYCKP1"
 #define CKPT_END "PGEND\0\0\0"
-#define CKPT_VERSION 2u
+#define CKPT_VERSION 3u
+#define CKPT_MAX_STEP 100000000 /* iterations and Adam steps beyond this are corruption */
 #define SH_ROW (PG_SH_COEFFS * 3)
 #define GAUSS_FLOATS (3 + 3 + 4 + 1 + SH_ROW) /* per Gaussian, also the Adam columns per row */
 
@@ -180,6 +186,7 @@ pg_status train_checkpoint_write(train_session *s, const char *path)
         put_adam(&b, s->nopt);
     }
     put(&b, CKPT_END, 8);
+    if (!b.failed) put_i32(&b, (int32_t)crc32_z(crc32(0L, Z_NULL, 0), b.data, b.size));
     if (b.failed) {
         free(b.data);
         return pg_fail(PG_ERR_NOMEM, "%s: out of memory building the checkpoint", path);
@@ -211,6 +218,19 @@ static int32_t get_i32(rd *r) { int32_t x; get(r, &x, 4); return x; }
 static uint64_t get_u64(rd *r) { uint64_t x; get(r, &x, 8); return x; }
 static float get_f32(rd *r) { float x; get(r, &x, 4); return x; }
 
+/* A NaN or infinite Gaussian parameter would render as garbage and export PLYs that readers reject. */
+static pg_status check_finite(const pg_gaussians *g, int n, const char *path)
+{
+    const float *arrays[5] = { g->means, g->log_scales, g->quats, g->opacity, g->sh };
+    const size_t cols[5] = { 3, 3, 4, 1, SH_ROW };
+    for (int a = 0; a < 5; a++)
+        for (size_t i = 0; i < (size_t)n * cols[a]; i++)
+            if (!isfinite(arrays[a][i]))
+                return pg_fail(PG_ERR_FORMAT, "%s: Gaussian %zu has a non-finite parameter (corrupt checkpoint)", path,
+                               i / cols[a]);
+    return PG_OK;
+}
+
 static void get_gaussians(rd *r, pg_gaussians *g, int n)
 {
     get(r, g->means, (size_t)n * 3 * 4);
@@ -227,7 +247,7 @@ static void get_adam(rd *r, optim_adam *opt)
     int ng = optim_adam_num_groups(opt);
     for (int gi = 0; gi < ng; gi++) {
         int32_t step = get_i32(r);
-        if (step < 0) r->bad = 1;
+        if (step < 0 || step > CKPT_MAX_STEP) r->bad = 1;
         optim_adam_set_group_step(opt, gi, step);
     }
     for (int gi = 0; gi < ng; gi++)
@@ -245,16 +265,26 @@ typedef struct {
 
 #define CKPT_MAX_GAUSSIANS 50000000
 
-static pg_status read_header(rd *r, const char *path, ckpt_header *h)
+/* The trailing CRC-32 against the bytes before it: any flipped bit anywhere is caught here. */
+static pg_status check_crc(const unsigned char *data, size_t size, const char *path)
 {
-    char magic[8];
-    get(r, magic, 8);
-    if (r->bad || memcmp(magic, CKPT_MAGIC, 8) != 0)
+    if (size < 16 || memcmp(data, CKPT_MAGIC, 8) != 0)
         return pg_fail(PG_ERR_FORMAT, "%s: not a prodygs training checkpoint", path);
-    uint32_t ver = (uint32_t)get_i32(r);
+    uint32_t ver, want;
+    memcpy(&ver, data + 8, 4);
     if (ver != CKPT_VERSION)
         return pg_fail(PG_ERR_FORMAT, "%s: checkpoint format version %u, this build reads only version %u (train again)",
                        path, ver, CKPT_VERSION);
+    memcpy(&want, data + size - 4, 4);
+    if ((uint32_t)crc32_z(crc32(0L, Z_NULL, 0), data, size - 4) != want)
+        return pg_fail(PG_ERR_FORMAT, "%s: checkpoint is damaged (CRC mismatch): truncated or changed since it was written",
+                       path);
+    return PG_OK;
+}
+
+static pg_status read_header(rd *r, const char *path, ckpt_header *h)
+{
+    r->off = 12; /* magic and version: checked with the CRC */
     int32_t tl = get_i32(r);
     if (tl < 0 || (size_t)tl > r->size - r->off) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint", path);
     char *text = pg_malloc((size_t)tl + 1, "checkpoint config");
@@ -278,8 +308,14 @@ static pg_status read_header(rd *r, const char *path, ckpt_header *h)
     h->n = get_i32(r);
     h->sh_degree = get_i32(r);
     if (r->bad) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint header", path);
-    if (h->n < 1 || h->n > CKPT_MAX_GAUSSIANS || h->sh_degree < 0 || h->sh_degree > 3 || h->frames < 1)
-        return pg_fail(PG_ERR_FORMAT, "%s: corrupt checkpoint header (N=%d, sh=%d)", path, h->n, h->sh_degree);
+    if (h->n < 1 || h->n > CKPT_MAX_GAUSSIANS || h->sh_degree < 0 || h->sh_degree > 3 || h->frames < 1 ||
+        h->frames > 1000000 || h->width < 1 || h->width > PG_MAX_IMAGE_SIDE || h->height < 1 ||
+        h->height > PG_MAX_IMAGE_SIDE || h->num_views < 1 || h->num_views > 100000 || (h->fine != 0 && h->fine != 1) ||
+        h->iter < 0 || h->iter > CKPT_MAX_STEP || !isfinite(h->extent) || !(h->extent > 0) || !isfinite(h->max_disp))
+        return pg_fail(PG_ERR_FORMAT, "%s: corrupt checkpoint header (N=%d, sh=%d, iteration %d)", path, h->n,
+                       h->sh_degree, h->iter);
+    const char *bad = train_config_invalid(&h->cfg);
+    if (bad) return pg_fail(PG_ERR_FORMAT, "%s: corrupt checkpoint config (%s)", path, bad);
     /* the rest must fit: the Gaussians, their Adam state, flags and statistics */
     size_t need = (size_t)h->n * (GAUSS_FLOATS * 4 * 3 + 1 + 8) + OPTIM_GAUSS_GROUPS * 4;
     if (r->size - r->off < need) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (Gaussians)", path);
@@ -303,12 +339,15 @@ static pg_status read_net(rd *r, const char *path, train_net_config *nc, train_n
     if (nc->width < 0 || nc->width > 4096 || nc->res < 0 || nc->res > 4096 || nc->tres < 0 || nc->tres > 100000 ||
         nc->channels < 0 || nc->channels > 1024)
         return pg_fail(PG_ERR_FORMAT, "%s: corrupt network config in the checkpoint", path);
-    PG_TRY(train_net_create(net, nc));
-    if (train_net_num_params(*net) != P)
-        return pg_fail(PG_ERR_FORMAT, "%s: network has %llu parameters, this build expects %zu", path,
-                       (unsigned long long)P, train_net_num_params(*net));
+    /* sizes first: the parameters (and their Adam moments) must be in the file before the network
+     * they describe is allocated */
+    size_t expect = train_net_config_num_params(nc);
+    if (expect == 0 || expect != P)
+        return pg_fail(PG_ERR_FORMAT, "%s: network config (width %d, res %d x %d, %d channels) does not match its %llu "
+                       "parameters", path, nc->width, nc->res, nc->tres, nc->channels, (unsigned long long)P);
     size_t adam_bytes = TRAIN_NET_GROUPS * 4 + (size_t)P * 8;
-    if (r->size - r->off < P * 4 + adam_bytes) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (network)", path);
+    if ((r->size - r->off) / 12 < P) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (network)", path);
+    PG_TRY(train_net_create(net, nc));
     get(r, train_net_params(*net), (size_t)P * 4);
     if (s) {
         PG_TRY(train_adam_create_net(s));
@@ -334,9 +373,10 @@ pg_status train_checkpoint_read(train_session *s, const char *path)
     char *data = NULL;
     size_t size = 0;
     PG_TRY(pg_read_file(path, (size_t)1 << 34, &data, &size));
-    rd r = {(const unsigned char *)data, size, 0, 0};
+    rd r = {(const unsigned char *)data, size - 4, 0, 0};
     ckpt_header h;
-    pg_status st = read_header(&r, path, &h);
+    pg_status st = check_crc((const unsigned char *)data, size, path);
+    if (!st) st = read_header(&r, path, &h);
     if (st) goto done;
     const train_set *ts = s->ts;
     if (h.frames != ts->frames || h.width != ts->width || h.height != ts->height || h.num_views != ts->num_views) {
@@ -344,6 +384,7 @@ pg_status train_checkpoint_read(train_session *s, const char *path)
                      path, h.num_views, h.frames, h.width, h.height);
         goto done;
     }
+    if ((st = train_checkpoint_check_config(&h.cfg, &s->cfg, path))) goto done;
     s->cfg = h.cfg;
     s->iter = h.iter;
     memcpy(s->rng.s, h.rng, sizeof h.rng);
@@ -353,6 +394,7 @@ pg_status train_checkpoint_read(train_session *s, const char *path)
     memcpy(s->cfg.bg, h.bg, sizeof h.bg);
     if ((st = train_resize_all(s, h.n))) goto done;
     get_gaussians(&r, &s->g, h.n);
+    if ((st = check_finite(&s->g, h.n, path))) goto done;
     get_adam(&r, s->gopt);
     if (r.bad) {
         st = pg_fail(PG_ERR_FORMAT, "%s: corrupt Adam state of the Gaussians in the checkpoint", path);
@@ -378,13 +420,15 @@ pg_status train_model_load(const char *path, train_model *m)
     char *data = NULL;
     size_t size = 0;
     PG_TRY(pg_read_file(path, (size_t)1 << 34, &data, &size));
-    rd r = {(const unsigned char *)data, size, 0, 0};
+    rd r = {(const unsigned char *)data, size - 4, 0, 0};
     ckpt_header h;
     pg_gaussians skip = {0};
-    pg_status st = read_header(&r, path, &h);
+    pg_status st = check_crc((const unsigned char *)data, size, path);
+    if (!st) st = read_header(&r, path, &h);
     if (st) goto done;
     if ((st = splat_gaussians_create(&m->g, h.n)) || (st = splat_gaussians_resize(&m->g, h.n))) goto done;
     get_gaussians(&r, &m->g, h.n);
+    if ((st = check_finite(&m->g, h.n, path))) goto done;
     m->g.sh_degree = h.sh_degree;
     r.off += OPTIM_GAUSS_GROUPS * 4 + (size_t)h.n * GAUSS_FLOATS * 4 * 2; /* Adam state */
     m->is_static = pg_malloc((size_t)h.n, "model static flags");
@@ -441,4 +485,77 @@ pg_status train_model_deform(train_model *m, float t, pg_gaussians *out)
     pg_status st = k ? train_net_forward(m->net, &m->g, idx, k, t, out) : PG_OK;
     free(idx);
     return st;
+}
+
+const char *train_config_invalid(const train_config *c)
+{
+    if (c->iters < 1 || c->iters > CKPT_MAX_STEP) return "iters";
+    if (c->coarse_iters < 0 || c->coarse_iters > c->iters) return "coarse_iters";
+    if (c->views_per_step < 1 || c->views_per_step > TRAIN_MAX_BATCH) return "views_per_step";
+    if (c->max_gaussians < 16 || c->max_gaussians > CKPT_MAX_GAUSSIANS) return "max_gaussians";
+    if (c->init_points < 1 || c->init_points > CKPT_MAX_GAUSSIANS) return "init_points";
+    if (c->sh_max_degree < 0 || c->sh_max_degree > 3) return "sh_max_degree";
+    if (c->sh_ramp_every < 0 || c->densify_every < 0 || c->opacity_reset_every < 0 || c->static_check_every < 0)
+        return "an interval";
+    if (c->deform_width < 0 || c->deform_width > 4096 || c->deform_res < 0 || c->deform_res > 4096 ||
+        c->deform_tres < 0 || c->deform_tres > 100000 || c->deform_channels < 0 || c->deform_channels > 1024)
+        return "deformation network size";
+    const float f[] = { c->lambda_dssim, c->lambda_depth, c->reg_tv, c->reg_time, c->reg_l1, c->lr_means,
+                        c->lr_means_final, c->lr_scales, c->lr_quats, c->lr_opacity, c->lr_sh_dc, c->lr_sh_rest,
+                        c->lr_net, c->lr_net_final, c->lr_grid, c->lr_grid_final, c->densify_grad, c->percent_dense,
+                        c->prune_opacity, c->prune_big_scale, c->static_eps, c->real_weight, c->moving_weight,
+                        c->bg[0], c->bg[1], c->bg[2] };
+    for (size_t k = 0; k < sizeof f / sizeof f[0]; k++)
+        if (!isfinite(f[k]) || f[k] < 0) return "a weight or learning rate";
+    return NULL;
+}
+
+pg_status train_checkpoint_check_config(const train_config *stored, const train_config *given, const char *path)
+{
+    /* what may change on --resume: the length of the run (the coarse stage keeps the stored length,
+     * its default follows --iters) and when it saves */
+    train_config a = *stored, b = *given;
+    a.iters = b.iters = 0;
+    a.coarse_iters = b.coarse_iters = 0;
+    a.checkpoint_every = b.checkpoint_every = 0;
+    a.stop_at_iter = b.stop_at_iter = 0;
+    a.threads = b.threads = 0;
+    char ta[8192], tb[8192];
+    config_text(&a, ta, sizeof ta);
+    config_text(&b, tb, sizeof tb);
+    if (strcmp(ta, tb) == 0) return PG_OK;
+    const char *pa = ta, *pb = tb;
+    while (*pa && *pa == *pb) { /* to the first differing line */
+        pa++;
+        pb++;
+    }
+    while (pa > ta && pa[-1] != '\n') {
+        pa--;
+        pb--;
+    }
+    int la = (int)strcspn(pa, "\n"), lb = (int)strcspn(pb, "\n");
+    return pg_fail(PG_ERR_ARG, "%s: the checkpoint was trained with %.*s, this run asks for %.*s (use the same "
+                   "settings to resume, or train into a new directory)", path, la, pa, lb, pb);
+}
+
+void train_checkpoint_clean_temps(const char *path)
+{
+    char dir[4096];
+    snprintf(dir, sizeof dir, "%s", path);
+    char *slash = strrchr(dir, '/');
+    const char *base = slash ? slash + 1 : path;
+    if (slash) *slash = '\0';
+    else snprintf(dir, sizeof dir, ".");
+    char prefix[512];
+    snprintf(prefix, sizeof prefix, "%s.tmp.", base);
+    DIR *d = opendir(dir);
+    if (!d) return;
+    struct dirent *e;
+    while ((e = readdir(d)) != NULL)
+        if (strncmp(e->d_name, prefix, strlen(prefix)) == 0) {
+            char p[4600];
+            snprintf(p, sizeof p, "%s/%s", dir, e->d_name);
+            remove(p);
+        }
+    closedir(d);
 }

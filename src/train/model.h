@@ -31,6 +31,8 @@ typedef struct {
 pg_status train_net_create(train_net **n, const train_net_config *cfg);
 void train_net_destroy(train_net *n);
 size_t train_net_num_params(const train_net *n);
+/* Parameters a network of cfg would have (0: invalid config), without creating it. */
+size_t train_net_config_num_params(const train_net_config *cfg);
 float *train_net_params(train_net *n);  /* (P) */
 float *train_net_grads(train_net *n);   /* (P) */
 /* Parameters [0, grid_end) are HexPlane grids (own lr), [grid_end, P) the MLP. */

@@ -241,6 +241,7 @@ pg_status train_session_create(train_session **out, const train_set *ts, const t
         goto fail;
     }
     if ((st = find_moving_pixels(s))) goto fail;
+    if (ckpt_path) train_checkpoint_clean_temps(ckpt_path);
     if (resume && ckpt_path && pg_path_exists(ckpt_path)) {
         if ((st = train_checkpoint_read(s, ckpt_path))) goto fail;
         /* options that may legitimately change on resume */

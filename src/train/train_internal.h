@@ -72,5 +72,12 @@ void train_reset_opacity(train_session *s);
 /* checkpoint.c */
 pg_status train_checkpoint_write(train_session *s, const char *path);
 pg_status train_checkpoint_read(train_session *s, const char *path);
+/* NULL if every field of a (stored) config is in range, else the first bad field's name. */
+const char *train_config_invalid(const train_config *c);
+/* PG_OK if a checkpoint's config equals the one asked for, except the settings a resume may change
+ * (iterations, checkpoint interval, threads); else an error naming the first difference. */
+pg_status train_checkpoint_check_config(const train_config *stored, const train_config *given, const char *path);
+/* Removes PATH.tmp.* left by a checkpoint write that was killed. */
+void train_checkpoint_clean_temps(const char *path);
 
 #endif

@@ -23,18 +23,31 @@ struct train_net {
     long cap;
 };
 
+/* The deformation network config of a trainer's network config (0 fields: library defaults). */
+static void deform_config_of(const train_net_config *cfg, deform_config *dc)
+{
+    deform_config_default(dc);
+    if (cfg->width > 0) dc->width = cfg->width;
+    if (cfg->res > 0) dc->res_space = cfg->res;
+    if (cfg->tres > 0) dc->res_time = cfg->tres;
+    if (cfg->channels > 0) dc->channels = cfg->channels;
+    dc->seed = cfg->seed;
+}
+
+size_t train_net_config_num_params(const train_net_config *cfg)
+{
+    deform_config dc;
+    deform_config_of(cfg, &dc);
+    return deform_config_num_params(&dc);
+}
+
 pg_status train_net_create(train_net **n, const train_net_config *cfg)
 {
     train_net *t = pg_calloc(1, sizeof *t, "deformation network");
     if (!t) return PG_ERR_NOMEM;
     t->cfg = *cfg;
     deform_config dc;
-    deform_config_default(&dc);
-    if (cfg->width > 0) dc.width = cfg->width;
-    if (cfg->res > 0) dc.res_space = cfg->res;
-    if (cfg->tres > 0) dc.res_time = cfg->tres;
-    if (cfg->channels > 0) dc.channels = cfg->channels;
-    dc.seed = cfg->seed;
+    deform_config_of(cfg, &dc);
     float aabb[6] = {cfg->aabb_min[0], cfg->aabb_min[1], cfg->aabb_min[2],
                      cfg->aabb_max[0], cfg->aabb_max[1], cfg->aabb_max[2]};
     pg_status st = deform_network_create(&t->net, &dc, aabb);
