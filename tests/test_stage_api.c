@@ -127,6 +127,20 @@ int main(void)
     CHECK(pg_pipeline_run(&c, &r) == PG_ERR_ARG && strstr(pg_last_error(), "--size"), "bad size: %s", pg_last_error());
     CHECK(!pg_path_exists(out), "a bad size must not create %s", out);
 
+    /* a 1-frame video runs to the end, videos included (the render stage read frame 1 before) */
+    pg_pipeline_defaults(&c);
+    char frames_dir[1300];
+    snprintf(frames_dir, sizeof frames_dir, "%s/cam00/images", data);
+    c.input = frames_dir;
+    c.depth = depth;
+    snprintf(out, sizeof out, "%s/one_frame", dir);
+    c.out = out;
+    c.frames = 1;
+    c.iters = 5;
+    c.proxies = 2;
+    c.render_videos = 1;
+    CHECK(pg_pipeline_run(&c, &r) == PG_OK && r.ran[4], "1-frame video: %s", pg_last_error());
+
     /* the documented example: the four stages one by one */
     snprintf(out, sizeof out, "%s/example", dir);
     snprintf(cmd, sizeof cmd, "'%s' '%s' '%s' '%s' > '%s/example.log' 2>&1", PG_EXAMPLE_PATH, data, depth, out, dir);

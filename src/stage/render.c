@@ -2,6 +2,7 @@
  * colour and depth, the cameras read from the model directory. */
 #include "stage/stage_internal.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -37,13 +38,21 @@ static pg_status find_camera(const scene_cameras *sc, const char *model, const c
     return pg_fail(PG_ERR_ARG, "render: %s: no camera '%.64s' (cameras: %s)", model, token, names);
 }
 
-/* The fixed path's side-by-side partner: frame NNNN.png of a folder for each step. */
+typedef struct {
+    const char *dir; /* NNNN.png frames of the input */
+    int frames;
+} reference_frames;
+
+/* The fixed path's side-by-side partner: the input frame at the step's time (a path may have
+ * more steps than the video has frames, e.g. 60 steps over a 1-frame input). */
 static pg_status reference_frame(void *ctx, int step, float time, pg_image *img)
 {
-    (void)time;
+    (void)step;
+    const reference_frames *ref = ctx;
+    int f = ref->frames > 1 ? (int)lroundf(time * (float)(ref->frames - 1)) : 0;
     char file[32], path[4300];
-    snprintf(file, sizeof file, "%04d.png", step);
-    PG_TRY(pg_path_join(path, sizeof path, (const char *)ctx, file));
+    snprintf(file, sizeof file, "%04d.png", f < 0 ? 0 : f >= ref->frames ? ref->frames - 1 : f);
+    PG_TRY(pg_path_join(path, sizeof path, ref->dir, file));
     return io_image_load(path, img);
 }
 
@@ -71,6 +80,7 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
     pg_status st = scene_cameras_for_model(c->model, NULL, sc);
     if (st == PG_OK) st = render_model_open(c->model, &rm);
     int k = -1;
+    reference_frames ref = { NULL, 1 };
     if (st == PG_OK && dataset_cam) st = find_camera(sc, c->model, c->camera, &k);
     if (st == PG_OK) {
         int frames = render_model_frames(rm);
@@ -84,8 +94,10 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
         vo.write_frames = c->write_frames;
         vo.fps = c->fps > 0 ? c->fps : sc->fps;
         if (c->reference_frames && !dataset_cam && vo.path.kind == RENDER_PATH_FIXED) {
+            ref.dir = c->reference_frames;
+            ref.frames = frames > 0 ? frames : 1;
             vo.reference = reference_frame;
-            vo.reference_ctx = (void *)c->reference_frames;
+            vo.reference_ctx = &ref;
         }
         const char *name = c->name ? c->name : dataset_cam ? sc->names[k] : path_name;
         if (dataset_cam) {
