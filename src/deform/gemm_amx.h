@@ -20,9 +20,6 @@
 int gemm_amx_available(void);
 
 static inline int gemm_amx_round(int x) { return (x + 31) & ~31; }
-/* Sizes (in uint16 elements) of packed operands of M x K (A) or K x N (B), padded to 32. */
-static inline size_t gemm_amx_a_size(int M, int K) { return (size_t)gemm_amx_round(M) * gemm_amx_round(K); }
-static inline size_t gemm_amx_b_size(int K, int N) { return (size_t)gemm_amx_round(K) * gemm_amx_round(N); }
 
 /* f32 -> bf16, round to nearest even (inputs here are finite). */
 static inline uint16_t gemm_amx_bf16(float f)

@@ -16,14 +16,6 @@ size_t hex_plane_size(const hex_grid *g, int s, int p)
     return (size_t)hex_axis_res(g, s, hex_plane_axes[p][0]) * hex_axis_res(g, s, hex_plane_axes[p][1]) * g->C;
 }
 
-size_t hex_total_size(const hex_grid *g)
-{
-    size_t n = 0;
-    for (int s = 0; s < g->S; s++)
-        for (int p = 0; p < HEX_PLANES; p++) n += hex_plane_size(g, s, p);
-    return n;
-}
-
 
 static inline __attribute__((always_inline)) void hex_axis_setup(hex_axis *ax, float u, float du_dx, int res)
 {

@@ -60,8 +60,6 @@ typedef struct {
 static inline int hex_axis_res(const hex_grid *g, int s, int d) { return d == 3 ? g->T : g->R << s; }
 /* Number of floats of plane p at scale s. */
 size_t hex_plane_size(const hex_grid *g, int s, int p);
-/* Total floats of all planes. */
-size_t hex_total_size(const hex_grid *g);
 
 /* First of the two time rows (of T) that a sample at t reads; the backward writes only rows
  * hex_time_row(g, t) and +1 of the time planes. */

@@ -83,7 +83,6 @@ void splat_raster_destroy(splat_raster *r)
 }
 
 void splat_raster_set_simd(splat_raster *r, int enable) { r->use_simd = enable && splat_simd_available(); }
-int splat_raster_simd(const splat_raster *r) { return r->use_simd; }
 const char *splat_raster_simd_name(const splat_raster *r) { return r->use_simd ? splat_simd_name() : "scalar"; }
 
 /* Grows *p to hold need elements of elem bytes (contents not kept); 64-byte aligned. */

@@ -53,7 +53,6 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
 /* Chooses the SIMD tile kernels (default when compiled in) or the scalar reference path
  * (enable = 0). The environment variable PG_RASTER_SCALAR=1 selects scalar at creation. */
 void splat_raster_set_simd(splat_raster *r, int enable);
-int splat_raster_simd(const splat_raster *r);
 /* "avx512", "avx2" or "scalar": the kernels the next call will use. */
 const char *splat_raster_simd_name(const splat_raster *r);
 
