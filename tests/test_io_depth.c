@@ -436,6 +436,11 @@ static void test_npy_hostile(const char *dir)
     CHECK_OK(io_depth_load(path, &o, &d));
     CHECK(d.invalid == 34 && d.data && d.data[0] == 0.0f && d.data[1] == 2.0f, "subnormal depth: %zu invalid", d.invalid);
     io_depth_destroy(&d);
+    /* header bytes quoted in an error are escaped: no terminal escape reaches the user */
+    pg_path_join(path, sizeof path, dir, "escape.pfm");
+    pg_write_file_atomic(path, "Pf\n\x1b[31mX 4\n-1.0\n", 17);
+    CHECK(io_pfm_load(path, &arr) == PG_ERR_FORMAT && !strchr(pg_last_error(), 0x1b) && strstr(pg_last_error(), "\\x1b"),
+          "escaped header bytes: %s", pg_last_error());
     float rgb[3];
     static const float stops[2][3] = { { 0, 0, 0 }, { 1, 1, 1 } };
     pg_color_ramp(stops, 2, NAN, rgb);

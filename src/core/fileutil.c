@@ -116,7 +116,7 @@ pg_status pg_write_file_atomic(const char *path, const void *data, size_t size)
     PG_TRY(pg_atomic_open(&f, path));
     if (size && fwrite(data, 1, size, f.fp) != size) {
         pg_atomic_abort(&f);
-        return pg_fail(PG_ERR_IO, "%s: write failed", path);
+        return pg_fail(PG_ERR_IO, "%s: write failed: %s", path, strerror(errno));
     }
     return pg_atomic_commit(&f);
 }

@@ -9,12 +9,27 @@
 
 static _Thread_local char last_error[1024];
 
+/* Messages quote bytes from files (PLY/PFM headers, names): control characters become \xNN so an
+ * error line can never carry terminal escapes or break into several lines. */
+static void escape_controls(char *msg, size_t size)
+{
+    char out[sizeof last_error];
+    size_t o = 0;
+    for (const unsigned char *p = (const unsigned char *)msg; *p && o + 5 < sizeof out; p++) {
+        if (*p < 0x20 || *p == 0x7f) o += (size_t)snprintf(out + o, sizeof out - o, "\\x%02x", *p);
+        else out[o++] = (char)*p;
+    }
+    out[o] = '\0';
+    snprintf(msg, size, "%s", out);
+}
+
 pg_status pg_fail(pg_status code, const char *fmt, ...)
 {
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(last_error, sizeof last_error, fmt, ap);
     va_end(ap);
+    escape_controls(last_error, sizeof last_error);
     return code;
 }
 
@@ -36,6 +51,7 @@ pg_status pg_fail_context(pg_status code, const char *fmt, ...)
     if (m > room) m = room;
     memcpy(last_error + n + 2, old, m);
     last_error[n + 2 + m] = '\0';
+    escape_controls(last_error, sizeof last_error);
     return code;
 }
 

@@ -17,6 +17,7 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <errno.h>
 #include <string.h>
 #include <strings.h>
 
@@ -79,7 +80,7 @@ pg_status io_pfm_load(const char *path, pg_array *arr)
 {
     memset(arr, 0, sizeof *arr);
     FILE *fp = fopen(path, "rb");
-    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open", path);
+    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
     char tag[8], ws[32], hs[32], ss[64];
     pg_status st = PG_OK;
     float *row = NULL;
@@ -150,7 +151,7 @@ pg_status io_pfm_save(const char *path, const float *data, int width, int height
         if (fwrite(data + (size_t)y * width * channels, sizeof(float), (size_t)width * channels, f.fp) !=
             (size_t)width * channels) {
             pg_atomic_abort(&f);
-            return pg_fail(PG_ERR_IO, "%s: write failed", path);
+            return pg_fail(PG_ERR_IO, "%s: write failed: %s", path, strerror(errno));
         }
     return pg_atomic_commit(&f);
 }
@@ -179,7 +180,7 @@ pg_status io_png16_load(const char *path, pg_array *arr)
 {
     memset(arr, 0, sizeof *arr);
     FILE *fp = fopen(path, "rb");
-    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open", path);
+    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
     png_err_ctx ctx;
     ctx.message[0] = '\0';
     png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &ctx, png_error_jump, png_warning_quiet);

@@ -6,6 +6,7 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <errno.h>
 #include <string.h>
 
 #define NPY_MAX_ELEMENTS ((size_t)1 << 31)
@@ -197,7 +198,7 @@ static pg_status save_raw(const char *path, const void *data, const char *descr,
     fputc('\n', f.fp);
     if (count && fwrite(data, elem, count, f.fp) != count) {
         pg_atomic_abort(&f);
-        return pg_fail(PG_ERR_IO, "%s: write failed", path);
+        return pg_fail(PG_ERR_IO, "%s: write failed: %s", path, strerror(errno));
     }
     return pg_atomic_commit(&f);
 }

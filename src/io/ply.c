@@ -6,6 +6,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <errno.h>
 #include <string.h>
 
 #define SH_C0 0.28209479177387814
@@ -125,7 +126,7 @@ pg_status io_ply_save(const char *path, const pg_gaussians *g)
         for (int k = 0; k < 4; k++) row[n++] = g->quats[(size_t)i * 4 + k];
         if (fwrite(row, sizeof(float), ROW, f.fp) != ROW) {
             pg_atomic_abort(&f);
-            return pg_fail(PG_ERR_IO, "%s: write failed", path);
+            return pg_fail(PG_ERR_IO, "%s: write failed: %s", path, strerror(errno));
         }
     }
     return pg_atomic_commit(&f);

@@ -5,6 +5,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <errno.h>
 #include <string.h>
 
 #define PLY_MAX_HEADER (1 << 20)
@@ -84,7 +85,7 @@ pg_status ply_read(const char *path, ply_file *pf)
     memset(pf, 0, sizeof *pf);
     pf->sh_degree_comment = -1;
     FILE *fp = fopen(path, "rb");
-    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open", path);
+    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
     pg_status st = PG_OK;
     char line[1024];
     size_t total = 0;

@@ -88,9 +88,9 @@ static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipelin
     int cam = 0, tests[64], nt = 0;
     pg_status st = PG_OK;
     if (c->train_camera && io_dataset_resolve_camera(ds, c->train_camera, &cam) != PG_OK)
-        st = pg_fail_context(PG_ERR_ARG, "%s: --train-cam: ", c->input);
+        st = pg_fail_context(PG_ERR_ARG, "%s: --train-cam", c->input);
     if (!st && c->test_cameras && io_dataset_resolve_cameras(ds, c->test_cameras, tests, 64, &nt) != PG_OK)
-        st = pg_fail_context(PG_ERR_ARG, "%s: --test-cams: ", c->input);
+        st = pg_fail_context(PG_ERR_ARG, "%s: --test-cams", c->input);
     for (int k = 0; !st && k < nt; k++)
         if (tests[k] == cam)
             st = pg_fail(PG_ERR_ARG, "%s: camera %s is both the training camera and a test camera", c->input,

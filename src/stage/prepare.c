@@ -75,7 +75,7 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
     int cam = 0;
     if (c->train_camera && io_dataset_resolve_camera(ds, c->train_camera, &cam) != PG_OK) {
         io_dataset_close(ds);
-        return pg_fail_context(PG_ERR_ARG, "%s: --train-cam: ", c->input);
+        return pg_fail_context(PG_ERR_ARG, "%s: --train-cam", c->input);
     }
     io_dataset_camera_label(ds, cam, r->train_camera, sizeof r->train_camera);
     const int F = io_dataset_num_frames(ds), W = io_dataset_width(ds), H = io_dataset_height(ds);

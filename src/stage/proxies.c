@@ -169,13 +169,13 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
     int W = io_dataset_width(ds), H = io_dataset_height(ds);
     if (c->train_camera && io_dataset_resolve_camera(ds, c->train_camera, &train_cam) != PG_OK) {
         io_dataset_close(ds);
-        return pg_fail_context(PG_ERR_ARG, "proxies: %s: --train-cam: ", input);
+        return pg_fail_context(PG_ERR_ARG, "proxies: %s: --train-cam", input);
     }
     int tests[MAX_CAMS], ntest = 0;
     if (c->test_cameras) {
         if (io_dataset_resolve_cameras(ds, c->test_cameras, tests, MAX_CAMS, &ntest) != PG_OK) {
             io_dataset_close(ds);
-            return pg_fail_context(PG_ERR_ARG, "proxies: %s: --test-cams: ", input);
+            return pg_fail_context(PG_ERR_ARG, "proxies: %s: --test-cams", input);
         }
         for (int k = 0; k < ntest; k++)
             if (tests[k] == train_cam) {

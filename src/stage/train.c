@@ -104,9 +104,9 @@ static pg_status load_set(const pg_train_config *c, train_set *ts, const char **
         PG_TRY(io_dataset_open(c->input, &dopt, &ds));
         pg_status st = PG_OK;
         if (c->test_cameras && io_dataset_resolve_cameras(ds, c->test_cameras, tlist, 64, &o.num_test) != PG_OK)
-            st = pg_fail_context(PG_ERR_ARG, "train: %s: --test-cams: ", c->input);
+            st = pg_fail_context(PG_ERR_ARG, "train: %s: --test-cams", c->input);
         if (!st && some_real && io_dataset_resolve_cameras(ds, c->real_cameras, rlist, 64, &o.num_real) != PG_OK)
-            st = pg_fail_context(PG_ERR_ARG, "train: %s: --real-cams: ", c->input);
+            st = pg_fail_context(PG_ERR_ARG, "train: %s: --real-cams", c->input);
         io_dataset_close(ds);
         PG_TRY(st);
         if (c->test_cameras) o.test_cams = tlist;
