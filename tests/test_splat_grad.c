@@ -93,7 +93,7 @@ static void test_projection(void)
     CHECK(worst[2] < 1e-3, "quaternion gradient rel err %g", worst[2]);
 }
 
-/* The 16-wide projection forward/backward (AVX-512 builds) against the scalar functions,
+/* The 16-wide projection forward/backward (AVX-512 CPUs) against the scalar functions,
  * which the test above checks against finite differences. */
 static void test_projection16(void)
 {
@@ -115,8 +115,8 @@ static void test_projection16(void)
     splat_project_limits(&cam, lim);
     float out[9][16], dxy[2][16], dcon[3][16], dz[16];
     unsigned valid;
-    if (!splat_project_forward16(means, ls, q, 0, &cam, lim, 0.01f, out, &valid)) {
-        printf("projection16: not compiled in (no AVX-512), skipped\n");
+    if (!splat_kernel_supported(SPLAT_KERNEL_AVX512) || !splat_project_forward16(means, ls, q, 0, &cam, lim, 0.01f, out, &valid)) {
+        printf("projection16: no AVX-512 on this CPU, skipped\n");
         return;
     }
     double ef = 0, eb = 0;
@@ -224,7 +224,7 @@ static void test_raster(int output)
     pg_rng rng;
     pg_rng_seed(&rng, 3);
     const int n = 6, W = 40, H = 24; /* 3 x 2 tiles, partial edge tiles */
-    pg_gaussians g, grads[2];
+    pg_gaussians g, grads[SPLAT_KERNELS];
     make_scene(&g, n, &rng);
     pg_camera cam;
     camera_for_test(&cam, W, H, 1);
@@ -242,10 +242,12 @@ static void test_raster(int output)
     CHECK_OK(splat_raster_create(&r));
     pg_render_output out;
     float *vs = calloc(n, sizeof(float));
-    for (int simd = 0; simd < 2; simd++) {
+    int kinds = 0; /* the kernel families this CPU has: 0 .. kinds-1 */
+    while (kinds < SPLAT_KERNELS && splat_kernel_supported((splat_kernel_kind)kinds)) kinds++;
+    for (int simd = 0; simd < kinds; simd++) {
         splat_gaussians_create(&grads[simd], n);
         splat_gaussians_resize(&grads[simd], n);
-        splat_raster_set_simd(r, simd);
+        splat_raster_set_kernel(r, (splat_kernel_kind)simd);
         CHECK_OK(splat_render_forward(r, &g, &cam, &s, &out));
         CHECK_OK(splat_render_backward(r, &g, &cam, &s, output == 0 ? wr : NULL, output == 1 ? wd : NULL,
                                        output == 2 ? wa : NULL, &grads[simd], vs));
@@ -267,7 +269,7 @@ static void test_raster(int output)
     for (size_t i = 0; i < P; i++) cover += out.alpha[i];
     if (output == 0)
         printf("raster forward (%s) vs double reference: max abs err %.2e, mean alpha %.3f\n",
-               splat_raster_simd_name(r), fwd_err, cover / P);
+               splat_kernel_name(splat_raster_kernel(r)), fwd_err, cover / P);
     CHECK(fwd_err < 1e-4, "forward differs from the double reference by %g", fwd_err);
     CHECK(cover / P > 0.15, "test scene covers too little (mean alpha %g)", cover / P);
 
@@ -293,7 +295,7 @@ static void test_raster(int output)
             int kind = k < 3 ? 0 : k < 6 ? 1 : k < 10 ? 2 : k < 11 ? 3 : 4;
             maxg[kind] = fmax(maxg[kind], fabs(fd[REF_NP * i + k]));
         }
-    for (int simd = 0; simd < 2; simd++) {
+    for (int simd = 0; simd < kinds; simd++) {
         for (int k = 0; k < 5; k++) worst[k] = 0;
         for (int i = 0; i < n; i++)
             for (int k = 0; k < REF_NP; k++) {
@@ -304,10 +306,10 @@ static void test_raster(int output)
                 worst[kind] = fmax(worst[kind], e);
             }
         printf("raster FD, loss on %s (%s kernels): worst rel err mean %.2e log_scale %.2e quat %.2e opacity %.2e sh %.2e\n",
-               outname[output], simd ? "SIMD" : "scalar", worst[0], worst[1], worst[2], worst[3], worst[4]);
+               outname[output], splat_kernel_name((splat_kernel_kind)simd), worst[0], worst[1], worst[2], worst[3], worst[4]);
         for (int k = 0; k < 5; k++)
-            CHECK(worst[k] < 1e-3, "raster %s gradient rel err %g (loss on %s, simd %d)", names[k], worst[k],
-                  outname[output], simd);
+            CHECK(worst[k] < 1e-3, "raster %s gradient rel err %g (loss on %s, %s kernels)", names[k], worst[k],
+                  outname[output], splat_kernel_name((splat_kernel_kind)simd));
     }
     double vs_sum = 0;
     for (int i = 0; i < n; i++) vs_sum += vs[i];
@@ -316,8 +318,7 @@ static void test_raster(int output)
     free(fd); free(params); free(rgb); free(dep); free(alp); free(vs); free(wr); free(wd); free(wa);
     splat_raster_destroy(r);
     splat_gaussians_destroy(&g);
-    splat_gaussians_destroy(&grads[0]);
-    splat_gaussians_destroy(&grads[1]);
+    for (int simd = 0; simd < kinds; simd++) splat_gaussians_destroy(&grads[simd]);
 }
 
 int main(void)

@@ -88,37 +88,45 @@ static void test_simd_and_determinism(void)
 
     splat_raster *r;
     CHECK_OK(splat_raster_create(&r));
-    run_result sc, si, si2, t1;
-    splat_raster_set_simd(r, 0);
+    run_result sc;
+    CHECK_OK(splat_raster_set_kernel(r, SPLAT_KERNEL_SCALAR));
     pg_set_threads(2);
     run(r, &g, &cam, d_rgb, d_depth, d_alpha, &sc);
-    splat_raster_set_simd(r, 1);
-    printf("SIMD kind: %s\n", splat_raster_simd_name(r));
-    run(r, &g, &cam, d_rgb, d_depth, d_alpha, &si);
-    run(r, &g, &cam, d_rgb, d_depth, d_alpha, &si2);
-    pg_set_threads(1);
-    run(r, &g, &cam, d_rgb, d_depth, d_alpha, &t1);
-    pg_set_threads(2);
-
-    double e_img = fmax(rel_diff(sc.rgb, si.rgb, 3 * P), fmax(rel_diff(sc.depth, si.depth, P), rel_diff(sc.alpha, si.alpha, P)));
-    double e_grad[6] = { rel_diff(sc.grad.means, si.grad.means, 3 * (size_t)N),
-                         rel_diff(sc.grad.log_scales, si.grad.log_scales, 3 * (size_t)N),
-                         rel_diff(sc.grad.quats, si.grad.quats, 4 * (size_t)N),
-                         rel_diff(sc.grad.opacity, si.grad.opacity, (size_t)N),
-                         rel_diff(sc.grad.sh, si.grad.sh, 48 * (size_t)N),
-                         rel_diff(sc.vs, si.vs, (size_t)N) };
-    double e_max = 0;
-    for (int k = 0; k < 6; k++) e_max = fmax(e_max, e_grad[k]);
-    printf("scalar vs SIMD: images %.2e, gradients mean %.2e scale %.2e quat %.2e opacity %.2e sh %.2e vs-norm %.2e\n",
-           e_img, e_grad[0], e_grad[1], e_grad[2], e_grad[3], e_grad[4], e_grad[5]);
-    CHECK(e_img <= 1e-5, "scalar and SIMD images differ by %g", e_img);
-    CHECK(e_max <= 1e-5, "scalar and SIMD gradients differ by %g (relative to the largest)", e_max);
-    CHECK(same_bytes(&si, &si2, N, P), "two identical runs gave different bytes");
-    CHECK(same_bytes(&si, &t1, N, P), "1 and 2 threads gave different bytes");
+    /* every SIMD kernel family the CPU has, against the scalar reference */
+    for (int k = SPLAT_KERNEL_AVX2; k < SPLAT_KERNELS; k++) {
+        const char *name = splat_kernel_name((splat_kernel_kind)k);
+        if (splat_raster_set_kernel(r, (splat_kernel_kind)k) != 0) {
+            printf("raster kernels %s: not supported by this CPU, skipped\n", name);
+            continue;
+        }
+        run_result si, si2, t1;
+        pg_set_threads(2);
+        run(r, &g, &cam, d_rgb, d_depth, d_alpha, &si);
+        run(r, &g, &cam, d_rgb, d_depth, d_alpha, &si2);
+        pg_set_threads(1);
+        run(r, &g, &cam, d_rgb, d_depth, d_alpha, &t1);
+        pg_set_threads(2);
+        double e_img = fmax(rel_diff(sc.rgb, si.rgb, 3 * P), fmax(rel_diff(sc.depth, si.depth, P), rel_diff(sc.alpha, si.alpha, P)));
+        double e_grad[6] = { rel_diff(sc.grad.means, si.grad.means, 3 * (size_t)N),
+                             rel_diff(sc.grad.log_scales, si.grad.log_scales, 3 * (size_t)N),
+                             rel_diff(sc.grad.quats, si.grad.quats, 4 * (size_t)N),
+                             rel_diff(sc.grad.opacity, si.grad.opacity, (size_t)N),
+                             rel_diff(sc.grad.sh, si.grad.sh, 48 * (size_t)N),
+                             rel_diff(sc.vs, si.vs, (size_t)N) };
+        double e_max = 0;
+        for (int q = 0; q < 6; q++) e_max = fmax(e_max, e_grad[q]);
+        printf("scalar vs %s: images %.2e, gradients mean %.2e scale %.2e quat %.2e opacity %.2e sh %.2e vs-norm %.2e\n",
+               name, e_img, e_grad[0], e_grad[1], e_grad[2], e_grad[3], e_grad[4], e_grad[5]);
+        CHECK(e_img <= 1e-5, "scalar and %s images differ by %g", name, e_img);
+        CHECK(e_max <= 1e-5, "scalar and %s gradients differ by %g (relative to the largest)", name, e_max);
+        CHECK(same_bytes(&si, &si2, N, P), "%s: two identical runs gave different bytes", name);
+        CHECK(same_bytes(&si, &t1, N, P), "%s: 1 and 2 threads gave different bytes", name);
+        free_result(&si); free_result(&si2); free_result(&t1);
+    }
     double cover = 0;
-    for (size_t i = 0; i < P; i++) cover += si.alpha[i];
+    for (size_t i = 0; i < P; i++) cover += sc.alpha[i];
     CHECK(cover / P > 0.3, "workload covers too little: mean alpha %g", cover / P);
-    free_result(&sc); free_result(&si); free_result(&si2); free_result(&t1);
+    free_result(&sc);
     free(d_rgb); free(d_depth); free(d_alpha);
     splat_raster_destroy(r);
     splat_gaussians_destroy(&g);

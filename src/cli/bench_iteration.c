@@ -14,6 +14,7 @@
 
 #include "cli/cli.h"
 #include "deform/gemm_amx.h"
+#include "splat/raster.h"
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "train/train.h"
@@ -145,10 +146,11 @@ int bench_iteration(int argc, char **argv)
     printf("{\"ms_per_iteration\": %.2f, \"cpu_ms_per_iteration\": %.2f, \"deform_forward\": %.2f, \"deform_backward\": %.2f, "
            "\"regularize\": %.2f, \"raster_forward\": %.2f, \"raster_backward\": %.2f, \"loss\": %.2f, \"optimizer\": %.2f, "
            "\"other\": %.2f, \"deformed\": %d, \"gaussians\": %d, \"width\": %d, \"height\": %d, \"threads\": %d, "
-           "\"static_fraction\": %.2f, \"cull\": %s, \"deform_kernel\": \"%s\"}\n",
+           "\"static_fraction\": %.2f, \"cull\": %s, \"deform_kernel\": \"%s\", \"raster_kernel\": \"%s\"}\n",
            pg_median(t[0], reps), pg_median(t[9], reps), pg_median(t[1], reps), pg_median(t[2], reps), pg_median(t[8], reps), pg_median(t[3], reps), pg_median(t[4], reps),
            pg_median(t[5], reps), pg_median(t[6], reps), pg_median(t[7], reps), deformed, n, width, height, threads,
-           static_fraction, no_cull ? "false" : "true", gemm_bf16_name(gemm_bf16_backend()));
+           static_fraction, no_cull ? "false" : "true", gemm_bf16_name(gemm_bf16_backend()),
+           splat_kernel_name(splat_kernel_default()));
 done:
     for (int k = 0; k < 10; k++) free(t[k]);
     free(flags);

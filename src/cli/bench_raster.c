@@ -24,7 +24,7 @@ int bench_raster(int argc, char **argv)
         { "--sh-degree", CLI_INT, &sh_degree, "SH degree 0..3 (0)" },
         { "--seed", CLI_INT, &seed, "workload seed (1)" },
         { "--reps", CLI_INT, &reps, "timed repetitions after one warm-up, >= 5 (7)" },
-        { "--scalar", CLI_FLAG, &scalar, "use the scalar reference kernels" },
+        { "--scalar", CLI_FLAG, &scalar, "use the scalar reference kernels (PG_RASTER=scalar|avx2|avx512 picks any)" },
     };
     cli_spec spec = { "prodygs bench raster", "[options]",
                       "time the rasterizer forward/backward on N random Gaussians; prints one JSON line",
@@ -57,7 +57,7 @@ int bench_raster(int argc, char **argv)
         goto done;
     if ((st = splat_gaussians_create(&grad, n)) || (st = splat_gaussians_resize(&grad, n))) goto done;
     if ((st = splat_raster_create(&r))) goto done;
-    if (scalar) splat_raster_set_simd(r, 0);
+    if (scalar) splat_raster_set_kernel(r, SPLAT_KERNEL_SCALAR);
     pg_rng rng;
     pg_rng_seed(&rng, 99);
     for (size_t i = 0; i < 3 * P; i++) d_rgb[i] = (float)(pg_rng_uniform(&rng) - 0.5) / (float)P;
@@ -81,7 +81,7 @@ int bench_raster(int argc, char **argv)
     printf("{\"bench\":\"raster\",\"width\":%d,\"height\":%d,\"gaussians\":%d,\"sigma_px\":%g,\"sh_degree\":%d,"
            "\"threads\":%d,\"simd\":\"%s\",\"reps\":%d,\"forward_ms\":%.3f,\"backward_ms\":%.3f,"
            "\"preprocess_ms\":%.3f,\"intersections\":%ld,\"cpu_forward_ms\":%.3f,\"cpu_backward_ms\":%.3f}\n",
-           width, height, n, sigma, sh_degree, threads, splat_raster_simd_name(r), reps, pg_median(tf, reps),
+           width, height, n, sigma, sh_degree, threads, splat_kernel_name(splat_raster_kernel(r)), reps, pg_median(tf, reps),
            pg_median(tb, reps), pg_median(tp, reps), out.intersections, pg_median(cf, reps), pg_median(cb, reps));
 done:
     free(tf); free(tb); free(tp); free(cf); free(cb); free(d_rgb); free(d_depth);

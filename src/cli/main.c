@@ -1,6 +1,7 @@
 /* main.c - `prodygs` entry point: dispatches to the subcommands. */
 #include "cli/cli.h"
 #include "deform/gemm_amx.h"
+#include "splat/raster.h"
 
 #include <stdio.h>
 #include <string.h>
@@ -50,8 +51,9 @@ int main(int argc, char **argv)
         return 0;
     }
     if (strcmp(argv[1], "--version") == 0 || strcmp(argv[1], "version") == 0) {
-        printf("prodygs %s (deformation network kernels: %s; PG_KERNELS=amx|avx512bf16|f32 to force)\n", PRODYGS_VERSION,
-               gemm_bf16_name(gemm_bf16_backend()));
+        printf("prodygs %s (kernels: deformation network %s, rasterizer %s; force with "
+               "PG_KERNELS=amx|avx512bf16|avx512f|avx2|f32, PG_RASTER=avx512|avx2|scalar)\n", PRODYGS_VERSION,
+               gemm_bf16_name(gemm_bf16_backend()), splat_kernel_name(splat_kernel_default()));
         return 0;
     }
     cli_install_progress();

@@ -16,13 +16,14 @@
 #include <limits.h>
 #include <omp.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #define SPLAT_MAX_THREADS 256
 
 struct splat_raster {
-    int use_simd;               /* 1: SIMD tile kernels (when compiled in), 0: scalar reference */
+    splat_kernel_kind kernel;   /* tile (and projection) kernels */
     /* Per-Gaussian workspace, capacity cap_g. */
     int cap_g;
     splat_rec *rec;             /* (N) */
@@ -66,8 +67,7 @@ pg_status splat_raster_create(splat_raster **out)
     *out = NULL;
     splat_raster *r = pg_calloc(1, sizeof(*r), "rasterizer");
     if (!r) return PG_ERR_NOMEM;
-    const char *env = getenv("PG_RASTER_SCALAR");
-    r->use_simd = splat_simd_available() && !(env && env[0] && env[0] != '0');
+    r->kernel = splat_kernel_default();
     *out = r;
     return PG_OK;
 }
@@ -82,8 +82,65 @@ void splat_raster_destroy(splat_raster *r)
     free(r);
 }
 
-void splat_raster_set_simd(splat_raster *r, int enable) { r->use_simd = enable && splat_simd_available(); }
-const char *splat_raster_simd_name(const splat_raster *r) { return r->use_simd ? splat_simd_name() : "scalar"; }
+static const struct {
+    void (*forward)(const splat_tile_job *), (*backward)(const splat_tile_job *);
+} tile_kernels[SPLAT_KERNELS] = {
+    { splat_tile_forward_scalar, splat_tile_backward_scalar },
+#if defined(__x86_64__) && defined(__GNUC__)
+    { splat_tile_forward_avx2, splat_tile_backward_avx2 },
+    { splat_tile_forward_avx512, splat_tile_backward_avx512 },
+#endif
+};
+
+int splat_kernel_supported(splat_kernel_kind k)
+{
+#if defined(__x86_64__) && defined(__GNUC__)
+    switch (k) {
+    case SPLAT_KERNEL_SCALAR: return 1;
+    case SPLAT_KERNEL_AVX2: return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+    case SPLAT_KERNEL_AVX512:
+        return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512dq") &&
+               __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("fma");
+    default: return 0;
+    }
+#else
+    return k == SPLAT_KERNEL_SCALAR;
+#endif
+}
+
+const char *splat_kernel_name(splat_kernel_kind k)
+{
+    static const char *names[SPLAT_KERNELS] = { "scalar", "avx2", "avx512" };
+    return (unsigned)k < SPLAT_KERNELS ? names[k] : "?";
+}
+
+splat_kernel_kind splat_kernel_default(void)
+{
+    static int chosen = -1;
+    if (chosen >= 0) return (splat_kernel_kind)chosen;
+    splat_kernel_kind best = SPLAT_KERNEL_AVX512;
+    while (!splat_kernel_supported(best)) best--;
+    chosen = best;
+    const char *env = getenv("PG_RASTER");
+    if (env && *env) {
+        int k = 0;
+        while (k < SPLAT_KERNELS && strcmp(env, splat_kernel_name((splat_kernel_kind)k)) != 0) k++;
+        if (k < SPLAT_KERNELS && splat_kernel_supported((splat_kernel_kind)k)) chosen = k;
+        else
+            fprintf(stderr, "prodygs: warning: PG_RASTER=%s is not %s; using %s\n", env,
+                    k < SPLAT_KERNELS ? "supported by this CPU" : "one of scalar, avx2, avx512", splat_kernel_name(best));
+    }
+    return (splat_kernel_kind)chosen;
+}
+
+int splat_raster_set_kernel(splat_raster *r, splat_kernel_kind k)
+{
+    if (!splat_kernel_supported(k)) return -1;
+    r->kernel = k;
+    return 0;
+}
+
+splat_kernel_kind splat_raster_kernel(const splat_raster *r) { return r->kernel; }
 
 /* Grows *p to hold need elements of elem bytes (contents not kept); 64-byte aligned. */
 static pg_status grow(void **p, size_t *cap, size_t need, size_t elem, const char *what)
@@ -179,14 +236,14 @@ static void finish_one(splat_raster *r, const pg_gaussians *g, const pg_camera *
     bx[2] = (uint16_t)(xmax / SPLAT_TILE); bx[3] = (uint16_t)(ymax / SPLAT_TILE);
 }
 
-/* Preprocesses Gaussians i0 .. i1-1: projection 16 at a time where SIMD is compiled in. */
+/* Preprocesses Gaussians i0 .. i1-1: projection 16 at a time with the AVX-512 kernels. */
 static void preprocess_range(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
                              const pg_render_settings *s, int deg, int i0, int i1)
 {
     int i = i0;
     float pr[9][16];
     unsigned valid;
-    for (; i + 16 <= i1; i += 16) {
+    for (; r->kernel == SPLAT_KERNEL_AVX512 && i + 16 <= i1; i += 16) {
         if (!splat_project_forward16(g->means, g->log_scales, g->quats, i, cam, r->lim, s->near_clip, pr, &valid))
             break;
         for (int l = 0; l < 16; l++) {
@@ -365,13 +422,12 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     }
     double t1 = pg_time_seconds();
 
-    int simd = r->use_simd;
+    void (*tile_forward)(const splat_tile_job *) = tile_kernels[r->kernel].forward;
     #pragma omp parallel for schedule(dynamic, 1)
     for (int t = 0; t < ntile; t++) {
         splat_tile_job j;
         make_job(r, t, &j);
-        if (simd) splat_tile_forward_simd(&j);
-        else splat_tile_forward_scalar(&j);
+        tile_forward(&j);
     }
     double t2 = pg_time_seconds();
 
@@ -398,14 +454,14 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
     size_t caps = r->cap_slots;
     PG_TRY(grow((void **)&r->slots, &caps, (r->m > 0 ? r->m : 1) * SPLAT_GRAD_STRIDE, sizeof(float), "gradient slots"));
     r->cap_slots = caps;
-    int ntile = r->tiles_x * r->tiles_y, simd = r->use_simd;
+    int ntile = r->tiles_x * r->tiles_y;
+    void (*tile_backward)(const splat_tile_job *) = tile_kernels[r->kernel].backward;
     #pragma omp parallel for schedule(dynamic, 1)
     for (int t = 0; t < ntile; t++) {
         splat_tile_job j;
         make_job(r, t, &j);
         j.d_rgb = d_rgb; j.d_depth = d_depth; j.d_alpha = d_alpha;
-        if (simd) splat_tile_backward_simd(&j);
-        else splat_tile_backward_scalar(&j);
+        tile_backward(&j);
     }
 
     /* Per-Gaussian fixed-order reduction of the slots, then the chain through SH and projection. */
@@ -450,7 +506,7 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
             }
         }
         if (!mask) continue;
-        if (cnt == 16 && splat_project_backward16(g->means, g->log_scales, g->quats, i0, cam, lim, d_xy, d_conic, d_z,
+        if (cnt == 16 && r->kernel == SPLAT_KERNEL_AVX512 && splat_project_backward16(g->means, g->log_scales, g->quats, i0, cam, lim, d_xy, d_conic, d_z,
                                                   mask, grad->means, grad->log_scales, grad->quats))
             continue;
         for (int l = 0; l < cnt; l++) {

@@ -50,10 +50,16 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
                                 const pg_render_settings *s, const float *d_rgb, const float *d_depth,
                                 const float *d_alpha, pg_gaussians *grad, float *viewspace_grad_norm);
 
-/* Chooses the SIMD tile kernels (default when compiled in) or the scalar reference path
- * (enable = 0). The environment variable PG_RASTER_SCALAR=1 selects scalar at creation. */
-void splat_raster_set_simd(splat_raster *r, int enable);
-/* "avx512", "avx2" or "scalar": the kernels the next call will use. */
-const char *splat_raster_simd_name(const splat_raster *r);
+/* Tile and projection kernels, chosen at run time from the CPU (one binary for every x86-64 CPU):
+ * AVX-512 (16 lanes, also the 16-wide projection), AVX2+FMA (8 lanes), or the scalar reference. A
+ * new rasterizer takes the best the CPU has, or PG_RASTER=scalar|avx2|avx512 from the environment. */
+typedef enum { SPLAT_KERNEL_SCALAR = 0, SPLAT_KERNEL_AVX2, SPLAT_KERNEL_AVX512, SPLAT_KERNELS } splat_kernel_kind;
+int splat_kernel_supported(splat_kernel_kind k);
+const char *splat_kernel_name(splat_kernel_kind k);
+/* The default kernels (the best supported, or PG_RASTER's choice when the CPU has it). */
+splat_kernel_kind splat_kernel_default(void);
+/* Tests and benchmarks: use kernels k in r from now on (-1, nothing changed, if the CPU lacks them). */
+int splat_raster_set_kernel(splat_raster *r, splat_kernel_kind k);
+splat_kernel_kind splat_raster_kernel(const splat_raster *r);
 
 #endif

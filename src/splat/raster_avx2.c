@@ -1,4 +1,5 @@
-/* raster_avx2.c - AVX2 + FMA tile kernels for CPUs without AVX-512 (compiled only then).
+/* raster_avx2.c - AVX2 + FMA tile kernels for CPUs without AVX-512 (compiled with AVX2 flags and
+ * without AVX-512 whatever the build's target; raster.c calls them only on CPUs that have AVX2).
  *
  * Same algorithm as the AVX-512 kernels (raster_simd.c) with 8-lane vectors: a tile row is two
  * halves. Per pixel the operations match the scalar reference (raster_tile.c), so the forward
@@ -8,13 +9,11 @@
 
 #include <string.h>
 
-#if !defined(__AVX512F__) && defined(__AVX2__) && defined(__FMA__)
+#if defined(__AVX2__) && defined(__FMA__)
 #include <immintrin.h>
 
 #define CHUNK 256
 
-int splat_simd_available(void) { return 1; }
-const char *splat_simd_name(void) { return "avx2"; }
 
 /* exp(-s) = splat_exp_poly(-s) for the lanes that are used (s <= ln 255); the clamp keeps
  * unused lanes away from denormals. */
@@ -46,7 +45,7 @@ static inline float hsum8(__m256 v)
 
 /* Row-major forward: each tile row walks the Gaussians whose box covers it with its state in
  * registers (two 8-lane halves), and stops when all its pixels are saturated. */
-void splat_tile_forward_simd(const splat_tile_job *j)
+void splat_tile_forward_avx2(const splat_tile_job *j)
 {
     splat_rec loc[CHUNK] __attribute__((aligned(64)));
     int idx[CHUNK];
@@ -148,7 +147,7 @@ void splat_tile_forward_simd(const splat_tile_job *j)
 }
 
 /* Gaussian-major backward, back to front, ten per-lane sums per (Gaussian, tile). */
-void splat_tile_backward_simd(const splat_tile_job *j)
+void splat_tile_backward_avx2(const splat_tile_job *j)
 {
     float T[SPLAT_TILE_PIX] __attribute__((aligned(32))), Q[SPLAT_TILE_PIX] __attribute__((aligned(32)));
     float Dr[SPLAT_TILE_PIX] __attribute__((aligned(32))), Dg[SPLAT_TILE_PIX] __attribute__((aligned(32)));
@@ -253,6 +252,4 @@ void splat_tile_backward_simd(const splat_tile_job *j)
     }
 }
 
-#else
-typedef int splat_avx2_unused; /* AVX-512 or scalar build: see raster_simd.c */
 #endif

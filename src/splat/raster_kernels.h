@@ -1,5 +1,5 @@
 /* raster_kernels.h - internal: per-tile forward/backward kernels shared by raster.c and the
- * SIMD kernels in raster_simd.c. Not a public header. */
+ * SIMD kernels in raster_avx512.c and raster_avx2.c. Not a public header. */
 #ifndef PG_RASTER_KERNELS_H
 #define PG_RASTER_KERNELS_H
 
@@ -115,10 +115,10 @@ static inline int splat_slot(const splat_rec *r, int tx, int ty)
 
 void splat_tile_forward_scalar(const splat_tile_job *job);
 void splat_tile_backward_scalar(const splat_tile_job *job);
-/* Return 0 when the SIMD kernels are not compiled in. */
-int splat_simd_available(void);
-const char *splat_simd_name(void);
-void splat_tile_forward_simd(const splat_tile_job *job);
-void splat_tile_backward_simd(const splat_tile_job *job);
+/* The SIMD kernels (x86-64 builds only; raster.c checks the CPU before calling them). */
+void splat_tile_forward_avx512(const splat_tile_job *job);
+void splat_tile_backward_avx512(const splat_tile_job *job);
+void splat_tile_forward_avx2(const splat_tile_job *job);
+void splat_tile_backward_avx2(const splat_tile_job *job);
 
 #endif

@@ -1,5 +1,5 @@
-/* raster_simd.c - AVX-512 tile kernels: one 16-pixel tile row per vector (AVX2-only builds use
- * raster_avx2.c; builds without either fall back to the scalar kernels).
+/* raster_avx512.c - AVX-512 tile kernels: one 16-pixel tile row per vector. Compiled with AVX-512
+ * flags whatever the build's target; raster.c calls them only on CPUs that have AVX-512.
  *
  * Per pixel the kernels do exactly the operations of the scalar reference (raster_tile.c) in
  * the same order, with fused multiply-adds in the same places, so the forward matches it bit for
@@ -14,8 +14,6 @@
 #if defined(__AVX512F__)
 #include <immintrin.h>
 
-int splat_simd_available(void) { return 1; }
-const char *splat_simd_name(void) { return "avx512"; }
 
 /* exp(-s) = splat_exp_poly(-s). Lanes outside a Gaussian's reach carry huge s; their results
  * are masked off, but denormal intermediates would still cost microcode assists (several times
@@ -71,7 +69,7 @@ static inline __m512 lane_centres(int x0)
  * depth and last contributor in registers while it walks the Gaussians whose box covers either
  * row (found with a vector compress over the local row ranges), and stops once all its pixels
  * are saturated. Two rows share the per-Gaussian broadcasts and give two independent chains. */
-void splat_tile_forward_simd(const splat_tile_job *j)
+void splat_tile_forward_avx512(const splat_tile_job *j)
 {
     splat_rec loc[CHUNK] __attribute__((aligned(64)));
     int ylo[CHUNK] __attribute__((aligned(64))), yhi[CHUNK] __attribute__((aligned(64)));
@@ -205,7 +203,7 @@ void splat_tile_forward_simd(const splat_tile_job *j)
  * across lanes once per (Gaussian, tile). Pixel state (T, suffix term Q, loss gradients) lives
  * in tile-local arrays. The conic/mean gradients are accumulated as moments of dL/dsigma
  * (sum g dx, g dy, g dx^2, g dx dy, g dy^2) and combined with the conic at the end. */
-void splat_tile_backward_simd(const splat_tile_job *j)
+void splat_tile_backward_avx512(const splat_tile_job *j)
 {
     float T[SPLAT_TILE_PIX] __attribute__((aligned(64))), Q[SPLAT_TILE_PIX] __attribute__((aligned(64)));
     float Dr[SPLAT_TILE_PIX] __attribute__((aligned(64))), Dg[SPLAT_TILE_PIX] __attribute__((aligned(64)));
@@ -337,12 +335,5 @@ void splat_tile_backward_simd(const splat_tile_job *j)
         }
     }
 }
-
-#elif !(defined(__AVX2__) && defined(__FMA__)) /* no SIMD at compile time: scalar kernels */
-
-int splat_simd_available(void) { return 0; }
-const char *splat_simd_name(void) { return "scalar"; }
-void splat_tile_forward_simd(const splat_tile_job *job) { splat_tile_forward_scalar(job); }
-void splat_tile_backward_simd(const splat_tile_job *job) { splat_tile_backward_scalar(job); }
 
 #endif
