@@ -204,6 +204,7 @@ typedef struct {
     float depth_scale;                /* 0: 1 */
     int refine, align;                /* (1, 1) */
     int frames, width, height, iters; /* 0: all / the preset's */
+    int deform_width;                 /* 0: the trainer's default */
     int threads;                      /* 0: all cores; every stage uses this count */
     int seed;                         /* (1) */
     int evaluate;                     /* score the test cameras into OUT/metrics.json, report.md */

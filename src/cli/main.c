@@ -52,7 +52,7 @@ int main(int argc, char **argv)
     }
     if (strcmp(argv[1], "--version") == 0 || strcmp(argv[1], "version") == 0) {
         printf("prodygs %s (kernels: deformation network %s, rasterizer %s; force with "
-               "PG_KERNELS=amx|avx512bf16|avx512f|avx2|f32, PG_RASTER=avx512|avx2|scalar)\n", PRODYGS_VERSION,
+               "PG_KERNELS=amx|avx512bf16|f32, PG_RASTER=avx512|avx2|scalar)\n", PRODYGS_VERSION,
                gemm_bf16_name(gemm_bf16_backend()), splat_kernel_name(splat_kernel_default()));
         return 0;
     }

@@ -64,7 +64,7 @@ void gemm_amx_pack_a(uint16_t *dst, int ld, int Mp, int Kp, const float *src, lo
                 for (int q = 0; q < K; q++) row[q] = gemm_amx_bf16(s[q]);
             } else {
 #ifdef PG_HAVE_AMX_BUILD
-                if (gemm_cpu_has_avx512bf16() && cs < (1L << 26)) /* index fits 32 bits */
+                if (gemm_bf16_backend() != GEMM_BF16_NONE && cs < (1L << 26)) /* both imply AVX512-BF16; index fits 32 bits */
                     pack_row_gather(row, s, cs, K);
                 else
 #endif
@@ -226,7 +226,7 @@ __attribute__((target("amx-tile,amx-bf16"))) void gemm_amx(const uint16_t *A, in
             _tile_stored(1, blk + 16, 128);
             _tile_stored(2, blk + 16 * 32, 128);
             _tile_stored(3, blk + 16 * 32 + 16, 128);
-            gemm_block_epilogue_avx512bf16(e, blk, i, j);
+            gemm_block_epilogue(e, blk, i, j);
         }
     }
     if (N32 < N) edge_strip(A, lda, B, ldb, K, e, 0, N32, M, 0);

@@ -55,39 +55,22 @@ typedef struct {
 } gemm_amx_epilogue;
 
 void gemm_amx(const uint16_t *A, int lda, const uint16_t *B, int ldb, int M, int N, int K, const gemm_amx_epilogue *e);
-
-/* The same product and epilogues from a register micro-kernel, for CPUs without AMX: a rows x
- * (16 * nv) block (rows <= the kernel's rows, nv 1 or 2) of A*B into v (row stride ldv, f32), added
- * to v when accumulate. M and N multiples of 16 for an f32 output, of 32 for bf16 outputs. */
-typedef struct {
-    void (*micro)(const uint16_t *A, int lda, const uint16_t *B, int ldb, int K, int rows, int nv, float *v, int ldv,
-                  int accumulate);
-    int rows;
-    void (*epilogue)(const gemm_amx_epilogue *e, const float *v, int i, int j);
-} gemm_micro_kernel;
-void gemm_blocked(const uint16_t *A, int lda, const uint16_t *B, int ldb, int M, int N, int K,
-                  const gemm_amx_epilogue *e, const gemm_micro_kernel *k);
-/* The micro-kernels: vdpbf16ps (gemm_avx512bf16.c); f32 FMAs on the bf16 operands widened in
- * registers, 16 or 8 lanes (gemm_f32fma.c). */
-extern const gemm_micro_kernel gemm_kernel_avx512bf16, gemm_kernel_avx512f, gemm_kernel_avx2;
-/* The bf16 epilogue of one 32x32 f32 block v (row stride 32) at C position (i, j) (gemm_epilogue.c):
- * with hardware bf16 conversion (AVX512-BF16) or in plain vectorised C (AVX2). Same bytes. */
-void gemm_block_epilogue_avx512bf16(const gemm_amx_epilogue *e, const float *v, int i, int j);
-void gemm_block_epilogue_avx2(const gemm_amx_epilogue *e, const float *v, int i, int j);
+/* The same product and epilogues on AVX512-BF16 (vdpbf16ps) for CPUs without AMX
+ * (gemm_avx512bf16.c); M and N multiples of 16 for an f32 output, of 32 for bf16 outputs. */
+void gemm_avx512bf16(const uint16_t *A, int lda, const uint16_t *B, int ldb, int M, int N, int K,
+                     const gemm_amx_epilogue *e);
+/* The bf16 epilogue of one 32x32 f32 block v (row stride 32) at C position (i, j) (gemm_epilogue.c). */
+void gemm_block_epilogue(const gemm_amx_epilogue *e, const float *v, int i, int j);
 
 /* Backends, chosen once at run time (gemm_dispatch.c): the best the CPU has, or PG_KERNELS=amx|
- * avx512bf16|avx512f|avx2|f32 (PG_NO_AMX=1 skips AMX). AVX512F and AVX2 keep the bf16 operands and
- * layouts and multiply in f32. GEMM_BF16_NONE: no packed GEMM; the network runs in f32 on OpenBLAS. */
-typedef enum { GEMM_BF16_NONE = 0, GEMM_BF16_AMX, GEMM_BF16_AVX512, GEMM_BF16_AVX512F, GEMM_BF16_AVX2,
-               GEMM_BF16_KINDS } gemm_bf16_kind;
+ * avx512bf16|f32 (PG_NO_AMX=1 skips AMX). GEMM_BF16_NONE: no bf16 GEMM; the network runs in f32. */
+typedef enum { GEMM_BF16_NONE = 0, GEMM_BF16_AMX, GEMM_BF16_AVX512 } gemm_bf16_kind;
 gemm_bf16_kind gemm_bf16_backend(void);
 int gemm_bf16_supported(gemm_bf16_kind k);
 const char *gemm_bf16_name(gemm_bf16_kind k);
 /* Tests and benchmarks: use backend k from now on (-1 if the CPU lacks it). */
 int gemm_bf16_force(gemm_bf16_kind k);
-/* 1 if the CPU converts f32 -> bf16 in hardware (AVX512-BF16): the packers' fast path. */
-int gemm_cpu_has_avx512bf16(void);
-/* The product on the current backend (not for GEMM_BF16_NONE). */
+/* gemm_amx or gemm_avx512bf16, whichever the backend is (not for GEMM_BF16_NONE). */
 void gemm_bf16(const uint16_t *A, int lda, const uint16_t *B, int ldb, int M, int N, int K, const gemm_amx_epilogue *e);
 
 #endif

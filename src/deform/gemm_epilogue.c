@@ -1,13 +1,10 @@
-/* gemm_epilogue.c - the bf16 epilogue of the packed GEMM backends (gemm_amx.h): bias, ReLU, mask
- * and column sums on one 32x32 f32 block, written once in the bf16 layouts the next GEMMs read.
- * Two builds of the same arithmetic: AVX-512 with hardware bf16 conversion (AMX, AVX512-BF16) and
- * plain C vectorised for AVX2 (the f32-FMA backends); both round to nearest even and sum the
- * columns row by row, so they write the same bytes. */
+/* gemm_epilogue.c - the bf16 epilogue shared by the bf16 GEMM backends (gemm_amx.h): bias, ReLU,
+ * mask and column sums on one 32x32 f32 block, written once in the bf16 layouts the next GEMMs
+ * read. Runs only on CPUs with AVX512-BF16 (every bf16 backend implies it). */
 #include "deform/gemm_amx.h"
 
 #if defined(__x86_64__) && defined(__GNUC__)
 #include <immintrin.h>
-#include <string.h>
 
 #define EPI_TARGET __attribute__((target("avx512f,avx512bw,avx512vl,avx512bf16")))
 
@@ -17,7 +14,7 @@ static inline EPI_TARGET __m512i to_bf16(__m512 lo, __m512 hi) { return (__m512i
 /* The bf16 epilogue of one 32x32 block v (row stride 32) at C position (i, j). Pairs of rows are
  * processed together: their bf16 values interleaved as 32-bit pairs are the VNNI output, and the
  * same pairs gathered down a column give the transposed output. */
-EPI_TARGET void gemm_block_epilogue_avx512bf16(const gemm_amx_epilogue *e, const float *v, int i, int j)
+EPI_TARGET void gemm_block_epilogue(const gemm_amx_epilogue *e, const float *v, int i, int j)
 {
     __m512 b0 = _mm512_setzero_ps(), b1 = b0, zero = b0, cs0 = b0, cs1 = b0;
     if (e->bias) {
@@ -78,51 +75,8 @@ EPI_TARGET void gemm_block_epilogue_avx512bf16(const gemm_amx_epilogue *e, const
             _mm512_storeu_si512(e->tr + (size_t)(j + q) * e->ldtr + i, _mm512_i32gather_epi32(idx, pairs + q, 4));
     }
 }
-
-/* Plain C that GCC vectorises for AVX2: each step a separate loop over the 32 columns. */
-__attribute__((target("avx2,fma"))) void gemm_block_epilogue_avx2(const gemm_amx_epilogue *e, const float *v, int i, int j)
-{
-    static const float no_bias[32];
-    const float *bias = e->bias ? e->bias + j : no_bias;
-    const int nr = e->rows - i;
-    uint16_t h[32][32] __attribute__((aligned(64)));
-    float cs[32];
-    if (e->colsum) memcpy(cs, e->colsum + j, sizeof(cs));
-    for (int r = 0; r < 32; r++) {
-        float x[32];
-        for (int q = 0; q < 32; q++) x[q] = v[r * 32 + q] + bias[q];
-        if (e->relu)
-            for (int q = 0; q < 32; q++) x[q] = x[q] > 0.0f ? x[q] : 0.0f;
-        if (e->mask) {
-            const uint16_t *mk = e->mask + (size_t)(i + r) * e->ldmask + j;
-            for (int q = 0; q < 32; q++) x[q] = mk[q] ? x[q] : 0.0f;
-        }
-        if (e->colsum && r < nr)
-            for (int q = 0; q < 32; q++) cs[q] += x[q];
-        for (int q = 0; q < 32; q++) h[r][q] = gemm_amx_bf16(x[q]);
-        if (e->rm) memcpy(e->rm + (size_t)(i + r) * e->ldrm + j, h[r], sizeof(h[r]));
-    }
-    if (e->colsum) memcpy(e->colsum + j, cs, sizeof(cs));
-    if (e->vn)
-        for (int r = 0; r < 32; r += 2) {
-            uint16_t *o = e->vn + (size_t)((i + r) / 2) * e->ldvn + 2 * j;
-            for (int q = 0; q < 32; q++) {
-                o[2 * q] = h[r][q];
-                o[2 * q + 1] = h[r + 1][q];
-            }
-        }
-    if (e->tr)
-        for (int q = 0; q < 32; q++) {
-            uint16_t *o = e->tr + (size_t)(j + q) * e->ldtr + i;
-            for (int r = 0; r < 32; r++) o[r] = h[r][q];
-        }
-}
 #else
-void gemm_block_epilogue_avx512bf16(const gemm_amx_epilogue *e, const float *v, int i, int j)
-{
-    (void)e; (void)v; (void)i; (void)j;
-}
-void gemm_block_epilogue_avx2(const gemm_amx_epilogue *e, const float *v, int i, int j)
+void gemm_block_epilogue(const gemm_amx_epilogue *e, const float *v, int i, int j)
 {
     (void)e; (void)v; (void)i; (void)j;
 }

@@ -56,6 +56,8 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "--frames must be >= 1 (got %d)", c->frames);
     PG_TRY(stage_check_threads("pipeline", c->threads));
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "--seed must be >= 0 (got %d)", c->seed);
+    if (c->deform_width < 0 || c->deform_width > 1024)
+        return pg_fail(PG_ERR_ARG, "--deform-width must be in 1..1024 (got %d)", c->deform_width);
     if (c->depth_scale < 0) return pg_fail(PG_ERR_ARG, "--depth-scale must be > 0 (got %g)", c->depth_scale);
     if (c->pose_scale < 0) return pg_fail(PG_ERR_ARG, "--pose-scale must be > 0 (got %g)", c->pose_scale);
     if (c->max_angle < 0 || c->max_angle >= 90)
@@ -262,6 +264,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.input = proxies_dir;
     tc.out = dir;
     tc.iters = plan->iters;
+    tc.deform_width = c->deform_width;
     tc.seed = c->seed;
     tc.threads = plan->threads;
     /* the proxies' marker holds the hashes of the video and depth they were made from */
