@@ -31,7 +31,7 @@ int bench_deform(int argc, char **argv)
         { "--channels", CLI_INT, &cfg.channels, "plane channels C (default 16)" },
         { "--res", CLI_INT, &cfg.res_space, "spatial resolution R (default 64)" },
         { "--res-time", CLI_INT, &cfg.res_time, "time resolution T (default 150)" },
-        { "--width", CLI_INT, &cfg.width, "MLP width (default 128)" },
+        { "--width", CLI_INT, &cfg.width, "MLP width (default 64)" },
         { "--feature-layers", CLI_INT, &cfg.feature_layers, "Linear+ReLU layers before the heads (default 1)" },
     };
     cli_spec spec = { "prodygs bench deform", "[options]", "time the deformation network forward/backward", opts,

@@ -30,7 +30,7 @@ void deform_config_default(deform_config *c)
     c->res_space = 64;
     c->num_scales = 2;
     c->res_time = 150;
-    c->width = 128;
+    c->width = 64;
     c->feature_layers = 1;
     c->space_init_lo = 0.1f;
     c->space_init_hi = 0.5f;

@@ -62,7 +62,7 @@ typedef struct {
     int res_space;         /* R, spatial resolution of the coarsest scale (default 64) */
     int num_scales;        /* S, spatial scales R, 2R, ... (default 2, at most 4) */
     int res_time;          /* T, time resolution (default 150; >= 2) */
-    int width;             /* W, MLP width (default 128) */
+    int width;             /* W, MLP width (default 64: measured as good as 128, docs/deform.md) */
     int feature_layers;    /* Linear+ReLU layers before the heads (default 1) */
     float space_init_lo;   /* spatial planes ~ U(lo, hi) (default 0.1, 0.5); time planes = 1 */
     float space_init_hi;
