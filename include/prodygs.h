@@ -178,6 +178,30 @@ typedef struct {
 void pg_export_defaults(pg_export_config *c);
 pg_status pg_export_run(const pg_export_config *c, pg_export_report *r);
 
+/* ---- view: a self-contained web viewer (index.html + scene.pgvs) served on localhost ----
+ * pg_view_run writes OUT/index.html (the WebGL2 viewer, nothing fetched from the network) and
+ * OUT/scene.pgvs (docs/FORMATS.md): static Gaussians once, moving ones per time sample,
+ * quantised. pg_view_serve answers http://127.0.0.1:PORT/ with those two files only. */
+typedef struct {
+    const char *model, *out;
+    int frames;         /* time samples (0: the model's video frames) */
+    int max_gaussians;  /* keep the N most visible (0: all visible) */
+} pg_view_config;
+
+typedef struct {
+    int static_gaussians, moving_gaussians, dropped, frames, sh_degree;
+    double scene_bytes;       /* size of scene.pgvs */
+    double bytes_per_second;  /* scene bytes per second of the video (at its fps) */
+    double seconds;
+} pg_view_report;
+
+void pg_view_defaults(pg_view_config *c);
+pg_status pg_view_run(const pg_view_config *c, pg_view_report *r);
+/* Serves DIR on 127.0.0.1:port (0: a free port) until max_requests responses were sent (0: until
+ * the process ends); on_listen (may be NULL) gets the URL once the socket listens. */
+pg_status pg_view_serve(const char *dir, int port, long max_requests, void (*on_listen)(const char *url, void *user),
+                        void *user);
+
 /* ---- pipeline: prepare -> proxies -> train (-> evaluate, -> render) with stage markers ----
  * Each finished stage writes OUT/<stage>.done holding its config and the content hashes of its
  * inputs; a rerun skips a stage only when both match, else reruns it and every later stage and
