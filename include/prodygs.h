@@ -153,6 +153,8 @@ typedef struct {
     int steps;              /* path frames (0: the video's frame count) */
     float angle, yaw, pitch, time, fps; /* fps 0: the input's */
     int write_depth, write_frames, threads;
+    const char *camera_path; /* a camera_path.json (docs/FORMATS.md): one frame per entry; overrides path */
+    int width, height;       /* output size (0, 0: the camera's; one side 0 keeps the aspect) */
 } pg_render_config;
 
 typedef struct {
