@@ -11,7 +11,11 @@
 
 #define SH_C0 0.28209479177387814f
 #define LOGIT_VISIBLE (-5.537334f) /* logit(1/255): below it a Gaussian adds < 1/255 anywhere */
-#define LOG_SCALE_SPAN 12.0f       /* smaller log-scales clamp up: < e^-12 of the largest is invisible */
+/* Log-scales are quantised around their median: an axis below e^-6 of the typical size is flat
+ * to the eye (the renderer's low-pass filter dominates); one above e^8 of it covers the scene.
+ * Trained models have both (log-scales from -200 to +9 occur). */
+#define LOG_SCALE_BELOW 6.0f
+#define LOG_SCALE_ABOVE 8.0f
 
 static size_t pad4(size_t n) { return (n + 3) & ~(size_t)3; }
 
@@ -181,7 +185,22 @@ static pg_status choose(const view_scene_source *src, const uint8_t *moving, con
     return PG_OK;
 }
 
-static void compute_ranges(const pg_gaussians *g, const gauss_range *gr, const int *order, int n, quant_ranges *q)
+/* Median canonical log-scale of the kept Gaussians (all three axes). */
+static pg_status median_log_scale_of(const pg_gaussians *g, const int *order, int n, float *out)
+{
+    *out = 0.0f;
+    if (n == 0) return PG_OK;
+    float *v = pg_malloc(sizeof(float) * 3 * (size_t)n, "log-scale median");
+    if (!v) return PG_ERR_NOMEM;
+    for (int j = 0; j < n; j++) memcpy(v + 3 * (size_t)j, g->log_scales + 3 * (size_t)order[j], 3 * sizeof(float));
+    qsort(v, 3 * (size_t)n, sizeof(float), pg_cmp_float);
+    *out = v[3 * (size_t)n / 2];
+    free(v);
+    return PG_OK;
+}
+
+static void compute_ranges(const pg_gaussians *g, const gauss_range *gr, const int *order, int n,
+                           float median_log_scale, quant_ranges *q)
 {
     gauss_range all;
     range_init(&all);
@@ -204,8 +223,8 @@ static void compute_ranges(const pg_gaussians *g, const gauss_range *gr, const i
         q->box_min[k] = n ? all.lo[k] : 0.0f;
         q->box_max[k] = n ? all.hi[k] : 1.0f;
     }
-    q->ls_hi = n ? all.ls_hi : 0.0f;
-    q->ls_lo = n ? fmaxf(all.ls_lo, q->ls_hi - LOG_SCALE_SPAN) : -1.0f;
+    q->ls_lo = n ? fmaxf(all.ls_lo, median_log_scale - LOG_SCALE_BELOW) : -1.0f;
+    q->ls_hi = n ? fminf(all.ls_hi, median_log_scale + LOG_SCALE_ABOVE) : 0.0f;
     /* colours beyond [-1, 2] saturate either way after the SH terms */
     q->col_lo = n ? fmaxf(fminf(all.col_lo, 0.0f), -1.0f) : 0.0f;
     q->col_hi = n ? fminf(fmaxf(all.col_hi, 1.0f), 2.0f) : 1.0f;
@@ -263,8 +282,10 @@ pg_status view_scene_write(const char *path, const view_scene_source *src, const
     quant_ranges q;
     size_t meta = strlen(meta_json);
     size_t frame_bytes = block_bytes((size_t)m), sh_bytes = pad4((size_t)(s + m) * 3 * (size_t)rest);
+    float median_ls = 0.0f;
+    if (st == PG_OK) st = median_log_scale_of(g, order, s + m, &median_ls);
     if (st == PG_OK) {
-        compute_ranges(g, gr, order, s + m, &q);
+        compute_ranges(g, gr, order, s + m, median_ls, &q);
         size_t biggest = block_bytes((size_t)s) > frame_bytes ? block_bytes((size_t)s) : frame_bytes;
         if (sh_bytes > biggest) biggest = sh_bytes;
         block = pg_calloc(biggest + VIEW_SCENE_HEADER_BYTES, 1, "scene block");
