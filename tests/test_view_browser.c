@@ -257,9 +257,10 @@ static void check_model(const char *chromium, const char *model, const char *tmp
     CHECK(!err, "page error: %s", cJSON_GetStringValue(err));
     const cJSON *shots = cJSON_GetObjectItem(rep, "shots");
     double load_ms = io_json_number_or(rep, "load_ms", -1);
-    fprintf(stderr, "model: %d Gaussians (%d moving), scene %.1f MB, loaded in %.0f ms (fetch %.0f ms)\n",
-            (int)io_json_number_or(rep, "n", 0), (int)io_json_number_or(rep, "moving", 0),
-            io_json_number_or(rep, "bytes", 0) / 1048576.0, load_ms, io_json_number_or(rep, "fetch_ms", -1));
+    fprintf(stderr, "model: %d Gaussians (%d moving), scene %.1f MB, ready in %.0f ms (WebGL context %.0f, fetch %.0f, "
+                    "decode + upload %.0f)\n", (int)io_json_number_or(rep, "n", 0), (int)io_json_number_or(rep, "moving", 0),
+            io_json_number_or(rep, "bytes", 0) / 1048576.0, load_ms, io_json_number_or(rep, "webgl_ms", -1),
+            io_json_number_or(rep, "fetch_ms", -1), io_json_number_or(rep, "decode_ms", -1));
     CHECK(cJSON_GetArraySize(shots) == 2, "expected 2 shots");
     scene_cameras *sc = malloc(sizeof *sc);
     render_model *rm = NULL;
