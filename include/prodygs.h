@@ -165,16 +165,21 @@ typedef struct {
 void pg_render_defaults(pg_render_config *c);
 pg_status pg_render_run(const pg_render_config *c, pg_render_report *r);
 
-/* ---- export: deformed Gaussians as standard 3DGS PLY ---- */
+/* ---- export: deformed Gaussians as standard 3DGS PLY or .splat ---- */
 typedef struct {
     const char *model, *out;
     const float *times; int num_times;   /* times in [0, 1] */
     const int *frames; int num_frames;   /* frames of the training video */
     int all_frames;                      /* one PLY per frame (with none of the above: time 0) */
+    const char *format;                  /* "ply" (3DGS, default) or "splat" (antimatter15's 32-byte rows) */
 } pg_export_config;
 
+/* Every file holds the Gaussians visible at its time (opacity >= 1/255) with unit quaternions;
+ * OUT/cameras.json is a copy of the model's cameras. */
 typedef struct {
     int files, gaussians; /* gaussians: of the last file */
+    int dropped;          /* invisible Gaussians left out of the last file */
+    int cameras;          /* 1: cameras.json written beside the files */
 } pg_export_report;
 
 void pg_export_defaults(pg_export_config *c);
