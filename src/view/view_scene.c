@@ -32,31 +32,63 @@ typedef struct {
 
 /* Per-Gaussian extremes over all time samples (for moving ones) or its canonical values. */
 typedef struct {
-    float lo[3], hi[3];
-    float ls_lo, ls_hi, col_lo, col_hi;
-    float opacity_max; /* logit */
+    float lo[3], hi[3];          /* position */
+    float ls_lo[3], ls_hi[3];    /* log-scale per axis */
+    float col_lo[3], col_hi[3];  /* 0.5 + C0 * SH DC */
+    float q_lo[4], q_hi[4];      /* unit quaternion with w >= 0 */
+    float opacity_lo, opacity_hi; /* logit */
 } gauss_range;
 
 static void range_init(gauss_range *r)
 {
-    for (int k = 0; k < 3; k++) r->lo[k] = INFINITY, r->hi[k] = -INFINITY;
-    r->ls_lo = r->col_lo = INFINITY;
-    r->ls_hi = r->col_hi = r->opacity_max = -INFINITY;
+    for (int k = 0; k < 4; k++) {
+        if (k < 3) r->lo[k] = r->ls_lo[k] = r->col_lo[k] = INFINITY, r->hi[k] = r->ls_hi[k] = r->col_hi[k] = -INFINITY;
+        r->q_lo[k] = INFINITY, r->q_hi[k] = -INFINITY;
+    }
+    r->opacity_lo = INFINITY;
+    r->opacity_hi = -INFINITY;
+}
+
+/* The unit quaternion of row i with w >= 0 (q and -q are one rotation); identity for a zero one. */
+static void unit_quat(const pg_gaussians *g, size_t i, float u[4])
+{
+    const float *q = g->quats + 4 * i;
+    float len = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    float sgn = q[0] < 0 ? -1.0f : 1.0f;
+    for (int k = 0; k < 4; k++) u[k] = len > 0 ? sgn * q[k] / len : (float)(k == 0);
 }
 
 static void range_add(gauss_range *r, const pg_gaussians *g, int i)
 {
+    size_t a = (size_t)i;
     for (int k = 0; k < 3; k++) {
-        float p = g->means[3 * (size_t)i + k], s = g->log_scales[3 * (size_t)i + k];
-        float c = 0.5f + SH_C0 * g->sh[(size_t)i * PG_SH_COEFFS * 3 + k];
-        r->lo[k] = fminf(r->lo[k], p);
-        r->hi[k] = fmaxf(r->hi[k], p);
-        r->ls_lo = fminf(r->ls_lo, s);
-        r->ls_hi = fmaxf(r->ls_hi, s);
-        r->col_lo = fminf(r->col_lo, c);
-        r->col_hi = fmaxf(r->col_hi, c);
+        float p = g->means[3 * a + k], s = g->log_scales[3 * a + k];
+        float c = 0.5f + SH_C0 * g->sh[a * PG_SH_COEFFS * 3 + k];
+        r->lo[k] = fminf(r->lo[k], p), r->hi[k] = fmaxf(r->hi[k], p);
+        r->ls_lo[k] = fminf(r->ls_lo[k], s), r->ls_hi[k] = fmaxf(r->ls_hi[k], s);
+        r->col_lo[k] = fminf(r->col_lo[k], c), r->col_hi[k] = fmaxf(r->col_hi[k], c);
     }
-    r->opacity_max = fmaxf(r->opacity_max, g->opacity[i]);
+    float u[4];
+    unit_quat(g, a, u);
+    for (int k = 0; k < 4; k++) r->q_lo[k] = fminf(r->q_lo[k], u[k]), r->q_hi[k] = fmaxf(r->q_hi[k], u[k]);
+    r->opacity_lo = fminf(r->opacity_lo, g->opacity[a]);
+    r->opacity_hi = fmaxf(r->opacity_hi, g->opacity[a]);
+}
+
+static float sigmoidf(float x) { return 1.0f / (1.0f + expf(-x)); }
+
+/* 1 if a moving Gaussian changes too little over time to be seen changing: it moves less than
+ * 5 % of its size and its scales (5 %), rotation (0.01), colour and opacity (1.5/255) hold. */
+static int range_still(const gauss_range *r)
+{
+    float size = expf(fmaxf(r->ls_hi[0], fmaxf(r->ls_hi[1], r->ls_hi[2])));
+    for (int k = 0; k < 3; k++)
+        if (r->hi[k] - r->lo[k] > 0.05f * size || r->ls_hi[k] - r->ls_lo[k] > 0.05f ||
+            r->col_hi[k] - r->col_lo[k] > 1.5f / 255.0f)
+            return 0;
+    for (int k = 0; k < 4; k++)
+        if (r->q_hi[k] - r->q_lo[k] > 0.01f) return 0;
+    return sigmoidf(r->opacity_hi) - sigmoidf(r->opacity_lo) <= 1.5f / 255.0f;
 }
 
 /* Visible footprint for --max-gaussians: opacity times the area of the two largest axes. */
@@ -65,8 +97,7 @@ static float importance(const pg_gaussians *g, int i, const gauss_range *r)
     float s[3];
     for (int k = 0; k < 3; k++) s[k] = g->log_scales[3 * (size_t)i + k];
     float lo = fminf(s[0], fminf(s[1], s[2]));
-    float o = 1.0f / (1.0f + expf(-r->opacity_max));
-    return o * expf(s[0] + s[1] + s[2] - lo);
+    return sigmoidf(r->opacity_hi) * expf(s[0] + s[1] + s[2] - lo);
 }
 
 typedef struct {
@@ -107,15 +138,10 @@ static void encode_block(const pg_gaussians *g, const int *idx, int n, const qua
             ls[3 * j + k] = q8(g->log_scales[3 * i + k], q->ls_lo, q->ls_hi);
             rgba[4 * j + k] = q8(0.5f + SH_C0 * g->sh[i * PG_SH_COEFFS * 3 + k], q->col_lo, q->col_hi);
         }
-        const float *qv = g->quats + 4 * i;
-        float len = sqrtf(qv[0] * qv[0] + qv[1] * qv[1] + qv[2] * qv[2] + qv[3] * qv[3]);
-        float sgn = qv[0] < 0 ? -1.0f : 1.0f; /* q and -q are the same rotation: keep w >= 0 */
-        for (int k = 0; k < 4; k++) {
-            float u = len > 0 ? sgn * qv[k] / len : (k == 0);
-            rot[4 * j + k] = (uint8_t)lroundf(clampf(u * 127.5f + 127.5f, 0.0f, 255.0f));
-        }
-        float o = 1.0f / (1.0f + expf(-g->opacity[i]));
-        rgba[4 * j + 3] = (uint8_t)lroundf(clampf(o, 0.0f, 1.0f) * 255.0f);
+        float u[4];
+        unit_quat(g, i, u);
+        for (int k = 0; k < 4; k++) rot[4 * j + k] = (uint8_t)lroundf(clampf(u[k] * 127.5f + 127.5f, 0.0f, 255.0f));
+        rgba[4 * j + 3] = (uint8_t)lroundf(clampf(sigmoidf(g->opacity[i]), 0.0f, 1.0f) * 255.0f);
     }
 }
 
@@ -129,8 +155,28 @@ static pg_status write_bytes(pg_atomic_file *f, const void *data, size_t n)
     return PG_OK;
 }
 
-/* The scan over time: per-Gaussian ranges (moving ones over every sample). */
-static pg_status scan_ranges(const view_scene_source *src, const uint8_t *moving, pg_gaussians *tmp, gauss_range *gr)
+/* Copies every row of src into dst (resized). */
+static pg_status copy_gaussians(const pg_gaussians *src, pg_gaussians *dst)
+{
+    if (dst->capacity < src->count) {
+        splat_gaussians_destroy(dst);
+        PG_TRY(splat_gaussians_create(dst, src->count));
+    }
+    PG_TRY(splat_gaussians_resize(dst, src->count));
+    size_t n = (size_t)src->count;
+    memcpy(dst->means, src->means, n * 3 * sizeof(float));
+    memcpy(dst->log_scales, src->log_scales, n * 3 * sizeof(float));
+    memcpy(dst->quats, src->quats, n * 4 * sizeof(float));
+    memcpy(dst->opacity, src->opacity, n * sizeof(float));
+    memcpy(dst->sh, src->sh, n * PG_SH_COEFFS * 3 * sizeof(float));
+    dst->sh_degree = src->sh_degree;
+    return PG_OK;
+}
+
+/* The scan over time: per-Gaussian ranges (moving ones over every sample), the Gaussians at the
+ * first sample (what the file stores once), and movers that hold still demoted to static. */
+static pg_status scan_ranges(const view_scene_source *src, uint8_t *moving, pg_gaussians *tmp, pg_gaussians *first,
+                             gauss_range *gr)
 {
     const pg_gaussians *g = src->canonical;
     int any_moving = 0;
@@ -139,16 +185,24 @@ static pg_status scan_ranges(const view_scene_source *src, const uint8_t *moving
         if (moving[i]) any_moving = 1;
         else range_add(&gr[i], g, i);
     }
+    if (!any_moving) PG_TRY(copy_gaussians(g, first));
     for (int k = 0; any_moving && k < src->frames; k++) {
         float t = src->frames > 1 ? (float)k / (float)(src->frames - 1) : 0.0f;
         PG_TRY(src->at_time(src->ctx, t, tmp));
+        if (tmp->count != g->count)
+            return pg_fail(PG_ERR_ARG, "scene: %d Gaussians at t = %g, %d canonical", tmp->count, t, g->count);
+        if (k == 0) PG_TRY(copy_gaussians(tmp, first));
         for (int i = 0; i < g->count; i++)
             if (moving[i]) range_add(&gr[i], tmp, i);
     }
     for (int i = 0; i < g->count; i++) {
-        int finite = isfinite(gr[i].opacity_max) && isfinite(gr[i].ls_lo) && isfinite(gr[i].ls_hi);
-        for (int k = 0; k < 3; k++) finite &= isfinite(gr[i].lo[k]) && isfinite(gr[i].hi[k]);
+        const gauss_range *r = &gr[i];
+        int finite = isfinite(r->opacity_lo) && isfinite(r->opacity_hi);
+        for (int k = 0; k < 3; k++)
+            finite &= isfinite(r->lo[k]) && isfinite(r->hi[k]) && isfinite(r->ls_lo[k]) && isfinite(r->ls_hi[k]) &&
+                      isfinite(r->col_lo[k]) && isfinite(r->col_hi[k]);
         if (!finite) return pg_fail(PG_ERR_ARG, "scene: Gaussian %d has a non-finite value", i);
+        if (moving[i] && range_still(r)) moving[i] = 0;
     }
     return PG_OK;
 }
@@ -162,7 +216,7 @@ static pg_status choose(const view_scene_source *src, const uint8_t *moving, con
     ranked *rk = pg_malloc(sizeof(ranked) * (size_t)g->count + 1, "scene ranking");
     if (!rk) return PG_ERR_NOMEM;
     for (int i = 0; i < g->count; i++)
-        if (gr[i].opacity_max >= LOGIT_VISIBLE) rk[n++] = (ranked){ importance(g, i, &gr[i]), i };
+        if (gr[i].opacity_hi >= LOGIT_VISIBLE) rk[n++] = (ranked){ importance(g, i, &gr[i]), i };
     if (src->max_gaussians > 0 && n > src->max_gaussians) {
         qsort(rk, (size_t)n, sizeof *rk, cmp_ranked);
         n = src->max_gaussians;
@@ -199,35 +253,35 @@ static pg_status median_log_scale_of(const pg_gaussians *g, const int *order, in
     return PG_OK;
 }
 
-static void compute_ranges(const pg_gaussians *g, const gauss_range *gr, const int *order, int n,
+static void compute_ranges(const pg_gaussians *first, const gauss_range *gr, const int *order, int n,
                            float median_log_scale, quant_ranges *q)
 {
-    gauss_range all;
-    range_init(&all);
+    float ls_lo = INFINITY, ls_hi = -INFINITY, col_lo = INFINITY, col_hi = -INFINITY;
+    for (int k = 0; k < 3; k++) q->box_min[k] = INFINITY, q->box_max[k] = -INFINITY;
     q->sh_max = 0.0f;
-    int rest = (g->sh_degree + 1) * (g->sh_degree + 1) - 1;
+    int rest = (first->sh_degree + 1) * (first->sh_degree + 1) - 1;
     for (int j = 0; j < n; j++) {
         const gauss_range *r = &gr[order[j]];
         for (int k = 0; k < 3; k++) {
-            all.lo[k] = fminf(all.lo[k], r->lo[k]);
-            all.hi[k] = fmaxf(all.hi[k], r->hi[k]);
+            q->box_min[k] = fminf(q->box_min[k], r->lo[k]);
+            q->box_max[k] = fmaxf(q->box_max[k], r->hi[k]);
+            ls_lo = fminf(ls_lo, r->ls_lo[k]);
+            ls_hi = fmaxf(ls_hi, r->ls_hi[k]);
+            col_lo = fminf(col_lo, r->col_lo[k]);
+            col_hi = fmaxf(col_hi, r->col_hi[k]);
         }
-        all.ls_lo = fminf(all.ls_lo, r->ls_lo);
-        all.ls_hi = fmaxf(all.ls_hi, r->ls_hi);
-        all.col_lo = fminf(all.col_lo, r->col_lo);
-        all.col_hi = fmaxf(all.col_hi, r->col_hi);
-        const float *sh = g->sh + (size_t)order[j] * PG_SH_COEFFS * 3;
+        const float *sh = first->sh + (size_t)order[j] * PG_SH_COEFFS * 3;
         for (int k = 3; k < 3 * (rest + 1); k++) q->sh_max = fmaxf(q->sh_max, fabsf(sh[k]));
     }
-    for (int k = 0; k < 3; k++) {
-        q->box_min[k] = n ? all.lo[k] : 0.0f;
-        q->box_max[k] = n ? all.hi[k] : 1.0f;
+    if (n == 0) {
+        for (int k = 0; k < 3; k++) q->box_min[k] = 0.0f, q->box_max[k] = 1.0f;
+        ls_lo = ls_hi = col_lo = col_hi = 0.0f;
     }
-    q->ls_lo = n ? fmaxf(all.ls_lo, median_log_scale - LOG_SCALE_BELOW) : -1.0f;
-    q->ls_hi = n ? fminf(all.ls_hi, median_log_scale + LOG_SCALE_ABOVE) : 0.0f;
+    q->ls_lo = fmaxf(ls_lo, median_log_scale - LOG_SCALE_BELOW);
+    q->ls_hi = fmaxf(q->ls_lo, fminf(ls_hi, median_log_scale + LOG_SCALE_ABOVE));
     /* colours beyond [-1, 2] saturate either way after the SH terms */
-    q->col_lo = n ? fmaxf(fminf(all.col_lo, 0.0f), -1.0f) : 0.0f;
-    q->col_hi = n ? fminf(fmaxf(all.col_hi, 1.0f), 2.0f) : 1.0f;
+    q->col_lo = fmaxf(fminf(col_lo, 0.0f), -1.0f);
+    q->col_hi = fminf(fmaxf(col_hi, 1.0f), 2.0f);
 }
 
 static void header_bytes(uint8_t *h, const view_scene_source *src, const quant_ranges *q, size_t meta, int s, int m,
@@ -270,22 +324,22 @@ pg_status view_scene_write(const char *path, const view_scene_source *src, const
     uint8_t *moving = pg_calloc(N, 1, "moving flags");
     gauss_range *gr = pg_malloc(N * sizeof *gr, "scene ranges");
     int *order = pg_malloc(N * sizeof(int), "scene order");
-    pg_gaussians tmp = { 0 };
+    pg_gaussians tmp = { 0 }, first = { 0 }; /* at a sample time; at the first one */
     uint8_t *block = NULL;
     pg_atomic_file f = { 0 };
     int opened = 0;
     pg_status st = moving && gr && order ? PG_OK : PG_ERR_NOMEM;
     for (size_t i = 0; st == PG_OK && i < N; i++) moving[i] = src->at_time && src->is_static && !src->is_static[i];
     int s = 0, m = 0;
-    if (st == PG_OK) st = scan_ranges(src, moving, &tmp, gr);
+    if (st == PG_OK) st = scan_ranges(src, moving, &tmp, &first, gr);
     if (st == PG_OK) st = choose(src, moving, gr, order, &s, &m);
     quant_ranges q;
     size_t meta = strlen(meta_json);
     size_t frame_bytes = block_bytes((size_t)m), sh_bytes = pad4((size_t)(s + m) * 3 * (size_t)rest);
     float median_ls = 0.0f;
-    if (st == PG_OK) st = median_log_scale_of(g, order, s + m, &median_ls);
+    if (st == PG_OK) st = median_log_scale_of(&first, order, s + m, &median_ls);
     if (st == PG_OK) {
-        compute_ranges(g, gr, order, s + m, median_ls, &q);
+        compute_ranges(&first, gr, order, s + m, median_ls, &q);
         size_t biggest = block_bytes((size_t)s) > frame_bytes ? block_bytes((size_t)s) : frame_bytes;
         if (sh_bytes > biggest) biggest = sh_bytes;
         block = pg_calloc(biggest + VIEW_SCENE_HEADER_BYTES, 1, "scene block");
@@ -300,13 +354,13 @@ pg_status view_scene_write(const char *path, const view_scene_source *src, const
     if (st == PG_OK) st = write_bytes(&f, "\0\0\0", pad4(meta) - meta);
     if (st == PG_OK) { /* static block */
         memset(block, 0, block_bytes((size_t)s));
-        encode_block(g, order, s, &q, block);
+        encode_block(&first, order, s, &q, block);
         st = write_bytes(&f, block, block_bytes((size_t)s));
     }
-    if (st == PG_OK) { /* higher SH of every kept Gaussian, canonical (q8 around 0) */
+    if (st == PG_OK) { /* higher SH of every kept Gaussian at the first sample (q8 around 0) */
         memset(block, 0, sh_bytes);
         for (int j = 0; j < s + m; j++) {
-            const float *sh = g->sh + (size_t)order[j] * PG_SH_COEFFS * 3 + 3;
+            const float *sh = first.sh + (size_t)order[j] * PG_SH_COEFFS * 3 + 3;
             for (int k = 0; k < 3 * rest; k++) block[(size_t)j * 3 * rest + k] = q8(sh[k], -q.sh_max, q.sh_max);
         }
         st = write_bytes(&f, block, sh_bytes);
@@ -334,6 +388,7 @@ pg_status view_scene_write(const char *path, const view_scene_source *src, const
                        (m > 0 ? (size_t)src->frames * frame_bytes : 0);
     }
     splat_gaussians_destroy(&tmp);
+    splat_gaussians_destroy(&first);
     free(block);
     free(order);
     free(gr);
