@@ -253,13 +253,38 @@ static pg_status median_log_scale_of(const pg_gaussians *g, const int *order, in
     return PG_OK;
 }
 
-static void compute_ranges(const pg_gaussians *first, const gauss_range *gr, const int *order, int n,
+/* The range of the higher SH coefficients: their 99.9th percentile of |value|. A few deformed
+ * Gaussians reach 40 where the rest stay below 0.3; those few saturate instead of coarsening the
+ * step for everyone. */
+static float sh_range(const pg_gaussians *g, const int *order, int n, int rest)
+{
+    enum { BINS = 4096 };
+    float top = 0.0f;
+    for (int j = 0; j < n; j++)
+        for (int k = 3; k < 3 * (rest + 1); k++) top = fmaxf(top, fabsf(g->sh[(size_t)order[j] * PG_SH_COEFFS * 3 + k]));
+    if (!(top > 0.0f)) return 0.0f;
+    static size_t hist[BINS];
+    memset(hist, 0, sizeof hist);
+    for (int j = 0; j < n; j++)
+        for (int k = 3; k < 3 * (rest + 1); k++) {
+            int b = (int)(fabsf(g->sh[(size_t)order[j] * PG_SH_COEFFS * 3 + k]) / top * (BINS - 1));
+            hist[b < 0 ? 0 : b > BINS - 1 ? BINS - 1 : b]++;
+        }
+    size_t total = (size_t)n * 3 * (size_t)rest, below = 0;
+    for (int b = 0; b < BINS; b++) {
+        below += hist[b];
+        if ((double)below >= 0.999 * (double)total) return top * (float)(b + 1) / (BINS - 1);
+    }
+    return top;
+}
+
+/* Ranges over the kept Gaussians; higher SH from the canonical set (what the file stores). */
+static void compute_ranges(const pg_gaussians *canonical, const gauss_range *gr, const int *order, int n,
                            float median_log_scale, quant_ranges *q)
 {
     float ls_lo = INFINITY, ls_hi = -INFINITY, col_lo = INFINITY, col_hi = -INFINITY;
     for (int k = 0; k < 3; k++) q->box_min[k] = INFINITY, q->box_max[k] = -INFINITY;
-    q->sh_max = 0.0f;
-    int rest = (first->sh_degree + 1) * (first->sh_degree + 1) - 1;
+    int rest = (canonical->sh_degree + 1) * (canonical->sh_degree + 1) - 1;
     for (int j = 0; j < n; j++) {
         const gauss_range *r = &gr[order[j]];
         for (int k = 0; k < 3; k++) {
@@ -270,9 +295,8 @@ static void compute_ranges(const pg_gaussians *first, const gauss_range *gr, con
             col_lo = fminf(col_lo, r->col_lo[k]);
             col_hi = fmaxf(col_hi, r->col_hi[k]);
         }
-        const float *sh = first->sh + (size_t)order[j] * PG_SH_COEFFS * 3;
-        for (int k = 3; k < 3 * (rest + 1); k++) q->sh_max = fmaxf(q->sh_max, fabsf(sh[k]));
     }
+    q->sh_max = sh_range(canonical, order, n, rest);
     if (n == 0) {
         for (int k = 0; k < 3; k++) q->box_min[k] = 0.0f, q->box_max[k] = 1.0f;
         ls_lo = ls_hi = col_lo = col_hi = 0.0f;
@@ -339,7 +363,7 @@ pg_status view_scene_write(const char *path, const view_scene_source *src, const
     float median_ls = 0.0f;
     if (st == PG_OK) st = median_log_scale_of(&first, order, s + m, &median_ls);
     if (st == PG_OK) {
-        compute_ranges(&first, gr, order, s + m, median_ls, &q);
+        compute_ranges(g, gr, order, s + m, median_ls, &q);
         size_t biggest = block_bytes((size_t)s) > frame_bytes ? block_bytes((size_t)s) : frame_bytes;
         if (sh_bytes > biggest) biggest = sh_bytes;
         block = pg_calloc(biggest + VIEW_SCENE_HEADER_BYTES, 1, "scene block");
@@ -357,10 +381,13 @@ pg_status view_scene_write(const char *path, const view_scene_source *src, const
         encode_block(&first, order, s, &q, block);
         st = write_bytes(&f, block, block_bytes((size_t)s));
     }
-    if (st == PG_OK) { /* higher SH of every kept Gaussian at the first sample (q8 around 0) */
+    /* Higher SH of every kept Gaussian, canonical (q8 around 0): the network's SH deltas swing
+     * widely over time (up to 40) where their Gaussians are faint; the canonical bands render
+     * every sample better than any one deformed sample does. */
+    if (st == PG_OK) {
         memset(block, 0, sh_bytes);
         for (int j = 0; j < s + m; j++) {
-            const float *sh = first.sh + (size_t)order[j] * PG_SH_COEFFS * 3 + 3;
+            const float *sh = g->sh + (size_t)order[j] * PG_SH_COEFFS * 3 + 3;
             for (int k = 0; k < 3 * rest; k++) block[(size_t)j * 3 * rest + k] = q8(sh[k], -q.sh_max, q.sh_max);
         }
         st = write_bytes(&f, block, sh_bytes);
