@@ -187,6 +187,10 @@ int main(void)
     CHECK(get_status(port, "GET /../etc/passwd HTTP/1.1\r\n\r\n") == 400, "'..' is a bad request");
     CHECK(get_status(port, "GET / HTTP/1.1\r\nHost: attacker.example\r\n\r\n") == 403, "foreign Host refused");
     CHECK(get_status(port, "POST / HTTP/1.1\r\n\r\n") == 405, "POST refused");
+    int len = snprintf(req, sizeof req, "GET /index.html");
+    while (len < 3000) req[len++] = 'a';
+    snprintf(req + len, sizeof req - (size_t)len, " HTTP/1.1\r\n\r\n");
+    CHECK(get_status(port, req) == 400, "a 3000-byte target is a bad request");
 
     /* localhost only */
     char other[64];

@@ -42,8 +42,11 @@ static pg_status entry_camera(const char *path, int i, const cJSON *e, int openg
     float c2w_rot[9]; /* columns = the camera's axes in the world */
     for (int r = 0; r < 3; r++)
         for (int k = 0; k < 3; k++) c2w_rot[3 * r + k] = m[4 * r + k] * (opengl && k > 0 ? -1.0f : 1.0f);
-    if (!mat3_is_orthonormal(c2w_rot, 1e-3))
-        return pg_fail(PG_ERR_FORMAT, "%s: the rotation part of camera_to_world is not orthonormal", what);
+    float x[3] = { c2w_rot[0], c2w_rot[3], c2w_rot[6] }, y[3] = { c2w_rot[1], c2w_rot[4], c2w_rot[7] }, xy[3];
+    float z[3] = { c2w_rot[2], c2w_rot[5], c2w_rot[8] };
+    vec3_cross(xy, x, y);
+    if (!mat3_is_orthonormal(c2w_rot, 1e-3) || vec3_dot(xy, z) < 0) /* a mirror is no camera */
+        return pg_fail(PG_ERR_FORMAT, "%s: the rotation part of camera_to_world is not a rotation", what);
     float eye[3] = { m[3], m[7], m[11] };
     memset(cam, 0, sizeof *cam);
     cam->width = w;

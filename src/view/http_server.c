@@ -137,7 +137,9 @@ static void handle_request(http_conn *c, const view_http_file *files, int n_file
     }
     char method[8], target[1024], version[16];
     *line_end = '\0';
-    if (sscanf(c->in, "%7s %1023s %15s", method, target, version) != 3 || strncmp(version, "HTTP/1.", 7) != 0) {
+    const char *t0 = strchr(c->in, ' ');
+    if (!t0 || strcspn(t0 + 1, " ") >= sizeof target - 1 || /* too long to be in the table */
+        sscanf(c->in, "%7s %1023s %15s", method, target, version) != 3 || strncmp(version, "HTTP/1.", 7) != 0) {
         respond(c, 400, NULL, NULL, 0, 0);
         return;
     }
