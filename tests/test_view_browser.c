@@ -44,7 +44,7 @@
 static const char *find_chromium(char *out, size_t size)
 {
     const char *env = getenv("PG_CHROMIUM");
-    if (env && *env) return env;
+    if (env && *env) return access(env, X_OK) == 0 ? env : NULL;
     static const char *names[] = { "chromium", "chromium-browser", "google-chrome" };
     const char *path = getenv("PATH");
     for (int k = 0; k < 3; k++) {
