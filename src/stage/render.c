@@ -92,7 +92,8 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
                                      &vo.num_keys);
     vo.keys = keys;
     vo.key_times = key_times;
-    pg_camera real = sc->cams[sc->real]; /* at the asked size; paths keep its intrinsics */
+    pg_camera real = { 0 }; /* the training camera at the asked size; paths keep its intrinsics */
+    if (st == PG_OK) real = sc->cams[sc->real];
     if (st == PG_OK && (c->width || c->height)) {
         int w = c->width ? c->width : (int)lroundf((float)c->height * real.width / real.height);
         int h = c->height ? c->height : (int)lroundf((float)c->width * real.height / real.width);
