@@ -153,6 +153,8 @@ typedef struct {
     int steps;              /* path frames (0: the video's frame count) */
     float angle, yaw, pitch, time, fps; /* fps 0: the input's */
     int write_depth, write_frames, threads;
+    const char *camera_path; /* a camera_path.json (docs/FORMATS.md): one frame per entry; overrides path */
+    int width, height;       /* output size (0, 0: the camera's; one side 0 keeps the aspect) */
 } pg_render_config;
 
 typedef struct {
@@ -163,20 +165,49 @@ typedef struct {
 void pg_render_defaults(pg_render_config *c);
 pg_status pg_render_run(const pg_render_config *c, pg_render_report *r);
 
-/* ---- export: deformed Gaussians as standard 3DGS PLY ---- */
+/* ---- export: deformed Gaussians as standard 3DGS PLY or .splat ---- */
 typedef struct {
     const char *model, *out;
     const float *times; int num_times;   /* times in [0, 1] */
     const int *frames; int num_frames;   /* frames of the training video */
     int all_frames;                      /* one PLY per frame (with none of the above: time 0) */
+    const char *format;                  /* "ply" (3DGS, default) or "splat" (antimatter15's 32-byte rows) */
 } pg_export_config;
 
+/* Every file holds the Gaussians visible at its time (opacity >= 1/255) with unit quaternions;
+ * OUT/cameras.json is a copy of the model's cameras. */
 typedef struct {
     int files, gaussians; /* gaussians: of the last file */
+    int dropped;          /* invisible Gaussians left out of the last file */
+    int cameras;          /* 1: cameras.json written beside the files */
 } pg_export_report;
 
 void pg_export_defaults(pg_export_config *c);
 pg_status pg_export_run(const pg_export_config *c, pg_export_report *r);
+
+/* ---- view: a self-contained web viewer (index.html + scene.pgvs) served on localhost ----
+ * pg_view_run writes OUT/index.html (the WebGL2 viewer, nothing fetched from the network) and
+ * OUT/scene.pgvs (docs/FORMATS.md): static Gaussians once, moving ones per time sample,
+ * quantised. pg_view_serve answers http://127.0.0.1:PORT/ with those two files only. */
+typedef struct {
+    const char *model, *out;
+    int frames;         /* time samples (0: the model's video frames) */
+    int max_gaussians;  /* keep the N most visible (0: all visible) */
+} pg_view_config;
+
+typedef struct {
+    int static_gaussians, moving_gaussians, dropped, frames, sh_degree;
+    double scene_bytes;       /* size of scene.pgvs */
+    double bytes_per_second;  /* scene bytes per second of the video (at its fps) */
+    double seconds;
+} pg_view_report;
+
+void pg_view_defaults(pg_view_config *c);
+pg_status pg_view_run(const pg_view_config *c, pg_view_report *r);
+/* Serves DIR on 127.0.0.1:port (0: a free port) until max_requests responses were sent (0: until
+ * the process ends); on_listen (may be NULL) gets the URL once the socket listens. */
+pg_status pg_view_serve(const char *dir, int port, long max_requests, void (*on_listen)(const char *url, void *user),
+                        void *user);
 
 /* ---- pipeline: prepare -> proxies -> train (-> evaluate, -> render) with stage markers ----
  * Each finished stage writes OUT/<stage>.done holding its config and the content hashes of its

@@ -33,12 +33,16 @@ int cmd_export(int argc, char **argv)
         { "--out", CLI_STR, &c.out, "output directory (required)" },
         { "--times", CLI_STR, &times_text, "comma-separated times in [0,1] (default 0)" },
         { "--frame-list", CLI_STR, &frames_text, "comma-separated frame indices of the training video, or all" },
+        { "--format", CLI_STR, &c.format, "ply (3DGS, default) or splat (antimatter15's 32-byte layout)" },
     };
-    const cli_spec spec = { "prodygs export", "MODEL --out DIR [--times T,...|--frame-list F,...|all]",
+    const cli_spec spec = { "prodygs export", "MODEL --out DIR [--times T,...|--frame-list F,...|all] [--format ply|splat]",
                             "Writes the deformed Gaussians at the requested times as binary little-endian PLY in\n"
-                            "the standard 3DGS layout (opens in common 3DGS viewers). Files: DIR/frame_NNNN.ply\n"
-                            "for frames, DIR/time_0.500.ply for times.\n\n"
-                            "example: prodygs export out/model --out out/ply --frame-list all",
+                            "the standard 3DGS layout, or as .splat (antimatter15's 32-byte rows, read by web splat\n"
+                            "viewers). Files: DIR/frame_NNNN.ply for frames, DIR/time_0.500.ply for times, and\n"
+                            "DIR/cameras.json (the model's cameras). Each file holds the Gaussians visible at its time\n"
+                            "(opacity >= 1/255) with unit quaternions.\n\n"
+                            "example: prodygs export out/model --out out/ply --frame-list all\n"
+                            "         prodygs export out/model --out out/splat --format splat --times 0,0.5,1",
                             options, (int)(sizeof options / sizeof options[0]), 1, 1 };
     int rc = cli_parse(&spec, argc, argv, &c.model, NULL);
     if (rc) return rc < 0 ? 0 : rc;
@@ -65,6 +69,7 @@ int cmd_export(int argc, char **argv)
     free(frames);
     if (rc) return rc;
     if (st) return cli_fail(st);
-    printf("{\"out\": \"%s\", \"files\": %d, \"gaussians\": %d}\n", c.out, r.files, r.gaussians);
+    printf("{\"out\": \"%s\", \"files\": %d, \"gaussians\": %d, \"dropped\": %d, \"cameras\": %s}\n", c.out, r.files,
+           r.gaussians, r.dropped, r.cameras ? "true" : "false");
     return 0;
 }

@@ -22,6 +22,7 @@ static const command commands[] = {
     { "train",   cmd_train,   "train canonical Gaussians + deformation network" },
     { "render",  cmd_render,  "render a trained model along a camera path" },
     { "export",  cmd_export,  "export deformed Gaussians as 3DGS PLY" },
+    { "view",    cmd_view,    "interactive 4D viewer in the browser (localhost)" },
     { "eval",    cmd_eval,    "DyNeRF protocol evaluation (PSNR/SSIM, masked)" },
     { "bench",   cmd_bench,   "speed benchmarks printing one JSON line" },
 };

@@ -48,9 +48,11 @@ pg_status render_video_write(render_model *rm, const pg_camera *real, const floa
 {
     double start = pg_time_seconds();
     memset(report, 0, sizeof *report);
-    const int W = real->width, H = real->height;
+    const pg_camera *sized = opt->num_keys > 0 ? &opt->keys[0] : opt->use_camera ? &opt->camera : real;
+    const int W = sized->width, H = sized->height;
     int steps = opt->path.steps;
     if (opt->use_camera) steps = render_model_frames(rm);
+    if (opt->num_keys > 0) steps = opt->num_keys;
     if (steps <= 0) return pg_fail(PG_ERR_ARG, "camera path '%s' has no steps", name);
     PG_TRY(pg_mkdir_p(out_dir));
     char frame_dir[4096];
@@ -69,7 +71,10 @@ pg_status render_video_write(render_model *rm, const pg_camera *real, const floa
     for (int i = 0; st == PG_OK && i < steps; i++) {
         pg_camera cam;
         float t;
-        if (opt->use_camera) {
+        if (opt->num_keys > 0) {
+            cam = opt->keys[i];
+            t = opt->key_times[i];
+        } else if (opt->use_camera) {
             cam = opt->camera;
             t = train_frame_time(i, steps);
         } else {

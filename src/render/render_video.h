@@ -16,6 +16,10 @@ typedef struct {
     render_path_options path;
     int use_camera;        /* 1: every step uses `camera` (dataset-cam path), time runs over the video */
     pg_camera camera;
+    /* A user's path (camera_path_file.h): step i renders keys[i] at key_times[i]; all of one size. */
+    const pg_camera *keys;
+    const float *key_times;
+    int num_keys;
     int write_depth;       /* also NAME_depth.mp4 */
     int write_frames;      /* also NAME/NNNN.png */
     double fps;
@@ -30,7 +34,8 @@ typedef struct {
     double seconds;
 } render_video_report;
 
-/* Renders opt->path.steps frames (or the video's frame count for a dataset camera path). */
+/* Renders opt->path.steps frames (the video's frame count for a dataset camera path, num_keys
+ * for a user's path) at the size of the camera used (keys, camera or real). */
 pg_status render_video_write(render_model *rm, const pg_camera *real, const float center[3],
                              const render_video_options *opt, const char *out_dir, const char *name,
                              render_video_report *report);

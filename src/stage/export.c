@@ -1,7 +1,10 @@
 /* export.c - the export stage: deformed Gaussians at chosen times or frames as binary PLY in
- * the standard 3DGS layout (OUT/frame_NNNN.ply, OUT/time_T.ply). */
+ * the standard 3DGS layout or as antimatter15's .splat (OUT/frame_NNNN.ply, OUT/time_T.splat),
+ * cleaned for other viewers (invisible Gaussians dropped, unit quaternions), with the model's
+ * cameras.json beside them. */
 #include "stage/stage_internal.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -9,23 +12,77 @@
 #include "core/fileutil.h"
 #include "core/status.h"
 #include "io/ply.h"
+#include "io/splat_file.h"
 #include "render/model_render.h"
+
+#define LOGIT_VISIBLE (-5.537334f) /* logit(1/255): fainter Gaussians change no pixel */
 
 void pg_export_defaults(pg_export_config *c)
 {
     memset(c, 0, sizeof *c);
 }
 
-static pg_status export_one(render_model *rm, const char *dir, const char *file, float t, pg_export_report *r)
+/* Copies the Gaussians of g that are visible (opacity >= 1/255) into out, quaternions normalised
+ * (a zero one becomes the identity). */
+static pg_status clean_copy(const pg_gaussians *g, pg_gaussians *out)
+{
+    if (out->capacity < g->count) {
+        splat_gaussians_destroy(out);
+        PG_TRY(splat_gaussians_create(out, g->count));
+    }
+    int n = 0;
+    for (int i = 0; i < g->count; i++) {
+        if (!(g->opacity[i] >= LOGIT_VISIBLE)) continue;
+        size_t a = (size_t)i, b = (size_t)n;
+        memcpy(out->means + 3 * b, g->means + 3 * a, 3 * sizeof(float));
+        memcpy(out->log_scales + 3 * b, g->log_scales + 3 * a, 3 * sizeof(float));
+        memcpy(out->sh + b * PG_SH_COEFFS * 3, g->sh + a * PG_SH_COEFFS * 3, PG_SH_COEFFS * 3 * sizeof(float));
+        out->opacity[b] = g->opacity[a];
+        const float *q = g->quats + 4 * a;
+        float len = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+        for (int k = 0; k < 4; k++) out->quats[4 * b + k] = len > 0 ? q[k] / len : (float)(k == 0);
+        n++;
+    }
+    out->count = n;
+    out->sh_degree = g->sh_degree;
+    return PG_OK;
+}
+
+static pg_status export_one(render_model *rm, const char *dir, const char *file, int splat, float t,
+                            pg_gaussians *clean, pg_export_report *r)
 {
     const pg_gaussians *g;
     char path[4200];
     PG_TRY(render_model_gaussians_at(rm, t, &g));
+    PG_TRY(clean_copy(g, clean));
     PG_TRY(pg_path_join(path, sizeof path, dir, file));
-    PG_TRY(io_ply_save(path, g));
+    PG_TRY(splat ? io_splat_save(path, clean) : io_ply_save(path, clean));
     r->files++;
-    r->gaussians = g->count;
+    r->gaussians = clean->count;
+    r->dropped = g->count - clean->count;
     return PG_OK;
+}
+
+/* OUT/cameras.json: a copy of the one beside the model (none: nothing written). */
+static pg_status copy_cameras(const char *model, const char *out, pg_export_report *r)
+{
+    char dir[4096], src[4200], dst[4200];
+    snprintf(dir, sizeof dir, "%s", model);
+    if (!pg_path_is_dir(dir)) { /* a checkpoint file: its directory */
+        char *slash = strrchr(dir, '/');
+        if (slash) *slash = '\0';
+        else snprintf(dir, sizeof dir, ".");
+    }
+    PG_TRY(pg_path_join(src, sizeof src, dir, "cameras.json"));
+    PG_TRY(pg_path_join(dst, sizeof dst, out, "cameras.json"));
+    if (!pg_path_exists(src)) return PG_OK;
+    char *data = NULL;
+    size_t size = 0;
+    PG_TRY(pg_read_file(src, (size_t)64 << 20, &data, &size));
+    pg_status st = pg_write_file_atomic(dst, data, size);
+    free(data);
+    r->cameras = st == PG_OK;
+    return st;
 }
 
 pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
@@ -34,6 +91,10 @@ pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
     if (!c->model || !c->out) return pg_fail(PG_ERR_ARG, "export: model and out are required");
     if ((c->num_times > 0) + (c->num_frames > 0) + (c->all_frames != 0) > 1)
         return pg_fail(PG_ERR_ARG, "export: give only one of --times, --frame-list");
+    const char *format = c->format ? c->format : "ply";
+    int splat = strcmp(format, "splat") == 0;
+    if (!splat && strcmp(format, "ply") != 0)
+        return pg_fail(PG_ERR_ARG, "export: --format must be ply or splat, got '%.32s'", format);
     for (int i = 0; i < c->num_times; i++)
         if (!(c->times[i] >= 0.0f && c->times[i] <= 1.0f))
             return pg_fail(PG_ERR_ARG, "export: --times: %g is not in [0, 1]", c->times[i]);
@@ -45,22 +106,25 @@ pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
         if (c->frames[i] < 0 || c->frames[i] >= frames)
             st = pg_fail(PG_ERR_ARG, "export: %s: --frame-list: frame %d is not in 0..%d", c->model, c->frames[i], frames - 1);
     if (st == PG_OK) st = pg_mkdir_p(c->out);
+    if (st == PG_OK) st = copy_cameras(c->model, c->out, r);
+    pg_gaussians clean = { 0 };
     char file[64];
     if (c->num_frames > 0 || c->all_frames) {
         int n = c->all_frames ? frames : c->num_frames;
         for (int i = 0; st == PG_OK && i < n; i++) {
             int f = c->all_frames ? i : c->frames[i];
-            snprintf(file, sizeof file, "frame_%04d.ply", f);
-            st = export_one(rm, c->out, file, train_frame_time(f, frames), r);
+            snprintf(file, sizeof file, "frame_%04d.%s", f, format);
+            st = export_one(rm, c->out, file, splat, train_frame_time(f, frames), &clean, r);
         }
     } else {
         int n = c->num_times > 0 ? c->num_times : 1;
         for (int i = 0; st == PG_OK && i < n; i++) {
             float t = c->num_times > 0 ? c->times[i] : 0.0f;
-            snprintf(file, sizeof file, "time_%.3f.ply", t);
-            st = export_one(rm, c->out, file, t, r);
+            snprintf(file, sizeof file, "time_%.3f.%s", t, format);
+            st = export_one(rm, c->out, file, splat, t, &clean, r);
         }
     }
+    splat_gaussians_destroy(&clean);
     render_model_close(rm);
     return st;
 }

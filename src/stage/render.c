@@ -10,6 +10,7 @@
 #include "core/fileutil.h"
 #include "core/status.h"
 #include "io/image_io.h"
+#include "render/camera_path_file.h"
 #include "render/render_video.h"
 #include "render/scene_cameras.h"
 
@@ -63,7 +64,8 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
     render_video_options vo = { 0 };
     const char *path_name = c->path ? c->path : "fixed";
     int dataset_cam = strcmp(path_name, "dataset-cam") == 0;
-    if (!dataset_cam) PG_TRY(render_path_parse(path_name, &vo.path.kind));
+    if (c->camera_path) vo.path.kind = RENDER_PATH_FIXED; /* unused: the file gives every camera */
+    else if (!dataset_cam) PG_TRY(render_path_parse(path_name, &vo.path.kind));
     else if (!c->camera) return pg_fail(PG_ERR_ARG, "render: --path dataset-cam needs --camera NAME");
     if (c->time < 0 || c->time > 1) return pg_fail(PG_ERR_ARG, "render: --time must be in [0, 1], got %g", c->time);
     if (c->steps < 0 || c->steps > 100000) return pg_fail(PG_ERR_ARG, "render: --steps %d out of range 0..100000", c->steps);
@@ -72,6 +74,7 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
     if (c->yaw < -89 || c->yaw > 89 || c->pitch < -89 || c->pitch > 89)
         return pg_fail(PG_ERR_ARG, "render: --yaw/--pitch must be in [-89, 89] degrees, got %g/%g", c->yaw, c->pitch);
     PG_TRY(stage_check_threads("render", c->threads));
+    if (c->width || c->height) PG_TRY(stage_check_size("render", c->width, c->height));
     stage_use_threads(c->threads);
 
     scene_cameras *sc = pg_malloc(sizeof *sc, "cameras");
@@ -81,7 +84,22 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
     if (st == PG_OK) st = render_model_open(c->model, &rm);
     int k = -1;
     reference_frames ref = { NULL, 1 };
-    if (st == PG_OK && dataset_cam) st = find_camera(sc, c->model, c->camera, &k);
+    pg_camera *keys = NULL;
+    float *key_times = NULL;
+    if (st == PG_OK && dataset_cam && !c->camera_path) st = find_camera(sc, c->model, c->camera, &k);
+    if (st == PG_OK && c->camera_path)
+        st = render_camera_path_load(c->camera_path, &sc->cams[sc->real], c->width, c->height, &keys, &key_times,
+                                     &vo.num_keys);
+    vo.keys = keys;
+    vo.key_times = key_times;
+    pg_camera real = { 0 }; /* the training camera at the asked size; paths keep its intrinsics */
+    if (st == PG_OK) real = sc->cams[sc->real];
+    if (st == PG_OK && (c->width || c->height)) {
+        int w = c->width ? c->width : (int)lroundf((float)c->height * real.width / real.height);
+        int h = c->height ? c->height : (int)lroundf((float)c->width * real.height / real.width);
+        if (k >= 0) pg_camera_resize(&sc->cams[k], w, h);
+        pg_camera_resize(&real, w, h);
+    }
     if (st == PG_OK) {
         int frames = render_model_frames(rm);
         vo.path.steps = c->steps > 0 ? c->steps : (frames > 1 ? frames : 60);
@@ -93,19 +111,20 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
         vo.write_depth = c->write_depth;
         vo.write_frames = c->write_frames;
         vo.fps = c->fps > 0 ? c->fps : sc->fps;
-        if (c->reference_frames && !dataset_cam && vo.path.kind == RENDER_PATH_FIXED) {
+        if (c->reference_frames && !dataset_cam && !keys && !c->width && !c->height &&
+            vo.path.kind == RENDER_PATH_FIXED) {
             ref.dir = c->reference_frames;
             ref.frames = frames > 0 ? frames : 1;
             vo.reference = reference_frame;
             vo.reference_ctx = &ref;
         }
-        const char *name = c->name ? c->name : dataset_cam ? sc->names[k] : path_name;
-        if (dataset_cam) {
+        const char *name = c->name ? c->name : keys ? "camera_path" : dataset_cam ? sc->names[k] : path_name;
+        if (dataset_cam && !keys) {
             vo.use_camera = 1;
             vo.camera = sc->cams[k];
         }
         render_video_report rep;
-        st = render_video_write(rm, &sc->cams[sc->real], sc->center, &vo, c->out, name, &rep);
+        st = render_video_write(rm, &real, sc->center, &vo, c->out, name, &rep);
         if (st == PG_OK) {
             r->frames = rep.frames;
             r->fallback_png = rep.fallback_png;
@@ -113,6 +132,8 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
         }
     }
     render_model_close(rm);
+    free(keys);
+    free(key_times);
     free(sc);
     return st;
 }
