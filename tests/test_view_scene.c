@@ -140,27 +140,6 @@ static void check_scene_file(const char *dir)
     splat_gaussians_destroy(&g);
 }
 
-/* A tiny model (toy scene, a few iterations): what the CLI checks need, in seconds. */
-static pg_status tiny_model(const char *dir, char *model, size_t size)
-{
-    char data[1200];
-    snprintf(data, sizeof data, "%s/toyset", dir);
-    snprintf(model, size, "%s/model", dir);
-    PG_TRY(toy_write_trainset(data, 48, 36, 3, 2, 0));
-    pg_train_config c;
-    pg_train_defaults(&c);
-    c.input = data;
-    c.out = model;
-    c.iters = 20;
-    c.coarse_iters = 8;
-    c.init_points = 1000;
-    c.deform_res = 8;
-    c.deform_width = 32;
-    c.threads = 2;
-    pg_train_report r;
-    return pg_train_run(&c, &r);
-}
-
 static void check_exports(const char *dir, const char *model)
 {
     char cmd[8192], err[4096], path[1400];
@@ -275,7 +254,7 @@ int main(void)
     char dir[1024], model[1200];
     test_tmpdir("test_view_scene", dir, sizeof dir);
     check_scene_file(dir);
-    CHECK_OK(tiny_model(dir, model, sizeof model));
+    CHECK_OK(toy_train_model(dir, 48, 36, 3, 2, 24, 1000, 0, 1, model, sizeof model));
     check_exports(dir, model);
     check_view_dir(dir, model);
     return test_summary("test_view_scene");

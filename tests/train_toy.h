@@ -17,6 +17,8 @@
 #include "splat/gaussians.h"
 #include "splat/raster.h"
 
+#include <prodygs.h>
+
 #define TOY_SH_C0 0.28209479177387814f
 
 /* Ground truth: n Gaussians on a textured back plane and a few boxes; the last n_dyn move
@@ -159,6 +161,32 @@ static pg_status toy_write_trainset(const char *dir, int w, int h, int frames, i
     splat_gaussians_destroy(&gt);
     splat_raster_destroy(r);
     return PG_OK;
+}
+
+/* A small 4D model of the toy scene (w x h, frames frames, n_proxy proxies) trained in dir/toyset ->
+ * dir/toymodel for iters steps (max_gaussians 0: the default cap): what the tests of the model's
+ * consumers need, in seconds. */
+static inline pg_status toy_train_model(const char *dir, int w, int h, int frames, int n_proxy, int iters,
+                                        int init_points, int max_gaussians, int seed, char *model, size_t size)
+{
+    char data[1200];
+    snprintf(data, sizeof data, "%s/toyset", dir);
+    snprintf(model, size, "%s/toymodel", dir);
+    PG_TRY(toy_write_trainset(data, w, h, frames, n_proxy, 0));
+    pg_train_config c;
+    pg_train_defaults(&c);
+    c.input = data;
+    c.out = model;
+    c.iters = iters;
+    c.coarse_iters = iters / 3;
+    c.init_points = init_points;
+    if (max_gaussians > 0) c.max_gaussians = max_gaussians;
+    c.deform_res = 8;
+    c.deform_width = 32;
+    c.threads = 2;
+    c.seed = seed;
+    pg_train_report r;
+    return pg_train_run(&c, &r);
 }
 
 #endif
