@@ -1,9 +1,11 @@
 /* hexplane.c - HexPlane sampling forward/backward (see hexplane.h). */
 #include "deform/hexplane.h"
+#include "core/clones.h"
 
 /* With C = 16 a texel is one 512-bit vector; gcc's default 256-bit preference doubles the
- * instructions of these loops (hexplane backward measured -5 ms per 100k points with 512). */
-#pragma GCC target("prefer-vector-width=512")
+ * instructions of these loops (hexplane backward measured -5 ms per 100k points with 512), so
+ * CMakeLists.txt compiles this file with -mprefer-vector-width=512. The hot loops are PG_CLONES:
+ * AVX-512 / AVX2 / baseline versions chosen at load time. */
 
 #include <math.h>
 
@@ -66,7 +68,7 @@ void hex_slice_layout(hex_slice *sl, float *buf, const hex_grid *g, float t)
         }
 }
 
-void hex_slice_forward(hex_slice *sl, const hex_grid *g)
+PG_CLONES void hex_slice_forward(hex_slice *sl, const hex_grid *g)
 {
     const float w = sl->w;
     for (int s = 0; s < g->S; s++)
@@ -79,7 +81,7 @@ void hex_slice_forward(hex_slice *sl, const hex_grid *g)
         }
 }
 
-void hex_slice_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_slice *d_sl, const hex_grid *g)
+PG_CLONES void hex_slice_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_slice *d_sl, const hex_grid *g)
 {
     const float w = d_sl->w;
     for (int s = 0; s < g->S; s++)
@@ -144,7 +146,7 @@ static inline __attribute__((always_inline)) void hex_scale_samples(float v[HEX_
     }
 }
 
-void hex_sample_forward_point(float *feat, const hex_grid *g, const hex_slice *sl, const hex_point *hp)
+PG_CLONES void hex_sample_forward_point(float *feat, const hex_grid *g, const hex_slice *sl, const hex_point *hp)
 {
     const int C = g->C;
     float v[HEX_PLANES][HEX_MAX_C];
@@ -159,7 +161,7 @@ void hex_sample_forward_point(float *feat, const hex_grid *g, const hex_slice *s
 /* Position gradients: per channel, accumulated per axis over all planes and scales (dgdx folded
  * in), then summed over channels once per axis; a horizontal sum per plane would be a serial add
  * chain 2 x 12 times per point. */
-void hex_sample_backward_point(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_slice *d_sl, float *d_pos,
+PG_CLONES void hex_sample_backward_point(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_slice *d_sl, float *d_pos,
                                const float *d_feat, const hex_grid *g, const hex_slice *sl, const hex_point *hp)
 {
     const int C = g->C;
