@@ -154,7 +154,7 @@ int main(void)
         pg_rng fr;
         pg_rng_seed(&fr, 99);
         int accepted = 0;
-        for (int k = 0; k < 50; k++) {
+        for (int k = 0; k < 200; k++) {
             size_t bit = (size_t)(pg_rng_uniform(&fr) * (double)(n * 8));
             blob[bit / 8] ^= (char)(1 << (bit % 8));
             pg_write_file_atomic(c, blob, n);
@@ -164,7 +164,7 @@ int main(void)
             }
             blob[bit / 8] ^= (char)(1 << (bit % 8));
         }
-        CHECK(accepted == 0, "%d of 50 bit-flipped checkpoints accepted", accepted);
+        CHECK(accepted == 0, "%d of 200 bit-flipped checkpoints accepted", accepted);
         /* a crafted file with a valid CRC: iteration -1000000 in the header */
         char *crafted = malloc(n);
         if (crafted) {
