@@ -308,17 +308,8 @@ typedef struct {
 static pg_status drift_at(void *ctx, float t, pg_gaussians *out)
 {
     const pg_gaussians *g = ((drift *)ctx)->g;
-    if (out->capacity < g->count) {
-        splat_gaussians_destroy(out);
-        PG_TRY(splat_gaussians_create(out, g->count));
-    }
-    PG_TRY(splat_gaussians_resize(out, g->count));
+    PG_TRY(splat_gaussians_copy(g, out));
     size_t n = (size_t)g->count;
-    memcpy(out->means, g->means, n * 12);
-    memcpy(out->log_scales, g->log_scales, n * 12);
-    memcpy(out->quats, g->quats, n * 16);
-    memcpy(out->opacity, g->opacity, n * 4);
-    memcpy(out->sh, g->sh, n * PG_SH_COEFFS * 12);
     for (size_t i = n - n / 5; i < n; i++) out->means[3 * i] += 0.5f * t;
     return PG_OK;
 }

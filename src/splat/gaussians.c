@@ -77,3 +77,20 @@ void splat_gaussians_zero(pg_gaussians *g)
     memset(g->opacity, 0, n * G_OPAC * sizeof(float));
     memset(g->sh, 0, n * G_SH * sizeof(float));
 }
+
+pg_status splat_gaussians_copy(const pg_gaussians *src, pg_gaussians *dst)
+{
+    if (dst->capacity < src->count) {
+        splat_gaussians_destroy(dst);
+        PG_TRY(splat_gaussians_create(dst, src->count));
+    }
+    PG_TRY(splat_gaussians_resize(dst, src->count));
+    size_t n = (size_t)src->count;
+    memcpy(dst->means, src->means, n * 3 * sizeof(float));
+    memcpy(dst->log_scales, src->log_scales, n * 3 * sizeof(float));
+    memcpy(dst->quats, src->quats, n * 4 * sizeof(float));
+    memcpy(dst->opacity, src->opacity, n * sizeof(float));
+    memcpy(dst->sh, src->sh, n * PG_SH_COEFFS * 3 * sizeof(float));
+    dst->sh_degree = src->sh_degree;
+    return PG_OK;
+}

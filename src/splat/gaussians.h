@@ -29,5 +29,7 @@ void splat_gaussians_destroy(pg_gaussians *g);
 pg_status splat_gaussians_resize(pg_gaussians *g, int count);
 /* Zeroes every array (rows 0..count-1), e.g. gradients before a backward pass. */
 void splat_gaussians_zero(pg_gaussians *g);
+/* Copies every row and the SH degree of src into dst (resized, grown as needed). */
+pg_status splat_gaussians_copy(const pg_gaussians *src, pg_gaussians *dst);
 
 #endif

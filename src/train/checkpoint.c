@@ -463,19 +463,9 @@ void train_model_destroy(train_model *m)
 
 pg_status train_model_deform(train_model *m, float t, pg_gaussians *out)
 {
-    int n = m->g.count;
-    if (out->capacity < n) {
-        splat_gaussians_destroy(out);
-        PG_TRY(splat_gaussians_create(out, n));
-    }
-    PG_TRY(splat_gaussians_resize(out, n));
-    size_t N = (size_t)n;
-    memcpy(out->means, m->g.means, N * 3 * 4);
-    memcpy(out->log_scales, m->g.log_scales, N * 3 * 4);
-    memcpy(out->quats, m->g.quats, N * 4 * 4);
-    memcpy(out->opacity, m->g.opacity, N * 4);
-    memcpy(out->sh, m->g.sh, N * SH_ROW * 4);
-    out->sh_degree = m->g.sh_degree;
+    PG_TRY(splat_gaussians_copy(&m->g, out));
+    const int n = m->g.count;
+    const size_t N = (size_t)n;
     if (!m->net) return PG_OK;
     int *idx = pg_malloc(N * sizeof(int) + 1, "deform indices");
     if (!idx) return PG_ERR_NOMEM;

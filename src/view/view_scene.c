@@ -155,24 +155,6 @@ static pg_status write_bytes(pg_atomic_file *f, const void *data, size_t n)
     return PG_OK;
 }
 
-/* Copies every row of src into dst (resized). */
-static pg_status copy_gaussians(const pg_gaussians *src, pg_gaussians *dst)
-{
-    if (dst->capacity < src->count) {
-        splat_gaussians_destroy(dst);
-        PG_TRY(splat_gaussians_create(dst, src->count));
-    }
-    PG_TRY(splat_gaussians_resize(dst, src->count));
-    size_t n = (size_t)src->count;
-    memcpy(dst->means, src->means, n * 3 * sizeof(float));
-    memcpy(dst->log_scales, src->log_scales, n * 3 * sizeof(float));
-    memcpy(dst->quats, src->quats, n * 4 * sizeof(float));
-    memcpy(dst->opacity, src->opacity, n * sizeof(float));
-    memcpy(dst->sh, src->sh, n * PG_SH_COEFFS * 3 * sizeof(float));
-    dst->sh_degree = src->sh_degree;
-    return PG_OK;
-}
-
 /* The scan over time: per-Gaussian ranges (moving ones over every sample), the Gaussians at the
  * first sample (what the file stores once), and movers that hold still demoted to static. */
 static pg_status scan_ranges(const view_scene_source *src, uint8_t *moving, pg_gaussians *tmp, pg_gaussians *first,
@@ -185,13 +167,13 @@ static pg_status scan_ranges(const view_scene_source *src, uint8_t *moving, pg_g
         if (moving[i]) any_moving = 1;
         else range_add(&gr[i], g, i);
     }
-    if (!any_moving) PG_TRY(copy_gaussians(g, first));
+    if (!any_moving) PG_TRY(splat_gaussians_copy(g, first));
     for (int k = 0; any_moving && k < src->frames; k++) {
         float t = src->frames > 1 ? (float)k / (float)(src->frames - 1) : 0.0f;
         PG_TRY(src->at_time(src->ctx, t, tmp));
         if (tmp->count != g->count)
             return pg_fail(PG_ERR_ARG, "scene: %d Gaussians at t = %g, %d canonical", tmp->count, t, g->count);
-        if (k == 0) PG_TRY(copy_gaussians(tmp, first));
+        if (k == 0) PG_TRY(splat_gaussians_copy(tmp, first));
         for (int i = 0; i < g->count; i++)
             if (moving[i]) range_add(&gr[i], tmp, i);
     }
