@@ -2,7 +2,6 @@
 #include "cli/cli.h"
 
 #include <stdio.h>
-#include <string.h>
 
 #include "core/fileutil.h"
 
@@ -42,14 +41,8 @@ int cmd_view(int argc, char **argv)
     int serve = c.out == NULL;
     char dir[4200];
     if (serve) { /* MODEL/viewer, or beside a checkpoint file */
-        char base[4096];
-        snprintf(base, sizeof base, "%s", model);
-        if (!pg_path_is_dir(base)) {
-            char *slash = strrchr(base, '/');
-            if (slash) *slash = '\0';
-            else snprintf(base, sizeof base, ".");
-        }
-        if (pg_path_join(dir, sizeof dir, base, "viewer") != PG_OK) return cli_usage_error("view: %s: path too long", model);
+        if (pg_path_join_beside(dir, sizeof dir, model, "viewer") != PG_OK)
+            return cli_usage_error("view: %s: path too long", model);
         c.out = dir;
     }
     pg_view_report r;

@@ -85,6 +85,16 @@ pg_status pg_path_join(char *out, size_t size, const char *dir, const char *name
     return PG_OK;
 }
 
+pg_status pg_path_join_beside(char *out, size_t size, const char *path, const char *name)
+{
+    if (pg_path_is_dir(path)) return pg_path_join(out, size, path, name);
+    const char *slash = strrchr(path, '/');
+    if (!slash) return pg_path_join(out, size, ".", name);
+    int n = snprintf(out, size, "%.*s/%s", (int)(slash - path), path, name);
+    if (n < 0 || (size_t)n >= size) return pg_fail(PG_ERR_ARG, "%s: path too long", path);
+    return PG_OK;
+}
+
 pg_status pg_read_file(const char *path, size_t limit, char **data, size_t *size)
 {
     *data = NULL;

@@ -32,6 +32,9 @@ int pg_path_exists(const char *path);
 int pg_path_is_dir(const char *path);
 /* Joins dir and name with one slash into out (size bytes); fails if it does not fit. */
 pg_status pg_path_join(char *out, size_t size, const char *dir, const char *name);
+/* Joins name to path when path is a directory, else to the directory holding the file path ("."
+ * for a bare file name): what lies beside a model given as its directory or its checkpoint. */
+pg_status pg_path_join_beside(char *out, size_t size, const char *path, const char *name);
 /* Reads a whole file into a malloc'd buffer (NUL-terminated); limit guards huge files. */
 pg_status pg_read_file(const char *path, size_t limit, char **data, size_t *size);
 /* Writes a whole buffer atomically. */

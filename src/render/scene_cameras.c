@@ -65,17 +65,11 @@ done:
 pg_status scene_cameras_for_model(const char *model, const char *explicit_path, scene_cameras *sc)
 {
     if (explicit_path) return scene_cameras_load(explicit_path, sc);
-    char dir[4096], path[4200];
-    snprintf(dir, sizeof dir, "%s", model);
-    if (!pg_path_is_dir(dir)) { /* a checkpoint file: look next to it */
-        char *slash = strrchr(dir, '/');
-        if (slash) *slash = '\0';
-        else snprintf(dir, sizeof dir, ".");
-    }
+    char path[4200];
     /* cameras.json is what training writes; trainset.json beside older models */
     static const char *names[] = { "cameras.json", "trainset.json" };
     for (int k = 0; k < 2; k++) {
-        PG_TRY(pg_path_join(path, sizeof path, dir, names[k]));
+        PG_TRY(pg_path_join_beside(path, sizeof path, model, names[k]));
         if (pg_path_exists(path)) return scene_cameras_load(path, sc);
     }
     return pg_fail(PG_ERR_IO, "%s: no cameras.json next to the model (retrain, or give --cameras PATH)", model);

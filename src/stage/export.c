@@ -66,14 +66,8 @@ static pg_status export_one(render_model *rm, const char *dir, const char *file,
 /* OUT/cameras.json: a copy of the one beside the model (none: nothing written). */
 static pg_status copy_cameras(const char *model, const char *out, pg_export_report *r)
 {
-    char dir[4096], src[4200], dst[4200];
-    snprintf(dir, sizeof dir, "%s", model);
-    if (!pg_path_is_dir(dir)) { /* a checkpoint file: its directory */
-        char *slash = strrchr(dir, '/');
-        if (slash) *slash = '\0';
-        else snprintf(dir, sizeof dir, ".");
-    }
-    PG_TRY(pg_path_join(src, sizeof src, dir, "cameras.json"));
+    char src[4200], dst[4200];
+    PG_TRY(pg_path_join_beside(src, sizeof src, model, "cameras.json"));
     PG_TRY(pg_path_join(dst, sizeof dst, out, "cameras.json"));
     if (!pg_path_exists(src)) return PG_OK;
     char *data = NULL;
