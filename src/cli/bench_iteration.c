@@ -13,6 +13,7 @@
 #include <time.h>
 
 #include "cli/cli.h"
+#include "splat/sh.h"
 #include "deform/gemm_amx.h"
 #include "splat/raster.h"
 #include "core/parallel.h"
@@ -20,7 +21,6 @@
 #include "train/train.h"
 #include "train/trainset.h"
 
-#define SH_C0 0.28209479177387814f
 
 /* Process CPU time in ms: on a shared machine wall time includes waiting for a core; with one
  * thread CPU time is what an idle machine would take. */
@@ -110,7 +110,7 @@ int bench_iteration(int argc, char **argv)
         g.quats[4 * i] = 1;
         float o = (float)pg_rng_range(&rng, 0.05, 0.95);
         g.opacity[i] = logf(o / (1 - o));
-        for (int k = 0; k < 3; k++) g.sh[(size_t)i * 48 + k] = ((float)pg_rng_uniform(&rng) - 0.5f) / SH_C0;
+        for (int k = 0; k < 3; k++) g.sh[(size_t)i * 48 + k] = ((float)pg_rng_uniform(&rng) - 0.5f) / SPLAT_SH_C0;
         flags[i] = pg_rng_uniform(&rng) < static_fraction;
     }
     g.sh_degree = 3;

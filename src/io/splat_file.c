@@ -1,5 +1,6 @@
 /* splat_file.c - writes the 32-byte ".splat" rows (see splat_file.h). */
 #include "io/splat_file.h"
+#include "splat/sh.h"
 
 #include <errno.h>
 #include <math.h>
@@ -9,7 +10,6 @@
 #include "core/fileutil.h"
 #include "core/mathx.h"
 
-#define SH_C0 0.28209479177387814f
 
 static uint8_t to_u8(float v) { return (uint8_t)lroundf(clampf(v, 0.0f, 255.0f)); }
 
@@ -28,7 +28,7 @@ pg_status io_splat_save(const char *path, const pg_gaussians *g)
         }
         memcpy(row, pos_scale, sizeof pos_scale); /* little-endian hosts (x86-64) */
         const float *dc = g->sh + (size_t)i * PG_SH_COEFFS * 3;
-        for (int k = 0; k < 3; k++) row[24 + k] = to_u8((0.5f + SH_C0 * dc[k]) * 255.0f);
+        for (int k = 0; k < 3; k++) row[24 + k] = to_u8((0.5f + SPLAT_SH_C0 * dc[k]) * 255.0f);
         row[27] = to_u8(255.0f / (1.0f + expf(-g->opacity[i])));
         const float *q = g->quats + 4 * (size_t)i;
         float n = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);

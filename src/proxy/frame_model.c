@@ -1,5 +1,6 @@
 /* frame_model.c - per-frame RGB-D Gaussians: seed from pixels, short Adam fit, render proxies. */
 #include "proxy/frame_model.h"
+#include "splat/sh.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -14,7 +15,6 @@
 #include "splat/gaussians.h"
 #include "splat/raster.h"
 
-#define SH_C0 0.28209479177387814f
 #define MARGIN_BLOCK 4 /* margin Gaussians cover MARGIN_BLOCK k x MARGIN_BLOCK k pixels: the outpainted
                         * content is a smooth guess, and fewer Gaussians keep proxy renders cheap */
 
@@ -265,7 +265,7 @@ static int seed_block(proxy_frame_model *m, int bx, int by, int k, int interior,
     g->opacity[n] = logit;
     float *sh = g->sh + (size_t)n * PG_SH_COEFFS * 3;
     memset(sh, 0, PG_SH_COEFFS * 3 * sizeof(float));
-    for (int c = 0; c < 3; c++) sh[c] = (col[c] / used - 0.5f) / SH_C0;
+    for (int c = 0; c < 3; c++) sh[c] = (col[c] / used - 0.5f) / SPLAT_SH_C0;
     *depth_out = d;
     return 1;
 }

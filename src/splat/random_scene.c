@@ -1,5 +1,6 @@
 /* random_scene.c - benchmark / test workload generator. */
 #include "splat/random_scene.h"
+#include "splat/sh.h"
 #include "core/rng.h"
 
 #include <math.h>
@@ -13,7 +14,6 @@ pg_status splat_random_scene(pg_gaussians *g, const pg_camera *cam, int n, float
     g->sh_degree = sh_degree;
     pg_rng rng;
     pg_rng_seed(&rng, seed);
-    const float C0 = 0.28209479177387814f;
     for (int i = 0; i < n; i++) {
         float z = (float)pg_rng_range(&rng, 2, 10);
         float u = (float)pg_rng_range(&rng, 0, cam->width), v = (float)pg_rng_range(&rng, 0, cam->height);
@@ -25,7 +25,7 @@ pg_status splat_random_scene(pg_gaussians *g, const pg_camera *cam, int n, float
         g->opacity[i] = logf(o / (1 - o));
         float *sh = g->sh + (size_t)48 * i;
         for (int k = 0; k < 48; k++) sh[k] = 0;
-        for (int c = 0; c < 3; c++) sh[c] = ((float)pg_rng_uniform(&rng) - 0.5f) / C0;
+        for (int c = 0; c < 3; c++) sh[c] = ((float)pg_rng_uniform(&rng) - 0.5f) / SPLAT_SH_C0;
         int nb = (sh_degree + 1) * (sh_degree + 1);
         for (int k = 3; k < 3 * nb; k++) sh[k] = (float)(0.1 * pg_rng_normal(&rng));
     }

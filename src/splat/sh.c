@@ -4,7 +4,6 @@
 #include <math.h>
 #include <stddef.h>
 
-static const float SH_C0 = 0.28209479177387814f;
 static const float SH_C1 = 0.4886025119029199f;
 static const float SH_C2[5] = { 1.0925484305920792f, -1.0925484305920792f, 0.31539156525252005f,
                                 -1.0925484305920792f, 0.5462742152960396f };
@@ -17,7 +16,7 @@ static const float SH_C3[7] = { -0.5900435899266435f, 2.890611442640554f, -0.457
 static int sh_basis(int degree, float x, float y, float z, float Y[16], float grad[48])
 {
     int n = (degree + 1) * (degree + 1);
-    Y[0] = SH_C0;
+    Y[0] = SPLAT_SH_C0;
     if (grad) for (int i = 0; i < 48; i++) grad[i] = 0;
     if (degree >= 1) {
         Y[1] = -SH_C1 * y; Y[2] = SH_C1 * z; Y[3] = -SH_C1 * x;
@@ -63,7 +62,7 @@ void splat_sh_forward(int degree, const float *sh, const float dir[3], float rgb
 {
     if (degree <= 0) { /* constant colour: no direction needed */
         for (int c = 0; c < 3; c++) {
-            float v = 0.5f + SH_C0 * sh[c];
+            float v = 0.5f + SPLAT_SH_C0 * sh[c];
             clamped[c] = v < 0;
             rgb[c] = v < 0 ? 0 : v;
         }
@@ -84,7 +83,7 @@ void splat_sh_backward(int degree, const float *sh, const float dir[3], const in
                        const float d_rgb[3], float *d_sh, float d_dir[3])
 {
     if (degree <= 0) {
-        for (int c = 0; c < 3; c++) d_sh[c] += clamped[c] ? 0.0f : SH_C0 * d_rgb[c];
+        for (int c = 0; c < 3; c++) d_sh[c] += clamped[c] ? 0.0f : SPLAT_SH_C0 * d_rgb[c];
         return;
     }
     float len = sqrtf(dir[0]*dir[0] + dir[1]*dir[1] + dir[2]*dir[2] + 1e-30f), inv = 1.0f / len;

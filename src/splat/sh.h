@@ -6,6 +6,8 @@
 #ifndef PG_SH_H
 #define PG_SH_H
 
+#define SPLAT_SH_C0 0.28209479177387814f /* Y_0^0: colour = 0.5 + SPLAT_SH_C0 * DC coefficient */
+
 /* sh (16, 3); dir (3) unnormalised view direction. clamped[c] = 1 where the max(0, .) clamps. */
 void splat_sh_forward(int degree, const float *sh, const float dir[3], float rgb[3], int clamped[3]);
 /* Adds the gradients of rgb (d_rgb, before the clamp mask is applied) into d_sh (16, 3) and

@@ -5,9 +5,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "core/fileutil.h"
+#include "core/parallel.h"
 #include "core/status.h"
 #include "io/json.h"
 #include "render/model_render.h"
@@ -51,8 +51,7 @@ pg_status pg_view_run(const pg_view_config *c, pg_view_report *r)
     if (c->frames < 0 || c->frames > VIEW_SCENE_MAX_FRAMES)
         return pg_fail(PG_ERR_ARG, "view: --frames %d is not in 1..%d", c->frames, VIEW_SCENE_MAX_FRAMES);
     if (c->max_gaussians < 0) return pg_fail(PG_ERR_ARG, "view: --max-gaussians %d must be >= 0", c->max_gaussians);
-    struct timespec t0, t1;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    const double t0 = pg_time_seconds();
     char ck[4096], path[4200];
     PG_TRY(render_model_checkpoint_path(c->model, ck, sizeof ck));
     if (!pg_path_exists(ck)) return pg_fail(PG_ERR_IO, "%s: no trained model (missing %s)", c->model, ck);
@@ -76,7 +75,6 @@ pg_status pg_view_run(const pg_view_config *c, pg_view_report *r)
     if (st == PG_OK) st = pg_path_join(path, sizeof path, c->out, "index.html");
     if (st == PG_OK) st = pg_write_file_atomic(path, view_page_html, view_page_html_size);
     if (st == PG_OK) {
-        clock_gettime(CLOCK_MONOTONIC, &t1);
         r->static_gaussians = ss.static_count;
         r->moving_gaussians = ss.moving_count;
         r->dropped = ss.dropped;
@@ -85,7 +83,7 @@ pg_status pg_view_run(const pg_view_config *c, pg_view_report *r)
         r->scene_bytes = (double)ss.bytes;
         double video_seconds = (m.frames > 0 ? m.frames : 1) / (sc->fps > 0 ? sc->fps : 30.0);
         r->bytes_per_second = r->scene_bytes / video_seconds;
-        r->seconds = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+        r->seconds = pg_time_seconds() - t0;
     }
     cJSON_free(meta);
     train_model_destroy(&m);

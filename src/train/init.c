@@ -10,6 +10,7 @@
  * (sent through the network); static ones never are.
  */
 #include "train/train_internal.h"
+#include "splat/sh.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -18,7 +19,6 @@
 #include "core/mathx.h"
 #include "depth/moving_mask.h"
 
-#define SH_C0 0.28209479177387814f
 
 typedef struct {
     float *xyz;   /* (n, 3) */
@@ -284,7 +284,7 @@ static pg_status voxels_to_gaussians(train_session *s, const voxel_table *t, con
         for (int k = 0; k < 3; k++) {
             s->g.means[3 * r + k] = (float)(a[k] / a[6]);
             s->g.log_scales[3 * r + k] = log_s;
-            s->g.sh[(size_t)r * PG_SH_COEFFS * 3 + k] = (float)((a[3 + k] / a[6] - 0.5) / SH_C0);
+            s->g.sh[(size_t)r * PG_SH_COEFFS * 3 + k] = (float)((a[3 + k] / a[6] - 0.5) / SPLAT_SH_C0);
         }
         s->g.quats[4 * r] = 1.0f;
         s->g.opacity[r] = opacity_logit;

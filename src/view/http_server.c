@@ -1,5 +1,6 @@
 /* http_server.c - poll() loop over non-blocking sockets (see http_server.h for the rules). */
 #include "view/http_server.h"
+#include "core/parallel.h"
 
 #include <arpa/inet.h>
 #include <errno.h>
@@ -11,7 +12,6 @@
 #include <string.h>
 #include <strings.h>
 #include <sys/socket.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "core/status.h"
@@ -37,13 +37,6 @@ typedef struct {
     const char *body;
     size_t body_len, body_sent;
 } http_conn;
-
-static double now_seconds(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 pg_status view_http_open(int port, view_http_server **out)
 {
@@ -250,7 +243,7 @@ static int accept_one(view_http_server *s, http_conn *conns)
     }
     conn_close(&conns[slot]);
     conns[slot].fd = fd;
-    conns[slot].started = now_seconds();
+    conns[slot].started = pg_time_seconds();
     conns[slot].in_len = 0;
     conns[slot].state = CONN_READ;
     return 1;
@@ -269,7 +262,7 @@ pg_status view_http_serve(view_http_server *s, const view_http_file *files, int 
         int n = 0;
         pf[n] = (struct pollfd){ s->fd, POLLIN, 0 };
         who[n++] = -1;
-        double t = now_seconds();
+        double t = pg_time_seconds();
         for (int k = 0; k < HTTP_MAX_CONN; k++) {
             if (conns[k].fd < 0) continue;
             if (t - conns[k].started > HTTP_CONN_SECONDS) {
@@ -294,7 +287,7 @@ pg_status view_http_serve(view_http_server *s, const view_http_file *files, int 
                 answered++;
                 shutdown(c->fd, SHUT_WR); /* the client sees the end of the response now */
                 c->state = CONN_DRAIN;
-                c->started = now_seconds() - HTTP_CONN_SECONDS + 1.0; /* drain for at most 1 s */
+                c->started = pg_time_seconds() - HTTP_CONN_SECONDS + 1.0; /* drain for at most 1 s */
             }
             if (!keep) conn_close(c);
         }

@@ -1,5 +1,6 @@
 /* view_scene.c - quantises Gaussians over time into the viewer's scene file (view_scene.h). */
 #include "view/view_scene.h"
+#include "splat/sh.h"
 
 #include <errno.h>
 #include <math.h>
@@ -9,7 +10,6 @@
 #include "core/fileutil.h"
 #include "core/mathx.h"
 
-#define SH_C0 0.28209479177387814f
 #define LOGIT_VISIBLE (-5.537334f) /* logit(1/255): below it a Gaussian adds < 1/255 anywhere */
 /* Log-scales are quantised around their median: an axis below e^-6 of the typical size is flat
  * to the eye (the renderer's low-pass filter dominates); one above e^8 of it covers the scene.
@@ -63,7 +63,7 @@ static void range_add(gauss_range *r, const pg_gaussians *g, int i)
     size_t a = (size_t)i;
     for (int k = 0; k < 3; k++) {
         float p = g->means[3 * a + k], s = g->log_scales[3 * a + k];
-        float c = 0.5f + SH_C0 * g->sh[a * PG_SH_COEFFS * 3 + k];
+        float c = 0.5f + SPLAT_SH_C0 * g->sh[a * PG_SH_COEFFS * 3 + k];
         r->lo[k] = fminf(r->lo[k], p), r->hi[k] = fmaxf(r->hi[k], p);
         r->ls_lo[k] = fminf(r->ls_lo[k], s), r->ls_hi[k] = fmaxf(r->ls_hi[k], s);
         r->col_lo[k] = fminf(r->col_lo[k], c), r->col_hi[k] = fmaxf(r->col_hi[k], c);
@@ -136,7 +136,7 @@ static void encode_block(const pg_gaussians *g, const int *idx, int n, const qua
         for (int k = 0; k < 3; k++) {
             pos[3 * j + k] = q16(g->means[3 * i + k], q->box_min[k], q->box_max[k]);
             ls[3 * j + k] = q8(g->log_scales[3 * i + k], q->ls_lo, q->ls_hi);
-            rgba[4 * j + k] = q8(0.5f + SH_C0 * g->sh[i * PG_SH_COEFFS * 3 + k], q->col_lo, q->col_hi);
+            rgba[4 * j + k] = q8(0.5f + SPLAT_SH_C0 * g->sh[i * PG_SH_COEFFS * 3 + k], q->col_lo, q->col_hi);
         }
         float u[4];
         unit_quat(g, i, u);
