@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "core/parallel.h"
+#include "core/fileutil.h"
 #include "core/status.h"
 #include "depth/prepare.h"
 #include "io/dataset.h"
@@ -78,6 +79,11 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
         return pg_fail_context(PG_ERR_ARG, "%s: --train-cam", c->input);
     }
     io_dataset_camera_label(ds, cam, r->train_camera, sizeof r->train_camera);
+    pg_staged_dir out;
+    if (pg_staged_dir_begin(&out, c->out, 0) != PG_OK) {
+        io_dataset_close(ds);
+        return PG_ERR_IO;
+    }
     const int F = io_dataset_num_frames(ds), W = io_dataset_width(ds), H = io_dataset_height(ds);
     pg_image *frames = calloc((size_t)(F > 0 ? F : 1), sizeof(pg_image));
     io_depth depth;
@@ -113,7 +119,7 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
         cJSON_AddNumberToObject(src, "fps", io_dataset_fps(ds));
         char *text = cJSON_PrintUnformatted(src);
         cJSON_Delete(src);
-        st = depth_prepare_write(c->out, &popt, &res, frames, depth.data, text);
+        st = depth_prepare_write(out.work, &popt, &res, frames, depth.data, text);
         free(text);
     }
     if (!st) {
@@ -137,5 +143,7 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
         for (int t = 0; t < F; t++) pg_image_destroy(&frames[t]);
     free(frames);
     io_dataset_close(ds);
+    if (st) pg_staged_dir_abort(&out);
+    else st = pg_staged_dir_commit(&out);
     return st;
 }
