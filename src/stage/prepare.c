@@ -9,6 +9,7 @@
 #include "core/parallel.h"
 #include "core/fileutil.h"
 #include "core/status.h"
+#include "depth/depth_check.h"
 #include "depth/prepare.h"
 #include "io/dataset.h"
 #include "io/depth_io.h"
@@ -59,6 +60,20 @@ static pg_status check_config(const pg_prepare_config *c, io_depth_kind *kind, d
     return PG_OK;
 }
 
+/* Depth passed as disparity (or the reverse) trains a scene with inverted parallax and no error
+ * anywhere, so a file whose near side is at the top of most frames is pointed out. */
+static void warn_if_inverted(const char *path, io_depth_kind kind, const io_depth *d)
+{
+    double share = depth_share_inverted_frames(d->data, d->frames, d->width, d->height);
+    if (share <= 0.5) return;
+    if (kind == IO_DEPTH_KIND_DEPTH)
+        pg_warn("%s: looks like disparity, not depth: larger values sit at the bottom of the frame in %.0f%% of the "
+                "frames; if larger means nearer, pass --depth-kind disparity", path, 100 * share);
+    else
+        pg_warn("%s: read as disparity, the result is nearer at the top of the frame in %.0f%% of the frames; "
+                "if larger values mean farther, pass --depth-kind depth", path, 100 * share);
+}
+
 pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
 {
     memset(r, 0, sizeof *r);
@@ -104,6 +119,7 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
         st = io_depth_load(c->depth, &o, &depth);
         if (!st && !(depth.max > 0))
             st = pg_fail(PG_ERR_FORMAT, "%s: no valid depth in any frame (every value is NaN, inf or <= 0)", c->depth);
+        if (!st) warn_if_inverted(c->depth, dkind, &depth);
     }
     /* Flow fields are kept only for the pictures; skip them when they would be large. */
     if (popt.keep_flow && (double)F * W * H * 2 * sizeof(float) > 1024.0 * 1024 * 1024) popt.keep_flow = 0;
@@ -133,7 +149,7 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
             r->residual_after += res.info[i].resid_after / F;
             r->fallback_frames += res.info[i].fallback != DEPTH_FALLBACK_NONE;
             if (res.info[i].fallback == DEPTH_FALLBACK_COPIED)
-                fprintf(stderr, "prodygs: warning: frame %d has no valid depth; copied frame %d\n", i,
+                pg_warn("frame %d has no valid depth; copied frame %d", i,
                         res.info[i].source_frame);
         }
     }
