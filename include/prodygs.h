@@ -59,6 +59,7 @@ typedef struct {
     float depth_scale;        /* multiply raw depth by this (1) */
     const char *refine;       /* "edge-snap" (default), "bilateral" or "none" */
     int align;                /* per-frame scale/shift alignment (1) */
+    int fuse;                 /* static pixels take their temporal median depth (1) */
     int frames;               /* first N frames (0: all) */
     int width, height;        /* resize (0, 0: keep; one side 0 keeps the aspect) */
     int threads;              /* worker threads (0: all cores) */
@@ -238,7 +239,7 @@ typedef struct {
     float max_angle, fov, pad, pose_scale; /* 0 (pad < 0): defaults */
     const char *depth_kind;
     float depth_scale;                /* 0: 1 */
-    int refine, align;                /* (1, 1) */
+    int refine, align, fuse;          /* (1, 1, 1) */
     int frames, width, height, iters; /* 0: all / the preset's */
     int deform_width;                 /* 0: the trainer's default */
     int threads;                      /* 0: all cores; every stage uses this count */

@@ -4,6 +4,7 @@
 #include "test_depth_scene.h"
 #include "core/parallel.h"
 #include "core/fileutil.h"
+#include "depth/fuse.h"
 #include "depth/prepare.h"
 #include "io/npy.h"
 
@@ -190,6 +191,39 @@ static void test_determinism(void)
     test_scene_destroy(&sc);
 }
 
+/* Static pixels take their temporal median: a surface whose depth wobbles by a different smooth
+ * factor each frame comes out at (almost) its true depth in every static frame, while the frames
+ * where a pixel moves, pixels static too rarely, and invalid depth are left alone. */
+static void test_fuse_static(void)
+{
+    enum { F = 9, N = 400 };
+    float depth[F * N], truth[N];
+    unsigned char mask[F * N];
+    pg_rng rng;
+    pg_rng_seed(&rng, 5);
+    for (int k = 0; k < N; k++) truth[k] = 2.0f + 0.01f * (float)k;
+    double err_before = 0, err_after = 0;
+    for (int f = 0; f < F; f++)
+        for (int k = 0; k < N; k++) {
+            float wobble = 1.0f + 0.03f * sinf(0.02f * (float)k + 1.7f * (float)f); /* smooth, per frame */
+            depth[f * N + k] = truth[k] * wobble;
+            mask[f * N + k] = !(k < 40 && f == 4) && !(k >= 390); /* a mover at frame 4; pixels never static */
+            err_before += fabs(depth[f * N + k] / truth[k] - 1);
+        }
+    depth[2 * N + 100] = 0; /* invalid: stays invalid, not counted */
+    float moving = depth[4 * N + 10], never = depth[3 * N + 395];
+    long fused = depth_fuse_static(depth, mask, F, N, 3);
+    for (int f = 0; f < F; f++)
+        for (int k = 0; k < 390; k++)
+            if (mask[f * N + k] && depth[f * N + k] > 0) err_after += fabs(depth[f * N + k] / truth[k] - 1);
+    CHECK(fused == 390, "fused %ld pixels, want 390", fused);
+    CHECK(depth[4 * N + 10] == moving && depth[3 * N + 395] == never && depth[2 * N + 100] == 0,
+          "moving, never-static and invalid pixels must keep their depth");
+    CHECK(depth[0 * N + 50] == depth[8 * N + 50], "one depth per static pixel across frames");
+    CHECK(err_after < 0.35 * err_before, "mean relative error %.4f -> %.4f", err_before / (F * N), err_after / (F * N));
+    printf("fuse static: mean relative error %.4f -> %.4f\n", err_before / (F * N), err_after / (F * 390));
+}
+
 int main(void)
 {
     pg_set_threads(2);
@@ -197,5 +231,6 @@ int main(void)
     test_prepare_scene();
     test_fallbacks();
     test_determinism();
+    test_fuse_static();
     return test_summary("test_depth_align");
 }

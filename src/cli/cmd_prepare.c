@@ -8,7 +8,7 @@ int cmd_prepare(int argc, char **argv)
     pg_prepare_config c;
     pg_prepare_defaults(&c);
     const char *size = NULL;
-    int no_refine = 0, no_align = 0, no_flow_vis = 0;
+    int no_refine = 0, no_align = 0, no_fuse = 0, no_flow_vis = 0;
     const cli_option options[] = {
         { "--depth", CLI_STR, &c.depth, "per-frame depth: (F,H,W) .npy or a folder of .npy/.pfm/.png/.exr (required)" },
         { "--out", CLI_STR, &c.out, "output directory (required)" },
@@ -17,6 +17,7 @@ int cmd_prepare(int argc, char **argv)
         { "--refine", CLI_STR, &c.refine, "refiner: edge-snap (default), bilateral or none" },
         { "--no-refine", CLI_FLAG, &no_refine, "skip the edge-aware refinement (= --refine none)" },
         { "--no-align", CLI_FLAG, &no_align, "skip the per-frame scale/shift alignment (alpha=1, beta=0)" },
+        { "--no-fuse", CLI_FLAG, &no_fuse, "keep per-frame depth on static pixels (default: their temporal median)" },
         { "--frames", CLI_INT, &c.frames, "use only the first N frames (default: all)" },
         { "--size", CLI_STR, &size, "resize frames and depth to WxH (0 for one side keeps the aspect)" },
         { "--train-cam", CLI_STR, &c.train_camera, "dataset camera, name or index (default: the first)" },
@@ -34,6 +35,7 @@ int cmd_prepare(int argc, char **argv)
     if ((rc = cli_parse_size("--size", size, &c.width, &c.height))) return rc;
     if (no_refine) c.refine = "none";
     c.align = !no_align;
+    c.fuse = !no_fuse;
     c.keep_flow_vis = !no_flow_vis;
 
     pg_prepare_report r;

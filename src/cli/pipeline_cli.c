@@ -22,6 +22,7 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
         { "--pad", CLI_FLOAT, &c->pad, "proxies: outpainted margin, fraction of the larger side (0.3; 0 = none)" },
         { "--no-refine", CLI_FLAG, &t->no_refine, "skip edge-aware depth refinement (ablation)" },
         { "--no-align", CLI_FLAG, &t->no_align, "skip temporal scale/shift alignment (ablation)" },
+        { "--no-fuse", CLI_FLAG, &t->no_fuse, "keep per-frame depth on static pixels (no temporal median; ablation)" },
         { "--depth-kind", CLI_STR, &c->depth_kind, "depth (default) or disparity" },
         { "--depth-scale", CLI_FLOAT, &c->depth_scale, "multiply raw depth by S" },
         { "--frames", CLI_INT, &c->frames, "use only the first N frames (default: all)" },
@@ -48,6 +49,7 @@ int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pg_pipeline_
     if ((rc = cli_parse_count_or_all("--proxies", t->proxies, &c->proxies))) return rc;
     c->refine = !t->no_refine;
     c->align = !t->no_align;
+    c->fuse = !t->no_fuse;
     size_t len = (size_t)snprintf(t->command, sizeof t->command, "prodygs");
     for (int i = 0; i < argc && len < sizeof t->command; i++)
         len += (size_t)snprintf(t->command + len, sizeof t->command - len, " %s", argv[i]);

@@ -1,5 +1,6 @@
 /* prepare.c - depth preparation pipeline and its outputs (see prepare.h). */
 #include "depth/prepare.h"
+#include "depth/fuse.h"
 
 #include "core/fileutil.h"
 #include "core/mathx.h"
@@ -19,6 +20,7 @@ void depth_prepare_defaults(depth_prepare_options *opt)
     memset(opt, 0, sizeof *opt);
     opt->refine = DEPTH_REFINE_EDGE_SNAP;
     opt->align = 1;
+    opt->fuse_static = 1;
     opt->min_valid_fraction = 0.01f;
     depth_refine_defaults(&opt->refine_params);
     depth_static_defaults(&opt->static_params);
@@ -179,7 +181,12 @@ static pg_status prepare_frames(const depth_prepare_options *opt, const pg_image
                            i, fi->alpha, fi->beta, 100.0 * fi->static_pixels / n);
     }
 
-    /* 4. Invalid frames copy the nearest earlier valid frame (later one if none earlier). */
+    /* 4. One depth per static surface: pixels static in at least a quarter of the valid frames (and
+     *    3) take their median over those frames (invalid frames are still zero here, so they do not
+     *    count; they copy a fused frame next). */
+    if (!st && opt->fuse_static) res->fused_pixels = depth_fuse_static(res->depth, res->static_masks, F, n, F / 4 > 3 ? F / 4 : 3);
+
+    /* 5. Invalid frames copy the nearest earlier valid frame (later one if none earlier). */
     for (int i = 0; i < F && !st; i++) {
         if (valid[i]) continue;
         int src = -1;
@@ -280,11 +287,13 @@ static pg_status write_json(const char *path, const depth_prepare_options *opt, 
     cJSON_AddNumberToObject(root, "width", res->width);
     cJSON_AddNumberToObject(root, "height", res->height);
     cJSON_AddNumberToObject(root, "reference_frame", res->reference);
+    cJSON_AddNumberToObject(root, "fused_static_pixels", (double)res->fused_pixels);
     cJSON_AddStringToObject(root, "depth_space", "depth, relative residuals (alpha*D_i + beta ~ D_ref)");
     cJSON *set = cJSON_AddObjectToObject(root, "settings");
     cJSON_AddStringToObject(set, "refine", opt->refiner ? opt->refiner->name : depth_refine_kind_name(opt->refine));
     cJSON_AddStringToObject(set, "flow", opt->flow ? opt->flow->name : "tvl1");
     cJSON_AddBoolToObject(set, "align", opt->align);
+    cJSON_AddBoolToObject(set, "fuse_static", opt->fuse_static);
     cJSON_AddNumberToObject(set, "refine_radius", opt->refine_params.radius);
     cJSON_AddNumberToObject(set, "refine_sigma_color", opt->refine_params.sigma_color);
     cJSON_AddNumberToObject(set, "refine_edge_thresh", opt->refine_params.edge_thresh);

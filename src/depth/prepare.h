@@ -3,7 +3,8 @@
  * For each frame i: edge-aware refinement of D_i guided by RGB_i; optical flow between frame i
  * and the reference frame (frame 0) in both directions; static mask B_i from flow, colour and the
  * forward-backward check; robust (alpha_i, beta_i) with alpha_i R_i + beta_i ~ R_ref on B_i;
- * output D'_i = alpha_i R_i + beta_i (0 = invalid).
+ * output D'_i = alpha_i R_i + beta_i (0 = invalid); then every pixel static in enough frames takes
+ * its temporal median in those frames (fuse.h: one depth per static surface).
  *
  *   depth_prepare_options opt;
  *   depth_prepare_defaults(&opt);
@@ -35,6 +36,7 @@ typedef struct {
     const depth_refine_backend *refiner; /* if set, replaces the built-in kind (neural refiner) */
     const depth_flow_backend *flow;  /* NULL = built-in TV-L1 */
     int align;                       /* 0: alpha = 1, beta = 0 for every frame (--no-align) */
+    int fuse_static;                 /* 1: static pixels take their temporal median (fuse.h; --no-fuse) */
     int keep_flow;                   /* 1: result.flow holds the flow of every frame (for vis) */
     float min_valid_fraction;        /* below this a frame counts as invalid (default 0.01) */
     depth_refine_params refine_params;
@@ -63,6 +65,7 @@ typedef struct {
     float *dynamic_prob;          /* (F,H,W) */
     float *flow;                  /* (F,H,W,2) frame i -> reference, only with keep_flow */
     depth_prepare_frame *info;    /* (F) */
+    long fused_pixels;            /* pixels given their temporal median (fuse_static) */
     double seconds_refine, seconds_flow, seconds_align, seconds_total;
 } depth_prepare_result;
 

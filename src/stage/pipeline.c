@@ -37,7 +37,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
     c->preset = "fast";
     c->proxies = -1;
     c->pad = -1;
-    c->refine = c->align = 1;
+    c->refine = c->align = c->fuse = 1;
     c->seed = 1;
 }
 
@@ -201,6 +201,7 @@ static pg_status run_prepare(pipeline_run *p, const pipeline_plan *plan, const c
     if (c->depth_scale > 0) pc.depth_scale = c->depth_scale;
     if (!c->refine) pc.refine = "none";
     pc.align = c->align;
+    pc.fuse = c->fuse;
     pc.frames = c->frames;
     pc.width = plan->width;
     pc.height = plan->height;
@@ -303,6 +304,7 @@ static cJSON *config_record(const pg_pipeline_config *c, const pipeline_plan *pl
     if (c->pad >= 0) cJSON_AddNumberToObject(j, "pad", c->pad);
     cJSON_AddBoolToObject(j, "refine", c->refine);
     cJSON_AddBoolToObject(j, "align", c->align);
+    cJSON_AddBoolToObject(j, "fuse", c->fuse);
     cJSON_AddNumberToObject(j, "iters", plan->iters);
     cJSON_AddNumberToObject(j, "frames", c->frames);
     if (plan->width || plan->height) {

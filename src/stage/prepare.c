@@ -21,6 +21,7 @@ void pg_prepare_defaults(pg_prepare_config *c)
     c->depth_scale = 1.0f;
     c->refine = "edge-snap";
     c->align = 1;
+    c->fuse = 1;
     c->keep_flow_vis = 1;
 }
 
@@ -32,6 +33,7 @@ cJSON *stage_prepare_config_json(const pg_prepare_config *c)
     cJSON_AddNumberToObject(j, "depth_scale", c->depth_scale);
     cJSON_AddStringToObject(j, "refine", c->refine ? c->refine : "edge-snap");
     cJSON_AddBoolToObject(j, "align", c->align);
+    cJSON_AddBoolToObject(j, "fuse", c->fuse);
     cJSON_AddNumberToObject(j, "frames", c->frames);
     cJSON_AddNumberToObject(j, "width", c->width);
     cJSON_AddNumberToObject(j, "height", c->height);
@@ -56,6 +58,7 @@ static pg_status check_config(const pg_prepare_config *c, io_depth_kind *kind, d
             return pg_fail(PG_ERR_ARG, "prepare: --refine must be edge-snap, bilateral or none, not '%s'", c->refine);
     }
     popt->align = c->align;
+    popt->fuse_static = c->fuse;
     popt->keep_flow = c->keep_flow_vis;
     return PG_OK;
 }
