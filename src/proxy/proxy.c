@@ -12,6 +12,7 @@
 #include "io/image_io.h"
 #include "io/npy.h"
 #include "io/trainset.h"
+#include "proxy/holes.h"
 
 proxy_options proxy_default_options(void)
 {
@@ -19,6 +20,7 @@ proxy_options proxy_default_options(void)
     o.fit = proxy_default_fit_options();
     o.threads = 2;
     o.force = 0;
+    o.fill_holes = 1;
     return o;
 }
 
@@ -55,7 +57,8 @@ static unsigned long long settings_hash(const proxy_options *o, const proxy_job 
 {
     unsigned long long h = 1469598103934665603ULL;
     const proxy_fit_options *f = &o->fit;
-    h = hash_int(h, 3); /* format version of the cache (3: shared Adam) */
+    h = hash_int(h, 4); /* format version of the cache (3: shared Adam, 4: filled holes) */
+    h = hash_int(h, o->fill_holes);
     h = hash_int(h, f->block);
     h = hash_int(h, f->steps);
     h = hash_int(h, f->surfels);
@@ -107,6 +110,9 @@ typedef struct {
     proxy_frame_model *model;
     float *rgb, *depth, *fmask; /* (H,W,3), (H,W), (H,W) */
     unsigned char *mask;        /* (H,W) */
+    unsigned char *observed;    /* (H,W) scratch of the hole filling */
+    int fill_max_run;           /* longest hole run filled (0: no filling) */
+    unsigned char fill_weight;  /* mask value of filled pixels (the margin's weight) */
     double write_s, valid_sum, psnr_sum;
     long views, frames;
 } worker;
@@ -166,6 +172,8 @@ static pg_status process_frame(const proxy_job *j, const char *dir, const char *
             memset(w->mask, 0, npix);
         } else {
             PG_TRY(proxy_model_render(w->model, &j->proxies[k], w->rgb, w->depth, w->mask, &valid));
+            if (w->fill_max_run > 0)
+                proxy_fill_holes(W, H, w->rgb, w->depth, w->mask, w->fill_max_run, w->fill_weight, w->observed);
         }
         w->valid_sum += valid;
         w->views++;
@@ -191,6 +199,7 @@ static void worker_free(worker *w)
     free(w->depth);
     free(w->fmask);
     free(w->mask);
+    free(w->observed);
 }
 
 static pg_status worker_init(worker *w, const proxy_options *o, const proxy_job *j)
@@ -202,7 +211,12 @@ static pg_status worker_init(worker *w, const proxy_options *o, const proxy_job 
     w->depth = pg_malloc(npix * sizeof(float), "proxy view depth");
     w->fmask = pg_malloc(npix * sizeof(float), "proxy mask image");
     w->mask = pg_malloc(npix, "proxy mask");
-    if (!w->rgb || !w->depth || !w->fmask || !w->mask) {
+    w->observed = pg_malloc(npix, "proxy hole scratch");
+    /* holes up to a tenth of the larger side: beside objects, not whole regions nobody saw */
+    w->fill_max_run = o->fill_holes ? (j->width > j->height ? j->width : j->height) / 10 : 0;
+    float mw = o->fit.mask.margin_weight < 0 ? 0 : o->fit.mask.margin_weight > 1 ? 1 : o->fit.mask.margin_weight;
+    w->fill_weight = (unsigned char)lroundf(mw * PROXY_MASK_REAL);
+    if (!w->rgb || !w->depth || !w->fmask || !w->mask || !w->observed) {
         worker_free(w);
         return PG_ERR_NOMEM;
     }

@@ -25,6 +25,7 @@ typedef struct {
     proxy_fit_options fit;
     int threads; /* frame workers (2) */
     int force;   /* recompute every frame even if cached */
+    int fill_holes; /* 1: disocclusion holes take the background's colour at the margin weight (holes.h) */
 } proxy_options;
 
 /* Fills *out (an empty pg_image the callee creates, (H,W,3) at the job's size) with frame `frame`
