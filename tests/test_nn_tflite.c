@@ -1,0 +1,313 @@
+/* test_nn_tflite.c - the TFLite front end: a small model using every supported op (written by
+ * tests/tflite_writer.h) run by the runtime and by the naive reference, hostile files (every
+ * truncation, random corruption, lying sizes, cycles, unsupported ops), and the real PyDNet++
+ * when ../shared/models has it (agreement with the reference, Spearman vs tabletop_dev depth). */
+#include "testlib.h"
+#include "tflite_writer.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/fileutil.h"
+#include "core/parallel.h"
+#include "core/rng.h"
+#include "io/npy.h"
+#include "io/video.h"
+#include "nn/tflite.h"
+
+/* ---- the all-ops model ---- */
+
+static int8_t w1[4 * 3 * 3 * 3];
+static float b1[4], w2[1 * 3 * 3 * 8], b2[8], s_leak = 0.2f, b3[6];
+static uint16_t w3h[6 * 2 * 2 * 8];
+static int32_t tshape[4] = { 1, 8, 10, 6 }, sl_begin[4] = { 0, 1, 0, 2 }, sl_end[4] = { 1, 8, 10, 9 }, sl_stride[4] = { 1, 2, 3, 2 };
+static int32_t rsize[2] = { 7, 9 }, pads[8] = { 0, 0, 1, 2, 0, 1, 0, 0 };
+
+static uint16_t float_to_half(float f)
+{
+    /* test weights are small normal numbers: round the mantissa, no subnormals */
+    uint32_t u;
+    memcpy(&u, &f, 4);
+    uint32_t sign = (u >> 16) & 0x8000, exp = (u >> 23) & 0xff, mant = u & 0x7fffff;
+    if (exp == 0) return (uint16_t)sign;
+    int e = (int)exp - 127 + 15;
+    if (e <= 0) return (uint16_t)sign;
+    return (uint16_t)(sign | (uint32_t)e << 10 | ((mant + 0x1000) >> 13));
+}
+
+static void fill_weights(void)
+{
+    pg_rng r;
+    pg_rng_seed(&r, 7);
+    for (size_t i = 0; i < sizeof w1; i++) w1[i] = (int8_t)(pg_rng_uniform(&r) * 254 - 127);
+    for (int i = 0; i < 4; i++) b1[i] = pg_rng_uniform(&r) - 0.5f;
+    for (int i = 0; i < 72; i++) w2[i] = pg_rng_uniform(&r) - 0.5f;
+    for (int i = 0; i < 8; i++) b2[i] = pg_rng_uniform(&r) - 0.5f;
+    for (int i = 0; i < 6 * 2 * 2 * 8; i++) w3h[i] = float_to_half(pg_rng_uniform(&r) - 0.5f);
+    for (int i = 0; i < 6; i++) b3[i] = pg_rng_uniform(&r) * 2;
+}
+
+#define T4(a, b, c, d) (int[]){ a, b, c, d }
+#define IN(...) (int[]){ __VA_ARGS__ }, (int)(sizeof((int[]){ __VA_ARGS__ }) / sizeof(int))
+
+/* x (1,8,10,3) -> CONV_2D int8 s2 RELU -> DEPTHWISE x2 -> leaky (MUL+MAXIMUM) -> TRANSPOSE_CONV
+ * (fp16 weights via DEQUANTIZE) -> ADD bias RELU6 -> CONCATENATION with x -> STRIDED_SLICE ->
+ * RESIZE_BILINEAR -> PAD -> LEAKY_RELU; outputs the last and the resize. */
+static void all_ops_model(tw_model *m)
+{
+    memset(m, 0, sizeof *m);
+    int x = tw_tensor(m, "x", 4, T4(1, 8, 10, 3), TW_F32, NULL, 0);
+    int tw1 = tw_tensor(m, "w1", 4, T4(4, 3, 3, 3), TW_I8, w1, sizeof w1);
+    m->tensors[tw1].num_scales = 4;
+    for (int i = 0; i < 4; i++) m->tensors[tw1].scales[i] = 0.004f * (i + 1);
+    int tb1 = tw_tensor(m, "b1", 1, (int[]){ 4 }, TW_F32, b1, sizeof b1);
+    int y1 = tw_tensor(m, "y1", 4, T4(1, 4, 5, 4), TW_F32, NULL, 0);
+    tw_op(m, 3, IN(x, tw1, tb1), y1, 1, 4, (int32_t[]){ 0, 2, 2, 1 }, "biib");
+    int tw2 = tw_tensor(m, "w2", 4, T4(1, 3, 3, 8), TW_F32, w2, sizeof w2);
+    int tb2 = tw_tensor(m, "b2", 1, (int[]){ 8 }, TW_F32, b2, sizeof b2);
+    int y2 = tw_tensor(m, "y2", 4, T4(1, 4, 5, 8), TW_F32, NULL, 0);
+    tw_op(m, 4, IN(y1, tw2, tb2), y2, 2, 5, (int32_t[]){ 0, 1, 1, 2, 0 }, "biiib");
+    int ts = tw_tensor(m, "leak", 0, NULL, TW_F32, &s_leak, 4);
+    int y3 = tw_tensor(m, "y3", 4, T4(1, 4, 5, 8), TW_F32, NULL, 0);
+    tw_op(m, 18, IN(ts, y2), y3, 21, 0, NULL, "");
+    int y4 = tw_tensor(m, "y4", 4, T4(1, 4, 5, 8), TW_F32, NULL, 0);
+    tw_op(m, 55, IN(y2, y3), y4, 0, 0, NULL, "");
+    int tw3h = tw_tensor(m, "w3h", 4, T4(6, 2, 2, 8), TW_F16, w3h, sizeof w3h);
+    int tw3 = tw_tensor(m, "w3", 4, T4(6, 2, 2, 8), TW_F32, NULL, 0);
+    tw_op(m, 6, IN(tw3h), tw3, 0, 0, NULL, "");
+    int tsh = tw_tensor(m, "shape", 1, (int[]){ 4 }, TW_I32, tshape, sizeof tshape);
+    int y5 = tw_tensor(m, "y5", 4, T4(1, 8, 10, 6), TW_F32, NULL, 0);
+    tw_op(m, 67, IN(tsh, tw3, y4), y5, 49, 3, (int32_t[]){ 0, 2, 2 }, "bii");
+    int tb3 = tw_tensor(m, "b3", 1, (int[]){ 6 }, TW_F32, b3, sizeof b3);
+    int y6 = tw_tensor(m, "y6", 4, T4(1, 8, 10, 6), TW_F32, NULL, 0);
+    tw_op(m, 0, IN(y5, tb3), y6, 11, 1, (int32_t[]){ 3 }, "b");
+    int y7 = tw_tensor(m, "y7", 4, T4(1, 8, 10, 9), TW_F32, NULL, 0);
+    tw_op(m, 2, IN(x, y6), y7, 10, 2, (int32_t[]){ -1, 0 }, "ib");
+    int tbg = tw_tensor(m, "begin", 1, (int[]){ 4 }, TW_I32, sl_begin, sizeof sl_begin);
+    int ten = tw_tensor(m, "end", 1, (int[]){ 4 }, TW_I32, sl_end, sizeof sl_end);
+    int tst = tw_tensor(m, "strides", 1, (int[]){ 4 }, TW_I32, sl_stride, sizeof sl_stride);
+    int y8 = tw_tensor(m, "y8", 4, T4(1, 4, 4, 4), TW_F32, NULL, 0);
+    tw_op(m, 45, IN(y7, tbg, ten, tst), y8, 32, 2, (int32_t[]){ 0, 0 }, "ii");
+    int trs = tw_tensor(m, "size", 1, (int[]){ 2 }, TW_I32, rsize, sizeof rsize);
+    int y9 = tw_tensor(m, "y9", 4, T4(1, 7, 9, 4), TW_F32, NULL, 0);
+    tw_op(m, 23, IN(y8, trs), y9, 15, 0, NULL, "");
+    int tpd = tw_tensor(m, "pads", 2, (int[]){ 4, 2 }, TW_I32, pads, sizeof pads);
+    int y10 = tw_tensor(m, "y10", 4, T4(1, 10, 10, 4), TW_F32, NULL, 0);
+    tw_op(m, 34, IN(y9, tpd), y10, 22, 0, NULL, "");
+    int y11 = tw_tensor(m, "y11", 4, T4(1, 10, 10, 4), TW_F32, NULL, 0);
+    tw_op(m, 98, IN(y10), y11, 75, 1, (int32_t[]){ tw_float_bits(0.1f) }, "f");
+    m->inputs[m->num_inputs++] = x;
+    m->outputs[m->num_outputs++] = y11;
+    m->outputs[m->num_outputs++] = y9;
+}
+
+static uint8_t *all_ops_bytes(size_t *n)
+{
+    tw_model *m = calloc(1, sizeof *m);
+    all_ops_model(m);
+    uint8_t *b = tw_build(m, n);
+    free(m);
+    return b;
+}
+
+static void test_parse_and_reference(void)
+{
+    size_t n;
+    uint8_t *bytes = all_ops_bytes(&n);
+    nn_tfl_model m;
+    CHECK_OK(nn_tfl_parse(bytes, n, "all_ops.tflite", &m));
+    CHECK(m.num_ops == 11, "ops %d (DEQUANTIZE of a constant is folded)", m.num_ops);
+    CHECK(m.num_outputs == 2 && m.tensors[m.outputs[0]].count == 400, "outputs");
+    /* per-channel int8: w1[o,...] = scale[o] * q */
+    const nn_tfl_tensor *tw1 = &m.tensors[1];
+    CHECK(tw1->values && fabsf(tw1->values[27] - 0.008f * w1[27]) < 1e-7f, "per-channel dequantisation %g vs %g",
+          tw1->values ? tw1->values[27] : 0, 0.008f * w1[27]);
+    float x[240], y0[400], y1[252];
+    for (int i = 0; i < 240; i++) x[i] = (float)((i * 37) % 101) / 100.0f;
+    float *outs[2] = { y0, y1 };
+    CHECK_OK(nn_tfl_ref_run(&m, x, outs, 2));
+    int finite = 1;
+    double mx = 0;
+    for (int i = 0; i < 400; i++) {
+        finite &= isfinite(y0[i]);
+        mx = fmax(mx, fabs(y0[i]));
+    }
+    CHECK(finite && mx > 0.05, "reference output finite and not all zero (max %g)", mx);
+    nn_tfl_destroy(&m);
+    free(bytes);
+}
+
+/* Hand-computed values of the reference's trickier ops. */
+static void test_reference_by_hand(void)
+{
+    /* RESIZE_BILINEAR 2 -> 4 (legacy coordinates x * in/out): [1, 3] -> [1, 2, 3, 3] */
+    tw_model *m = calloc(1, sizeof *m);
+    int32_t size[2] = { 1, 4 };
+    int x = tw_tensor(m, "x", 4, T4(1, 1, 2, 1), TW_F32, NULL, 0);
+    int s = tw_tensor(m, "s", 1, (int[]){ 2 }, TW_I32, size, sizeof size);
+    int y = tw_tensor(m, "y", 4, T4(1, 1, 4, 1), TW_F32, NULL, 0);
+    tw_op(m, 23, IN(x, s), y, 15, 0, NULL, "");
+    m->inputs[m->num_inputs++] = x;
+    m->outputs[m->num_outputs++] = y;
+    size_t n;
+    uint8_t *b = tw_build(m, &n);
+    nn_tfl_model t;
+    CHECK_OK(nn_tfl_parse(b, n, "resize", &t));
+    float in[2] = { 1, 3 }, out[4] = { 0 }, *o[1] = { out };
+    CHECK_OK(nn_tfl_ref_run(&t, in, o, 1));
+    CHECK(out[0] == 1 && out[1] == 2 && out[2] == 3 && out[3] == 3, "resize %g %g %g %g", out[0], out[1], out[2], out[3]);
+    nn_tfl_destroy(&t);
+    free(b);
+
+    /* TRANSPOSE_CONV 2x2 stride 2, one channel: each input pixel stamps v * w */
+    memset(m, 0, sizeof *m);
+    int32_t shape[4] = { 1, 2, 4, 1 };
+    float w[4] = { 1, 2, 3, 4 };
+    x = tw_tensor(m, "x", 4, T4(1, 1, 2, 1), TW_F32, NULL, 0);
+    s = tw_tensor(m, "shape", 1, (int[]){ 4 }, TW_I32, shape, sizeof shape);
+    int tw = tw_tensor(m, "w", 4, T4(1, 2, 2, 1), TW_F32, w, sizeof w);
+    y = tw_tensor(m, "y", 4, T4(1, 2, 4, 1), TW_F32, NULL, 0);
+    tw_op(m, 67, IN(s, tw, x), y, 49, 3, (int32_t[]){ 0, 2, 2 }, "bii");
+    m->inputs[m->num_inputs++] = x;
+    m->outputs[m->num_outputs++] = y;
+    b = tw_build(m, &n);
+    CHECK_OK(nn_tfl_parse(b, n, "tconv", &t));
+    float in2[2] = { 1, 10 }, out2[8] = { 0 }, *o2[1] = { out2 };
+    CHECK_OK(nn_tfl_ref_run(&t, in2, o2, 1));
+    const float want[8] = { 1, 2, 10, 20, 3, 4, 30, 40 };
+    CHECK(memcmp(out2, want, sizeof want) == 0, "transpose conv %g %g %g %g / %g %g %g %g", out2[0], out2[1], out2[2], out2[3],
+          out2[4], out2[5], out2[6], out2[7]);
+    nn_tfl_destroy(&t);
+    free(b);
+    free(m);
+}
+
+/* ---- hostile files ---- */
+
+static pg_status parse_bytes(const uint8_t *b, size_t n, char *msg, size_t size)
+{
+    nn_tfl_model m;
+    pg_status st = nn_tfl_parse(b, n, "bad.tflite", &m);
+    if (msg) snprintf(msg, size, "%s", st ? pg_last_error() : "");
+    nn_tfl_destroy(&m);
+    return st;
+}
+
+static pg_status parse_model_desc(tw_model *m, char *msg, size_t size)
+{
+    size_t n;
+    uint8_t *b = tw_build(m, &n);
+    pg_status st = parse_bytes(b, n, msg, size);
+    free(b);
+    return st;
+}
+
+static void test_hostile(void)
+{
+    size_t n;
+    uint8_t *good = all_ops_bytes(&n);
+    char msg[1024];
+    /* every truncation fails cleanly */
+    int bad_ok = 1;
+    for (size_t len = 0; len < n; len++) {
+        pg_status st = parse_bytes(good, len, NULL, 0);
+        if (st != PG_ERR_FORMAT && st != PG_ERR_SIZE) bad_ok = 0;
+    }
+    CHECK(bad_ok, "every truncation of a %zu-byte file is refused", n);
+    /* random corruption: refused or parsed, never a crash (ASan/UBSan builds check the rest) */
+    pg_rng r;
+    pg_rng_seed(&r, 3);
+    uint8_t *mut = malloc(n);
+    int refused = 0;
+    for (int trial = 0; trial < 3000; trial++) {
+        memcpy(mut, good, n);
+        int flips = 1 + trial % 4;
+        for (int f = 0; f < flips; f++) mut[(size_t)(pg_rng_uniform(&r) * n) % n] ^= (uint8_t)(1 + pg_rng_uniform(&r) * 255);
+        pg_status st = parse_bytes(mut, n, msg, sizeof msg);
+        refused += st != PG_OK;
+        if (st && strchr(msg, '\n')) {
+            CHECK(0, "message is one line: %s", msg);
+            break;
+        }
+    }
+    printf("random corruption: %d of 3000 refused\n", refused);
+    free(mut);
+    free(good);
+
+    tw_model *m = calloc(1, sizeof *m);
+    /* huge dims */
+    all_ops_model(m);
+    m->tensors[0].dims[1] = 1 << 30;
+    CHECK(parse_model_desc(m, msg, sizeof msg) == PG_ERR_SIZE && strstr(msg, "dimension"), "huge dim: %s", msg);
+    all_ops_model(m);
+    m->tensors[0].dims[1] = 1 << 20;
+    m->tensors[0].dims[2] = 1 << 20;
+    CHECK(parse_model_desc(m, msg, sizeof msg) == PG_ERR_SIZE, "huge tensor: %s", msg);
+    /* a lying shape: the weights' buffer is smaller than their shape */
+    all_ops_model(m);
+    m->tensors[1].dims[0] = 5;
+    CHECK(parse_model_desc(m, msg, sizeof msg) == PG_ERR_FORMAT && strstr(msg, "buffer holds"), "lying weights: %s", msg);
+    /* a lying output shape */
+    all_ops_model(m);
+    m->tensors[3].dims[1] = 5;
+    CHECK(parse_model_desc(m, msg, sizeof msg) == PG_ERR_FORMAT && strstr(msg, "declared"), "lying output: %s", msg);
+    /* buffer index out of range */
+    all_ops_model(m);
+    m->tensors[1].buffer_override = 1000;
+    CHECK(parse_model_desc(m, msg, sizeof msg) == PG_ERR_FORMAT, "buffer index: %s", msg);
+    /* a cycle: op 1 reads op 2's output, op 2 reads op 1's */
+    all_ops_model(m);
+    m->ops[1].inputs[0] = m->ops[2].output;
+    CHECK(parse_model_desc(m, msg, sizeof msg) == PG_ERR_FORMAT && strstr(msg, "not computed before"), "cycle: %s", msg);
+    /* a tensor written twice */
+    all_ops_model(m);
+    m->ops[3].output = m->ops[2].output;
+    CHECK(parse_model_desc(m, msg, sizeof msg) == PG_ERR_FORMAT, "written twice: %s", msg);
+    /* an unsupported op names the op and the operator */
+    all_ops_model(m);
+    m->ops[4].code = 25; /* SOFTMAX */
+    m->ops[4].options_type = 0;
+    CHECK(parse_model_desc(m, msg, sizeof msg) == PG_ERR_FORMAT && strstr(msg, "SOFTMAX") && strstr(msg, "operator 4") &&
+              strstr(msg, "unsupported"),
+          "unsupported: %s", msg);
+    /* options of the wrong type */
+    all_ops_model(m);
+    m->ops[0].options_type = 2;
+    CHECK(parse_model_desc(m, msg, sizeof msg) == PG_ERR_FORMAT && strstr(msg, "options"), "options type: %s", msg);
+    /* an index out of range */
+    all_ops_model(m);
+    m->ops[0].inputs[0] = 999;
+    CHECK(parse_model_desc(m, msg, sizeof msg) == PG_ERR_FORMAT && strstr(msg, "out of range"), "index: %s", msg);
+    /* int8 weights without a scale */
+    all_ops_model(m);
+    m->tensors[1].num_scales = 0;
+    CHECK(parse_model_desc(m, msg, sizeof msg) == PG_ERR_FORMAT && strstr(msg, "scale"), "no scale: %s", msg);
+    /* not TFLite */
+    CHECK(parse_bytes((const uint8_t *)"\x10\0\0\0ABCDxxxxxxxxxxxxxxxx", 24, msg, sizeof msg) == PG_ERR_FORMAT && strstr(msg, "TFL3"),
+          "identifier: %s", msg);
+    free(m);
+}
+
+/* Writes the seed corpus of tests/fuzz/fuzz_tflite.c into dir (small synthetic files). */
+static void write_corpus(const char *dir)
+{
+    size_t n;
+    uint8_t *b = all_ops_bytes(&n);
+    char path[4200];
+    snprintf(path, sizeof path, "%s/all_ops.tflite", dir);
+    CHECK_OK(pg_write_file_atomic(path, b, n));
+    free(b);
+}
+
+int main(void)
+{
+    char tmp[4096];
+    test_tmpdir("nn_tflite", tmp, sizeof tmp);
+    fill_weights();
+    test_parse_and_reference();
+    test_reference_by_hand();
+    test_hostile();
+    write_corpus(tmp);
+    return test_summary("test_nn_tflite");
+}
