@@ -1,0 +1,412 @@
+/* nn_exec.c - validation, topological order, shape inference, memory plan and the run loop.
+ *
+ * nn_graph_prepare does all checks before any compute memory exists: every id valid, each tensor
+ * produced once, no cycles (Kahn's algorithm: nodes left over sit on a cycle), every shape
+ * inferred and under NN_MAX_DIM / NN_MAX_ELEMENTS, and the arena size computed. The arena plan is
+ * greedy best-fit: walking the nodes in run order, outputs take the smallest free block that fits
+ * (or grow the arena), and a tensor's block returns to the free list after its last reader.
+ */
+#include "nn/nn_ops.h"
+
+#include <assert.h>
+#include <limits.h>
+#include <omp.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <cblas.h>
+
+#define NN_ALIGN 16 /* floats: 64-byte blocks */
+
+const nn_op_info nn_ops[NN_OP_COUNT] = {
+    [NN_OP_CONV] = { "Conv", 2, 3, nn_infer_conv, nn_run_conv, nn_scratch_conv },
+    [NN_OP_CONV_TRANSPOSE] = { "ConvTranspose", 2, 3, nn_infer_conv_transpose, nn_run_conv_transpose, nn_scratch_conv_transpose },
+    [NN_OP_MATMUL] = { "MatMul", 2, 2, nn_infer_matmul, nn_run_matmul, nn_scratch_matmul },
+    [NN_OP_GEMM] = { "Gemm", 2, 3, nn_infer_gemm, nn_run_gemm, NULL },
+    [NN_OP_ADD] = { "Add", 2, 2, nn_infer_binary, nn_run_binary, NULL },
+    [NN_OP_SUB] = { "Sub", 2, 2, nn_infer_binary, nn_run_binary, NULL },
+    [NN_OP_MUL] = { "Mul", 2, 2, nn_infer_binary, nn_run_binary, NULL },
+    [NN_OP_DIV] = { "Div", 2, 2, nn_infer_binary, nn_run_binary, NULL },
+    [NN_OP_POW] = { "Pow", 2, 2, nn_infer_binary, nn_run_binary, NULL },
+    [NN_OP_MAXIMUM] = { "Max", 2, 2, nn_infer_binary, nn_run_binary, NULL },
+    [NN_OP_MINIMUM] = { "Min", 2, 2, nn_infer_binary, nn_run_binary, NULL },
+    [NN_OP_SQRT] = { "Sqrt", 1, 1, nn_infer_unary, nn_run_unary, NULL },
+    [NN_OP_ERF] = { "Erf", 1, 1, nn_infer_unary, nn_run_unary, NULL },
+    [NN_OP_EXP] = { "Exp", 1, 1, nn_infer_unary, nn_run_unary, NULL },
+    [NN_OP_TANH] = { "Tanh", 1, 1, nn_infer_unary, nn_run_unary, NULL },
+    [NN_OP_NEG] = { "Neg", 1, 1, nn_infer_unary, nn_run_unary, NULL },
+    [NN_OP_RELU] = { "Relu", 1, 1, nn_infer_unary, nn_run_unary, NULL },
+    [NN_OP_LEAKY_RELU] = { "LeakyRelu", 1, 1, nn_infer_unary, nn_run_unary, NULL },
+    [NN_OP_SIGMOID] = { "Sigmoid", 1, 1, nn_infer_unary, nn_run_unary, NULL },
+    [NN_OP_GELU] = { "Gelu", 1, 1, nn_infer_unary, nn_run_unary, NULL },
+    [NN_OP_LAYER_NORM] = { "LayerNormalization", 1, 3, nn_infer_layer_norm, nn_run_layer_norm, NULL },
+    [NN_OP_SOFTMAX] = { "Softmax", 1, 1, nn_infer_softmax, nn_run_softmax, NULL },
+    [NN_OP_REDUCE_MEAN] = { "ReduceMean", 1, 1, nn_infer_reduce_mean, nn_run_reduce_mean, NULL },
+    [NN_OP_RESHAPE] = { "Reshape", 1, 1, nn_infer_reshape, nn_run_reshape, NULL },
+    [NN_OP_TRANSPOSE] = { "Transpose", 1, 1, nn_infer_transpose, nn_run_transpose, NULL },
+    [NN_OP_SLICE] = { "Slice", 1, 1, nn_infer_slice, nn_run_slice, NULL },
+    [NN_OP_CONCAT] = { "Concat", 1, 4096, nn_infer_concat, nn_run_concat, NULL },
+    [NN_OP_GATHER] = { "Gather", 2, 2, nn_infer_gather, nn_run_gather, NULL },
+    [NN_OP_EXPAND] = { "Expand", 1, 1, nn_infer_expand, nn_run_expand, NULL },
+    [NN_OP_PAD] = { "Pad", 1, 1, nn_infer_pad, nn_run_pad, NULL },
+    [NN_OP_RESIZE] = { "Resize", 1, 1, nn_infer_resize, nn_run_resize, nn_scratch_resize },
+    [NN_OP_IDENTITY] = { "Identity", 1, 1, nn_infer_unary, nn_run_reshape, NULL },
+};
+static_assert(sizeof nn_ops / sizeof nn_ops[0] == NN_OP_COUNT, "one nn_ops entry per nn_op");
+
+const char *nn_op_name(nn_op op) { return (unsigned)op < NN_OP_COUNT && nn_ops[op].name ? nn_ops[op].name : "?"; }
+
+pg_status nn_node_fail(const nn_node *n, const char *fmt, ...)
+{
+    char msg[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    return pg_fail(PG_ERR_FORMAT, "node '%s' (%s): %s", n->name, nn_op_name(n->op), msg);
+}
+
+int nn_axis(int64_t axis, int ndim)
+{
+    if (axis < -ndim || axis >= ndim) return -1;
+    return (int)(axis < 0 ? axis + ndim : axis);
+}
+
+pg_status nn_set_output(nn_graph *g, const nn_node *n, int i, int ndim, const int64_t *dims)
+{
+    if (ndim < 0 || ndim > NN_MAX_DIMS) return nn_node_fail(n, "output has %d dims (at most %d)", ndim, NN_MAX_DIMS);
+    int64_t count = 1;
+    for (int d = 0; d < ndim; d++) {
+        if (dims[d] < 0 || dims[d] > NN_MAX_DIM) return nn_node_fail(n, "output dim %d is %lld", d, (long long)dims[d]);
+        count *= dims[d];
+        if (count > NN_MAX_ELEMENTS)
+            return pg_fail(PG_ERR_SIZE, "node '%s' (%s): output over %lld elements", n->name, nn_op_name(n->op), (long long)NN_MAX_ELEMENTS);
+    }
+    nn_tensor *t = nn_out(g, n, i);
+    if (t->ndim >= 0 && t->producer >= 0) {
+        /* a shape declared by the model must agree with the inferred one */
+        int same = t->ndim == ndim;
+        for (int d = 0; same && d < ndim; d++) same = t->dims[d] == dims[d];
+        if (!same) return nn_node_fail(n, "inferred output shape disagrees with the shape declared for '%s'", t->name);
+    }
+    t->ndim = ndim;
+    for (int d = 0; d < ndim; d++) t->dims[d] = dims[d];
+    t->dtype = NN_F32;
+    return PG_OK;
+}
+
+float *nn_graph_data(const nn_graph *g, int id)
+{
+    const nn_tensor *t = &g->tensors[id];
+    if (t->dtype != NN_F32) return NULL;
+    if (t->data) return t->data;
+    return g->arena ? g->arena + t->offset : NULL;
+}
+
+size_t nn_graph_memory_bytes(const nn_graph *g)
+{
+    return g->const_bytes + g->arena_floats * sizeof(float) + g->scratch_floats * sizeof(float) * (size_t)(g->scratch_threads > 0 ? g->scratch_threads : 1);
+}
+
+/* ---- ordering ---- */
+
+/* Sets producers, checks every input is a constant, a graph input or produced by some node. */
+static pg_status link_tensors(nn_graph *g)
+{
+    for (int i = 0; i < g->num_tensors; i++) g->tensors[i].producer = -1;
+    for (int i = 0; i < g->num_inputs; i++) {
+        nn_tensor *t = &g->tensors[g->inputs[i]];
+        if (t->data) return pg_fail(PG_ERR_FORMAT, "graph input '%s' is also a constant", t->name);
+        if (t->ndim < 0) return pg_fail(PG_ERR_FORMAT, "graph input '%s' has no static shape", t->name);
+        if (t->dtype != NN_F32) return pg_fail(PG_ERR_FORMAT, "graph input '%s' is not float32", t->name);
+    }
+    for (int k = 0; k < g->num_nodes; k++) {
+        nn_node *n = &g->nodes[k];
+        const nn_op_info *info = &nn_ops[n->op];
+        if (n->num_inputs < info->min_inputs || n->num_inputs > info->max_inputs)
+            return nn_node_fail(n, "%d inputs (expected %d to %d)", n->num_inputs, info->min_inputs, info->max_inputs);
+        if (n->inputs[0] < 0) return nn_node_fail(n, "first input missing");
+        for (int o = 0; o < n->num_outputs; o++) {
+            nn_tensor *t = &g->tensors[n->outputs[o]];
+            if (t->data) return nn_node_fail(n, "writes constant '%s'", t->name);
+            for (int i = 0; i < g->num_inputs; i++)
+                if (g->inputs[i] == n->outputs[o]) return nn_node_fail(n, "writes graph input '%s'", t->name);
+            if (t->producer >= 0) return nn_node_fail(n, "'%s' is already produced by node '%s'", t->name, g->nodes[t->producer].name);
+            t->producer = k;
+        }
+    }
+    for (int k = 0; k < g->num_nodes; k++) {
+        nn_node *n = &g->nodes[k];
+        for (int i = 0; i < n->num_inputs; i++) {
+            if (n->inputs[i] < 0) continue;
+            nn_tensor *t = &g->tensors[n->inputs[i]];
+            int is_input = 0;
+            for (int j = 0; j < g->num_inputs; j++) is_input |= g->inputs[j] == n->inputs[i];
+            if (!t->data && !is_input && t->producer < 0) return nn_node_fail(n, "input '%s' is never computed", t->name);
+        }
+    }
+    for (int i = 0; i < g->num_outputs; i++) {
+        nn_tensor *t = &g->tensors[g->outputs[i]];
+        int is_input = 0;
+        for (int j = 0; j < g->num_inputs; j++) is_input |= g->inputs[j] == g->outputs[i];
+        if (!t->data && !is_input && t->producer < 0) return pg_fail(PG_ERR_FORMAT, "graph output '%s' is never computed", t->name);
+    }
+    return PG_OK;
+}
+
+/* Keeps the nodes some graph output depends on, in topological order (Kahn). */
+static pg_status sort_nodes(nn_graph *g)
+{
+    int N = g->num_nodes, T = g->num_tensors;
+    pg_status st = PG_OK;
+    char *live = calloc((size_t)N + 1, 1);
+    int *stack = malloc(((size_t)N + (size_t)T + 1) * sizeof(int));
+    int *pending = calloc((size_t)N + 1, sizeof(int));
+    int *order = malloc(((size_t)N + 1) * sizeof(int));
+    /* readers of each tensor, CSR */
+    int *start = calloc((size_t)T + 1, sizeof(int)), *readers = NULL;
+    if (!live || !stack || !pending || !order || !start) { st = pg_fail(PG_ERR_NOMEM, "out of memory sorting %d nodes", N); goto done; }
+    /* liveness: walk back from the outputs */
+    int sp = 0;
+    for (int i = 0; i < g->num_outputs; i++) {
+        int p = g->tensors[g->outputs[i]].producer;
+        if (p >= 0 && !live[p]) { live[p] = 1; stack[sp++] = p; }
+    }
+    while (sp) {
+        nn_node *n = &g->nodes[stack[--sp]];
+        for (int i = 0; i < n->num_inputs; i++) {
+            if (n->inputs[i] < 0) continue;
+            int p = g->tensors[n->inputs[i]].producer;
+            if (p >= 0 && !live[p]) { live[p] = 1; stack[sp++] = p; }
+        }
+    }
+    size_t edges = 0;
+    for (int k = 0; k < N; k++) {
+        if (!live[k]) continue;
+        nn_node *n = &g->nodes[k];
+        for (int i = 0; i < n->num_inputs; i++) {
+            if (n->inputs[i] < 0 || g->tensors[n->inputs[i]].producer < 0) continue;
+            start[n->inputs[i] + 1]++;
+            pending[k]++;
+            edges++;
+        }
+    }
+    for (int t = 0; t < T; t++) start[t + 1] += start[t];
+    readers = malloc((edges + 1) * sizeof(int));
+    int *fill = calloc((size_t)T + 1, sizeof(int));
+    if (!readers || !fill) { free(fill); st = pg_fail(PG_ERR_NOMEM, "out of memory sorting %d nodes", N); goto done; }
+    for (int k = 0; k < N; k++) {
+        if (!live[k]) continue;
+        nn_node *n = &g->nodes[k];
+        for (int i = 0; i < n->num_inputs; i++) {
+            int t = n->inputs[i];
+            if (t < 0 || g->tensors[t].producer < 0) continue;
+            readers[start[t] + fill[t]++] = k;
+        }
+    }
+    free(fill);
+    int count = 0, live_count = 0;
+    sp = 0;
+    for (int k = N - 1; k >= 0; k--) {
+        if (!live[k]) continue;
+        live_count++;
+        if (pending[k] == 0) stack[sp++] = k;
+    }
+    while (sp) {
+        int k = stack[--sp];
+        order[count++] = k;
+        nn_node *n = &g->nodes[k];
+        for (int o = 0; o < n->num_outputs; o++) {
+            int t = n->outputs[o];
+            for (int r = start[t]; r < start[t + 1]; r++)
+                if (--pending[readers[r]] == 0) stack[sp++] = readers[r];
+        }
+    }
+    if (count < live_count) {
+        int bad = 0;
+        for (int k = 0; k < N; k++) if (live[k] && pending[k] > 0) { bad = k; break; }
+        st = pg_fail(PG_ERR_FORMAT, "node '%s' (%s) is on a cycle", g->nodes[bad].name, nn_op_name(g->nodes[bad].op));
+        goto done;
+    }
+    /* permute: keep live nodes in order, free the dead ones, renumber producers */
+    nn_node *sorted = malloc(((size_t)count + 1) * sizeof *sorted);
+    if (!sorted) { st = pg_fail(PG_ERR_NOMEM, "out of memory sorting %d nodes", N); goto done; }
+    for (int i = 0; i < count; i++) sorted[i] = g->nodes[order[i]];
+    for (int k = 0; k < N; k++) if (!live[k]) { free(g->nodes[k].name); free(g->nodes[k].inputs); }
+    free(g->nodes);
+    g->nodes = sorted;
+    g->num_nodes = g->cap_nodes = count;
+    for (int t = 0; t < T; t++) g->tensors[t].producer = -1;
+    for (int k = 0; k < count; k++)
+        for (int o = 0; o < sorted[k].num_outputs; o++) g->tensors[sorted[k].outputs[o]].producer = k;
+done:
+    free(live); free(stack); free(pending); free(order); free(start); free(readers);
+    return st;
+}
+
+/* ---- memory plan ---- */
+
+typedef struct { size_t off, size; } nn_block;
+
+typedef struct {
+    nn_block *free_list;
+    int count, cap;
+    size_t end;
+} nn_planner;
+
+static size_t plan_take(nn_planner *p, size_t size)
+{
+    int best = -1;
+    for (int i = 0; i < p->count; i++)
+        if (p->free_list[i].size >= size && (best < 0 || p->free_list[i].size < p->free_list[best].size)) best = i;
+    if (best < 0) {
+        /* grow: a free block ending at the arena's end is extended */
+        for (int i = 0; i < p->count; i++)
+            if (p->free_list[i].off + p->free_list[i].size == p->end) {
+                size_t off = p->free_list[i].off;
+                p->end = off + size;
+                p->free_list[i] = p->free_list[--p->count];
+                return off;
+            }
+        size_t off = p->end;
+        p->end += size;
+        return off;
+    }
+    size_t off = p->free_list[best].off;
+    p->free_list[best].off += size;
+    p->free_list[best].size -= size;
+    if (p->free_list[best].size == 0) p->free_list[best] = p->free_list[--p->count];
+    return off;
+}
+
+static int plan_give(nn_planner *p, size_t off, size_t size)
+{
+    /* merge with neighbours */
+    for (int i = 0; i < p->count; i++) {
+        if (p->free_list[i].off + p->free_list[i].size == off) {
+            off = p->free_list[i].off; size += p->free_list[i].size;
+            p->free_list[i--] = p->free_list[--p->count];
+        } else if (off + size == p->free_list[i].off) {
+            size += p->free_list[i].size;
+            p->free_list[i--] = p->free_list[--p->count];
+        }
+    }
+    if (p->count == p->cap) {
+        int cap = p->cap ? p->cap * 2 : 64;
+        nn_block *b = realloc(p->free_list, (size_t)cap * sizeof *b);
+        if (!b) return -1;
+        p->free_list = b;
+        p->cap = cap;
+    }
+    p->free_list[p->count++] = (nn_block){ off, size };
+    return 0;
+}
+
+static size_t tensor_floats(const nn_tensor *t)
+{
+    size_t n = (size_t)nn_shape_count(t->ndim, t->dims);
+    return (n + NN_ALIGN - 1) / NN_ALIGN * NN_ALIGN + (n == 0 ? NN_ALIGN : 0);
+}
+
+static pg_status plan_memory(nn_graph *g)
+{
+    for (int t = 0; t < g->num_tensors; t++) g->tensors[t].last_use = -1;
+    for (int k = 0; k < g->num_nodes; k++)
+        for (int i = 0; i < g->nodes[k].num_inputs; i++)
+            if (g->nodes[k].inputs[i] >= 0) g->tensors[g->nodes[k].inputs[i]].last_use = k;
+    for (int i = 0; i < g->num_outputs; i++) g->tensors[g->outputs[i]].last_use = INT_MAX;
+    nn_planner p = { 0 };
+    int ok = 1;
+    for (int i = 0; i < g->num_inputs; i++) {
+        nn_tensor *t = &g->tensors[g->inputs[i]];
+        t->offset = plan_take(&p, tensor_floats(t));
+        t->last_use = INT_MAX; /* the caller writes inputs before each run */
+    }
+    for (int k = 0; k < g->num_nodes && ok; k++) {
+        nn_node *n = &g->nodes[k];
+        for (int o = 0; o < n->num_outputs; o++) {
+            nn_tensor *t = &g->tensors[n->outputs[o]];
+            t->offset = plan_take(&p, tensor_floats(t));
+        }
+        for (int o = 0; o < n->num_outputs && ok; o++) {
+            nn_tensor *t = &g->tensors[n->outputs[o]];
+            if (t->last_use < 0) ok = !plan_give(&p, t->offset, tensor_floats(t));
+        }
+        for (int i = 0; i < n->num_inputs && ok; i++) {
+            int id = n->inputs[i];
+            if (id < 0) continue;
+            nn_tensor *t = &g->tensors[id];
+            int dup = 0;
+            for (int j = 0; j < i; j++) dup |= n->inputs[j] == id;
+            if (!t->data && t->last_use == k && !dup) ok = !plan_give(&p, t->offset, tensor_floats(t));
+        }
+    }
+    free(p.free_list);
+    if (!ok) return pg_fail(PG_ERR_NOMEM, "out of memory planning the arena");
+    g->arena_floats = p.end;
+    return PG_OK;
+}
+
+pg_status nn_graph_prepare(nn_graph *g)
+{
+    if (g->prepared) return PG_OK;
+    if (g->num_outputs < 1) return pg_fail(PG_ERR_FORMAT, "graph has no outputs");
+    PG_TRY(link_tensors(g));
+    PG_TRY(sort_nodes(g));
+    for (int k = 0; k < g->num_nodes; k++) {
+        nn_node *n = &g->nodes[k];
+        for (int i = 0; i < n->num_inputs; i++) {
+            nn_tensor *t = nn_in(g, n, i);
+            if (t && t->ndim < 0) return nn_node_fail(n, "input '%s' has no shape", t->name);
+            if (t && t->dtype != NN_F32 && !(n->op == NN_OP_GATHER && i == 1))
+                return nn_node_fail(n, "input '%s' is int64 (only float32 is computed)", t->name);
+        }
+        PG_TRY(nn_ops[n->op].infer(g, n));
+    }
+    g->const_bytes = 0;
+    for (int t = 0; t < g->num_tensors; t++) {
+        nn_tensor *x = &g->tensors[t];
+        if (x->data) g->const_bytes += (size_t)nn_shape_count(x->ndim, x->dims) * (x->dtype == NN_F32 ? 4 : 8);
+    }
+    PG_TRY(plan_memory(g));
+    g->scratch_floats = 0;
+    for (int k = 0; k < g->num_nodes; k++) {
+        const nn_op_info *info = &nn_ops[g->nodes[k].op];
+        if (info->scratch) {
+            size_t s = info->scratch(g, &g->nodes[k]);
+            if (s > g->scratch_floats) g->scratch_floats = s;
+        }
+    }
+    if (g->arena_floats > (size_t)4 * NN_MAX_ELEMENTS)
+        return pg_fail(PG_ERR_SIZE, "the model needs %zu MiB of activations", g->arena_floats * 4 >> 20);
+    g->arena = aligned_alloc(64, (g->arena_floats + NN_ALIGN) * sizeof(float));
+    if (!g->arena) return pg_fail(PG_ERR_NOMEM, "out of memory for a %zu MiB activation arena", g->arena_floats * 4 >> 20);
+    memset(g->arena, 0, (g->arena_floats + NN_ALIGN) * sizeof(float));
+    g->prepared = 1;
+    return PG_OK;
+}
+
+pg_status nn_graph_run(nn_graph *g, int threads)
+{
+    if (!g->prepared) return pg_fail(PG_ERR_INTERNAL, "nn_graph_run before nn_graph_prepare");
+    if (threads <= 0) threads = omp_get_num_procs();
+    if (g->scratch_floats && g->scratch_threads < threads) {
+        free(g->scratch);
+        g->scratch_threads = 0;
+        size_t bytes;
+        if (pg_size_mul(g->scratch_floats * sizeof(float), (size_t)threads, &bytes))
+            return pg_fail(PG_ERR_SIZE, "scratch size overflows");
+        g->scratch = aligned_alloc(64, (bytes + 63) / 64 * 64);
+        if (!g->scratch) return pg_fail(PG_ERR_NOMEM, "out of memory for %zu MiB of scratch", bytes >> 20);
+        g->scratch_threads = threads;
+    }
+    int saved = omp_get_max_threads();
+    omp_set_num_threads(threads);
+    openblas_set_num_threads(1);
+    nn_ctx c = { g, g->scratch, g->scratch_floats };
+    for (int k = 0; k < g->num_nodes; k++) nn_ops[g->nodes[k].op].run(&c, &g->nodes[k]);
+    omp_set_num_threads(saved);
+    return PG_OK;
+}

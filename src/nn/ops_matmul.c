@@ -1,0 +1,148 @@
+/* ops_matmul.c - MatMul (numpy semantics, batch broadcast) and Gemm on cblas_sgemm.
+ * OpenBLAS runs single-threaded per call (nn_graph_run sets it); the threads split the work:
+ * one big product along its rows, a batch of products (attention heads) one product per thread. */
+#include "nn/nn_ops.h"
+
+#include <omp.h>
+#include <string.h>
+
+#include <cblas.h>
+
+void nn_sgemm1(int trans_a, int trans_b, int M, int N, int K, const float *A, int lda, const float *B, int ldb,
+               float beta, float *C, int ldc)
+{
+    if (M <= 0 || N <= 0) return;
+    if (K <= 0) {
+        for (int i = 0; i < M; i++) for (int j = 0; j < N; j++) C[(size_t)i * ldc + j] *= beta;
+        return;
+    }
+    cblas_sgemm(CblasRowMajor, trans_a ? CblasTrans : CblasNoTrans, trans_b ? CblasTrans : CblasNoTrans, M, N, K, 1.0f,
+                A, lda, B, ldb, beta, C, ldc);
+}
+
+void nn_sgemm(int trans_a, int trans_b, int M, int N, int K, const float *A, int lda, const float *B, int ldb,
+              float beta, float *C, int ldc)
+{
+    int nt = omp_get_max_threads();
+    double flops = 2.0 * M * N * (double)K;
+    if (nt <= 1 || flops < 2e6) { nn_sgemm1(trans_a, trans_b, M, N, K, A, lda, B, ldb, beta, C, ldc); return; }
+    int split_m = M >= 16 * nt;
+    #pragma omp parallel num_threads(nt)
+    {
+        int t = omp_get_thread_num(), T = omp_get_num_threads();
+        int total = split_m ? M : N;
+        int step = (total + T - 1) / T;
+        if (split_m) step = (step + 7) / 8 * 8;
+        else step = (step + 15) / 16 * 16;
+        int s = t * step, e = s + step < total ? s + step : total;
+        if (s < e) {
+            if (split_m)
+                nn_sgemm1(trans_a, trans_b, e - s, N, K, trans_a ? A + s : A + (size_t)s * lda, lda, B, ldb, beta,
+                          C + (size_t)s * ldc, ldc);
+            else
+                nn_sgemm1(trans_a, trans_b, M, e - s, K, A, lda, trans_b ? B + (size_t)s * ldb : B + s, ldb, beta, C + s, ldc);
+        }
+    }
+}
+
+size_t nn_scratch_matmul(const nn_graph *g, const nn_node *n) { (void)g; (void)n; return 0; }
+
+/* Shapes of a matmul operand as (batch dims..., rows, cols), 1-D promoted as numpy does. */
+pg_status nn_infer_matmul(nn_graph *g, nn_node *n)
+{
+    nn_tensor *a = nn_in(g, n, 0), *b = nn_in(g, n, 1);
+    if (!b) return nn_node_fail(n, "second input missing");
+    if (a->ndim < 1 || b->ndim < 1) return nn_node_fail(n, "scalar operand");
+    int64_t K = a->dims[a->ndim - 1];
+    int64_t Kb = b->ndim == 1 ? b->dims[0] : b->dims[b->ndim - 2];
+    if (K != Kb) return nn_node_fail(n, "inner dims differ (%lld vs %lld)", (long long)K, (long long)Kb);
+    int ba = a->ndim > 2 ? a->ndim - 2 : 0, bb = b->ndim > 2 ? b->ndim - 2 : 0;
+    int nb = ba > bb ? ba : bb;
+    int64_t dims[NN_MAX_DIMS + 2];
+    int nd = 0;
+    for (int i = 0; i < nb; i++) {
+        int ia = i - (nb - ba), ib = i - (nb - bb);
+        int64_t da = ia >= 0 ? a->dims[ia] : 1, db = ib >= 0 ? b->dims[ib] : 1;
+        if (da != db && da != 1 && db != 1) return nn_node_fail(n, "batch dims do not broadcast");
+        dims[nd++] = da == 1 ? db : da;
+    }
+    if (a->ndim >= 2) dims[nd++] = a->dims[a->ndim - 2];
+    if (b->ndim >= 2) dims[nd++] = b->dims[b->ndim - 1];
+    if (nd > NN_MAX_DIMS) return nn_node_fail(n, "too many dims");
+    return nn_set_output(g, n, 0, nd, dims);
+}
+
+void nn_run_matmul(const nn_ctx *c, const nn_node *n)
+{
+    nn_graph *g = c->g;
+    const nn_tensor *ta = nn_in(g, n, 0), *tb = nn_in(g, n, 1), *ty = nn_out(g, n, 0);
+    const float *a = nn_in_data(c, n, 0), *b = nn_in_data(c, n, 1);
+    float *y = nn_out_data(c, n, 0);
+    int M = ta->ndim >= 2 ? (int)ta->dims[ta->ndim - 2] : 1;
+    int K = (int)ta->dims[ta->ndim - 1];
+    int N = tb->ndim >= 2 ? (int)tb->dims[tb->ndim - 1] : 1;
+    int ba = ta->ndim > 2 ? ta->ndim - 2 : 0, bb = tb->ndim > 2 ? tb->ndim - 2 : 0;
+    int64_t count_a = nn_shape_count(ba, ta->dims), count_b = nn_shape_count(bb, tb->dims);
+    if (count_b == 1) {
+        /* B shared by every batch: one product with the batches stacked as rows */
+        nn_sgemm(0, 0, (int)(count_a * M), N, K, a, K, b, N, 0.0f, y, N);
+    } else {
+        int nb = ty->ndim - (ta->ndim >= 2) - (tb->ndim >= 2);
+        int64_t batch = nn_shape_count(nb, ty->dims);
+        /* strides of each batch dim in a and b (0 where broadcast) */
+        int64_t sa[NN_MAX_DIMS], sb[NN_MAX_DIMS], acc_a = (int64_t)M * K, acc_b = (int64_t)K * N;
+        for (int i = nb - 1; i >= 0; i--) {
+            int ia = i - (nb - ba), ib = i - (nb - bb);
+            int64_t da = ia >= 0 ? ta->dims[ia] : 1, db = ib >= 0 ? tb->dims[ib] : 1;
+            sa[i] = da == 1 ? 0 : acc_a;
+            sb[i] = db == 1 ? 0 : acc_b;
+            acc_a *= da;
+            acc_b *= db;
+        }
+        #pragma omp parallel for schedule(dynamic, 1)
+        for (int64_t p = 0; p < batch; p++) {
+            int64_t rem = p, oa = 0, ob = 0;
+            for (int i = nb - 1; i >= 0; i--) {
+                int64_t idx = rem % ty->dims[i];
+                rem /= ty->dims[i];
+                oa += idx * sa[i];
+                ob += idx * sb[i];
+            }
+            nn_sgemm1(0, 0, M, N, K, a + oa, K, b + ob, N, 0.0f, y + p * (int64_t)M * N, N);
+        }
+    }
+    nn_apply_act(y, (size_t)nn_shape_count(ty->ndim, ty->dims), n->attr.act, n->attr.act_alpha);
+}
+
+pg_status nn_infer_gemm(nn_graph *g, nn_node *n)
+{
+    nn_tensor *a = nn_in(g, n, 0), *b = nn_in(g, n, 1), *cc = nn_in(g, n, 2);
+    if (!b || a->ndim != 2 || b->ndim != 2) return nn_node_fail(n, "operands must be 2-D");
+    int64_t M = n->attr.trans_a ? a->dims[1] : a->dims[0], K = n->attr.trans_a ? a->dims[0] : a->dims[1];
+    int64_t Kb = n->attr.trans_b ? b->dims[1] : b->dims[0], N = n->attr.trans_b ? b->dims[0] : b->dims[1];
+    if (K != Kb) return nn_node_fail(n, "inner dims differ (%lld vs %lld)", (long long)K, (long long)Kb);
+    if (cc) {
+        if (cc->ndim > 2) return nn_node_fail(n, "C has more than 2 dims");
+        int64_t cm = cc->ndim == 2 ? cc->dims[0] : 1, cn = cc->ndim >= 1 ? cc->dims[cc->ndim - 1] : 1;
+        if ((cm != 1 && cm != M) || (cn != 1 && cn != N)) return nn_node_fail(n, "C does not broadcast to (%lld, %lld)", (long long)M, (long long)N);
+    }
+    return nn_set_output(g, n, 0, 2, (int64_t[]){ M, N });
+}
+
+void nn_run_gemm(const nn_ctx *c, const nn_node *n)
+{
+    nn_graph *g = c->g;
+    const nn_tensor *ta = nn_in(g, n, 0), *tb = nn_in(g, n, 1), *tc = nn_in(g, n, 2), *ty = nn_out(g, n, 0);
+    const float *a = nn_in_data(c, n, 0), *b = nn_in_data(c, n, 1), *cc = nn_in_data(c, n, 2);
+    float *y = nn_out_data(c, n, 0);
+    int M = (int)ty->dims[0], N = (int)ty->dims[1], K = (int)(n->attr.trans_a ? ta->dims[0] : ta->dims[1]);
+    float alpha = n->attr.alpha, beta = n->attr.beta;
+    nn_sgemm(n->attr.trans_a, n->attr.trans_b, M, N, K, a, (int)ta->dims[1], b, (int)tb->dims[1], 0.0f, y, N);
+    int64_t cm = 1, cn = 1;
+    if (tc) { cm = tc->ndim == 2 ? tc->dims[0] : 1; cn = tc->ndim >= 1 ? tc->dims[tc->ndim - 1] : 1; }
+    if (alpha != 1.0f || (tc && beta != 0.0f))
+        for (int i = 0; i < M; i++)
+            for (int j = 0; j < N; j++)
+                y[(size_t)i * N + j] = alpha * y[(size_t)i * N + j] + (tc ? beta * cc[(cm == 1 ? 0 : i) * cn + (cn == 1 ? 0 : j)] : 0.0f);
+    nn_apply_act(y, (size_t)M * N, n->attr.act, n->attr.act_alpha);
+}
