@@ -14,6 +14,7 @@
 #include "core/rng.h"
 #include "io/npy.h"
 #include "io/video.h"
+#include "nn/nn.h"
 #include "nn/tflite.h"
 
 /* ---- the all-ops model ---- */
@@ -134,6 +135,71 @@ static void test_parse_and_reference(void)
         mx = fmax(mx, fabs(y0[i]));
     }
     CHECK(finite && mx > 0.05, "reference output finite and not all zero (max %g)", mx);
+    nn_tfl_destroy(&m);
+    free(bytes);
+}
+
+/* Largest |a - b| / max(|b|max, floor) over n values: relative to the output's scale. */
+static double rel_diff(const float *a, const float *b, size_t n)
+{
+    double scale = 0, worst = 0;
+    for (size_t i = 0; i < n; i++) scale = fmax(scale, fabs(b[i]));
+    if (scale < 1e-6) scale = 1e-6;
+    for (size_t i = 0; i < n; i++) {
+        double d = fabs((double)a[i] - b[i]) / scale;
+        if (!(d <= worst)) worst = d; /* NaN counts as worst */
+    }
+    return worst;
+}
+
+/* Runs bytes with the runtime on threads threads; out[k] gets graph output k. */
+static pg_status run_runtime(const uint8_t *bytes, size_t n, const float *x, float **out, int num_out, int threads)
+{
+    nn_model *model;
+    PG_TRY(nn_model_load_memory(bytes, n, "model.tflite", &model));
+    nn_graph *g = nn_model_graph(model);
+    const nn_tensor *ti = &g->tensors[g->inputs[0]];
+    memcpy(nn_graph_data(g, g->inputs[0]), x, (size_t)nn_shape_count(ti->ndim, ti->dims) * sizeof(float));
+    pg_status st = nn_graph_run(g, threads);
+    for (int k = 0; !st && k < num_out; k++) {
+        const nn_tensor *to = &g->tensors[g->outputs[k]];
+        memcpy(out[k], nn_graph_data(g, g->outputs[k]), (size_t)nn_shape_count(to->ndim, to->dims) * sizeof(float));
+    }
+    nn_model_destroy(model);
+    return st;
+}
+
+static void test_runtime_vs_reference(void)
+{
+    size_t n;
+    uint8_t *bytes = all_ops_bytes(&n);
+    nn_tfl_model m;
+    CHECK_OK(nn_tfl_parse(bytes, n, "all_ops.tflite", &m));
+    float x[240], r0[400], r1[252], y0[400], y1[252];
+    for (int i = 0; i < 240; i++) x[i] = (float)((i * 37) % 101) / 100.0f;
+    float *ref[2] = { r0, r1 }, *run[2] = { y0, y1 };
+    CHECK_OK(nn_tfl_ref_run(&m, x, ref, 2));
+    for (int threads = 1; threads <= 2; threads++) {
+        memset(y0, 0, sizeof y0);
+        memset(y1, 0, sizeof y1);
+        CHECK_OK(run_runtime(bytes, n, x, run, 2, threads));
+        double d0 = rel_diff(y0, r0, 400), d1 = rel_diff(y1, r1, 252);
+        printf("all-ops model, %d thread(s): runtime vs reference %.2e, %.2e (relative to the output's largest value)\n", threads, d0, d1);
+        CHECK(d0 < 1e-5 && d1 < 1e-5, "runtime vs reference %g %g", d0, d1);
+    }
+    /* the IR the importer built: weights converted, the leaky pattern and bias fused */
+    nn_model *model;
+    CHECK_OK(nn_model_load_memory(bytes, n, "all_ops.tflite", &model));
+    if (model) {
+        const nn_graph *g = nn_model_graph(model);
+        int leaky_fused = 0, muls = 0;
+        for (int i = 0; i < g->num_nodes; i++) {
+            if (g->nodes[i].attr.act == NN_ACT_LEAKY_RELU && g->nodes[i].op == NN_OP_CONV) leaky_fused++;
+            muls += g->nodes[i].op == NN_OP_MUL || g->nodes[i].op == NN_OP_MAXIMUM;
+        }
+        CHECK(leaky_fused == 1 && muls == 0, "MUL + MAXIMUM fused into the depthwise conv (%d fused, %d left)", leaky_fused, muls);
+    }
+    nn_model_destroy(model);
     nn_tfl_destroy(&m);
     free(bytes);
 }
@@ -289,6 +355,117 @@ static void test_hostile(void)
     free(m);
 }
 
+/* Spearman rank correlation (average ranks for ties). */
+static const float *rank_key;
+static int rank_cmp(const void *a, const void *b)
+{
+    float x = rank_key[*(const int *)a], y = rank_key[*(const int *)b];
+    return (x > y) - (x < y);
+}
+static void ranks(const float *v, int n, double *r)
+{
+    int *idx = malloc((size_t)n * sizeof(int));
+    for (int i = 0; i < n; i++) idx[i] = i;
+    rank_key = v;
+    qsort(idx, (size_t)n, sizeof(int), rank_cmp);
+    for (int i = 0; i < n;) {
+        int j = i;
+        while (j + 1 < n && v[idx[j + 1]] == v[idx[i]]) j++;
+        for (int k = i; k <= j; k++) r[idx[k]] = (i + j) / 2.0;
+        i = j + 1;
+    }
+    free(idx);
+}
+static double spearman(const float *a, const float *b, int n)
+{
+    double *ra = malloc((size_t)n * sizeof(double)), *rb = malloc((size_t)n * sizeof(double));
+    ranks(a, n, ra);
+    ranks(b, n, rb);
+    double ma = 0, mb = 0, sab = 0, saa = 0, sbb = 0;
+    for (int i = 0; i < n; i++) ma += ra[i], mb += rb[i];
+    ma /= n, mb /= n;
+    for (int i = 0; i < n; i++) {
+        sab += (ra[i] - ma) * (rb[i] - mb);
+        saa += (ra[i] - ma) * (ra[i] - ma);
+        sbb += (rb[i] - mb) * (rb[i] - mb);
+    }
+    free(ra);
+    free(rb);
+    return sab / sqrt(saa * sbb);
+}
+
+/* The real PyDNet++ (skipped when ../shared/models does not have it): the runtime agrees with
+ * the reference to 1e-4 on tabletop_dev frame 0 and the depth ranks like the ground truth. */
+static void test_real_model(void)
+{
+    char path[4096], data_dir[4096], video[4200], gt_path[4300];
+    snprintf(path, sizeof path, "%s/models/pydnet++_matterport.tflite", PG_SHARED_DIR);
+    if (!pg_path_exists(path) || !test_shared_data("tabletop_dev", data_dir, sizeof data_dir)) {
+        printf("SKIP real PyDNet++: %s or tabletop_dev not found\n", path);
+        return;
+    }
+    char *bytes = NULL;
+    size_t n = 0;
+    CHECK_OK(pg_read_file(path, (size_t)64 << 20, &bytes, &n));
+    nn_tfl_model m;
+    pg_status st = nn_tfl_parse((const uint8_t *)bytes, n, path, &m);
+    CHECK(st == PG_OK && m.num_ops == 136 && m.num_outputs == 3, "PyDNet++ parses: %s", st ? pg_last_error() : "");
+    if (st) {
+        free(bytes);
+        return;
+    }
+    snprintf(video, sizeof video, "%s/cam00.mp4", data_dir);
+    snprintf(gt_path, sizeof gt_path, "%s/depth_gt/cam00.npy", data_dir);
+    io_video_options o = io_video_defaults();
+    o.count = 1;
+    io_frames fr;
+    pg_image img = { 0 }, in = { 0 };
+    CHECK_OK(io_frames_read(video, &o, &fr));
+    CHECK_OK(io_frames_image(&fr, 0, &img));
+    CHECK_OK(pg_image_resize(&in, &img, 640, 448));
+    size_t P = 448 * 640;
+    float *ref = malloc(P * sizeof(float)), *run = malloc(P * sizeof(float));
+    double t0 = pg_time_seconds();
+    CHECK_OK(nn_tfl_ref_run(&m, in.data, &ref, 1));
+    double t_ref = pg_time_seconds() - t0;
+    nn_model *model = NULL;
+    CHECK_OK(nn_model_load_memory(bytes, n, path, &model));
+    double best = 1e9;
+    for (int rep = 0; model && rep < 3; rep++) {
+        t0 = pg_time_seconds();
+        CHECK_OK(nn_model_run(model, in.data, run, 2));
+        double t = pg_time_seconds() - t0;
+        best = t < best ? t : best;
+    }
+    int finite = 1;
+    for (size_t i = 0; i < P; i++) finite &= isfinite(run[i]);
+    double d = rel_diff(run, ref, P);
+    printf("PyDNet++ 640x448: runtime vs reference %.2e relative; reference %.1f s, runtime %.0f ms on 2 threads (best of 3)\n",
+           d, t_ref, best * 1e3);
+    CHECK(finite, "output finite");
+    CHECK(d < 1e-4, "runtime vs reference %g", d);
+    /* Spearman against the ground truth at the video's size */
+    pg_image depth = { 640, 448, 1, run }, small = { 0 };
+    CHECK_OK(pg_image_resize(&small, &depth, img.width, img.height));
+    pg_array gt;
+    CHECK_OK(io_npy_load(gt_path, &gt));
+    if (gt.data && small.data) {
+        double rho = spearman(small.data, gt.data, img.width * img.height);
+        printf("PyDNet++ on tabletop_dev cam00 frame 0: Spearman %.4f vs depth_gt\n", rho);
+        CHECK(rho >= 0.4, "Spearman %.4f", rho);
+    }
+    pg_array_destroy(&gt);
+    pg_image_destroy(&small);
+    nn_model_destroy(model);
+    free(ref);
+    free(run);
+    pg_image_destroy(&img);
+    pg_image_destroy(&in);
+    io_frames_destroy(&fr);
+    nn_tfl_destroy(&m);
+    free(bytes);
+}
+
 /* Writes the seed corpus of tests/fuzz/fuzz_tflite.c into dir (small synthetic files). */
 static void write_corpus(const char *dir)
 {
@@ -307,7 +484,9 @@ int main(void)
     fill_weights();
     test_parse_and_reference();
     test_reference_by_hand();
+    test_runtime_vs_reference();
     test_hostile();
+    test_real_model();
     write_corpus(tmp);
     return test_summary("test_nn_tflite");
 }
