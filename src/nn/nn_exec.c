@@ -53,6 +53,7 @@ const nn_op_info nn_ops[NN_OP_COUNT] = {
     [NN_OP_PAD] = { "Pad", 1, 1, nn_infer_pad, nn_run_pad, NULL },
     [NN_OP_RESIZE] = { "Resize", 1, 1, nn_infer_resize, nn_run_resize, nn_scratch_resize },
     [NN_OP_IDENTITY] = { "Identity", 1, 1, nn_infer_unary, nn_run_reshape, NULL },
+    [NN_OP_ABS] = { "Abs", 1, 1, nn_infer_unary, nn_run_unary, NULL },
 };
 static_assert(sizeof nn_ops / sizeof nn_ops[0] == NN_OP_COUNT, "one nn_ops entry per nn_op");
 
@@ -349,22 +350,66 @@ static pg_status plan_memory(nn_graph *g)
     return PG_OK;
 }
 
+pg_status nn_node_infer(nn_graph *g, int id)
+{
+    nn_node *n = &g->nodes[id];
+    const nn_op_info *info = &nn_ops[n->op];
+    if (n->num_inputs < info->min_inputs || n->num_inputs > info->max_inputs)
+        return nn_node_fail(n, "%d inputs (expected %d to %d)", n->num_inputs, info->min_inputs, info->max_inputs);
+    for (int i = 0; i < n->num_inputs; i++) {
+        nn_tensor *t = nn_in(g, n, i);
+        if (!t && (i < info->min_inputs || n->op == NN_OP_CONCAT)) return nn_node_fail(n, "input %d missing", i);
+        if (t && t->ndim < 0) return nn_node_fail(n, "input '%s' has no shape", t->name);
+        if (t && t->dtype != NN_F32 && !(n->op == NN_OP_GATHER && i == 1))
+            return nn_node_fail(n, "input '%s' is int64 (only float32 is computed)", t->name);
+    }
+    return info->infer(g, n);
+}
+
+/* Runs once every node whose inputs are all constants, in order, and turns its outputs into
+ * constants; the node is dropped. Later nodes may then fold too. */
+static pg_status fold_constants(nn_graph *g)
+{
+    int kept = 0;
+    for (int k = 0; k < g->num_nodes; k++) {
+        nn_node *n = &g->nodes[k];
+        int all_const = 1;
+        for (int i = 0; i < n->num_inputs; i++) all_const &= n->inputs[i] < 0 || g->tensors[n->inputs[i]].data != NULL;
+        if (!all_const) { g->nodes[kept++] = *n; continue; }
+        for (int o = 0; o < n->num_outputs; o++) {
+            nn_tensor *t = nn_out(g, n, o);
+            size_t count = (size_t)nn_shape_count(t->ndim, t->dims);
+            t->data = pg_malloc((count ? count : 1) * sizeof(float), "folded constant");
+            if (!t->data) return PG_ERR_NOMEM;
+            t->producer = -1;
+        }
+        size_t sc = nn_ops[n->op].scratch ? nn_ops[n->op].scratch(g, n) : 0;
+        float *scratch = sc ? pg_malloc(sc * sizeof(float), "folding scratch") : NULL;
+        if (sc && !scratch) return PG_ERR_NOMEM;
+        nn_ctx c = { g, scratch, sc };
+        int saved = omp_get_max_threads();
+        omp_set_num_threads(1);
+        nn_ops[n->op].run(&c, n);
+        omp_set_num_threads(saved);
+        free(scratch);
+        free(n->name);
+        free(n->inputs);
+    }
+    g->num_nodes = kept;
+    for (int t = 0; t < g->num_tensors; t++) g->tensors[t].producer = -1;
+    for (int k = 0; k < kept; k++)
+        for (int o = 0; o < g->nodes[k].num_outputs; o++) g->tensors[g->nodes[k].outputs[o]].producer = k;
+    return PG_OK;
+}
+
 pg_status nn_graph_prepare(nn_graph *g)
 {
     if (g->prepared) return PG_OK;
     if (g->num_outputs < 1) return pg_fail(PG_ERR_FORMAT, "graph has no outputs");
     PG_TRY(link_tensors(g));
     PG_TRY(sort_nodes(g));
-    for (int k = 0; k < g->num_nodes; k++) {
-        nn_node *n = &g->nodes[k];
-        for (int i = 0; i < n->num_inputs; i++) {
-            nn_tensor *t = nn_in(g, n, i);
-            if (t && t->ndim < 0) return nn_node_fail(n, "input '%s' has no shape", t->name);
-            if (t && t->dtype != NN_F32 && !(n->op == NN_OP_GATHER && i == 1))
-                return nn_node_fail(n, "input '%s' is int64 (only float32 is computed)", t->name);
-        }
-        PG_TRY(nn_ops[n->op].infer(g, n));
-    }
+    for (int k = 0; k < g->num_nodes; k++) PG_TRY(nn_node_infer(g, k));
+    PG_TRY(fold_constants(g));
     g->const_bytes = 0;
     for (int t = 0; t < g->num_tensors; t++) {
         nn_tensor *x = &g->tensors[t];

@@ -107,6 +107,7 @@ typedef enum {
     NN_OP_PAD,            /* (x) attr: pads[2*ndim] (begins then ends, as ONNX) pad_mode pad_value */
     NN_OP_RESIZE,         /* (x) attr: layout out_h out_w resize_mode coord_mode nearest_mode */
     NN_OP_IDENTITY,       /* (x) copy */
+    NN_OP_ABS,            /* (x) unary */
     NN_OP_COUNT
 } nn_op;
 
@@ -209,9 +210,13 @@ pg_status nn_graph_set_io(nn_graph *g, const int *inputs, int num_inputs, const 
 int nn_graph_find_tensor(const nn_graph *g, const char *name);
 
 /* nn_exec.c: validates (ids, cycles, shapes against limits), puts nodes in topological order,
- * infers every shape, drops nodes no output depends on, and plans the arena (tensors share memory
- * once their last reader ran). Fails with one line naming the node at fault. */
+ * infers every shape, drops nodes no output depends on, evaluates once the nodes whose inputs are
+ * all constants (their outputs become constants), and plans the arena (tensors share memory once
+ * their last reader ran). Fails with one line naming the node at fault. */
 pg_status nn_graph_prepare(nn_graph *g);
+/* Checks node id's inputs (count, presence, known shapes, float32) and infers its outputs' shapes;
+ * importers call it as they add nodes so later shape-dependent ops (Shape, Flatten) see shapes. */
+pg_status nn_node_infer(nn_graph *g, int id);
 /* Runs all nodes with the given number of threads (<= 0: all cores). Inputs must be written first. */
 pg_status nn_graph_run(nn_graph *g, int threads);
 /* Float data of a tensor (constant or arena) after prepare; NULL for int64 tensors. */

@@ -140,6 +140,7 @@ void nn_run_unary(const nn_ctx *c, const nn_node *n)
         case NN_OP_EXP: for (int64_t i = s; i < e; i++) y[i] = expf(x[i]); break;
         case NN_OP_TANH: for (int64_t i = s; i < e; i++) y[i] = tanhf(x[i]); break;
         case NN_OP_NEG: for (int64_t i = s; i < e; i++) y[i] = -x[i]; break;
+        case NN_OP_ABS: for (int64_t i = s; i < e; i++) y[i] = fabsf(x[i]); break;
         case NN_OP_RELU: for (int64_t i = s; i < e; i++) y[i] = x[i] > 0 ? x[i] : 0; break;
         case NN_OP_LEAKY_RELU: for (int64_t i = s; i < e; i++) y[i] = x[i] >= 0 ? x[i] : alpha * x[i]; break;
         case NN_OP_SIGMOID: for (int64_t i = s; i < e; i++) y[i] = 1.0f / (1.0f + expf(-x[i])); break;
