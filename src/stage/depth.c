@@ -109,9 +109,10 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
     const depth_net_info *info = depth_net_get_info(net);
     int side = info->width > info->height ? info->width : info->height;
     if (c->size && c->size != side) {
+        pg_status st = pg_fail(PG_ERR_ARG, "%s: the model's input is fixed at %dx%d; --size %d cannot change it", c->model,
+                               info->width, info->height, c->size);
         depth_net_close(net);
-        return pg_fail(PG_ERR_ARG, "%s: the model's input is fixed at %dx%d; --size %d cannot change it", c->model, info->width,
-                       info->height, c->size);
+        return st;
     }
     snprintf(r->model_name, sizeof r->model_name, "%s", info->name);
     snprintf(r->kind, sizeof r->kind, "%s", info->disparity ? "disparity" : "depth");
