@@ -204,6 +204,46 @@ static void test_runtime_vs_reference(void)
     free(bytes);
 }
 
+/* Two 3x3 stride-1 NHWC convs (ops_conv_nhwc.c): odd sizes, SAME and VALID padding, bias, fused
+ * RELU6, no bias, against the reference. */
+static void test_conv3x3(void)
+{
+    static float w[20 * 3 * 3 * 16], b[20], w2[24 * 3 * 3 * 20];
+    pg_rng r;
+    pg_rng_seed(&r, 11);
+    for (size_t i = 0; i < sizeof w / sizeof w[0]; i++) w[i] = (float)pg_rng_uniform(&r) - 0.5f;
+    for (size_t i = 0; i < sizeof w2 / sizeof w2[0]; i++) w2[i] = (float)pg_rng_uniform(&r) - 0.5f;
+    for (int i = 0; i < 20; i++) b[i] = (float)pg_rng_uniform(&r);
+    tw_model *m = calloc(1, sizeof *m);
+    int x = tw_tensor(m, "x", 4, T4(1, 7, 9, 16), TW_F32, NULL, 0);
+    int tw = tw_tensor(m, "w", 4, T4(20, 3, 3, 16), TW_F32, w, sizeof w);
+    int tb = tw_tensor(m, "b", 1, (int[]){ 20 }, TW_F32, b, sizeof b);
+    int y = tw_tensor(m, "y", 4, T4(1, 7, 9, 20), TW_F32, NULL, 0);
+    tw_op(m, 3, IN(x, tw, tb), y, 1, 4, (int32_t[]){ 0, 1, 1, 3 }, "biib");
+    int tw2 = tw_tensor(m, "w2", 4, T4(24, 3, 3, 20), TW_F32, w2, sizeof w2);
+    int z = tw_tensor(m, "z", 4, T4(1, 5, 7, 24), TW_F32, NULL, 0);
+    tw_op(m, 3, IN(y, tw2, -1), z, 1, 4, (int32_t[]){ 1, 1, 1, 0 }, "biib");
+    m->inputs[m->num_inputs++] = x;
+    m->outputs[m->num_outputs++] = z;
+    size_t n;
+    uint8_t *bytes = tw_build(m, &n);
+    free(m);
+    nn_tfl_model t;
+    CHECK_OK(nn_tfl_parse(bytes, n, "conv3x3.tflite", &t));
+    float in[7 * 9 * 16], ref[5 * 7 * 24], run[5 * 7 * 24];
+    for (int i = 0; i < 7 * 9 * 16; i++) in[i] = (float)pg_rng_uniform(&r) * 2 - 1;
+    float *pr = ref, *pu = run;
+    CHECK_OK(nn_tfl_ref_run(&t, in, &pr, 1));
+    for (int threads = 1; threads <= 2; threads++) {
+        CHECK_OK(run_runtime(bytes, n, in, &pu, 1, threads));
+        double d = rel_diff(run, ref, 5 * 7 * 24);
+        printf("3x3 convs (7x9x16 -> 20 SAME RELU6 -> 24 VALID), %d thread(s): %.2e vs reference\n", threads, d);
+        CHECK(d < 1e-5, "3x3 convs vs reference %g", d);
+    }
+    nn_tfl_destroy(&t);
+    free(bytes);
+}
+
 /* Hand-computed values of the reference's trickier ops. */
 static void test_reference_by_hand(void)
 {
@@ -485,6 +525,7 @@ int main(void)
     test_parse_and_reference();
     test_reference_by_hand();
     test_runtime_vs_reference();
+    test_conv3x3();
     test_hostile();
     test_real_model();
     write_corpus(tmp);
