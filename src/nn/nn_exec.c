@@ -372,6 +372,7 @@ pg_status nn_node_infer(nn_graph *g, int id)
 static pg_status fold_constants(nn_graph *g)
 {
     int kept = 0;
+    size_t folded = 0;
     for (int k = 0; k < g->num_nodes; k++) {
         nn_node *n = &g->nodes[k];
         int all_const = 1;
@@ -380,6 +381,9 @@ static pg_status fold_constants(nn_graph *g)
         for (int o = 0; o < n->num_outputs; o++) {
             nn_tensor *t = nn_out(g, n, o);
             size_t count = (size_t)nn_shape_count(t->ndim, t->dims);
+            folded += count * sizeof(float);
+            if (folded > NN_MAX_WORK_BYTES)
+                return pg_fail(PG_ERR_SIZE, "node '%s' (%s): folded constants exceed %zu MiB", n->name, nn_op_name(n->op), NN_MAX_WORK_BYTES >> 20);
             t->data = pg_malloc((count ? count : 1) * sizeof(float), "folded constant");
             if (!t->data) return PG_ERR_NOMEM;
             t->producer = -1;
@@ -545,8 +549,12 @@ pg_status nn_graph_prepare(nn_graph *g)
             if (s > g->scratch_floats) g->scratch_floats = s;
         }
     }
-    if (g->arena_floats > (size_t)4 * NN_MAX_ELEMENTS)
-        return pg_fail(PG_ERR_SIZE, "the model needs %zu MiB of activations", g->arena_floats * 4 >> 20);
+    /* working memory for as many threads as there are cores (nn_graph_run checks again for more) */
+    size_t procs = (size_t)omp_get_num_procs();
+    if (g->scratch_floats > NN_MAX_WORK_BYTES / 4 / procs || g->arena_floats > NN_MAX_WORK_BYTES / 4 ||
+        (g->arena_floats + g->scratch_floats * procs) * 4 > NN_MAX_WORK_BYTES)
+        return pg_fail(PG_ERR_SIZE, "the model needs more than %zu MiB of working memory (activations %zu MiB, scratch %zu MiB per thread)",
+                       NN_MAX_WORK_BYTES >> 20, g->arena_floats >> 18, g->scratch_floats >> 18);
     g->arena = aligned_alloc(64, (g->arena_floats + NN_ALIGN) * sizeof(float));
     if (!g->arena) return pg_fail(PG_ERR_NOMEM, "out of memory for a %zu MiB activation arena", g->arena_floats * 4 >> 20);
     memset(g->arena, 0, (g->arena_floats + NN_ALIGN) * sizeof(float));
@@ -562,8 +570,8 @@ pg_status nn_graph_run(nn_graph *g, int threads)
         free(g->scratch);
         g->scratch_threads = 0;
         size_t bytes;
-        if (pg_size_mul(g->scratch_floats * sizeof(float), (size_t)threads, &bytes))
-            return pg_fail(PG_ERR_SIZE, "scratch size overflows");
+        if (pg_size_mul(g->scratch_floats * sizeof(float), (size_t)threads, &bytes) || bytes > NN_MAX_WORK_BYTES)
+            return pg_fail(PG_ERR_SIZE, "%d threads need more than %zu MiB of scratch", threads, NN_MAX_WORK_BYTES >> 20);
         g->scratch = aligned_alloc(64, (bytes + 63) / 64 * 64);
         if (!g->scratch) return pg_fail(PG_ERR_NOMEM, "out of memory for %zu MiB of scratch", bytes >> 20);
         g->scratch_threads = threads;
