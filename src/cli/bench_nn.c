@@ -1,79 +1,79 @@
-/* bench_nn.c - `prodygs bench nn --model FILE`: time of one forward pass of a TFLite or ONNX
- * model on the nn runtime.
- *
- * The input is a smooth pattern in [0, 1] of the model's first input shape; one warm-up run, then
- * --reps timed runs on --threads threads. Prints one JSON line: median wall and process-CPU
- * seconds per run, the load, the memory the model holds and the input shape. (Added on nn-tflite
- * for the PyDNet++ speed check; the ONNX branch may extend it.)
- */
+/* bench_nn.c - `prodygs bench nn --model FILE`: time of one forward pass of an ONNX (or TFLite)
+ * model on a seeded random input; one JSON line with the median over --reps after a warm-up. */
 #include "cli/cli.h"
 #include "core/parallel.h"
+#include "core/rng.h"
 #include "nn/nn.h"
 
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
 
 int bench_nn(int argc, char **argv)
 {
     const char *model_path = NULL;
-    int reps = 10, threads = 2;
+    int threads = 2, reps = 5, profile = 0;
     const cli_option opts[] = {
-        { "--model", CLI_STR, &model_path, "model file: .tflite or .onnx (required)" },
+        { "--model", CLI_STR, &model_path, "model file (.onnx) (required)" },
         { "--threads", CLI_INT, &threads, "threads (default 2)" },
-        { "--reps", CLI_INT, &reps, "timed repetitions (default 10)" },
+        { "--reps", CLI_INT, &reps, "timed repetitions (default 5)" },
+        { "--profile", CLI_FLAG, &profile, "add the time per op kind (ms per frame) to the JSON" },
     };
-    cli_spec spec = { "prodygs bench nn", "--model FILE [options]", "time one forward pass of a model on the nn runtime", opts,
+    cli_spec spec = { "prodygs bench nn", "--model FILE [options]", "time one forward pass of a network", opts,
                       (int)(sizeof(opts) / sizeof(opts[0])), 0, 0 };
     int np = 0;
     int rc = cli_parse(&spec, argc, argv, NULL, &np);
     if (rc) return rc < 0 ? 0 : rc;
     if (!model_path) return cli_usage_error("bench nn: --model FILE is required");
-    if (reps < 1 || reps > 1000) return cli_usage_error("bench nn: --reps must be in 1..1000");
-    if (threads < 1 || threads > 256) return cli_usage_error("bench nn: --threads must be in 1..256");
-    double tl0 = pg_time_seconds();
+    if (threads < 1 || threads > 1024 || reps < 1 || reps > 10000) return cli_usage_error("bench nn: bad --threads/--reps");
+    struct stat sb;
+    if (stat(model_path, &sb) != 0) return cli_fail(pg_fail(PG_ERR_IO, "%s: cannot open", model_path));
+    double t0 = pg_time_seconds();
     nn_model *m;
     pg_status st = nn_model_load(model_path, &m);
     if (st) return cli_fail(st);
-    double load_s = pg_time_seconds() - tl0;
-    int64_t din[NN_MAX_DIMS], dout[NN_MAX_DIMS];
-    int ni = nn_model_input_shape(m, din), no = nn_model_output_shape(m, dout);
-    size_t nin = (size_t)nn_shape_count(ni, din), nout = (size_t)nn_shape_count(no, dout);
-    float *x = malloc(nin * sizeof(float)), *y = malloc((nout ? nout : 1) * sizeof(float));
-    double *wall = malloc(sizeof(double) * reps), *cpu = malloc(sizeof(double) * reps);
-    if (!x || !y || !wall || !cpu) st = pg_fail(PG_ERR_NOMEM, "bench nn: out of memory");
-    for (size_t i = 0; !st && i < nin; i++) x[i] = 0.5f + 0.4f * sinf(0.013f * (float)i) * cosf(0.0007f * (float)i);
-    if (!st) st = nn_model_run(m, x, y, threads); /* warm-up: scratch allocation, page faults */
-    for (int r = 0; r < reps && !st; r++) {
-        double t0 = pg_time_seconds(), c0 = pg_cpu_seconds();
-        st = nn_model_run(m, x, y, threads);
-        wall[r] = pg_time_seconds() - t0;
-        cpu[r] = pg_cpu_seconds() - c0;
+    double load_ms = (pg_time_seconds() - t0) * 1e3;
+    int64_t di[NN_MAX_DIMS], dout[NN_MAX_DIMS];
+    int ni = nn_model_input_shape(m, di), no = nn_model_output_shape(m, dout);
+    size_t nx = (size_t)nn_shape_count(ni, di), ny = (size_t)nn_shape_count(no, dout);
+    float *x = malloc((nx ? nx : 1) * sizeof(float)), *y = malloc((ny ? ny : 1) * sizeof(float));
+    double *ms = malloc((size_t)reps * sizeof(double));
+    if (!x || !y || !ms) st = pg_fail(PG_ERR_NOMEM, "bench nn: out of memory");
+    double prof[NN_OP_COUNT] = { 0 };
+    if (!st && profile) nn_model_graph(m)->profile_ms = prof;
+    if (!st) {
+        pg_rng rng;
+        pg_rng_seed(&rng, 1);
+        for (size_t i = 0; i < nx; i++) x[i] = (float)pg_rng_normal(&rng);
+        for (int r = -1; r < reps && !st; r++) {
+            double a = pg_time_seconds();
+            st = nn_model_run(m, x, y, threads);
+            if (r >= 0) ms[r] = (pg_time_seconds() - a) * 1e3;
+        }
     }
     if (!st) {
-        char shape[128] = "";
-        for (int i = 0; i < ni; i++) {
-            size_t n = strlen(shape);
-            snprintf(shape + n, sizeof shape - n, "%s%lld", i ? "x" : "", (long long)din[i]);
+        double med = pg_median(ms, reps), min = ms[0]; /* pg_median sorted ms */
+        struct rusage ru;
+        getrusage(RUSAGE_SELF, &ru);
+        char shape[128];
+        int at = 0;
+        for (int i = 0; i < ni && at < (int)sizeof shape - 24; i++) at += snprintf(shape + at, sizeof shape - (size_t)at, "%s%lld", i ? "x" : "", (long long)di[i]);
+        if (ni == 0) shape[0] = 0;
+        printf("{\"bench\":\"nn\",\"model\":\"%s\",\"model_bytes\":%lld,\"input\":\"%s\",\"threads\":%d,\"reps\":%d,"
+               "\"ms_per_frame\":%.1f,\"min_ms\":%.1f,\"load_ms\":%.1f,\"runtime_bytes\":%zu,\"peak_memory_bytes\":%lld",
+               model_path, (long long)sb.st_size, shape, threads, reps, med, min, load_ms, nn_model_memory_bytes(m),
+               (long long)ru.ru_maxrss * 1024);
+        if (profile) {
+            printf(",\"profile_ms\":{");
+            int first = 1;
+            for (int k = 0; k < NN_OP_COUNT; k++)
+                if (prof[k] > 0) { printf("%s\"%s\":%.1f", first ? "" : ",", nn_op_name((nn_op)k), prof[k] / (reps + 1)); first = 0; }
+            printf("}");
         }
-        double best = wall[0];
-        for (int r = 1; r < reps; r++) best = wall[r] < best ? wall[r] : best;
-        double loadavg = 0;
-        FILE *f = fopen("/proc/loadavg", "r");
-        if (f) {
-            if (fscanf(f, "%lf", &loadavg) != 1) loadavg = 0;
-            fclose(f);
-        }
-        printf("{\"bench\": \"nn\", \"model\": \"%s\", \"input\": \"%s\", \"threads\": %d, \"reps\": %d, \"load_s\": %.3f, "
-               "\"median_ms\": %.1f, \"best_ms\": %.1f, \"median_cpu_ms\": %.1f, \"memory_mib\": %.1f, \"loadavg\": %.2f}\n",
-               model_path, shape, threads, reps, load_s, 1e3 * pg_median(wall, reps), 1e3 * best, 1e3 * pg_median(cpu, reps),
-               nn_model_memory_bytes(m) / 1048576.0, loadavg);
+        printf("}\n");
     }
-    free(x);
-    free(y);
-    free(wall);
-    free(cpu);
+    free(x); free(y); free(ms);
     nn_model_destroy(m);
     return st ? cli_fail(st) : 0;
 }

@@ -27,7 +27,7 @@ int cmd_bench(int argc, char **argv)
                "  deform     HexPlane + MLP deformation forward/backward\n"
                "  loss       image losses (L1, SSIM) forward/backward\n"
                "  flow       optical flow between two frames\n"
-               "  nn         one forward pass of a TFLite / ONNX model (--model FILE)\n\n"
+               "  nn         one forward pass of a network (--model FILE.onnx)\n\n"
                "prodygs bench KIND --help lists the options of each.\n");
         return 0;
     }

@@ -10,6 +10,7 @@
 
 #include <assert.h>
 #include <limits.h>
+#include <math.h>
 #include <omp.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -23,7 +24,7 @@
 const nn_op_info nn_ops[NN_OP_COUNT] = {
     [NN_OP_CONV] = { "Conv", 2, 3, nn_infer_conv, nn_run_conv, nn_scratch_conv },
     [NN_OP_CONV_TRANSPOSE] = { "ConvTranspose", 2, 3, nn_infer_conv_transpose, nn_run_conv_transpose, nn_scratch_conv_transpose },
-    [NN_OP_MATMUL] = { "MatMul", 2, 2, nn_infer_matmul, nn_run_matmul, nn_scratch_matmul },
+    [NN_OP_MATMUL] = { "MatMul", 2, 3, nn_infer_matmul, nn_run_matmul, nn_scratch_matmul },
     [NN_OP_GEMM] = { "Gemm", 2, 3, nn_infer_gemm, nn_run_gemm, NULL },
     [NN_OP_ADD] = { "Add", 2, 2, nn_infer_binary, nn_run_binary, NULL },
     [NN_OP_SUB] = { "Sub", 2, 2, nn_infer_binary, nn_run_binary, NULL },
@@ -371,6 +372,7 @@ pg_status nn_node_infer(nn_graph *g, int id)
 static pg_status fold_constants(nn_graph *g)
 {
     int kept = 0;
+    size_t folded = 0;
     for (int k = 0; k < g->num_nodes; k++) {
         nn_node *n = &g->nodes[k];
         int all_const = 1;
@@ -379,6 +381,9 @@ static pg_status fold_constants(nn_graph *g)
         for (int o = 0; o < n->num_outputs; o++) {
             nn_tensor *t = nn_out(g, n, o);
             size_t count = (size_t)nn_shape_count(t->ndim, t->dims);
+            folded += count * sizeof(float);
+            if (folded > NN_MAX_WORK_BYTES)
+                return pg_fail(PG_ERR_SIZE, "node '%s' (%s): folded constants exceed %zu MiB", n->name, nn_op_name(n->op), NN_MAX_WORK_BYTES >> 20);
             t->data = pg_malloc((count ? count : 1) * sizeof(float), "folded constant");
             if (!t->data) return PG_ERR_NOMEM;
             t->producer = -1;
@@ -402,6 +407,125 @@ static pg_status fold_constants(nn_graph *g)
     return PG_OK;
 }
 
+/* ---- fusion: fewer passes over memory, same arithmetic ----
+ *   Conv / ConvTranspose / MatMul / Gemm + Relu          -> fused activation
+ *   MatMul + Add(constant bias of N values)              -> MatMul with a bias input
+ *   Transpose(swap of the last two axes) -> MatMul's b   -> MatMul trans_b
+ *   x / sqrt(2) -> Erf -> + 1 -> * x -> * 0.5            -> Gelu (torch's export of nn.GELU)
+ * An intermediate tensor is fused away only if its one reader is the next node of the pattern and
+ * it is not a graph output. */
+
+static int const_scalar(const nn_graph *g, int id, float *v)
+{
+    if (id < 0) return 0;
+    const nn_tensor *t = &g->tensors[id];
+    if (!t->data || t->dtype != NN_F32 || nn_shape_count(t->ndim, t->dims) != 1) return 0;
+    *v = ((float *)t->data)[0];
+    return 1;
+}
+
+static pg_status fuse_nodes(nn_graph *g)
+{
+    int N = g->num_nodes, T = g->num_tensors;
+    int *readers = calloc((size_t)T + 1, sizeof(int)), *reader = malloc(((size_t)T + 1) * sizeof(int));
+    char *dead = calloc((size_t)N + 1, 1);
+    if (!readers || !reader || !dead) { free(readers); free(reader); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
+    for (int k = 0; k < N; k++)
+        for (int i = 0; i < g->nodes[k].num_inputs; i++) {
+            int t = g->nodes[k].inputs[i];
+            if (t >= 0) { readers[t]++; reader[t] = k; }
+        }
+    for (int i = 0; i < g->num_outputs; i++) readers[g->outputs[i]] += 2;
+    /* the only reader of node k's output, or -1 */
+    #define NEXT(k) (readers[g->nodes[k].outputs[0]] == 1 && g->nodes[k].num_outputs == 1 ? reader[g->nodes[k].outputs[0]] : -1)
+    for (int k = 0; k < N; k++) {
+        nn_node *n = &g->nodes[k];
+        if (dead[k]) continue;
+        /* Transpose (last two axes) feeding MatMul's b */
+        if (n->op == NN_OP_TRANSPOSE && NEXT(k) >= 0) {
+            int m = NEXT(k);
+            nn_node *mm = &g->nodes[m];
+            const nn_attrs *a = &n->attr;
+            int nd = a->num_perm, swap = nd >= 2 && a->perm[nd - 1] == nd - 2 && a->perm[nd - 2] == nd - 1;
+            for (int i = 0; i < nd - 2 && swap; i++) swap = a->perm[i] == i;
+            if (swap && mm->op == NN_OP_MATMUL && mm->inputs[1] == n->outputs[0] && mm->inputs[0] != n->outputs[0] && !mm->attr.trans_b) {
+                mm->inputs[1] = n->inputs[0];
+                mm->attr.trans_b = 1;
+                dead[k] = 1;
+                continue;
+            }
+        }
+        /* Gelu */
+        if (n->op == NN_OP_DIV && NEXT(k) >= 0) {
+            float v;
+            int x = n->inputs[0], e = NEXT(k);
+            if (!const_scalar(g, n->inputs[1], &v) || fabsf(v - 1.41421356f) > 1e-5f || g->nodes[e].op != NN_OP_ERF) goto not_gelu;
+            int ad = NEXT(e);
+            if (ad < 0 || g->nodes[ad].op != NN_OP_ADD) goto not_gelu;
+            int other = g->nodes[ad].inputs[0] == g->nodes[e].outputs[0] ? g->nodes[ad].inputs[1] : g->nodes[ad].inputs[0];
+            if (!const_scalar(g, other, &v) || v != 1.0f) goto not_gelu;
+            int m1 = NEXT(ad);
+            if (m1 < 0 || g->nodes[m1].op != NN_OP_MUL) goto not_gelu;
+            other = g->nodes[m1].inputs[0] == g->nodes[ad].outputs[0] ? g->nodes[m1].inputs[1] : g->nodes[m1].inputs[0];
+            if (other != x) goto not_gelu;
+            int m2 = NEXT(m1);
+            if (m2 < 0 || g->nodes[m2].op != NN_OP_MUL) goto not_gelu;
+            other = g->nodes[m2].inputs[0] == g->nodes[m1].outputs[0] ? g->nodes[m2].inputs[1] : g->nodes[m2].inputs[0];
+            if (!const_scalar(g, other, &v) || v != 0.5f) goto not_gelu;
+            nn_node *gn = &g->nodes[m2];
+            gn->op = NN_OP_GELU;
+            gn->inputs[0] = x;
+            gn->num_inputs = 1;
+            gn->attr.gelu_tanh = 0;
+            dead[k] = dead[e] = dead[ad] = dead[m1] = 1;
+            continue;
+        }
+    not_gelu:
+        if (n->op != NN_OP_CONV && n->op != NN_OP_CONV_TRANSPOSE && n->op != NN_OP_MATMUL && n->op != NN_OP_GEMM) continue;
+        /* MatMul + bias */
+        if (n->op == NN_OP_MATMUL && n->num_inputs == 2 && NEXT(k) >= 0 && n->attr.act == NN_ACT_NONE) {
+            int m = NEXT(k);
+            nn_node *ad = &g->nodes[m];
+            const nn_tensor *y = &g->tensors[n->outputs[0]];
+            if (ad->op == NN_OP_ADD && ad->attr.act == NN_ACT_NONE && y->ndim >= 2) {
+                int bias = ad->inputs[0] == n->outputs[0] ? ad->inputs[1] : ad->inputs[0];
+                const nn_tensor *b = &g->tensors[bias];
+                int64_t cols = y->dims[y->ndim - 1];
+                int fits = b->data && b->dtype == NN_F32 && nn_shape_count(b->ndim, b->dims) == cols && b->ndim <= y->ndim &&
+                           ad->inputs[0] != ad->inputs[1];
+                if (fits) {
+                    int *in = realloc(n->inputs, 3 * sizeof(int));
+                    if (!in) { free(readers); free(reader); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
+                    n->inputs = in;
+                    n->inputs[2] = bias;
+                    n->num_inputs = 3;
+                    n->outputs[0] = ad->outputs[0];
+                    dead[m] = 1;
+                }
+            }
+        }
+        /* + Relu */
+        if (NEXT(k) >= 0 && n->attr.act == NN_ACT_NONE && g->nodes[NEXT(k)].op == NN_OP_RELU) {
+            int m = NEXT(k);
+            n->attr.act = NN_ACT_RELU;
+            n->outputs[0] = g->nodes[m].outputs[0];
+            dead[m] = 1;
+        }
+    }
+    #undef NEXT
+    int kept = 0;
+    for (int k = 0; k < N; k++) {
+        if (dead[k]) { free(g->nodes[k].name); free(g->nodes[k].inputs); continue; }
+        g->nodes[kept++] = g->nodes[k];
+    }
+    g->num_nodes = kept;
+    for (int t = 0; t < T; t++) g->tensors[t].producer = -1;
+    for (int k = 0; k < kept; k++)
+        for (int o = 0; o < g->nodes[k].num_outputs; o++) g->tensors[g->nodes[k].outputs[o]].producer = k;
+    free(readers); free(reader); free(dead);
+    return PG_OK;
+}
+
 pg_status nn_graph_prepare(nn_graph *g)
 {
     if (g->prepared) return PG_OK;
@@ -410,6 +534,7 @@ pg_status nn_graph_prepare(nn_graph *g)
     PG_TRY(sort_nodes(g));
     for (int k = 0; k < g->num_nodes; k++) PG_TRY(nn_node_infer(g, k));
     PG_TRY(fold_constants(g));
+    PG_TRY(fuse_nodes(g));
     g->const_bytes = 0;
     for (int t = 0; t < g->num_tensors; t++) {
         nn_tensor *x = &g->tensors[t];
@@ -424,8 +549,12 @@ pg_status nn_graph_prepare(nn_graph *g)
             if (s > g->scratch_floats) g->scratch_floats = s;
         }
     }
-    if (g->arena_floats > (size_t)4 * NN_MAX_ELEMENTS)
-        return pg_fail(PG_ERR_SIZE, "the model needs %zu MiB of activations", g->arena_floats * 4 >> 20);
+    /* working memory for as many threads as there are cores (nn_graph_run checks again for more) */
+    size_t procs = (size_t)omp_get_num_procs();
+    if (g->scratch_floats > NN_MAX_WORK_BYTES / 4 / procs || g->arena_floats > NN_MAX_WORK_BYTES / 4 ||
+        (g->arena_floats + g->scratch_floats * procs) * 4 > NN_MAX_WORK_BYTES)
+        return pg_fail(PG_ERR_SIZE, "the model needs more than %zu MiB of working memory (activations %zu MiB, scratch %zu MiB per thread)",
+                       NN_MAX_WORK_BYTES >> 20, g->arena_floats >> 18, g->scratch_floats >> 18);
     g->arena = aligned_alloc(64, (g->arena_floats + NN_ALIGN) * sizeof(float));
     if (!g->arena) return pg_fail(PG_ERR_NOMEM, "out of memory for a %zu MiB activation arena", g->arena_floats * 4 >> 20);
     memset(g->arena, 0, (g->arena_floats + NN_ALIGN) * sizeof(float));
@@ -441,8 +570,8 @@ pg_status nn_graph_run(nn_graph *g, int threads)
         free(g->scratch);
         g->scratch_threads = 0;
         size_t bytes;
-        if (pg_size_mul(g->scratch_floats * sizeof(float), (size_t)threads, &bytes))
-            return pg_fail(PG_ERR_SIZE, "scratch size overflows");
+        if (pg_size_mul(g->scratch_floats * sizeof(float), (size_t)threads, &bytes) || bytes > NN_MAX_WORK_BYTES)
+            return pg_fail(PG_ERR_SIZE, "%d threads need more than %zu MiB of scratch", threads, NN_MAX_WORK_BYTES >> 20);
         g->scratch = aligned_alloc(64, (bytes + 63) / 64 * 64);
         if (!g->scratch) return pg_fail(PG_ERR_NOMEM, "out of memory for %zu MiB of scratch", bytes >> 20);
         g->scratch_threads = threads;
@@ -451,7 +580,11 @@ pg_status nn_graph_run(nn_graph *g, int threads)
     omp_set_num_threads(threads);
     openblas_set_num_threads(1);
     nn_ctx c = { g, g->scratch, g->scratch_floats };
-    for (int k = 0; k < g->num_nodes; k++) nn_ops[g->nodes[k].op].run(&c, &g->nodes[k]);
+    for (int k = 0; k < g->num_nodes; k++) {
+        double t0 = g->profile_ms ? omp_get_wtime() : 0;
+        nn_ops[g->nodes[k].op].run(&c, &g->nodes[k]);
+        if (g->profile_ms) g->profile_ms[g->nodes[k].op] += (omp_get_wtime() - t0) * 1e3;
+    }
     omp_set_num_threads(saved);
     return PG_OK;
 }

@@ -45,7 +45,8 @@
 #define NN_MAX_OUTPUTS 4
 #define NN_MAX_IO 8                         /* graph inputs / outputs */
 #define NN_MAX_DIM ((int64_t)1 << 24)        /* largest single dim a model may declare */
-#define NN_MAX_ELEMENTS ((int64_t)1 << 30)   /* largest tensor (elements, 4 GiB of float) */
+#define NN_MAX_ELEMENTS ((int64_t)1 << 28)   /* largest tensor (elements, 1 GiB of float) */
+#define NN_MAX_WORK_BYTES ((size_t)2 << 30)  /* activations + scratch + folded constants of one graph */
 #define NN_MAX_TENSORS (1 << 20)
 #define NN_MAX_NODES (1 << 20)
 
@@ -77,7 +78,7 @@ typedef enum { NN_PAD_CONSTANT, NN_PAD_REFLECT, NN_PAD_EDGE } nn_pad_mode;
 typedef enum {
     NN_OP_CONV,           /* (x, w[OIHW], bias|-1) attr: layout kernel stride dilation pads group act */
     NN_OP_CONV_TRANSPOSE, /* (x, w[IOHW], bias|-1) attr: layout kernel stride dilation pads group output_padding act */
-    NN_OP_MATMUL,         /* (a, b) numpy matmul with batch broadcast; attr: act */
+    NN_OP_MATMUL,         /* (a, b, bias|-1) numpy matmul with batch broadcast, + bias[N]; attr: trans_b act */
     NN_OP_GEMM,           /* (a, b, c|-1) alpha*op(a)*op(b) + beta*c; attr: alpha beta trans_a trans_b act */
     NN_OP_ADD,            /* (a, b) numpy broadcast; attr: act */
     NN_OP_SUB,
@@ -137,7 +138,7 @@ typedef struct {
 
     float alpha, beta;        /* GEMM (1, 1); LEAKY_RELU alpha (0.01) */
     float epsilon;            /* LAYER_NORM (1e-5) */
-    int trans_a, trans_b;     /* GEMM */
+    int trans_a, trans_b;     /* GEMM; MATMUL trans_b */
     int gelu_tanh;            /* GELU approximation */
 
     nn_resize_mode resize_mode;
@@ -183,6 +184,7 @@ typedef struct nn_graph {
     float *scratch;           /* per-run temporaries (im2col etc.), scratch_floats per thread */
     size_t scratch_floats;
     int scratch_threads;      /* threads the scratch is allocated for */
+    double *profile_ms;       /* if set (NN_OP_COUNT entries, caller-owned), nn_graph_run adds each op's wall time */
     int prepared;
 } nn_graph;
 

@@ -23,13 +23,15 @@ pg_status nn_model_load_memory(const void *data, size_t size, const char *name, 
     pg_status st;
     if (size >= 8 && memcmp(d + 4, "TFL3", 4) == 0) st = nn_tflite_import(d, size, name, &m->g);
     else st = nn_onnx_import(d, size, name, &m->g);
-    if (!st) {
-        st = nn_graph_prepare(&m->g);
-        if (st) pg_fail_context(st, "%s: ", name);
-    }
+    if (!st) st = nn_graph_prepare(&m->g);
     if (!st && (m->g.num_inputs < 1 || m->g.tensors[m->g.inputs[0]].dtype != NN_F32))
         st = pg_fail(PG_ERR_FORMAT, "%s: the model has no float32 input", name);
-    if (st) { nn_model_destroy(m); return st; }
+    if (st) {
+        /* every message names the file, once */
+        if (strncmp(pg_last_error(), name, strlen(name)) != 0) pg_fail_context(st, "%s", name);
+        nn_model_destroy(m);
+        return st;
+    }
     *model = m;
     return PG_OK;
 }

@@ -9,6 +9,9 @@
 #ifndef PG_NN_OPS_H
 #define PG_NN_OPS_H
 
+#include <math.h>
+#include <string.h>
+
 #include "nn/nn_graph.h"
 
 typedef struct {
@@ -37,6 +40,52 @@ static inline float *nn_in_data(const nn_ctx *c, const nn_node *n, int i)
     return i < n->num_inputs && n->inputs[i] >= 0 ? nn_graph_data(c->g, n->inputs[i]) : NULL;
 }
 static inline float *nn_out_data(const nn_ctx *c, const nn_node *n, int i) { return nn_graph_data(c->g, n->outputs[i]); }
+
+/* e^x to within a few float ulps for x <= 88, flushed to e^-87 below -87 (softmax only needs
+ * x <= 0): 2^n * e^r with |r| <= ln2/2 and the degree-7 Taylor polynomial of e^r (remainder
+ * < 6e-9 relative). Plain arithmetic so `omp simd` loops vectorise it. */
+static inline float nn_exp(float x)
+{
+    x = x < -87.0f ? -87.0f : x > 88.0f ? 88.0f : x;
+    /* n = round(x / ln2) by the 1.5 * 2^23 trick (floorf would stop gcc vectorising) */
+    float n = (x * 1.44269504089f + 12582912.0f) - 12582912.0f;
+    float r = fmaf(n, -0.693145751953125f, x);   /* ln2 split in two for an exact product */
+    r = fmaf(n, -1.42860682030941723212e-6f, r);
+    float p = 1.0f / 5040;
+    p = fmaf(p, r, 1.0f / 720);
+    p = fmaf(p, r, 1.0f / 120);
+    p = fmaf(p, r, 1.0f / 24);
+    p = fmaf(p, r, 1.0f / 6);
+    p = fmaf(p, r, 0.5f);
+    p = fmaf(p, r, 1.0f);
+    p = fmaf(p, r, 1.0f);
+    int32_t bits = ((int32_t)n + 127) << 23;
+    float scale;
+    memcpy(&scale, &bits, sizeof scale);
+    return p * scale;
+}
+
+/* Sum of n floats in 16 interleaved partial sums (vectorises without -ffast-math). */
+static inline float nn_sum(const float *x, int64_t n)
+{
+    float acc[16] = { 0 };
+    int64_t i = 0;
+    for (; i + 16 <= n; i += 16)
+        for (int j = 0; j < 16; j++) acc[j] += x[i + j];
+    float s = 0;
+    for (; i < n; i++) s += x[i];
+    for (int j = 0; j < 16; j++) s += acc[j];
+    return s;
+}
+
+/* erf(x) by Hastings' approximation (Abramowitz & Stegun 7.1.26), absolute error <= 1.5e-7. */
+static inline float nn_erf(float x)
+{
+    float a = fabsf(x), t = 1.0f / fmaf(0.3275911f, a, 1.0f);
+    float p = fmaf(fmaf(fmaf(fmaf(1.061405429f, t, -1.453152027f), t, 1.421413741f), t, -0.284496736f), t, 0.254829592f) * t;
+    float y = 1.0f - p * nn_exp(-a * a);
+    return x < 0 ? -y : y;
+}
 
 /* Sets the shape of output i, checking the limits; fails naming the node. */
 pg_status nn_set_output(nn_graph *g, const nn_node *n, int i, int ndim, const int64_t *dims);

@@ -1180,7 +1180,7 @@ static pg_status convert_node(onnx_ctx *c, span bytes, onnx_attr *at)
     int out_id, node_id;
     if ((st = nn_graph_add_tensor(g, on, NN_F32, -1, NULL, &out_id))) goto done;
     if ((st = nn_graph_add_node(g, rop, c->node[0] ? c->node : on, in, keep, &out_id, 1, &a, &node_id))) goto done;
-    if ((st = nn_node_infer(g, node_id))) { pg_fail_context(st, "%s: node %d: ", c->path, c->index); goto done; }
+    if ((st = nn_node_infer(g, node_id))) { pg_fail_context(st, "%s: node %d", c->path, c->index); goto done; }
     st = map_put(c, outs[0], out_id);
 done:
     free(in);
@@ -1267,7 +1267,8 @@ static pg_status import_graph(onnx_ctx *c, span bytes)
             if (dims[i] < 1) return pg_fail(PG_ERR_FORMAT, "%s: graph input '%s' has a symbolic or empty dim %d (export with static shapes)", c->path, nm, i);
         if (nins >= NN_MAX_IO) return pg_fail(PG_ERR_FORMAT, "%s: more than %d graph inputs", c->path, NN_MAX_IO);
         int id;
-        PG_TRY(nn_graph_add_tensor(g, nm, NN_F32, ndim, dims, &id));
+        pg_status st = nn_graph_add_tensor(g, nm, NN_F32, ndim, dims, &id);
+        if (st) return pg_fail_context(st, "%s: graph input", c->path);
         PG_TRY(map_put(c, name, id));
         ins[nins++] = id;
     }

@@ -127,7 +127,8 @@ size_t nn_scratch_conv_transpose(const nn_graph *g, const nn_node *n)
     return (size_t)q.Og * q.kh * q.kw * (size_t)q.H * q.W;
 }
 
-/* col (Kg, len) for output pixels [p0, p0 + len) of image n, group g (NCHW input). */
+/* col (Kg, len) for output pixels [p0, p0 + len) of image n, group g (NCHW input): row k = (c, i, j)
+ * of the kernel, walked one output row at a time; with stride 1 the inside of a row is one memcpy. */
 static void im2col_nchw(float *col, const float *x, const conv_geom *q, int n, int g, int p0, int len)
 {
     int K = q->Cg * q->kh * q->kw;
@@ -135,11 +136,28 @@ static void im2col_nchw(float *col, const float *x, const conv_geom *q, int n, i
         int c = k / (q->kh * q->kw), r = k % (q->kh * q->kw), i = r / q->kw, j = r % q->kw;
         const float *xc = x + ((size_t)n * q->C + (size_t)g * q->Cg + c) * q->H * q->W;
         float *dst = col + (size_t)k * len;
-        int oy = p0 / q->OW, ox = p0 % q->OW;
-        for (int p = 0; p < len; p++) {
-            int iy = oy * q->sh - q->pt + i * q->dh, ix = ox * q->sw - q->pl + j * q->dw;
-            dst[p] = (iy >= 0 && iy < q->H && ix >= 0 && ix < q->W) ? xc[(size_t)iy * q->W + ix] : 0.0f;
-            if (++ox == q->OW) { ox = 0; oy++; }
+        int oy = p0 / q->OW, ox0 = p0 % q->OW;
+        for (int p = 0; p < len; oy++, ox0 = 0) {
+            int run = q->OW - ox0 < len - p ? q->OW - ox0 : len - p;
+            int iy = oy * q->sh - q->pt + i * q->dh;
+            float *d = dst + p;
+            p += run;
+            if (iy < 0 || iy >= q->H) { memset(d, 0, (size_t)run * sizeof(float)); continue; }
+            const float *xr = xc + (size_t)iy * q->W;
+            int ixb = ox0 * q->sw - q->pl + j * q->dw;
+            if (q->sw == 1) {
+                int lo = ixb < 0 ? -ixb : 0, hi = q->W - ixb < run ? q->W - ixb : run;
+                if (lo > run) lo = run;
+                if (hi < lo) hi = lo;
+                if (lo) memset(d, 0, (size_t)lo * sizeof(float));
+                if (hi > lo) memcpy(d + lo, xr + ixb + lo, (size_t)(hi - lo) * sizeof(float));
+                if (run > hi) memset(d + hi, 0, (size_t)(run - hi) * sizeof(float));
+            } else {
+                for (int t = 0; t < run; t++) {
+                    int ix = ixb + t * q->sw;
+                    d[t] = ix >= 0 && ix < q->W ? xr[ix] : 0.0f;
+                }
+            }
         }
     }
 }

@@ -47,14 +47,18 @@ void nn_sgemm(int trans_a, int trans_b, int M, int N, int K, const float *A, int
 
 size_t nn_scratch_matmul(const nn_graph *g, const nn_node *n) { (void)g; (void)n; return 0; }
 
-/* Shapes of a matmul operand as (batch dims..., rows, cols), 1-D promoted as numpy does. */
+/* numpy matmul shapes (1-D operands promoted); attr trans_b reads b as (..., N, K); an optional
+ * third input is a bias of N values added to every row (fused by nn_exec.c). */
 pg_status nn_infer_matmul(nn_graph *g, nn_node *n)
 {
-    nn_tensor *a = nn_in(g, n, 0), *b = nn_in(g, n, 1);
+    nn_tensor *a = nn_in(g, n, 0), *b = nn_in(g, n, 1), *bias = nn_in(g, n, 2);
     if (!b) return nn_node_fail(n, "second input missing");
     if (a->ndim < 1 || b->ndim < 1) return nn_node_fail(n, "scalar operand");
+    if (n->attr.trans_a) return nn_node_fail(n, "trans_a is not supported");
+    int tb = n->attr.trans_b;
+    if (tb && b->ndim < 2) return nn_node_fail(n, "trans_b needs a 2-D or larger b");
     int64_t K = a->dims[a->ndim - 1];
-    int64_t Kb = b->ndim == 1 ? b->dims[0] : b->dims[b->ndim - 2];
+    int64_t Kb = b->ndim == 1 ? b->dims[0] : tb ? b->dims[b->ndim - 1] : b->dims[b->ndim - 2];
     if (K != Kb) return nn_node_fail(n, "inner dims differ (%lld vs %lld)", (long long)K, (long long)Kb);
     int ba = a->ndim > 2 ? a->ndim - 2 : 0, bb = b->ndim > 2 ? b->ndim - 2 : 0;
     int nb = ba > bb ? ba : bb;
@@ -67,25 +71,41 @@ pg_status nn_infer_matmul(nn_graph *g, nn_node *n)
         dims[nd++] = da == 1 ? db : da;
     }
     if (a->ndim >= 2) dims[nd++] = a->dims[a->ndim - 2];
-    if (b->ndim >= 2) dims[nd++] = b->dims[b->ndim - 1];
+    if (b->ndim >= 2) dims[nd++] = tb ? b->dims[b->ndim - 2] : b->dims[b->ndim - 1];
     if (nd > NN_MAX_DIMS) return nn_node_fail(n, "too many dims");
+    int64_t N = b->ndim >= 2 ? dims[nd - 1] : 1;
+    if (bias && (nn_shape_count(bias->ndim, bias->dims) != N || b->ndim < 2))
+        return nn_node_fail(n, "bias has %lld values for %lld columns", (long long)nn_shape_count(bias->ndim, bias->dims), (long long)N);
     return nn_set_output(g, n, 0, nd, dims);
+}
+
+/* Adds bias (N) to each of rows rows of y (N wide) and applies the activation. */
+static void bias_act(float *y, int64_t rows, int N, const float *bias, const nn_attrs *a)
+{
+    #pragma omp parallel for schedule(static) if (rows * N >= 32768)
+    for (int64_t r = 0; r < rows; r++) {
+        float *yr = y + r * N;
+        if (bias) for (int j = 0; j < N; j++) yr[j] += bias[j];
+        nn_apply_act(yr, (size_t)N, a->act, a->act_alpha);
+    }
 }
 
 void nn_run_matmul(const nn_ctx *c, const nn_node *n)
 {
     nn_graph *g = c->g;
     const nn_tensor *ta = nn_in(g, n, 0), *tb = nn_in(g, n, 1), *ty = nn_out(g, n, 0);
-    const float *a = nn_in_data(c, n, 0), *b = nn_in_data(c, n, 1);
+    const float *a = nn_in_data(c, n, 0), *b = nn_in_data(c, n, 1), *bias = nn_in_data(c, n, 2);
     float *y = nn_out_data(c, n, 0);
+    int trb = n->attr.trans_b;
     int M = ta->ndim >= 2 ? (int)ta->dims[ta->ndim - 2] : 1;
     int K = (int)ta->dims[ta->ndim - 1];
-    int N = tb->ndim >= 2 ? (int)tb->dims[tb->ndim - 1] : 1;
+    int N = tb->ndim >= 2 ? (int)(trb ? tb->dims[tb->ndim - 2] : tb->dims[tb->ndim - 1]) : 1;
+    int ldb = tb->ndim >= 2 ? (int)tb->dims[tb->ndim - 1] : 1;
     int ba = ta->ndim > 2 ? ta->ndim - 2 : 0, bb = tb->ndim > 2 ? tb->ndim - 2 : 0;
     int64_t count_a = nn_shape_count(ba, ta->dims), count_b = nn_shape_count(bb, tb->dims);
     if (count_b == 1) {
         /* B shared by every batch: one product with the batches stacked as rows */
-        nn_sgemm(0, 0, (int)(count_a * M), N, K, a, K, b, N, 0.0f, y, N);
+        nn_sgemm(0, trb, (int)(count_a * M), N, K, a, K, b, ldb, 0.0f, y, N);
     } else {
         int nb = ty->ndim - (ta->ndim >= 2) - (tb->ndim >= 2);
         int64_t batch = nn_shape_count(nb, ty->dims);
@@ -108,10 +128,10 @@ void nn_run_matmul(const nn_ctx *c, const nn_node *n)
                 oa += idx * sa[i];
                 ob += idx * sb[i];
             }
-            nn_sgemm1(0, 0, M, N, K, a + oa, K, b + ob, N, 0.0f, y + p * (int64_t)M * N, N);
+            nn_sgemm1(0, trb, M, N, K, a + oa, K, b + ob, ldb, 0.0f, y + p * (int64_t)M * N, N);
         }
     }
-    nn_apply_act(y, (size_t)nn_shape_count(ty->ndim, ty->dims), n->attr.act, n->attr.act_alpha);
+    if (bias || n->attr.act != NN_ACT_NONE) bias_act(y, nn_shape_count(ty->ndim, ty->dims) / N, N, bias, &n->attr);
 }
 
 pg_status nn_infer_gemm(nn_graph *g, nn_node *n)

@@ -64,6 +64,20 @@ void nn_run_softmax(const nn_ctx *c, const nn_node *n)
     int axis = n->attr.axis;
     int64_t outer = nn_shape_count(axis, tx->dims), len = tx->dims[axis];
     int64_t inner = nn_shape_count(tx->ndim - axis - 1, tx->dims + axis + 1);
+    if (inner == 1) {
+        /* rows contiguous: vectorised max, exp and scale */
+        #pragma omp parallel for schedule(static) if (outer * len >= 32768)
+        for (int64_t o = 0; o < outer; o++) {
+            const float *xr = x + o * len;
+            float *yr = y + o * len;
+            float mx = -INFINITY;
+            for (int64_t i = 0; i < len; i++) mx = xr[i] > mx ? xr[i] : mx;
+            for (int64_t i = 0; i < len; i++) yr[i] = nn_exp(xr[i] - mx);
+            float inv = 1.0f / nn_sum(yr, len);
+            for (int64_t i = 0; i < len; i++) yr[i] *= inv;
+        }
+        return;
+    }
     #pragma omp parallel for schedule(static) if (outer * len * inner >= 32768)
     for (int64_t r = 0; r < outer * inner; r++) {
         int64_t o = r / inner, in = r % inner;
@@ -72,7 +86,7 @@ void nn_run_softmax(const nn_ctx *c, const nn_node *n)
         float mx = -INFINITY;
         for (int64_t i = 0; i < len; i++) mx = xr[i * inner] > mx ? xr[i * inner] : mx;
         double sum = 0;
-        for (int64_t i = 0; i < len; i++) { float e = expf(xr[i * inner] - mx); yr[i * inner] = e; sum += e; }
+        for (int64_t i = 0; i < len; i++) { float e = nn_exp(xr[i * inner] - mx); yr[i * inner] = e; sum += e; }
         float inv = (float)(1.0 / sum);
         for (int64_t i = 0; i < len; i++) yr[i * inner] *= inv;
     }
