@@ -21,8 +21,8 @@ int cmd_depth(int argc, char **argv)
                             "Runs a monocular depth network on every frame: each frame is resized to the model's\n"
                             "input, the output back to the video's size. Writes depth (larger = farther; a disparity\n"
                             "model's output is inverted) in the model's relative units, and beside it a .json of the same\n"
-                            "name (model, content hashes, kind)."
-                            " Finished frames are cached in OUT.cache/, so an interrupted run resumes.\n\n"
+                            "name (model, content hashes, kind). Finished frames are cached in OUT.cache/, so an\n"
+                            "interrupted run resumes.\n\n"
                             "example: prodygs depth clip.mp4 --model pydnet++_matterport.tflite --out depth.npy",
                             options, (int)(sizeof options / sizeof options[0]), 1, 1 };
     int rc = cli_parse(&spec, argc, argv, &c.input, NULL);
