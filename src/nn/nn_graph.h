@@ -109,6 +109,8 @@ typedef enum {
     NN_OP_RESIZE,         /* (x) attr: layout out_h out_w resize_mode coord_mode nearest_mode */
     NN_OP_IDENTITY,       /* (x) copy */
     NN_OP_ABS,            /* (x) unary */
+    NN_OP_ATTENTION,      /* (q[..., M, D], k[..., N, D], v[..., N, E]) softmax(q k^T) v per batch, in row blocks
+                           * (made by the fusion pass from MatMul(q, k^T) -> Softmax -> MatMul(., v)) */
     NN_OP_COUNT
 } nn_op;
 

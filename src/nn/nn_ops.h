@@ -113,6 +113,8 @@ NN_DECLARE_OP(layer_norm) NN_DECLARE_OP(softmax) NN_DECLARE_OP(reduce_mean) /* o
 NN_DECLARE_OP(reshape) NN_DECLARE_OP(transpose) NN_DECLARE_OP(slice) NN_DECLARE_OP(concat)
 NN_DECLARE_OP(gather) NN_DECLARE_OP(expand) NN_DECLARE_OP(pad)  /* ops_shape.c */
 NN_DECLARE_OP(resize)                                           /* ops_resize.c */
+NN_DECLARE_OP(attention)                                        /* ops_matmul.c */
+size_t nn_scratch_attention(const nn_graph *g, const nn_node *n);
 size_t nn_scratch_conv(const nn_graph *g, const nn_node *n);
 size_t nn_scratch_conv_transpose(const nn_graph *g, const nn_node *n);
 size_t nn_scratch_matmul(const nn_graph *g, const nn_node *n);
