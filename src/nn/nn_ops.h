@@ -42,11 +42,13 @@ static inline float *nn_in_data(const nn_ctx *c, const nn_node *n, int i)
 static inline float *nn_out_data(const nn_ctx *c, const nn_node *n, int i) { return nn_graph_data(c->g, n->outputs[i]); }
 
 /* e^x to within a few float ulps for x <= 88, flushed to e^-87 below -87 (softmax only needs
- * x <= 0): 2^n * e^r with |r| <= ln2/2 and the degree-7 Taylor polynomial of e^r (remainder
+ * x <= 0), NaN for NaN: 2^n * e^r with |r| <= ln2/2 and the degree-7 Taylor polynomial of e^r (remainder
  * < 6e-9 relative). Plain arithmetic so `omp simd` loops vectorise it. */
 static inline float nn_exp(float x)
 {
-    x = x < -87.0f ? -87.0f : x > 88.0f ? 88.0f : x;
+    float in = x;
+    x = x > -87.0f ? x : -87.0f; /* NaN too: the int conversion below must see a finite value */
+    x = x < 88.0f ? x : 88.0f;
     /* n = round(x / ln2) by the 1.5 * 2^23 trick (floorf would stop gcc vectorising) */
     float n = (x * 1.44269504089f + 12582912.0f) - 12582912.0f;
     float r = fmaf(n, -0.693145751953125f, x);   /* ln2 split in two for an exact product */
@@ -62,7 +64,7 @@ static inline float nn_exp(float x)
     int32_t bits = ((int32_t)n + 127) << 23;
     float scale;
     memcpy(&scale, &bits, sizeof scale);
-    return p * scale;
+    return in == in ? p * scale : in;
 }
 
 /* Sum of n floats in 16 interleaved partial sums (vectorises without -ffast-math). */

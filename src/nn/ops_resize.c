@@ -38,6 +38,8 @@ static double src_coord(const nn_attrs *a, int o, int in, int out, double scale)
 
 static int nearest_index(const nn_attrs *a, double s, int in)
 {
+    if (!(s > -1)) s = -1; /* also NaN */
+    if (s > in) s = in;
     double f = floor(s);
     int64_t i;
     switch (a->nearest_mode) {
@@ -59,7 +61,7 @@ static void axis_table(const nn_attrs *a, int in, int out, double scale, int *i0
             t[o] = 0.0f;
             continue;
         }
-        if (s < 0) s = 0;
+        if (!(s > 0)) s = 0; /* also NaN */
         if (s > in - 1) s = in - 1;
         int f = (int)floor(s);
         i0[o] = f;

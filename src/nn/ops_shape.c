@@ -113,6 +113,7 @@ pg_status nn_infer_slice(nn_graph *g, nn_node *n)
         set[ax] = 1;
         int64_t d = x->dims[ax], s = a->starts[k], e = a->ends[k], p = a->steps[k];
         if (p == 0) return nn_node_fail(n, "step 0");
+        p = p > d + 1 ? d + 1 : p < -d - 1 ? -d - 1 : p; /* a longer step takes one element; keeps the sums in range */
         if (s < 0) s += d;
         if (e < 0) e += d;
         if (p > 0) {
@@ -181,6 +182,9 @@ void nn_run_concat(const nn_ctx *c, const nn_node *n)
     }
 }
 
+/* A float index as int64 without undefined behaviour (NaN and huge values fall out of range). */
+static int64_t index_of(float v) { return v == v && v > -1e18f && v < 1e18f ? (int64_t)v : INT64_MAX; }
+
 pg_status nn_infer_gather(nn_graph *g, nn_node *n)
 {
     nn_tensor *x = nn_in(g, n, 0), *idx = nn_in(g, n, 1);
@@ -191,7 +195,7 @@ pg_status nn_infer_gather(nn_graph *g, nn_node *n)
     if (x->ndim - 1 + idx->ndim > NN_MAX_DIMS) return nn_node_fail(n, "output has too many dims");
     int64_t count = nn_shape_count(idx->ndim, idx->dims);
     for (int64_t i = 0; i < count; i++) {
-        int64_t v = idx->dtype == NN_I64 ? ((int64_t *)idx->data)[i] : (int64_t)((float *)idx->data)[i];
+        int64_t v = idx->dtype == NN_I64 ? ((int64_t *)idx->data)[i] : index_of(((float *)idx->data)[i]);
         if (v < -x->dims[axis] || v >= x->dims[axis]) return nn_node_fail(n, "index %lld out of range", (long long)v);
     }
     int64_t dims[NN_MAX_DIMS];
@@ -212,7 +216,7 @@ void nn_run_gather(const nn_ctx *c, const nn_node *n)
     int64_t d = tx->dims[axis], count = nn_shape_count(ti->ndim, ti->dims);
     for (int64_t o = 0; o < outer; o++)
         for (int64_t k = 0; k < count; k++) {
-            int64_t v = ti->dtype == NN_I64 ? ((int64_t *)ti->data)[k] : (int64_t)((float *)ti->data)[k];
+            int64_t v = ti->dtype == NN_I64 ? ((int64_t *)ti->data)[k] : index_of(((float *)ti->data)[k]);
             if (v < 0) v += d;
             memcpy(y + (o * count + k) * inner, x + (o * d + v) * inner, (size_t)inner * sizeof(float));
         }
