@@ -882,7 +882,10 @@ static pg_status resize_modes(onnx_ctx *c, const onnx_attr *at, int na, nn_attrs
                     *nm = find_attr(at, na, "nearest_mode");
     if (!m || span_eq(m->s, "nearest")) a->resize_mode = NN_RESIZE_NEAREST;
     else if (span_eq(m->s, "linear") || span_eq(m->s, "bilinear")) a->resize_mode = NN_RESIZE_LINEAR;
-    else { char s[32]; span_str(m->s, s, sizeof s); return node_fail(c, "Resize mode '%s' is not supported (nearest, linear)", s); }
+    else if (span_eq(m->s, "cubic")) a->resize_mode = NN_RESIZE_CUBIC;
+    else { char s[32]; span_str(m->s, s, sizeof s); return node_fail(c, "Resize mode '%s' is not supported (nearest, linear, cubic)", s); }
+    a->cubic_a = attr_f(at, na, "cubic_coeff_a", -0.75f);
+    a->exclude_outside = attr_i(at, na, "exclude_outside", 0) != 0;
     if (!ct || span_eq(ct->s, "half_pixel")) a->coord_mode = NN_COORD_HALF_PIXEL;
     else if (span_eq(ct->s, "pytorch_half_pixel")) a->coord_mode = NN_COORD_PYTORCH_HALF_PIXEL;
     else if (span_eq(ct->s, "align_corners")) a->coord_mode = NN_COORD_ALIGN_CORNERS;

@@ -90,15 +90,16 @@ class Fusion(nn.Module):
 
 
 class DepthNet(nn.Module):
-    """ViT-S/14 (embed 384, 12 blocks, 6 heads, MLP 1536, LayerScale, cls token, pos-embed fixed for
-    the input size) + DPT head (layers 2, 5, 8, 11; features 64; out channels 48, 96, 192, 384)."""
+    """ViT-S/14 (embed 384, 12 blocks, 6 heads, MLP 1536, LayerScale, cls token, a 37x37 position
+    embedding interpolated bicubically to the patch grid as DINOv2 does, scale (n + 0.1) / 37)
+    + DPT head (layers 2, 5, 8, 11; features 64; out channels 48, 96, 192, 384)."""
 
     def __init__(self, h, w, dim=384, depth=12, heads=6, mlp=1536, feat=64, outc=(48, 96, 192, 384)):
         super().__init__()
         self.ph, self.pw = h // 14, w // 14
         self.patch = nn.Conv2d(3, dim, 14, 14)
         self.cls = nn.Parameter(torch.randn(1, 1, dim) * 0.02)
-        self.pos = nn.Parameter(torch.randn(1, 1 + self.ph * self.pw, dim) * 0.02)
+        self.pos = nn.Parameter(torch.randn(1, 1 + 37 * 37, dim) * 0.02)
         self.blocks = nn.ModuleList([Block(dim, heads, mlp) for _ in range(depth)])
         self.norm = nn.LayerNorm(dim, eps=1e-6)
         self.take = [2, 5, 8, 11] if depth == 12 else list(range(depth))[-4:]
@@ -117,7 +118,12 @@ class DepthNet(nn.Module):
     def forward(self, img):
         B = img.shape[0]
         x = self.patch(img).flatten(2).transpose(1, 2)
-        x = torch.cat([self.cls.expand(B, -1, -1), x], dim=1) + self.pos
+        C = x.shape[-1]
+        grid = self.pos[:, 1:].reshape(1, 37, 37, C).permute(0, 3, 1, 2)
+        grid = F.interpolate(grid, scale_factor=(float((self.ph + 0.1) / 37), float((self.pw + 0.1) / 37)),
+                             mode="bicubic", align_corners=False)
+        pos = torch.cat([self.pos[:, :1], grid.permute(0, 2, 3, 1).reshape(1, -1, C)], dim=1)
+        x = torch.cat([self.cls.expand(B, -1, -1), x], dim=1) + pos
         feats = []
         for i, blk in enumerate(self.blocks):
             x = blk(x)
@@ -209,6 +215,8 @@ def op_cases():
     c.append(("resize_bilinear_align", Lambda(lambda m, x: F.interpolate(x, size=(13, 17), mode="bilinear", align_corners=True)), (1, 2, 5, 7)))
     c.append(("resize_bilinear_half", Lambda(lambda m, x: F.interpolate(x, size=(11, 4), mode="bilinear", align_corners=False)), (1, 2, 5, 7)))
     c.append(("resize_bilinear_scale", Lambda(lambda m, x: F.interpolate(x, scale_factor=2.0, mode="bilinear", align_corners=False)), (1, 3, 6, 5)))
+    c.append(("resize_bicubic", Lambda(lambda m, x: F.interpolate(x, scale_factor=(1.7, 0.8), mode="bicubic", align_corners=False)), (1, 2, 9, 11)))
+    c.append(("resize_bicubic_align", Lambda(lambda m, x: F.interpolate(x, size=(12, 5), mode="bicubic", align_corners=True)), (1, 2, 7, 9)))
     c.append(("resize_nearest", Lambda(lambda m, x: F.interpolate(x, scale_factor=3.0, mode="nearest")), (1, 2, 4, 5)))
     c.append(("relu_sigmoid", Lambda(lambda m, x: t.relu(x) + t.sigmoid(x)), (3, 40)))
     c.append(("gelu_erf", nn.GELU(), (3, 40)))
