@@ -576,6 +576,7 @@ static pg_status eval_node(onnx_ctx *c, span op, const int *in, int nin, const s
         } else return node_fail(c, "Constant without a supported value attribute");
         return cval_put(c, outs[0], &y);
     }
+    if (nin < 1 || in[0] < 0) return node_fail(c, "first input missing");
     for (int i = 0; i < nin && i < 3; i++)
         if (in[i] >= 0 && (st = cval_get(c, in[i], &x[i]))) goto done;
     if (span_eq(op, "ConstantOfShape")) {
