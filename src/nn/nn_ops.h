@@ -89,6 +89,13 @@ static inline float nn_erf(float x)
     return x < 0 ? -y : y;
 }
 
+/* Element counts below which an op runs on one thread. A fork/join costs a few microseconds on
+ * idle cores and whole scheduler time slices when the cores are shared with other jobs (a thread
+ * waits at the join for a partner that is not running), so memory-bound ops (copies, broadcasts,
+ * bias adds) only fork for large tensors; compute-bound ones (exp, erf) fork sooner. */
+#define NN_PAR_MEMORY ((int64_t)1 << 21)
+#define NN_PAR_COMPUTE ((int64_t)1 << 15)
+
 /* Sets the shape of output i, checking the limits; fails naming the node. */
 pg_status nn_set_output(nn_graph *g, const nn_node *n, int i, int ndim, const int64_t *dims);
 /* Fails "node 'name' (Op): message" with PG_ERR_FORMAT. */

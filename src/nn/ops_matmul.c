@@ -26,22 +26,22 @@ void nn_sgemm(int trans_a, int trans_b, int M, int N, int K, const float *A, int
     int nt = omp_get_max_threads();
     double flops = 2.0 * M * N * (double)K;
     if (nt <= 1 || flops < 2e6) { nn_sgemm1(trans_a, trans_b, M, N, K, A, lda, B, ldb, beta, C, ldc); return; }
-    int split_m = M >= 16 * nt;
-    #pragma omp parallel num_threads(nt)
-    {
-        int t = omp_get_thread_num(), T = omp_get_num_threads();
-        int total = split_m ? M : N;
-        int step = (total + T - 1) / T;
-        if (split_m) step = (step + 7) / 8 * 8;
-        else step = (step + 15) / 16 * 16;
-        int s = t * step, e = s + step < total ? s + step : total;
-        if (s < e) {
-            if (split_m)
-                nn_sgemm1(trans_a, trans_b, e - s, N, K, trans_a ? A + s : A + (size_t)s * lda, lda, B, ldb, beta,
-                          C + (size_t)s * ldc, ldc);
-            else
-                nn_sgemm1(trans_a, trans_b, M, e - s, K, A, lda, trans_b ? B + (size_t)s * ldb : B + s, ldb, beta, C + s, ldc);
-        }
+    /* about four blocks per thread, handed out dynamically: a thread that the OS parks for a while
+     * (the cores are often shared) leaves its remaining blocks to the others */
+    int split_m = M >= 64 * nt;
+    int total = split_m ? M : N, align = split_m ? 16 : 64;
+    int step = (total + 4 * nt - 1) / (4 * nt);
+    step = (step + align - 1) / align * align;
+    if (step < (split_m ? 64 : 256)) step = split_m ? 64 : 256;
+    int blocks = (total + step - 1) / step;
+    #pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
+    for (int blk = 0; blk < blocks; blk++) {
+        int s = blk * step, e = s + step < total ? s + step : total;
+        if (split_m)
+            nn_sgemm1(trans_a, trans_b, e - s, N, K, trans_a ? A + s : A + (size_t)s * lda, lda, B, ldb, beta,
+                      C + (size_t)s * ldc, ldc);
+        else
+            nn_sgemm1(trans_a, trans_b, M, e - s, K, A, lda, trans_b ? B + (size_t)s * ldb : B + s, ldb, beta, C + s, ldc);
     }
 }
 
@@ -82,7 +82,7 @@ pg_status nn_infer_matmul(nn_graph *g, nn_node *n)
 /* Adds bias (N) to each of rows rows of y (N wide) and applies the activation. */
 static void bias_act(float *y, int64_t rows, int N, const float *bias, const nn_attrs *a)
 {
-    #pragma omp parallel for schedule(static) if (rows * N >= 32768)
+    #pragma omp parallel for schedule(static) if (rows * N >= NN_PAR_MEMORY)
     for (int64_t r = 0; r < rows; r++) {
         float *yr = y + r * N;
         if (bias) for (int j = 0; j < N; j++) yr[j] += bias[j];

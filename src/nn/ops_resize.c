@@ -125,6 +125,17 @@ void nn_run_resize(const nn_ctx *c, const nn_node *n)
             int64_t plane = r / OH;
             const float *xp = x + plane * H * W;
             float *yr = y + r * OW;
+            if (taps == 2) {
+                /* bilinear: two rows, two taps each */
+                const float *r0 = xp + (size_t)iy[oy * TAPS] * W, *r1 = xp + (size_t)iy[oy * TAPS + 1] * W;
+                float w0 = wy[oy * TAPS], w1 = wy[oy * TAPS + 1];
+                for (int ox = 0; ox < OW; ox++) {
+                    int a0 = ix[ox * TAPS], a1 = ix[ox * TAPS + 1];
+                    float u0 = wx[ox * TAPS], u1 = wx[ox * TAPS + 1];
+                    yr[ox] = (r0[a0] * u0 + r0[a1] * u1) * w0 + (r1[a0] * u0 + r1[a1] * u1) * w1;
+                }
+                continue;
+            }
             for (int ox = 0; ox < OW; ox++) {
                 float v = 0;
                 for (int ky = 0; ky < taps; ky++) {

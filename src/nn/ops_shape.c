@@ -10,7 +10,7 @@ static void strided_copy(float *y, int nd, const int64_t *dims, const float *x, 
 {
     if (nd == 0) { y[0] = x[base]; return; }
     int64_t len = dims[nd - 1], outer = nn_shape_count(nd - 1, dims), s_last = stride[nd - 1];
-    #pragma omp parallel for schedule(static) if (outer * len >= 32768)
+    #pragma omp parallel for schedule(static) if (outer * len >= NN_PAR_MEMORY)
     for (int64_t o = 0; o < outer; o++) {
         int64_t rem = o, off = base;
         for (int d = nd - 2; d >= 0; d--) { off += (rem % dims[d]) * stride[d]; rem /= dims[d]; }
@@ -176,7 +176,7 @@ void nn_run_concat(const nn_ctx *c, const nn_node *n)
         const nn_tensor *t = nn_in(c->g, n, i);
         const float *x = nn_in_data(c, n, i);
         int64_t chunk = t->dims[axis] * inner;
-        #pragma omp parallel for schedule(static) if (outer * chunk >= 65536)
+        #pragma omp parallel for schedule(static) if (outer * chunk >= NN_PAR_MEMORY)
         for (int64_t o = 0; o < outer; o++) memcpy(y + o * row + at, x + o * chunk, (size_t)chunk * sizeof(float));
         at += chunk;
     }
@@ -275,7 +275,7 @@ void nn_run_pad(const nn_ctx *c, const nn_node *n)
     int64_t sx[NN_MAX_DIMS];
     contiguous_strides(nd, tx->dims, sx);
     int64_t count = nn_shape_count(nd, ty->dims);
-    #pragma omp parallel for schedule(static) if (count >= 32768)
+    #pragma omp parallel for schedule(static) if (count >= NN_PAR_MEMORY / 4)
     for (int64_t o = 0; o < count; o++) {
         int64_t rem = o, off = 0;
         int inside = 1;
