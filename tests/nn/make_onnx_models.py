@@ -255,6 +255,32 @@ def main():
         np.save(os.path.join(out, name + "_in.npy"), x.numpy().astype(np.float32))
         np.save(os.path.join(out, name + "_out.npy"), y.numpy().astype(np.float32))
         names.append(name)
+    # weights stored as float16 and as per-channel int8 + DequantizeLinear (numpy reference)
+    from onnx import TensorProto, helper, numpy_helper
+    r = np.random.default_rng(2)
+    x = r.standard_normal((3, 16)).astype(np.float32)
+    w16 = r.standard_normal((16, 8)).astype(np.float16)
+    q8 = r.integers(-128, 128, (8, 16)).astype(np.int8)
+    scale = (r.random(8) * 0.02 + 0.01).astype(np.float32)
+    zp = r.integers(-5, 5, 8).astype(np.int8)
+    wq = ((q8.astype(np.float32) - zp[:, None].astype(np.float32)) * scale[:, None]).T
+    nodes = [helper.make_node("Cast", ["w16"], ["w16f"], to=TensorProto.FLOAT),
+             helper.make_node("MatMul", ["input", "w16f"], ["a"]),
+             helper.make_node("DequantizeLinear", ["q8", "scale", "zp"], ["wq"], axis=0),
+             helper.make_node("Transpose", ["wq"], ["wqt"], perm=[1, 0]),
+             helper.make_node("MatMul", ["input", "wqt"], ["b"]),
+             helper.make_node("Concat", ["a", "b"], ["output"], axis=1)]
+    graph = helper.make_graph(nodes, "quant", [helper.make_tensor_value_info("input", TensorProto.FLOAT, [3, 16])],
+                              [helper.make_tensor_value_info("output", TensorProto.FLOAT, [3, 16])],
+                              [numpy_helper.from_array(w16, "w16"), numpy_helper.from_array(q8, "q8"),
+                               numpy_helper.from_array(scale, "scale"), numpy_helper.from_array(zp, "zp")])
+    mq = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    mq.ir_version = 8
+    onnx.save(mq, os.path.join(out, "weights_fp16_int8.onnx"))
+    np.save(os.path.join(out, "weights_fp16_int8_in.npy"), x)
+    ref = np.concatenate([x.astype(np.float64) @ w16.astype(np.float64), x.astype(np.float64) @ wq.astype(np.float64)], 1)
+    np.save(os.path.join(out, "weights_fp16_int8_out.npy"), ref.astype(np.float32))
+    names.append("weights_fp16_int8")
     # the whole network at 266x196 (19x14 patches) on three images
     h, w = 196, 266
     net = DepthNet(h, w).eval()
