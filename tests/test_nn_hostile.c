@@ -363,9 +363,43 @@ static void test_seeds(void)
     }
 }
 
+/* The CLI: a hostile model is exit 2 with one line on stderr; a valid one prints one JSON line. */
+static void test_cli(void)
+{
+    char dir[512], path[600], args[1400], err[2048];
+    test_tmpdir("nn_hostile", dir, sizeof dir);
+    pbw m = { 0 }, g = { 0 };
+    node(&g, "Relu", "ok0", "x", NULL, "r", NULL);
+    node(&g, "NonMaxSuppression", "nms7", "r", NULL, "y", NULL);
+    value_info(&g, 11, "x", 1, (int64_t[]){ 4 });
+    value_info(&g, 12, "y", 0, NULL);
+    model(&m, &g, 17);
+    snprintf(path, sizeof path, "%s/unsupported.onnx", dir);
+    FILE *f = fopen(path, "wb");
+    if (f) { fwrite(m.p, 1, m.n, f); fclose(f); }
+    free(m.p);
+    snprintf(args, sizeof args, "bench nn --model '%s'", path);
+    int rc = test_run_cli(args, err, sizeof err);
+    size_t len = strlen(err);
+    CHECK(rc == 2, "bench nn on an unsupported model: exit %d (2 expected)", rc);
+    CHECK(strncmp(err, "prodygs: ", 9) == 0 && strstr(err, "NonMaxSuppression") && strstr(err, "nms7") &&
+          len > 0 && strchr(err, '\n') == err + len - 1, "stderr is not one line naming the op and node: '%s'", err);
+    printf("  CLI: exit %d, %s", rc, err);
+    memset(&m, 0, sizeof m);
+    valid_model(&m);
+    snprintf(path, sizeof path, "%s/valid.onnx", dir);
+    f = fopen(path, "wb");
+    if (f) { fwrite(m.p, 1, m.n, f); fclose(f); }
+    free(m.p);
+    snprintf(args, sizeof args, "bench nn --model '%s' --threads 2 --reps 2", path);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 0, "bench nn on a valid model: exit %d: %s", rc, err);
+}
+
 int main(void)
 {
     test_seeds();
+    test_cli();
     test_valid();
     test_hostile();
     test_graph_cycle();

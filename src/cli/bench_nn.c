@@ -1,5 +1,8 @@
 /* bench_nn.c - `prodygs bench nn --model FILE`: time of one forward pass of an ONNX (or TFLite)
- * model on a seeded random input; one JSON line with the median over --reps after a warm-up. */
+ * model on a seeded random input; one JSON line with the median over --reps after a warm-up.
+ * cpu_ms_per_frame is the process CPU time per frame (all threads): on a machine shared with other
+ * jobs it shows the work done when the wall clock is stretched (OpenMP spin-waits count in it
+ * unless OMP_WAIT_POLICY=passive). */
 #include "cli/cli.h"
 #include "core/parallel.h"
 #include "core/rng.h"
@@ -40,17 +43,19 @@ int bench_nn(int argc, char **argv)
     float *x = malloc((nx ? nx : 1) * sizeof(float)), *y = malloc((ny ? ny : 1) * sizeof(float));
     double *ms = malloc((size_t)reps * sizeof(double));
     if (!x || !y || !ms) st = pg_fail(PG_ERR_NOMEM, "bench nn: out of memory");
-    double prof[NN_OP_COUNT] = { 0 };
+    double prof[NN_OP_COUNT] = { 0 }, cpu0 = 0, cpu_ms = 0;
     if (!st && profile) nn_model_graph(m)->profile_ms = prof;
     if (!st) {
         pg_rng rng;
         pg_rng_seed(&rng, 1);
         for (size_t i = 0; i < nx; i++) x[i] = (float)pg_rng_normal(&rng);
         for (int r = -1; r < reps && !st; r++) {
+            if (r == 0) cpu0 = pg_cpu_seconds();
             double a = pg_time_seconds();
             st = nn_model_run(m, x, y, threads);
             if (r >= 0) ms[r] = (pg_time_seconds() - a) * 1e3;
         }
+        cpu_ms = (pg_cpu_seconds() - cpu0) * 1e3 / reps;
     }
     if (!st) {
         double med = pg_median(ms, reps), min = ms[0]; /* pg_median sorted ms */
@@ -60,9 +65,9 @@ int bench_nn(int argc, char **argv)
         int at = 0;
         for (int i = 0; i < ni && at < (int)sizeof shape - 24; i++) at += snprintf(shape + at, sizeof shape - (size_t)at, "%s%lld", i ? "x" : "", (long long)di[i]);
         if (ni == 0) shape[0] = 0;
-        printf("{\"bench\":\"nn\",\"model\":\"%s\",\"model_bytes\":%lld,\"input\":\"%s\",\"threads\":%d,\"reps\":%d,"
-               "\"ms_per_frame\":%.1f,\"min_ms\":%.1f,\"load_ms\":%.1f,\"runtime_bytes\":%zu,\"peak_memory_bytes\":%lld",
-               model_path, (long long)sb.st_size, shape, threads, reps, med, min, load_ms, nn_model_memory_bytes(m),
+        printf("{\"bench\":\"nn\",\"model\":\"%s\",\"model_bytes\":%lld,\"input\":\"%s\",\"threads\":%d,\"omp_wait_policy\":\"%s\",\"reps\":%d,"
+               "\"ms_per_frame\":%.1f,\"min_ms\":%.1f,\"cpu_ms_per_frame\":%.1f,\"load_ms\":%.1f,\"runtime_bytes\":%zu,\"peak_memory_bytes\":%lld",
+               model_path, (long long)sb.st_size, shape, threads, getenv("OMP_WAIT_POLICY") ? getenv("OMP_WAIT_POLICY") : "default", reps, med, min, cpu_ms, load_ms, nn_model_memory_bytes(m),
                (long long)ru.ru_maxrss * 1024);
         if (profile) {
             printf(",\"profile_ms\":{");

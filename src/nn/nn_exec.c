@@ -55,6 +55,7 @@ const nn_op_info nn_ops[NN_OP_COUNT] = {
     [NN_OP_RESIZE] = { "Resize", 1, 1, nn_infer_resize, nn_run_resize, nn_scratch_resize },
     [NN_OP_IDENTITY] = { "Identity", 1, 1, nn_infer_unary, nn_run_reshape, NULL },
     [NN_OP_ABS] = { "Abs", 1, 1, nn_infer_unary, nn_run_unary, NULL },
+    [NN_OP_ATTENTION] = { "Attention", 3, 3, nn_infer_attention, nn_run_attention, nn_scratch_attention },
 };
 static_assert(sizeof nn_ops / sizeof nn_ops[0] == NN_OP_COUNT, "one nn_ops entry per nn_op");
 
@@ -412,6 +413,7 @@ static pg_status fold_constants(nn_graph *g)
  *   MatMul + Add(constant bias of N values)              -> MatMul with a bias input
  *   Transpose(swap of the last two axes) -> MatMul's b   -> MatMul trans_b
  *   x / sqrt(2) -> Erf -> + 1 -> * x -> * 0.5            -> Gelu (torch's export of nn.GELU)
+ *   MatMul(q, k, trans_b) -> Softmax(last) -> MatMul(., v) -> Attention (scores never leave cache)
  * An intermediate tensor is fused away only if its one reader is the next node of the pattern and
  * it is not a graph output. */
 
@@ -481,6 +483,31 @@ static pg_status fuse_nodes(nn_graph *g)
             continue;
         }
     not_gelu:
+        /* attention: the transpose of k is already folded into trans_b (it comes earlier) */
+        if (n->op == NN_OP_MATMUL && n->attr.trans_b && n->num_inputs == 2 && n->attr.act == NN_ACT_NONE && NEXT(k) >= 0) {
+            int sm = NEXT(k), m2 = -1;
+            const nn_tensor *q = &g->tensors[n->inputs[0]], *kk = &g->tensors[n->inputs[1]];
+            if (g->nodes[sm].op == NN_OP_SOFTMAX && g->nodes[sm].attr.axis == g->tensors[n->outputs[0]].ndim - 1) m2 = NEXT(sm);
+            if (m2 >= 0 && g->nodes[m2].op == NN_OP_MATMUL && g->nodes[m2].num_inputs == 2 && !g->nodes[m2].attr.trans_b &&
+                g->nodes[m2].attr.act == NN_ACT_NONE && g->nodes[m2].inputs[0] == g->nodes[sm].outputs[0]) {
+                const nn_tensor *v = &g->tensors[g->nodes[m2].inputs[1]];
+                int same = q->ndim >= 2 && q->ndim == kk->ndim && q->ndim == v->ndim;
+                for (int i = 0; same && i < q->ndim - 2; i++) same = q->dims[i] == kk->dims[i] && q->dims[i] == v->dims[i];
+                if (same) {
+                    nn_node *at = &g->nodes[m2];
+                    int *in = realloc(at->inputs, 3 * sizeof(int));
+                    if (!in) { free(readers); free(reader); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
+                    at->inputs = in;
+                    at->inputs[2] = at->inputs[1];
+                    at->inputs[0] = n->inputs[0];
+                    at->inputs[1] = n->inputs[1];
+                    at->num_inputs = 3;
+                    at->op = NN_OP_ATTENTION;
+                    dead[k] = dead[sm] = 1;
+                    continue;
+                }
+            }
+        }
         if (n->op != NN_OP_CONV && n->op != NN_OP_CONV_TRANSPOSE && n->op != NN_OP_MATMUL && n->op != NN_OP_GEMM) continue;
         /* MatMul + bias */
         if (n->op == NN_OP_MATMUL && n->num_inputs == 2 && NEXT(k) >= 0 && n->attr.act == NN_ACT_NONE) {

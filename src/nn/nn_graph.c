@@ -40,6 +40,7 @@ void nn_attrs_default(nn_attrs *a)
     a->resize_mode = NN_RESIZE_NEAREST;
     a->coord_mode = NN_COORD_HALF_PIXEL;
     a->nearest_mode = NN_NEAREST_ROUND_PREFER_FLOOR;
+    a->cubic_a = -0.75f;
 }
 
 static char *dup_name(const char *name)

@@ -57,7 +57,7 @@ typedef enum { NN_LAYOUT_NCHW, NN_LAYOUT_NHWC } nn_layout;
 /* Activation fused into the output of CONV / CONV_TRANSPOSE / GEMM / MATMUL / ADD ... */
 typedef enum { NN_ACT_NONE, NN_ACT_RELU, NN_ACT_LEAKY_RELU, NN_ACT_RELU6 } nn_activation;
 
-typedef enum { NN_RESIZE_NEAREST, NN_RESIZE_LINEAR } nn_resize_mode;
+typedef enum { NN_RESIZE_NEAREST, NN_RESIZE_LINEAR, NN_RESIZE_CUBIC } nn_resize_mode;
 
 /* ONNX coordinate_transformation_mode (TFLite's align_corners / half_pixel_centers map onto these). */
 typedef enum {
@@ -109,6 +109,8 @@ typedef enum {
     NN_OP_RESIZE,         /* (x) attr: layout out_h out_w resize_mode coord_mode nearest_mode */
     NN_OP_IDENTITY,       /* (x) copy */
     NN_OP_ABS,            /* (x) unary */
+    NN_OP_ATTENTION,      /* (q[..., M, D], k[..., N, D], v[..., N, E]) softmax(q k^T) v per batch, in row blocks
+                           * (made by the fusion pass from MatMul(q, k^T) -> Softmax -> MatMul(., v)) */
     NN_OP_COUNT
 } nn_op;
 
@@ -146,6 +148,8 @@ typedef struct {
     nn_nearest_mode nearest_mode;
     int out_h, out_w;         /* RESIZE output spatial size */
     float scale_h, scale_w;   /* RESIZE scales used by the coordinate transform (0: out / in) */
+    float cubic_a;            /* RESIZE cubic coefficient (-0.75, as ONNX and torch) */
+    int exclude_outside;      /* RESIZE cubic: taps outside the input get weight 0, the rest renormalised */
 } nn_attrs;
 
 typedef struct {

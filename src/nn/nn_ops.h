@@ -42,11 +42,13 @@ static inline float *nn_in_data(const nn_ctx *c, const nn_node *n, int i)
 static inline float *nn_out_data(const nn_ctx *c, const nn_node *n, int i) { return nn_graph_data(c->g, n->outputs[i]); }
 
 /* e^x to within a few float ulps for x <= 88, flushed to e^-87 below -87 (softmax only needs
- * x <= 0): 2^n * e^r with |r| <= ln2/2 and the degree-7 Taylor polynomial of e^r (remainder
+ * x <= 0), NaN for NaN: 2^n * e^r with |r| <= ln2/2 and the degree-7 Taylor polynomial of e^r (remainder
  * < 6e-9 relative). Plain arithmetic so `omp simd` loops vectorise it. */
 static inline float nn_exp(float x)
 {
-    x = x < -87.0f ? -87.0f : x > 88.0f ? 88.0f : x;
+    float in = x;
+    x = x > -87.0f ? x : -87.0f; /* NaN too: the int conversion below must see a finite value */
+    x = x < 88.0f ? x : 88.0f;
     /* n = round(x / ln2) by the 1.5 * 2^23 trick (floorf would stop gcc vectorising) */
     float n = (x * 1.44269504089f + 12582912.0f) - 12582912.0f;
     float r = fmaf(n, -0.693145751953125f, x);   /* ln2 split in two for an exact product */
@@ -62,7 +64,7 @@ static inline float nn_exp(float x)
     int32_t bits = ((int32_t)n + 127) << 23;
     float scale;
     memcpy(&scale, &bits, sizeof scale);
-    return p * scale;
+    return in == in ? p * scale : in;
 }
 
 /* Sum of n floats in 16 interleaved partial sums (vectorises without -ffast-math). */
@@ -86,6 +88,13 @@ static inline float nn_erf(float x)
     float y = 1.0f - p * nn_exp(-a * a);
     return x < 0 ? -y : y;
 }
+
+/* Element counts below which an op runs on one thread. A fork/join costs a few microseconds on
+ * idle cores and whole scheduler time slices when the cores are shared with other jobs (a thread
+ * waits at the join for a partner that is not running), so memory-bound ops (copies, broadcasts,
+ * bias adds) only fork for large tensors; compute-bound ones (exp, erf) fork sooner. */
+#define NN_PAR_MEMORY ((int64_t)1 << 21)
+#define NN_PAR_COMPUTE ((int64_t)1 << 15)
 
 /* Sets the shape of output i, checking the limits; fails naming the node. */
 pg_status nn_set_output(nn_graph *g, const nn_node *n, int i, int ndim, const int64_t *dims);
@@ -113,6 +122,8 @@ NN_DECLARE_OP(layer_norm) NN_DECLARE_OP(softmax) NN_DECLARE_OP(reduce_mean) /* o
 NN_DECLARE_OP(reshape) NN_DECLARE_OP(transpose) NN_DECLARE_OP(slice) NN_DECLARE_OP(concat)
 NN_DECLARE_OP(gather) NN_DECLARE_OP(expand) NN_DECLARE_OP(pad)  /* ops_shape.c */
 NN_DECLARE_OP(resize)                                           /* ops_resize.c */
+NN_DECLARE_OP(attention)                                        /* ops_matmul.c */
+size_t nn_scratch_attention(const nn_graph *g, const nn_node *n);
 size_t nn_scratch_conv(const nn_graph *g, const nn_node *n);
 size_t nn_scratch_conv_transpose(const nn_graph *g, const nn_node *n);
 size_t nn_scratch_matmul(const nn_graph *g, const nn_node *n);

@@ -58,6 +58,15 @@ typedef struct {
     int index;
 } onnx_ctx;
 
+/* double -> int64 without undefined behaviour: NaN -> 0, out of range -> saturated. */
+static int64_t d2i(double v)
+{
+    if (v != v) return 0;
+    if (v >= 9.2e18) return INT64_MAX;
+    if (v <= -9.2e18) return INT64_MIN;
+    return (int64_t)v;
+}
+
 static int span_eq(span a, const char *s) { return a.n == strlen(s) && memcmp(a.p, s, a.n) == 0; }
 
 static void span_str(span a, char *out, size_t size)
@@ -252,7 +261,7 @@ static pg_status parse_tensor(onnx_ctx *c, span bytes, span name_override, int *
             double v = raw_value(raw.p + i * eb, type);
             if (fl) df[i] = (float)v;
             else if (type == T_INT64) { uint64_t u = 0; for (int b = 7; b >= 0; b--) u = (u << 8) | raw.p[i * 8 + b]; di[i] = (int64_t)u; }
-            else di[i] = (int64_t)v;
+            else di[i] = d2i(v);
         }
     } else {
         /* float_data (4) holds float / float16 bits? no: float16 uses int32_data (5); double_data (10) */
@@ -275,7 +284,7 @@ static pg_status parse_tensor(onnx_ctx *c, span bytes, span name_override, int *
                         else if (f.number == 5) v = (double)(int32_t)(uint32_t)u;
                         else v = (double)u;
                     }
-                    if (fl) df[i++] = (float)v; else di[i++] = (int64_t)v;
+                    if (fl) df[i++] = (float)v; else di[i++] = d2i(v);
                 }
             } else {
                 double v;
@@ -285,7 +294,7 @@ static pg_status parse_tensor(onnx_ctx *c, span bytes, span name_override, int *
                 else if (type == T_FLOAT16) v = io_half_to_float((uint16_t)f.v);
                 else if (f.number == 5) v = (double)(int32_t)(uint32_t)f.v;
                 else v = (double)f.v;
-                if (fl) df[i++] = (float)v; else di[i++] = (int64_t)v;
+                if (fl) df[i++] = (float)v; else di[i++] = d2i(v);
             }
         }
         if (i != count) { free(data); return pg_fail(PG_ERR_FORMAT, "%s: tensor '%s': data does not match its type", c->path, nm); }
@@ -417,7 +426,7 @@ static pg_status cval_put(onnx_ctx *c, span out, cval *x)
     for (int64_t i = 0; i < x->n; i++) {
         if (x->is_int) {
             double v = x->v[i];
-            ((int64_t *)data)[i] = v >= 9.2e18 ? INT64_MAX : v <= -9.2e18 ? INT64_MIN : (int64_t)v;
+            ((int64_t *)data)[i] = d2i(v);
         } else ((float *)data)[i] = (float)x->v[i];
     }
     int id;
@@ -435,7 +444,7 @@ static int const_ints(const onnx_ctx *c, int id, int64_t *out, int max)
     int64_t n = nn_shape_count(t->ndim, t->dims);
     if (n > max) return -1;
     for (int64_t i = 0; i < n; i++)
-        out[i] = t->dtype == NN_I64 ? ((int64_t *)t->data)[i] : (int64_t)((float *)t->data)[i];
+        out[i] = t->dtype == NN_I64 ? ((int64_t *)t->data)[i] : d2i(((float *)t->data)[i]);
     return (int)n;
 }
 
@@ -567,12 +576,13 @@ static pg_status eval_node(onnx_ctx *c, span op, const int *in, int nin, const s
         } else return node_fail(c, "Constant without a supported value attribute");
         return cval_put(c, outs[0], &y);
     }
+    if (nin < 1 || in[0] < 0) return node_fail(c, "first input missing");
     for (int i = 0; i < nin && i < 3; i++)
         if (in[i] >= 0 && (st = cval_get(c, in[i], &x[i]))) goto done;
     if (span_eq(op, "ConstantOfShape")) {
         int64_t dims[NN_MAX_DIMS];
         if (x[0].n > NN_MAX_DIMS) { st = node_fail(c, "shape of %lld dims", (long long)x[0].n); goto done; }
-        for (int i = 0; i < x[0].n; i++) dims[i] = (int64_t)x[0].v[i];
+        for (int i = 0; i < x[0].n; i++) dims[i] = d2i(x[0].v[i]);
         const onnx_attr *a = find_attr(at, na, "value");
         int is_int = 0;
         double v = 0;
@@ -616,7 +626,7 @@ static pg_status eval_node(onnx_ctx *c, span op, const int *in, int nin, const s
         int64_t shape[NN_MAX_DIMS];
         if (nin < 2 || in[1] < 0 || x[1].n > NN_MAX_DIMS) { st = node_fail(c, "bad shape input"); goto done; }
         cval s = { .ndim = (int)x[1].n };
-        for (int i = 0; i < s.ndim; i++) s.dims[i] = (int64_t)x[1].v[i];
+        for (int i = 0; i < s.ndim; i++) s.dims[i] = d2i(x[1].v[i]);
         cval pair[2] = { x[0], s };
         int nd;
         if (broadcast_shape(pair, 2, &nd, shape)) { st = node_fail(c, "shape does not broadcast"); goto done; }
@@ -648,7 +658,7 @@ static pg_status eval_node(onnx_ctx *c, span op, const int *in, int nin, const s
         int64_t outer = nn_shape_count(axis, x[0].dims), d = x[0].dims[axis], inner = nn_shape_count(x[0].ndim - axis - 1, x[0].dims + axis + 1);
         for (int64_t o = 0; o < outer; o++)
             for (int64_t k = 0; k < x[1].n; k++) {
-                int64_t v = (int64_t)x[1].v[k];
+                int64_t v = d2i(x[1].v[k]);
                 if (v < 0) v += d;
                 if (v < 0 || v >= d) { st = node_fail(c, "index %lld out of range", (long long)x[1].v[k]); goto done; }
                 memcpy(y.v + (o * x[1].n + k) * inner, x[0].v + (o * d + v) * inner, (size_t)inner * sizeof(double));
@@ -697,7 +707,7 @@ static pg_status eval_node(onnx_ctx *c, span op, const int *in, int nin, const s
         if (a) { nax = a->num_ints <= NN_MAX_DIMS ? a->num_ints : -1; if (nax > 0) memcpy(axes, a->ints, (size_t)nax * sizeof(int64_t)); }
         else if (nin > 1 && in[1] >= 0 && !span_eq(op, "Reshape")) {
             nax = x[1].n <= NN_MAX_DIMS ? (int)x[1].n : -1;
-            for (int i = 0; i < nax; i++) axes[i] = (int64_t)x[1].v[i];
+            for (int i = 0; i < nax; i++) axes[i] = d2i(x[1].v[i]);
         }
         if (nax < 0) { st = node_fail(c, "too many axes"); goto done; }
         if (span_eq(op, "Unsqueeze")) {
@@ -731,7 +741,7 @@ static pg_status eval_node(onnx_ctx *c, span op, const int *in, int nin, const s
             int64_t known = 1;
             int minus = -1;
             for (int i = 0; i < nd; i++) {
-                int64_t d = (int64_t)x[1].v[i];
+                int64_t d = d2i(x[1].v[i]);
                 if (d == 0 && i < x[0].ndim) d = x[0].dims[i];
                 if (d == -1 && minus < 0) { minus = i; d = 1; }
                 if (d < 0 || d > NN_MAX_DIM) { st = node_fail(c, "bad target shape"); goto done; }
@@ -769,19 +779,20 @@ static pg_status eval_node(onnx_ctx *c, span op, const int *in, int nin, const s
             if (nin > 4 && in[4] >= 0 && (st = cval_get(c, in[4], &sp))) { cval_free(&ax); goto done; }
             int okk = (!ax.v || ax.n == n) && (!sp.v || sp.n == n);
             for (int64_t k = 0; okk && k < n; k++) {
-                int64_t a = ax.v ? (int64_t)ax.v[k] : k;
+                int64_t a = ax.v ? d2i(ax.v[k]) : k;
                 if (a < 0) a += nd;
                 if (a < 0 || a >= nd) { okk = 0; break; }
                 double s = x[1].v[k], e = x[2].v[k], p = sp.v ? sp.v[k] : 1, d = (double)x[0].dims[a];
-                if (p == 0) { okk = 0; break; }
+                if (p == 0 || p != p || s != s || e != e) { okk = 0; break; }
+                p = p > d + 1 ? d + 1 : p < -d - 1 ? -d - 1 : p; /* a step past the end takes one element */
                 if (s < 0) s += d;
                 if (e < 0) e += d;
                 if (p > 0) { s = s < 0 ? 0 : s > d ? d : s; e = e < 0 ? 0 : e > d ? d : e; }
                 else { s = s < 0 ? 0 : s > d - 1 ? d - 1 : s; e = e < -1 ? -1 : e > d - 1 ? d - 1 : e; }
                 double len = p > 0 ? ceil((e - s) / p) : ceil((s - e) / -p);
-                dims[a] = len > 0 ? (int64_t)len : 0;
-                start[a] = (int64_t)s;
-                step[a] = stride[a] * (int64_t)p;
+                dims[a] = len > 0 ? d2i(len) : 0;
+                start[a] = d2i(s);
+                step[a] = stride[a] * d2i(p);
             }
             cval_free(&ax);
             cval_free(&sp);
@@ -872,7 +883,10 @@ static pg_status resize_modes(onnx_ctx *c, const onnx_attr *at, int na, nn_attrs
                     *nm = find_attr(at, na, "nearest_mode");
     if (!m || span_eq(m->s, "nearest")) a->resize_mode = NN_RESIZE_NEAREST;
     else if (span_eq(m->s, "linear") || span_eq(m->s, "bilinear")) a->resize_mode = NN_RESIZE_LINEAR;
-    else { char s[32]; span_str(m->s, s, sizeof s); return node_fail(c, "Resize mode '%s' is not supported (nearest, linear)", s); }
+    else if (span_eq(m->s, "cubic")) a->resize_mode = NN_RESIZE_CUBIC;
+    else { char s[32]; span_str(m->s, s, sizeof s); return node_fail(c, "Resize mode '%s' is not supported (nearest, linear, cubic)", s); }
+    a->cubic_a = attr_f(at, na, "cubic_coeff_a", -0.75f);
+    a->exclude_outside = attr_i(at, na, "exclude_outside", 0) != 0;
     if (!ct || span_eq(ct->s, "half_pixel")) a->coord_mode = NN_COORD_HALF_PIXEL;
     else if (span_eq(ct->s, "pytorch_half_pixel")) a->coord_mode = NN_COORD_PYTORCH_HALF_PIXEL;
     else if (span_eq(ct->s, "align_corners")) a->coord_mode = NN_COORD_ALIGN_CORNERS;

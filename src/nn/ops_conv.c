@@ -13,7 +13,7 @@
 #include <omp.h>
 #include <string.h>
 
-#define CONV_TILE_FLOATS ((size_t)1 << 21) /* col tile budget per thread: 8 MiB */
+#define CONV_TILE_FLOATS ((size_t)1 << 17) /* col tile budget per thread: 512 KiB, stays in L2 */
 
 typedef struct {
     int N, C, H, W, O, OH, OW;
@@ -189,14 +189,15 @@ void nn_run_conv(const nn_ctx *c, const nn_node *n)
     int P = q.OH * q.OW, K = q.Cg * q.kh * q.kw;
     int T = omp_get_max_threads();
     int pt = conv_tile(&q);
-    /* at least two tiles per thread when the image is small, so threads stay busy */
+    /* equal tiles, their count a multiple of the threads when (image, group) jobs are few */
     int64_t jobs_ng = (int64_t)q.N * q.G;
-    if (jobs_ng < 2 * T) {
-        int per = (int)((2 * T + jobs_ng - 1) / jobs_ng);
-        int want = ((P + per - 1) / per + 15) / 16 * 16;
-        if (want < pt && want >= 64) pt = want;
-    }
     int tiles = (P + pt - 1) / pt;
+    if (jobs_ng < 4 * T) {
+        int per = (tiles + T - 1) / T * T;
+        int want = ((P + per - 1) / per + 15) / 16 * 16;
+        if (want >= 64 && want <= pt) pt = want;
+        tiles = (P + pt - 1) / pt;
+    }
     int direct = !q.nhwc && q.kh == 1 && q.kw == 1 && q.sh == 1 && q.sw == 1 && !q.pt && !q.pl && !q.pb && !q.pr;
     int64_t jobs = jobs_ng * tiles;
     const nn_attrs *a = &n->attr;

@@ -93,7 +93,7 @@ void nn_run_binary(const nn_ctx *c, const nn_node *n)
     int64_t len = cs[m - 1], outer = 1;
     for (int i = 0; i < m - 1; i++) outer *= cs[i];
     nn_op op = n->op;
-    if (outer == 1 && len >= 65536) {
+    if (outer == 1 && len >= NN_PAR_MEMORY) {
         /* one long row: split it */
         #pragma omp parallel for schedule(static)
         for (int64_t s = 0; s < len; s += 16384) {
@@ -101,7 +101,7 @@ void nn_run_binary(const nn_ctx *c, const nn_node *n)
             binary_row(op, y + s, a + s * ca[m - 1], ca[m - 1], b + s * cb[m - 1], cb[m - 1], l);
         }
     } else {
-        #pragma omp parallel for schedule(static) if (outer * len >= 32768)
+        #pragma omp parallel for schedule(static) if (outer * len >= NN_PAR_MEMORY)
         for (int64_t o = 0; o < outer; o++) {
             int64_t rem = o, oa = 0, ob = 0;
             for (int i = m - 2; i >= 0; i--) {
@@ -156,7 +156,8 @@ void nn_run_unary(const nn_ctx *c, const nn_node *n)
     float alpha = n->attr.alpha;
     nn_op op = n->op;
     int gelu_tanh = n->attr.gelu_tanh;
-    #pragma omp parallel for schedule(static) if (count >= 32768)
+    int heavy = op == NN_OP_ERF || op == NN_OP_EXP || op == NN_OP_TANH || op == NN_OP_SIGMOID || op == NN_OP_GELU || op == NN_OP_SQRT;
+    #pragma omp parallel for schedule(static) if (count >= (heavy ? NN_PAR_COMPUTE : NN_PAR_MEMORY))
     for (int64_t s = 0; s < count; s += 4096)
         unary_chunk(op, y + s, x + s, count - s < 4096 ? count - s : 4096, alpha, gelu_tanh);
 }

@@ -26,22 +26,22 @@ void nn_sgemm(int trans_a, int trans_b, int M, int N, int K, const float *A, int
     int nt = omp_get_max_threads();
     double flops = 2.0 * M * N * (double)K;
     if (nt <= 1 || flops < 2e6) { nn_sgemm1(trans_a, trans_b, M, N, K, A, lda, B, ldb, beta, C, ldc); return; }
-    int split_m = M >= 16 * nt;
-    #pragma omp parallel num_threads(nt)
-    {
-        int t = omp_get_thread_num(), T = omp_get_num_threads();
-        int total = split_m ? M : N;
-        int step = (total + T - 1) / T;
-        if (split_m) step = (step + 7) / 8 * 8;
-        else step = (step + 15) / 16 * 16;
-        int s = t * step, e = s + step < total ? s + step : total;
-        if (s < e) {
-            if (split_m)
-                nn_sgemm1(trans_a, trans_b, e - s, N, K, trans_a ? A + s : A + (size_t)s * lda, lda, B, ldb, beta,
-                          C + (size_t)s * ldc, ldc);
-            else
-                nn_sgemm1(trans_a, trans_b, M, e - s, K, A, lda, trans_b ? B + (size_t)s * ldb : B + s, ldb, beta, C + s, ldc);
-        }
+    /* about four blocks per thread, handed out dynamically: a thread that the OS parks for a while
+     * (the cores are often shared) leaves its remaining blocks to the others */
+    int split_m = M >= 64 * nt;
+    int total = split_m ? M : N, align = split_m ? 16 : 64;
+    int step = (total + 4 * nt - 1) / (4 * nt);
+    step = (step + align - 1) / align * align;
+    if (step < (split_m ? 64 : 256)) step = split_m ? 64 : 256;
+    int blocks = (total + step - 1) / step;
+    #pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
+    for (int blk = 0; blk < blocks; blk++) {
+        int s = blk * step, e = s + step < total ? s + step : total;
+        if (split_m)
+            nn_sgemm1(trans_a, trans_b, e - s, N, K, trans_a ? A + s : A + (size_t)s * lda, lda, B, ldb, beta,
+                      C + (size_t)s * ldc, ldc);
+        else
+            nn_sgemm1(trans_a, trans_b, M, e - s, K, A, lda, trans_b ? B + (size_t)s * ldb : B + s, ldb, beta, C + s, ldc);
     }
 }
 
@@ -82,7 +82,7 @@ pg_status nn_infer_matmul(nn_graph *g, nn_node *n)
 /* Adds bias (N) to each of rows rows of y (N wide) and applies the activation. */
 static void bias_act(float *y, int64_t rows, int N, const float *bias, const nn_attrs *a)
 {
-    #pragma omp parallel for schedule(static) if (rows * N >= 32768)
+    #pragma omp parallel for schedule(static) if (rows * N >= NN_PAR_MEMORY)
     for (int64_t r = 0; r < rows; r++) {
         float *yr = y + r * N;
         if (bias) for (int j = 0; j < N; j++) yr[j] += bias[j];
@@ -165,4 +165,53 @@ void nn_run_gemm(const nn_ctx *c, const nn_node *n)
             for (int j = 0; j < N; j++)
                 y[(size_t)i * N + j] = alpha * y[(size_t)i * N + j] + (tc ? beta * cc[(cm == 1 ? 0 : i) * cn + (cn == 1 ? 0 : j)] : 0.0f);
     nn_apply_act(y, (size_t)M * N, n->attr.act, n->attr.act_alpha);
+}
+
+/* ---- fused attention ---- */
+
+#define ATTN_ROWS 64 /* query rows per block: the (64, N) score block stays in L2 */
+
+pg_status nn_infer_attention(nn_graph *g, nn_node *n)
+{
+    nn_tensor *q = nn_in(g, n, 0), *k = nn_in(g, n, 1), *v = nn_in(g, n, 2);
+    int nd = q->ndim;
+    if (nd < 2 || k->ndim != nd || v->ndim != nd) return nn_node_fail(n, "q, k, v must have the same rank >= 2");
+    for (int i = 0; i < nd - 2; i++)
+        if (k->dims[i] != q->dims[i] || v->dims[i] != q->dims[i]) return nn_node_fail(n, "batch dims differ");
+    if (k->dims[nd - 1] != q->dims[nd - 1] || v->dims[nd - 2] != k->dims[nd - 2]) return nn_node_fail(n, "q, k, v sizes disagree");
+    int64_t dims[NN_MAX_DIMS];
+    for (int i = 0; i < nd; i++) dims[i] = q->dims[i];
+    dims[nd - 1] = v->dims[nd - 1];
+    return nn_set_output(g, n, 0, nd, dims);
+}
+
+size_t nn_scratch_attention(const nn_graph *g, const nn_node *n)
+{
+    const nn_tensor *k = &g->tensors[n->inputs[1]];
+    return (size_t)ATTN_ROWS * (size_t)k->dims[k->ndim - 2];
+}
+
+void nn_run_attention(const nn_ctx *c, const nn_node *n)
+{
+    const nn_tensor *tq = nn_in(c->g, n, 0), *tk = nn_in(c->g, n, 1), *tv = nn_in(c->g, n, 2);
+    const float *q = nn_in_data(c, n, 0), *k = nn_in_data(c, n, 1), *v = nn_in_data(c, n, 2);
+    float *y = nn_out_data(c, n, 0);
+    int nd = tq->ndim;
+    int M = (int)tq->dims[nd - 2], D = (int)tq->dims[nd - 1], N = (int)tk->dims[nd - 2], E = (int)tv->dims[nd - 1];
+    int64_t batch = nn_shape_count(nd - 2, tq->dims), blocks = (M + ATTN_ROWS - 1) / ATTN_ROWS;
+    #pragma omp parallel for schedule(dynamic, 1)
+    for (int64_t job = 0; job < batch * blocks; job++) {
+        int64_t b = job / blocks;
+        int r0 = (int)(job % blocks) * ATTN_ROWS, rows = M - r0 < ATTN_ROWS ? M - r0 : ATTN_ROWS;
+        float *s = c->scratch + (size_t)omp_get_thread_num() * c->scratch_floats; /* (rows, N) */
+        nn_sgemm1(0, 1, rows, N, D, q + (b * M + r0) * (int64_t)D, D, k + b * (int64_t)N * D, D, 0.0f, s, N);
+        for (int r = 0; r < rows; r++) {
+            float *sr = s + (size_t)r * N, mx = -INFINITY;
+            for (int i = 0; i < N; i++) mx = sr[i] > mx ? sr[i] : mx;
+            for (int i = 0; i < N; i++) sr[i] = nn_exp(sr[i] - mx);
+            float inv = 1.0f / nn_sum(sr, N);
+            for (int i = 0; i < N; i++) sr[i] *= inv;
+        }
+        nn_sgemm1(0, 0, rows, E, N, s, N, v + b * (int64_t)N * E, E, 0.0f, y + (b * M + r0) * (int64_t)E, E);
+    }
 }

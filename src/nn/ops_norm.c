@@ -29,7 +29,7 @@ void nn_run_layer_norm(const nn_ctx *c, const nn_node *n)
     int64_t rows = nn_shape_count(n->attr.axis, tx->dims);
     int s1 = ts && nn_shape_count(ts->ndim, ts->dims) == 1, b1 = tb && nn_shape_count(tb->ndim, tb->dims) == 1;
     float eps = n->attr.epsilon;
-    #pragma omp parallel for schedule(static) if (rows * inner >= 32768)
+    #pragma omp parallel for schedule(static) if (rows * inner >= NN_PAR_MEMORY / 4)
     for (int64_t r = 0; r < rows; r++) {
         const float *xr = x + r * inner;
         float *yr = y + r * inner;
@@ -66,7 +66,7 @@ void nn_run_softmax(const nn_ctx *c, const nn_node *n)
     int64_t inner = nn_shape_count(tx->ndim - axis - 1, tx->dims + axis + 1);
     if (inner == 1) {
         /* rows contiguous: vectorised max, exp and scale */
-        #pragma omp parallel for schedule(static) if (outer * len >= 32768)
+        #pragma omp parallel for schedule(static) if (outer * len >= NN_PAR_COMPUTE)
         for (int64_t o = 0; o < outer; o++) {
             const float *xr = x + o * len;
             float *yr = y + o * len;
@@ -78,7 +78,7 @@ void nn_run_softmax(const nn_ctx *c, const nn_node *n)
         }
         return;
     }
-    #pragma omp parallel for schedule(static) if (outer * len * inner >= 32768)
+    #pragma omp parallel for schedule(static) if (outer * len * inner >= NN_PAR_COMPUTE)
     for (int64_t r = 0; r < outer * inner; r++) {
         int64_t o = r / inner, in = r % inner;
         const float *xr = x + o * len * inner + in;
@@ -125,7 +125,7 @@ void nn_run_reduce_mean(const nn_ctx *c, const nn_node *n)
     /* strides of x */
     int64_t stride[NN_MAX_DIMS], acc = 1;
     for (int i = tx->ndim - 1; i >= 0; i--) { stride[i] = acc; acc *= tx->dims[i]; }
-    #pragma omp parallel for schedule(static) if (out_count * red >= 32768)
+    #pragma omp parallel for schedule(static) if (out_count * red >= NN_PAR_COMPUTE)
     for (int64_t o = 0; o < out_count; o++) {
         /* base offset from the kept dims of o */
         int64_t rem = o, base = 0;

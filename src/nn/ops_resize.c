@@ -1,5 +1,8 @@
-/* ops_resize.c - Resize of the two spatial dims (NCHW or NHWC): nearest (all ONNX rounding modes)
- * and bilinear, with every ONNX coordinate_transformation_mode except tf_crop_and_resize. */
+/* ops_resize.c - Resize of the two spatial dims (NCHW or NHWC): nearest (all ONNX rounding modes),
+ * bilinear and bicubic (Keys kernel with coefficient a, taps clamped to the edge or, with
+ * exclude_outside, dropped and renormalised), with every ONNX coordinate_transformation_mode
+ * except tf_crop_and_resize. Each output coordinate gets up to 4 source indices and weights per
+ * axis (a table in scratch); the image loop is the same for all modes. */
 #include "nn/nn_ops.h"
 
 #include <math.h>
@@ -17,10 +20,12 @@ pg_status nn_infer_resize(nn_graph *g, nn_node *n)
     return nn_set_output(g, n, 0, 4, dims);
 }
 
+#define TAPS 4
+
 size_t nn_scratch_resize(const nn_graph *g, const nn_node *n)
 {
     (void)g;
-    return 3 * ((size_t)n->attr.out_h + (size_t)n->attr.out_w);
+    return 2 * TAPS * ((size_t)n->attr.out_h + (size_t)n->attr.out_w);
 }
 
 /* Source coordinate of output index o along an axis of in -> out samples. */
@@ -38,6 +43,8 @@ static double src_coord(const nn_attrs *a, int o, int in, int out, double scale)
 
 static int nearest_index(const nn_attrs *a, double s, int in)
 {
+    if (!(s > -1)) s = -1; /* also NaN */
+    if (s > in) s = in;
     double f = floor(s);
     int64_t i;
     switch (a->nearest_mode) {
@@ -49,22 +56,48 @@ static int nearest_index(const nn_attrs *a, double s, int in)
     return (int)(i < 0 ? 0 : i > in - 1 ? in - 1 : i);
 }
 
-/* Per output index along one axis: the two source indices and the weight of the second. */
-static void axis_table(const nn_attrs *a, int in, int out, double scale, int *i0, int *i1, float *t)
+/* Keys cubic kernel at distance d (>= 0). */
+static double cubic_w(double d, double A)
+{
+    if (d <= 1) return ((A + 2) * d - (A + 3)) * d * d + 1;
+    if (d < 2) return ((A * d - 5 * A) * d + 8 * A) * d - 4 * A;
+    return 0;
+}
+
+/* Per output index along one axis: TAPS source indices and weights (unused taps weight 0). */
+static void axis_table(const nn_attrs *a, int in, int out, double scale, int *idx, float *w)
 {
     for (int o = 0; o < out; o++) {
+        int *ix = idx + (size_t)o * TAPS;
+        float *wt = w + (size_t)o * TAPS;
+        for (int k = 0; k < TAPS; k++) { ix[k] = 0; wt[k] = 0.0f; }
         double s = src_coord(a, o, in, out, scale);
+        if (!(s == s)) s = 0; /* NaN */
+        if (s < -2.0 * in - 4) s = -2.0 * in - 4;
+        if (s > 2.0 * in + 4) s = 2.0 * in + 4;
         if (a->resize_mode == NN_RESIZE_NEAREST) {
-            i0[o] = i1[o] = nearest_index(a, s, in);
-            t[o] = 0.0f;
-            continue;
+            ix[0] = nearest_index(a, s, in);
+            wt[0] = 1.0f;
+        } else if (a->resize_mode == NN_RESIZE_LINEAR) {
+            if (s < 0) s = 0;
+            if (s > in - 1) s = in - 1;
+            int f = (int)floor(s);
+            ix[0] = f;
+            ix[1] = f + 1 < in ? f + 1 : in - 1;
+            wt[1] = (float)(s - f);
+            wt[0] = 1.0f - wt[1];
+        } else {
+            int f = (int)floor(s);
+            double t = s - f, sum = 0, ws[TAPS];
+            for (int k = 0; k < TAPS; k++) {
+                int i = f - 1 + k;
+                ws[k] = cubic_w(fabs(t - (k - 1)), a->cubic_a);
+                if (a->exclude_outside && (i < 0 || i >= in)) ws[k] = 0;
+                sum += ws[k];
+                ix[k] = i < 0 ? 0 : i > in - 1 ? in - 1 : i;
+            }
+            for (int k = 0; k < TAPS; k++) wt[k] = (float)(a->exclude_outside && sum != 0 ? ws[k] / sum : ws[k]);
         }
-        if (s < 0) s = 0;
-        if (s > in - 1) s = in - 1;
-        int f = (int)floor(s);
-        i0[o] = f;
-        i1[o] = f + 1 < in ? f + 1 : in - 1;
-        t[o] = (float)(s - f);
     }
 }
 
@@ -80,37 +113,53 @@ void nn_run_resize(const nn_ctx *c, const nn_node *n)
     int OH = a->out_h, OW = a->out_w;
     double sh = a->scale_h > 0 ? a->scale_h : (double)OH / H, sw = a->scale_w > 0 ? a->scale_w : (double)OW / W;
     /* the index and weight tables (nn_scratch_resize floats) sit in thread 0's scratch */
-    float *ty = c->scratch, *tw = ty + OH;
-    int *iy0 = (int *)(tw + OW), *iy1 = iy0 + OH, *ix0 = iy1 + OH, *ix1 = ix0 + OW;
-    axis_table(a, H, OH, sh, iy0, iy1, ty);
-    axis_table(a, W, OW, sw, ix0, ix1, tw);
+    float *wy = c->scratch, *wx = wy + (size_t)OH * TAPS;
+    int *iy = (int *)(wx + (size_t)OW * TAPS), *ix = iy + (size_t)OH * TAPS;
+    axis_table(a, H, OH, sh, iy, wy);
+    axis_table(a, W, OW, sw, ix, wx);
+    int taps = a->resize_mode == NN_RESIZE_NEAREST ? 1 : a->resize_mode == NN_RESIZE_LINEAR ? 2 : 4;
     if (!nhwc) {
         #pragma omp parallel for schedule(static)
         for (int64_t r = 0; r < (int64_t)N * C * OH; r++) {
             int oy = (int)(r % OH);
             int64_t plane = r / OH;
-            const float *r0 = x + (plane * H + iy0[oy]) * W, *r1 = x + (plane * H + iy1[oy]) * W;
-            float *yr = y + r * OW, wy = ty[oy];
+            const float *xp = x + plane * H * W;
+            float *yr = y + r * OW;
+            if (taps == 2) {
+                /* bilinear: two rows, two taps each */
+                const float *r0 = xp + (size_t)iy[oy * TAPS] * W, *r1 = xp + (size_t)iy[oy * TAPS + 1] * W;
+                float w0 = wy[oy * TAPS], w1 = wy[oy * TAPS + 1];
+                for (int ox = 0; ox < OW; ox++) {
+                    int a0 = ix[ox * TAPS], a1 = ix[ox * TAPS + 1];
+                    float u0 = wx[ox * TAPS], u1 = wx[ox * TAPS + 1];
+                    yr[ox] = (r0[a0] * u0 + r0[a1] * u1) * w0 + (r1[a0] * u0 + r1[a1] * u1) * w1;
+                }
+                continue;
+            }
             for (int ox = 0; ox < OW; ox++) {
-                float top = r0[ix0[ox]] + (r0[ix1[ox]] - r0[ix0[ox]]) * tw[ox];
-                float bot = r1[ix0[ox]] + (r1[ix1[ox]] - r1[ix0[ox]]) * tw[ox];
-                yr[ox] = top + (bot - top) * wy;
+                float v = 0;
+                for (int ky = 0; ky < taps; ky++) {
+                    const float *row = xp + (size_t)iy[oy * TAPS + ky] * W;
+                    float h = 0;
+                    for (int kx = 0; kx < taps; kx++) h += row[ix[ox * TAPS + kx]] * wx[ox * TAPS + kx];
+                    v += h * wy[oy * TAPS + ky];
+                }
+                yr[ox] = v;
             }
         }
     } else {
         #pragma omp parallel for schedule(static)
         for (int64_t r = 0; r < (int64_t)N * OH; r++) {
             int oy = (int)(r % OH), ni = (int)(r / OH);
-            const float *r0 = x + ((size_t)ni * H + iy0[oy]) * W * C, *r1 = x + ((size_t)ni * H + iy1[oy]) * W * C;
-            float wy = ty[oy];
             for (int ox = 0; ox < OW; ox++) {
                 float *yp = y + ((size_t)r * OW + ox) * C;
-                const float *a0 = r0 + (size_t)ix0[ox] * C, *a1 = r0 + (size_t)ix1[ox] * C;
-                const float *b0 = r1 + (size_t)ix0[ox] * C, *b1 = r1 + (size_t)ix1[ox] * C;
-                for (int ch = 0; ch < C; ch++) {
-                    float top = a0[ch] + (a1[ch] - a0[ch]) * tw[ox], bot = b0[ch] + (b1[ch] - b0[ch]) * tw[ox];
-                    yp[ch] = top + (bot - top) * wy;
-                }
+                for (int ch = 0; ch < C; ch++) yp[ch] = 0;
+                for (int ky = 0; ky < taps; ky++)
+                    for (int kx = 0; kx < taps; kx++) {
+                        float w = wy[oy * TAPS + ky] * wx[ox * TAPS + kx];
+                        const float *xp = x + (((size_t)ni * H + iy[oy * TAPS + ky]) * W + ix[ox * TAPS + kx]) * C;
+                        for (int ch = 0; ch < C; ch++) yp[ch] += w * xp[ch];
+                    }
             }
         }
     }

@@ -10,7 +10,7 @@ static void strided_copy(float *y, int nd, const int64_t *dims, const float *x, 
 {
     if (nd == 0) { y[0] = x[base]; return; }
     int64_t len = dims[nd - 1], outer = nn_shape_count(nd - 1, dims), s_last = stride[nd - 1];
-    #pragma omp parallel for schedule(static) if (outer * len >= 32768)
+    #pragma omp parallel for schedule(static) if (outer * len >= NN_PAR_MEMORY)
     for (int64_t o = 0; o < outer; o++) {
         int64_t rem = o, off = base;
         for (int d = nd - 2; d >= 0; d--) { off += (rem % dims[d]) * stride[d]; rem /= dims[d]; }
@@ -113,6 +113,7 @@ pg_status nn_infer_slice(nn_graph *g, nn_node *n)
         set[ax] = 1;
         int64_t d = x->dims[ax], s = a->starts[k], e = a->ends[k], p = a->steps[k];
         if (p == 0) return nn_node_fail(n, "step 0");
+        p = p > d + 1 ? d + 1 : p < -d - 1 ? -d - 1 : p; /* a longer step takes one element; keeps the sums in range */
         if (s < 0) s += d;
         if (e < 0) e += d;
         if (p > 0) {
@@ -175,11 +176,14 @@ void nn_run_concat(const nn_ctx *c, const nn_node *n)
         const nn_tensor *t = nn_in(c->g, n, i);
         const float *x = nn_in_data(c, n, i);
         int64_t chunk = t->dims[axis] * inner;
-        #pragma omp parallel for schedule(static) if (outer * chunk >= 65536)
+        #pragma omp parallel for schedule(static) if (outer * chunk >= NN_PAR_MEMORY)
         for (int64_t o = 0; o < outer; o++) memcpy(y + o * row + at, x + o * chunk, (size_t)chunk * sizeof(float));
         at += chunk;
     }
 }
+
+/* A float index as int64 without undefined behaviour (NaN and huge values fall out of range). */
+static int64_t index_of(float v) { return v == v && v > -1e18f && v < 1e18f ? (int64_t)v : INT64_MAX; }
 
 pg_status nn_infer_gather(nn_graph *g, nn_node *n)
 {
@@ -191,7 +195,7 @@ pg_status nn_infer_gather(nn_graph *g, nn_node *n)
     if (x->ndim - 1 + idx->ndim > NN_MAX_DIMS) return nn_node_fail(n, "output has too many dims");
     int64_t count = nn_shape_count(idx->ndim, idx->dims);
     for (int64_t i = 0; i < count; i++) {
-        int64_t v = idx->dtype == NN_I64 ? ((int64_t *)idx->data)[i] : (int64_t)((float *)idx->data)[i];
+        int64_t v = idx->dtype == NN_I64 ? ((int64_t *)idx->data)[i] : index_of(((float *)idx->data)[i]);
         if (v < -x->dims[axis] || v >= x->dims[axis]) return nn_node_fail(n, "index %lld out of range", (long long)v);
     }
     int64_t dims[NN_MAX_DIMS];
@@ -212,7 +216,7 @@ void nn_run_gather(const nn_ctx *c, const nn_node *n)
     int64_t d = tx->dims[axis], count = nn_shape_count(ti->ndim, ti->dims);
     for (int64_t o = 0; o < outer; o++)
         for (int64_t k = 0; k < count; k++) {
-            int64_t v = ti->dtype == NN_I64 ? ((int64_t *)ti->data)[k] : (int64_t)((float *)ti->data)[k];
+            int64_t v = ti->dtype == NN_I64 ? ((int64_t *)ti->data)[k] : index_of(((float *)ti->data)[k]);
             if (v < 0) v += d;
             memcpy(y + (o * count + k) * inner, x + (o * d + v) * inner, (size_t)inner * sizeof(float));
         }
@@ -271,7 +275,7 @@ void nn_run_pad(const nn_ctx *c, const nn_node *n)
     int64_t sx[NN_MAX_DIMS];
     contiguous_strides(nd, tx->dims, sx);
     int64_t count = nn_shape_count(nd, ty->dims);
-    #pragma omp parallel for schedule(static) if (count >= 32768)
+    #pragma omp parallel for schedule(static) if (count >= NN_PAR_MEMORY / 4)
     for (int64_t o = 0; o < count; o++) {
         int64_t rem = o, off = 0;
         int inside = 1;

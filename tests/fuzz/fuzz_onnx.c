@@ -10,7 +10,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     int64_t d[NN_MAX_DIMS];
     size_t ni = (size_t)nn_shape_count(nn_model_input_shape(m, d), d);
     size_t no = (size_t)nn_shape_count(nn_model_output_shape(m, d), d);
-    if (nn_model_memory_bytes(m) < ((size_t)64 << 20)) {
+    if (nn_model_memory_bytes(m) < ((size_t)16 << 20)) {
         float *x = calloc(ni + 1, sizeof(float)), *y = calloc(no + 1, sizeof(float));
         if (x && y) nn_model_run(m, x, y, 1);
         free(x);

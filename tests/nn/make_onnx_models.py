@@ -90,15 +90,16 @@ class Fusion(nn.Module):
 
 
 class DepthNet(nn.Module):
-    """ViT-S/14 (embed 384, 12 blocks, 6 heads, MLP 1536, LayerScale, cls token, pos-embed fixed for
-    the input size) + DPT head (layers 2, 5, 8, 11; features 64; out channels 48, 96, 192, 384)."""
+    """ViT-S/14 (embed 384, 12 blocks, 6 heads, MLP 1536, LayerScale, cls token, a 37x37 position
+    embedding interpolated bicubically to the patch grid as DINOv2 does, scale (n + 0.1) / 37)
+    + DPT head (layers 2, 5, 8, 11; features 64; out channels 48, 96, 192, 384)."""
 
     def __init__(self, h, w, dim=384, depth=12, heads=6, mlp=1536, feat=64, outc=(48, 96, 192, 384)):
         super().__init__()
         self.ph, self.pw = h // 14, w // 14
         self.patch = nn.Conv2d(3, dim, 14, 14)
         self.cls = nn.Parameter(torch.randn(1, 1, dim) * 0.02)
-        self.pos = nn.Parameter(torch.randn(1, 1 + self.ph * self.pw, dim) * 0.02)
+        self.pos = nn.Parameter(torch.randn(1, 1 + 37 * 37, dim) * 0.02)
         self.blocks = nn.ModuleList([Block(dim, heads, mlp) for _ in range(depth)])
         self.norm = nn.LayerNorm(dim, eps=1e-6)
         self.take = [2, 5, 8, 11] if depth == 12 else list(range(depth))[-4:]
@@ -117,7 +118,12 @@ class DepthNet(nn.Module):
     def forward(self, img):
         B = img.shape[0]
         x = self.patch(img).flatten(2).transpose(1, 2)
-        x = torch.cat([self.cls.expand(B, -1, -1), x], dim=1) + self.pos
+        C = x.shape[-1]
+        grid = self.pos[:, 1:].reshape(1, 37, 37, C).permute(0, 3, 1, 2)
+        grid = F.interpolate(grid, scale_factor=(float((self.ph + 0.1) / 37), float((self.pw + 0.1) / 37)),
+                             mode="bicubic", align_corners=False)
+        pos = torch.cat([self.pos[:, :1], grid.permute(0, 2, 3, 1).reshape(1, -1, C)], dim=1)
+        x = torch.cat([self.cls.expand(B, -1, -1), x], dim=1) + pos
         feats = []
         for i, blk in enumerate(self.blocks):
             x = blk(x)
@@ -209,6 +215,8 @@ def op_cases():
     c.append(("resize_bilinear_align", Lambda(lambda m, x: F.interpolate(x, size=(13, 17), mode="bilinear", align_corners=True)), (1, 2, 5, 7)))
     c.append(("resize_bilinear_half", Lambda(lambda m, x: F.interpolate(x, size=(11, 4), mode="bilinear", align_corners=False)), (1, 2, 5, 7)))
     c.append(("resize_bilinear_scale", Lambda(lambda m, x: F.interpolate(x, scale_factor=2.0, mode="bilinear", align_corners=False)), (1, 3, 6, 5)))
+    c.append(("resize_bicubic", Lambda(lambda m, x: F.interpolate(x, scale_factor=(1.7, 0.8), mode="bicubic", align_corners=False)), (1, 2, 9, 11)))
+    c.append(("resize_bicubic_align", Lambda(lambda m, x: F.interpolate(x, size=(12, 5), mode="bicubic", align_corners=True)), (1, 2, 7, 9)))
     c.append(("resize_nearest", Lambda(lambda m, x: F.interpolate(x, scale_factor=3.0, mode="nearest")), (1, 2, 4, 5)))
     c.append(("relu_sigmoid", Lambda(lambda m, x: t.relu(x) + t.sigmoid(x)), (3, 40)))
     c.append(("gelu_erf", nn.GELU(), (3, 40)))
@@ -247,6 +255,32 @@ def main():
         np.save(os.path.join(out, name + "_in.npy"), x.numpy().astype(np.float32))
         np.save(os.path.join(out, name + "_out.npy"), y.numpy().astype(np.float32))
         names.append(name)
+    # weights stored as float16 and as per-channel int8 + DequantizeLinear (numpy reference)
+    from onnx import TensorProto, helper, numpy_helper
+    r = np.random.default_rng(2)
+    x = r.standard_normal((3, 16)).astype(np.float32)
+    w16 = r.standard_normal((16, 8)).astype(np.float16)
+    q8 = r.integers(-128, 128, (8, 16)).astype(np.int8)
+    scale = (r.random(8) * 0.02 + 0.01).astype(np.float32)
+    zp = r.integers(-5, 5, 8).astype(np.int8)
+    wq = ((q8.astype(np.float32) - zp[:, None].astype(np.float32)) * scale[:, None]).T
+    nodes = [helper.make_node("Cast", ["w16"], ["w16f"], to=TensorProto.FLOAT),
+             helper.make_node("MatMul", ["input", "w16f"], ["a"]),
+             helper.make_node("DequantizeLinear", ["q8", "scale", "zp"], ["wq"], axis=0),
+             helper.make_node("Transpose", ["wq"], ["wqt"], perm=[1, 0]),
+             helper.make_node("MatMul", ["input", "wqt"], ["b"]),
+             helper.make_node("Concat", ["a", "b"], ["output"], axis=1)]
+    graph = helper.make_graph(nodes, "quant", [helper.make_tensor_value_info("input", TensorProto.FLOAT, [3, 16])],
+                              [helper.make_tensor_value_info("output", TensorProto.FLOAT, [3, 16])],
+                              [numpy_helper.from_array(w16, "w16"), numpy_helper.from_array(q8, "q8"),
+                               numpy_helper.from_array(scale, "scale"), numpy_helper.from_array(zp, "zp")])
+    mq = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    mq.ir_version = 8
+    onnx.save(mq, os.path.join(out, "weights_fp16_int8.onnx"))
+    np.save(os.path.join(out, "weights_fp16_int8_in.npy"), x)
+    ref = np.concatenate([x.astype(np.float64) @ w16.astype(np.float64), x.astype(np.float64) @ wq.astype(np.float64)], 1)
+    np.save(os.path.join(out, "weights_fp16_int8_out.npy"), ref.astype(np.float32))
+    names.append("weights_fp16_int8")
     # the whole network at 266x196 (19x14 patches) on three images
     h, w = 196, 266
     net = DepthNet(h, w).eval()
