@@ -12,6 +12,7 @@
 #include "core/fileutil.h"
 #include "io/npy.h"
 #include "io/video.h"
+#include "synth/synth.h"
 
 #define VW 48
 #define VH 32
@@ -192,6 +193,57 @@ static void test_cli(const char *tmp, const char *clip, const char *model)
     CHECK(pg_path_exists(path), "prepare finished");
 }
 
+/* The pipeline with depth_model: the depth stage runs first and has its own marker; a rerun
+ * skips it; a model with new content reruns it and every stage after. */
+static void run_with_model(const char *data, const char *model, const char *out, pg_pipeline_report *r)
+{
+    pg_pipeline_config c;
+    pg_pipeline_defaults(&c);
+    c.input = data;
+    c.depth_model = model;
+    c.out = out;
+    c.test_cameras = "cam05,cam06";
+    c.iters = 12;
+    c.threads = 2;
+    c.evaluate = 1;
+    pg_status st = pg_pipeline_run(&c, r);
+    CHECK(st == PG_OK, "pipeline with a depth model: %s", st ? pg_last_error() : "");
+}
+
+static void test_pipeline(const char *tmp, const char *model)
+{
+    char data[4200], out[4200], path[4400];
+    snprintf(data, sizeof data, "%s/synth", tmp);
+    snprintf(out, sizeof out, "%s/pipe", tmp);
+    synth_options so;
+    synth_options_default(&so);
+    so.cams = 7;
+    so.frames = 3;
+    so.width = 32;
+    so.height = 24;
+    so.spp = 1;
+    CHECK_OK(synth_write_dataset(data, &so));
+    pg_pipeline_report r;
+    run_with_model(data, model, out, &r);
+    CHECK(r.ran[5] && r.ran[0] && r.ran[1] && r.ran[2] && r.ran[3], "first run: depth and every stage ran (%d %d %d %d %d)", r.ran[5],
+          r.ran[0], r.ran[1], r.ran[2], r.ran[3]);
+    snprintf(path, sizeof path, "%s/depth/depth.npy", out);
+    CHECK(pg_path_exists(path), "OUT/depth/depth.npy written");
+    run_with_model(data, model, out, &r);
+    CHECK(!r.ran[5] && !r.ran[0] && !r.ran[1] && !r.ran[2], "rerun: depth and stages skipped (%d %d %d %d)", r.ran[5], r.ran[0],
+          r.ran[1], r.ran[2]);
+    /* another model under the same path */
+    tiny_b[0] = 2.0f;
+    size_t n;
+    uint8_t *bytes = tiny_model(&n, 0);
+    write_bytes(model, bytes, n);
+    free(bytes);
+    tiny_b[0] = 1.0f;
+    run_with_model(data, model, out, &r);
+    CHECK(r.ran[5] && r.ran[0] && r.ran[1] && r.ran[2], "new model: depth and the stages after it rerun (%d %d %d %d)", r.ran[5],
+          r.ran[0], r.ran[1], r.ran[2]);
+}
+
 int main(void)
 {
     char tmp[4096], clip[4200], model[4200];
@@ -205,5 +257,6 @@ int main(void)
     free(bytes);
     test_stage(tmp, clip, model);
     test_cli(tmp, clip, model);
+    test_pipeline(tmp, model);
     return test_summary("test_depth_model");
 }
