@@ -34,6 +34,7 @@ typedef struct {
     const char *name;
     int *ir;              /* TFLite tensor -> IR tensor id (-1 not yet) */
     int *readers;         /* ops reading each tensor */
+    int *owner;           /* the op whose (planned) output each tensor is, -1 none */
     char *is_output;      /* graph outputs */
 } import_ctx;
 
@@ -153,6 +154,8 @@ static void plan_fusions(import_ctx *c, plan_op *plan)
                 if (T[y].ndim != 4 || T[b].count != T[y].dims[3]) continue;
                 plan[p].bias = b;
                 plan[p].output = op->output;
+                c->owner[op->output] = p;
+                c->owner[y] = -1;
                 plan[k].skip = 1;
                 break;
             }
@@ -195,21 +198,17 @@ static void plan_fusions(import_ctx *c, plan_op *plan)
         else if (op->code == NN_TFL_RELU6) act = NN_ACT_RELU6;
         else continue;
         if (!SOLE(x)) continue;
-        /* the producer, following a fold: the op whose plan output is x */
-        int p = T[x].producer;
-        if (plan[p].skip || plan[p].output != x) {
-            p = -1;
-            for (int q = 0; q < k; q++)
-                if (!plan[q].skip && plan[q].output == x) p = q;
-            if (p < 0) continue;
-        }
+        int p = c->owner[x]; /* the producer, after the folds */
+        if (p < 0 || plan[p].skip) continue;
         int code = m->ops[p].code;
         int ok = code == NN_TFL_CONV_2D || code == NN_TFL_DEPTHWISE_CONV_2D || code == NN_TFL_TRANSPOSE_CONV || code == NN_TFL_ADD ||
                  code == NN_TFL_SUB || code == NN_TFL_MUL;
         if (!ok || plan[p].act != NN_ACT_NONE || m->ops[p].act != NN_TFL_ACT_NONE) continue;
         plan[p].act = act;
         plan[p].alpha = alpha;
+        c->owner[x] = -1;
         plan[p].output = plan[k].output;
+        c->owner[plan[k].output] = p;
         plan[k].skip = 1;
     }
 #undef SOLE
@@ -402,14 +401,15 @@ pg_status nn_tflite_import(const uint8_t *data, size_t size, const char *name, n
 {
     nn_tfl_model m;
     PG_TRY(nn_tfl_parse(data, size, name, &m));
-    import_ctx c = { &m, g, name, NULL, NULL, NULL };
+    import_ctx c = { &m, g, name, NULL, NULL, NULL, NULL };
     plan_op *plan = pg_calloc((size_t)m.num_ops, sizeof *plan, "tflite import plan");
     c.ir = pg_malloc((size_t)m.num_tensors * sizeof(int), "tflite import map");
     c.readers = pg_calloc((size_t)m.num_tensors, sizeof(int), "tflite import readers");
     c.is_output = pg_calloc((size_t)m.num_tensors, 1, "tflite import outputs");
-    pg_status st = plan && c.ir && c.readers && c.is_output ? PG_OK : PG_ERR_NOMEM;
+    c.owner = pg_malloc((size_t)m.num_tensors * sizeof(int), "tflite import owners");
+    pg_status st = plan && c.ir && c.readers && c.is_output && c.owner ? PG_OK : PG_ERR_NOMEM;
     if (!st) {
-        for (int i = 0; i < m.num_tensors; i++) c.ir[i] = -1;
+        for (int i = 0; i < m.num_tensors; i++) c.ir[i] = -1, c.owner[i] = m.tensors[i].producer;
         for (int k = 0; k < m.num_ops; k++)
             for (int j = 0; j < m.ops[k].num_inputs; j++)
                 if (m.ops[k].inputs[j] >= 0) c.readers[m.ops[k].inputs[j]]++;
@@ -426,6 +426,7 @@ pg_status nn_tflite_import(const uint8_t *data, size_t size, const char *name, n
     free(c.ir);
     free(c.readers);
     free(c.is_output);
+    free(c.owner);
     nn_tfl_destroy(&m);
     return st;
 }
