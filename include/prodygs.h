@@ -39,6 +39,11 @@ typedef enum {
 
 /* The message of the last failure on this thread. */
 const char *pg_last_error(void);
+/* Warnings (input that works but is probably not what the user meant: depth that looks like
+ * disparity, a --size that stretches the frames, a variable frame rate) go to this handler;
+ * by default they print "prodygs: warning: <message>" on stderr. NULL restores the default. */
+typedef void (*pg_warning_handler)(const char *message, void *ctx);
+void pg_set_warning_handler(pg_warning_handler handler, void *ctx);
 const char *pg_status_name(pg_status code);
 
 #define PG_CAMERA_LABEL 160  /* "name (index i)" */

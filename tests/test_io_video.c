@@ -6,6 +6,7 @@
 
 #include <libavformat/avformat.h>
 #include <libavutil/display.h>
+#include <libavutil/pixfmt.h>
 
 #include <math.h>
 #include <stdlib.h>
@@ -192,6 +193,71 @@ static void test_rotation(const char *dir)
     io_frames_destroy(&B);
 }
 
+/* Writes an uncompressed RGB video (NUT container, millisecond time base) whose frames sit at the
+ * given times: a variable-rate file without needing an encoder. */
+static int write_raw_timed(const char *path, const int64_t *pts_ms, int n)
+{
+    AVFormatContext *out = NULL;
+    if (avformat_alloc_output_context2(&out, NULL, "nut", path) < 0) return -1;
+    AVStream *st = avformat_new_stream(out, NULL);
+    st->codecpar->codec_type = AVMEDIA_TYPE_VIDEO;
+    st->codecpar->codec_id = AV_CODEC_ID_RAWVIDEO;
+    st->codecpar->format = AV_PIX_FMT_RGB24;
+    st->codecpar->width = W;
+    st->codecpar->height = H;
+    st->time_base = (AVRational){ 1, 1000 };
+    int rc = avio_open(&out->pb, path, AVIO_FLAG_WRITE) < 0 || avformat_write_header(out, NULL) < 0 ? -1 : 0;
+    AVPacket *pkt = av_packet_alloc();
+    for (int i = 0; rc == 0 && i < n; i++) {
+        pg_image img;
+        pattern(&img, W, H, i);
+        int bad = av_new_packet(pkt, W * H * 3) < 0;
+        for (int k = 0; !bad && k < W * H * 3; k++) pkt->data[k] = (uint8_t)lroundf(img.data[k] * 255.0f);
+        pg_image_destroy(&img);
+        if (bad) { rc = -1; break; }
+        pkt->pts = pkt->dts = av_rescale_q(pts_ms[i], (AVRational){ 1, 1000 }, st->time_base);
+        pkt->flags |= AV_PKT_FLAG_KEY;
+        pkt->stream_index = 0;
+        if (av_interleaved_write_frame(out, pkt) < 0) rc = -1;
+        av_packet_unref(pkt);
+    }
+    if (rc == 0) av_write_trailer(out);
+    av_packet_free(&pkt);
+    avio_closep(&out->pb);
+    avformat_free_context(out);
+    return rc;
+}
+
+static char last_warning[1024];
+static int warnings;
+static void catch_warning(const char *message, void *ctx)
+{
+    (void)ctx;
+    snprintf(last_warning, sizeof last_warning, "%s", message);
+    warnings++;
+}
+
+/* A variable-rate video reads like any other but says that its timing is approximated; a
+ * constant-rate one whose timestamps jitter by a millisecond (30 fps in a 1 ms time base) does not. */
+static void test_variable_rate(const char *dir)
+{
+    char vfr[4096], cfr[4096];
+    pg_path_join(vfr, sizeof vfr, dir, "vfr.nut");
+    pg_path_join(cfr, sizeof cfr, dir, "cfr.nut");
+    const int64_t uneven[6] = { 0, 33, 67, 150, 183, 400 }, even[6] = { 0, 33, 67, 100, 133, 167 };
+    CHECK(write_raw_timed(vfr, uneven, 6) == 0 && write_raw_timed(cfr, even, 6) == 0, "cannot write test videos");
+    pg_set_warning_handler(catch_warning, NULL);
+    io_frames fr;
+    CHECK_OK(io_frames_read(cfr, NULL, &fr));
+    CHECK(fr.count == 6 && warnings == 0, "constant-rate video: %d frames, warning '%s'", fr.count, last_warning);
+    io_frames_destroy(&fr);
+    CHECK_OK(io_frames_read(vfr, NULL, &fr));
+    CHECK(fr.count == 6 && warnings == 1 && strstr(last_warning, "variable frame rate") && strstr(last_warning, "vfr.nut"),
+          "variable-rate video: %d frames, %d warnings, '%s'", fr.count, warnings, last_warning);
+    io_frames_destroy(&fr);
+    pg_set_warning_handler(NULL, NULL);
+}
+
 static void test_folder(const char *dir)
 {
     char sub[4096], p[4200];
@@ -286,6 +352,7 @@ int main(void)
     test_tmpdir("test_io_video", dir, sizeof dir);
     test_roundtrip(dir);
     test_rotation(dir);
+    test_variable_rate(dir);
     test_folder(dir);
     test_bad(dir);
     return test_summary("test_io_video");

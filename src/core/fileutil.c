@@ -1,6 +1,7 @@
 /* fileutil.c - atomic writes and path helpers. */
 #include "core/fileutil.h"
 
+#include <dirent.h>
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
@@ -129,4 +130,74 @@ pg_status pg_write_file_atomic(const char *path, const void *data, size_t size)
         return pg_fail(PG_ERR_IO, "%s: write failed: %s", path, strerror(errno));
     }
     return pg_atomic_commit(&f);
+}
+
+pg_status pg_remove_tree(const char *path)
+{
+    struct stat st;
+    if (lstat(path, &st) != 0)
+        return errno == ENOENT || errno == ENOTDIR ? PG_OK : pg_fail(PG_ERR_IO, "%s: %s", path, strerror(errno));
+    if (S_ISDIR(st.st_mode)) {
+        DIR *dir = opendir(path);
+        if (!dir) return pg_fail(PG_ERR_IO, "%s: cannot list: %s", path, strerror(errno));
+        pg_status rc = PG_OK;
+        struct dirent *e;
+        char child[4096];
+        while (rc == PG_OK && (e = readdir(dir)) != NULL) {
+            if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
+            rc = pg_path_join(child, sizeof child, path, e->d_name);
+            if (rc == PG_OK) rc = pg_remove_tree(child);
+        }
+        closedir(dir);
+        if (rc) return rc;
+        if (rmdir(path) != 0) return pg_fail(PG_ERR_IO, "%s: cannot remove: %s", path, strerror(errno));
+        return PG_OK;
+    }
+    if (unlink(path) != 0) return pg_fail(PG_ERR_IO, "%s: cannot remove: %s", path, strerror(errno));
+    return PG_OK;
+}
+
+pg_status pg_staged_dir_begin(pg_staged_dir *d, const char *dir, int resume)
+{
+    size_t n = strlen(dir);
+    while (n > 1 && dir[n - 1] == '/') n--; /* "out/" -> "out" so the sibling is out.partial */
+    if (n == 0 || n >= sizeof d->final) return pg_fail(PG_ERR_ARG, "bad output directory '%s'", dir);
+    memcpy(d->final, dir, n);
+    d->final[n] = '\0';
+    snprintf(d->work, sizeof d->work, "%s.partial", d->final);
+    if (!resume) PG_TRY(pg_remove_tree(d->work));
+    pg_status st = pg_mkdir_p(d->work);
+    if (st) return pg_fail_context(st, "%s: output is not writable", d->final);
+    return PG_OK;
+}
+
+pg_status pg_staged_dir_commit(pg_staged_dir *d)
+{
+    PG_TRY(pg_mkdir_p(d->final));
+    DIR *dir = opendir(d->work);
+    if (!dir) return pg_fail(PG_ERR_IO, "%s: cannot list: %s", d->work, strerror(errno));
+    pg_status rc = PG_OK;
+    struct dirent *e;
+    char from[4096], to[4096];
+    while (rc == PG_OK && (e = readdir(dir)) != NULL) {
+        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
+        rc = pg_path_join(from, sizeof from, d->work, e->d_name);
+        if (rc == PG_OK) rc = pg_path_join(to, sizeof to, d->final, e->d_name);
+        /* a folder of an earlier result (vis/, frames/) is replaced whole, not merged */
+        if (rc == PG_OK && pg_path_is_dir(to)) rc = pg_remove_tree(to);
+        if (rc == PG_OK && rename(from, to) != 0)
+            rc = pg_fail(PG_ERR_IO, "%s: cannot move into place: %s", to, strerror(errno));
+    }
+    closedir(dir);
+    if (rc) return rc;
+    if (rmdir(d->work) != 0) return pg_fail(PG_ERR_IO, "%s: cannot remove: %s", d->work, strerror(errno));
+    return PG_OK;
+}
+
+void pg_staged_dir_abort(pg_staged_dir *d)
+{
+    char saved[512];
+    snprintf(saved, sizeof saved, "%s", pg_last_error()); /* keep the stage's own error message */
+    pg_remove_tree(d->work);
+    pg_fail(PG_ERR_IO, "%s", saved);
 }

@@ -26,6 +26,31 @@ pg_status pg_atomic_commit(pg_atomic_file *f);
 /* Closes and removes the temporary; safe to call twice. */
 void pg_atomic_abort(pg_atomic_file *f);
 
+/* A stage's output folder filled out of sight. The stage writes into `work` (DIR.partial, beside
+ * DIR); pg_staged_dir_commit moves every entry into DIR once the stage completes. A crash or a
+ * full disk leaves DIR.partial, never a half-filled DIR that looks complete; creating
+ * DIR.partial first is also the check, before any work, that the output is writable.
+ *
+ *   pg_staged_dir out;
+ *   PG_TRY(pg_staged_dir_begin(&out, dir, 0));
+ *   st = write_everything(out.work);
+ *   st = st ? (pg_staged_dir_abort(&out), st) : pg_staged_dir_commit(&out);
+ */
+typedef struct {
+    char final[4096];
+    char work[4200];
+} pg_staged_dir;
+
+/* Creates DIR's parent and DIR.partial. resume = 0 clears what a crashed run left in
+ * DIR.partial; resume = 1 keeps it (stages that skip finished frames). */
+pg_status pg_staged_dir_begin(pg_staged_dir *d, const char *dir, int resume);
+/* Moves every entry of DIR.partial into DIR (replacing same-named ones) and removes DIR.partial. */
+pg_status pg_staged_dir_commit(pg_staged_dir *d);
+/* Removes DIR.partial and what is in it (a failed stage). */
+void pg_staged_dir_abort(pg_staged_dir *d);
+/* Removes a file or a directory tree (like rm -rf); a missing path is not an error. */
+pg_status pg_remove_tree(const char *path);
+
 /* Creates a directory and its parents (like mkdir -p). */
 pg_status pg_mkdir_p(const char *path);
 int pg_path_exists(const char *path);

@@ -55,6 +55,27 @@ pg_status pg_fail_context(pg_status code, const char *fmt, ...)
     return code;
 }
 
+static pg_warning_handler warning_handler;
+static void *warning_ctx;
+
+void pg_set_warning_handler(pg_warning_handler handler, void *ctx)
+{
+    warning_handler = handler;
+    warning_ctx = ctx;
+}
+
+void pg_warn(const char *fmt, ...)
+{
+    char msg[sizeof last_error];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    escape_controls(msg, sizeof msg);
+    if (warning_handler) warning_handler(msg, warning_ctx);
+    else fprintf(stderr, "prodygs: warning: %s\n", msg);
+}
+
 const char *pg_last_error(void)
 {
     return last_error[0] ? last_error : "unknown error";

@@ -20,6 +20,8 @@
 pg_status pg_fail(pg_status code, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 /* Prefixes the current message with more context ("frame 3: " + old message). */
 pg_status pg_fail_context(pg_status code, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+/* Reports a warning through the handler of pg_set_warning_handler (one line, controls escaped). */
+void pg_warn(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 /* Process exit code for a status: 0 ok, 2 user/input error, 1 internal failure. */
 int pg_status_exit_code(pg_status code);
 

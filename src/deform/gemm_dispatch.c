@@ -2,6 +2,7 @@
  * the CPU (one binary for every x86-64 CPU): AMX-BF16 tiles, else AVX512-BF16 vdpbf16ps, else
  * none (the network's f32 path on OpenBLAS). PG_KERNELS=amx|avx512bf16|f32 forces one (an
  * unsupported choice falls back to the best supported one), PG_NO_AMX=1 skips AMX. */
+#include "core/status.h"
 #include "deform/gemm_amx.h"
 
 #include <stdio.h>
@@ -52,11 +53,11 @@ static gemm_bf16_kind choose(void)
     for (int k = GEMM_BF16_NONE; k <= GEMM_BF16_AVX512; k++)
         if (strcmp(force, gemm_bf16_name((gemm_bf16_kind)k)) == 0) {
             if (gemm_bf16_supported((gemm_bf16_kind)k) && (k != GEMM_BF16_AMX || amx_ok)) return (gemm_bf16_kind)k;
-            fprintf(stderr, "prodygs: warning: PG_KERNELS=%s is not supported by this CPU; using %s\n", force,
+            pg_warn("PG_KERNELS=%s is not supported by this CPU; using %s", force,
                     gemm_bf16_name(best));
             return best;
         }
-    fprintf(stderr, "prodygs: warning: PG_KERNELS=%s is not one of f32, amx, avx512bf16; using %s\n", force,
+    pg_warn("PG_KERNELS=%s is not one of f32, amx, avx512bf16; using %s", force,
             gemm_bf16_name(best));
     return best;
 }

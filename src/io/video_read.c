@@ -394,6 +394,8 @@ typedef struct {
     int rotation;             /* clockwise degrees applied after scaling */
     int sw, sh;               /* scaled size before rotation */
     uint8_t *tmp;             /* (sh, sw, 3) scaled frame when rotating */
+    int64_t last_pts;         /* timestamp of the previous decoded frame (AV_NOPTS_VALUE: none) */
+    int64_t min_step, max_step; /* smallest and largest step between frames (stream time base) */
 } decode_state;
 
 /* Rotates an RGB24 image (w, h) clockwise by rot degrees into dst. */
@@ -414,6 +416,13 @@ static void rotate_rgb(uint8_t *dst, const uint8_t *src, int w, int h, int rot)
 static pg_status take_frame(decode_state *ds, const AVFrame *f)
 {
     int idx = ds->decoded++;
+    int64_t pts = f->best_effort_timestamp;
+    if (pts != AV_NOPTS_VALUE && ds->last_pts != AV_NOPTS_VALUE && pts > ds->last_pts) {
+        int64_t step = pts - ds->last_pts;
+        if (!ds->min_step || step < ds->min_step) ds->min_step = step;
+        if (step > ds->max_step) ds->max_step = step;
+    }
+    ds->last_pts = pts;
     if (idx < ds->first || (idx - ds->first) % ds->stride) return PG_OK;
     int k = (idx - ds->first) / ds->stride;
     if (ds->count >= 0 && k >= ds->count) return PG_OK;
@@ -470,6 +479,20 @@ static pg_status drain(decode_state *ds, AVCodecContext *dec, AVFrame *frame)
     }
 }
 
+/* Frames are used in order and timed at the average rate: right for constant-rate video, a
+ * distortion of the motion's timing for variable-rate phone footage, so say so (once per file;
+ * every stage rereads the input). Steps off by more than 25 % are not rounding jitter. */
+static void warn_variable_rate(const char *path, const decode_state *ds, const AVStream *s)
+{
+    static char warned[512];
+    if (ds->min_step <= 0 || ds->max_step * 4 <= ds->min_step * 5 || strncmp(warned, path, sizeof warned - 1) == 0) return;
+    snprintf(warned, sizeof warned, "%s", path);
+    double tb = av_q2d(s->time_base);
+    pg_warn("%s: variable frame rate (frames %.1f to %.1f ms apart); frames are used in order at the average %.2f fps, "
+            "so motion timing is approximate", path, 1000.0 * tb * (double)ds->min_step, 1000.0 * tb * (double)ds->max_step,
+            stream_fps(s));
+}
+
 static pg_status read_video(const char *path, const io_video_options *opt, io_frames *out)
 {
     av_input in;
@@ -483,6 +506,7 @@ static pg_status read_video(const char *path, const io_video_options *opt, io_fr
     ds.stride = opt->stride < 1 ? 1 : opt->stride;
     ds.count = opt->count > 0 ? opt->count : -1;
     ds.rotation = stream_rotation(s);
+    ds.last_pts = AV_NOPTS_VALUE;
     int swap = ds.rotation == 90 || ds.rotation == 270;
     out->src_width = swap ? in.dec->height : in.dec->width;
     out->src_height = swap ? in.dec->width : in.dec->height;
@@ -531,6 +555,7 @@ static pg_status read_video(const char *path, const io_video_options *opt, io_fr
             st = pg_fail(PG_ERR_FORMAT, "%s: truncated: header says %lld frames, only %d decode", path,
                          (long long)s->nb_frames, ds.decoded);
     }
+    if (st == PG_OK) warn_variable_rate(path, &ds, s);
     if (st == PG_OK && ds.cap > out->count) {
         uint8_t *nb = realloc(out->rgb, (size_t)out->width * out->height * 3 * (size_t)out->count);
         if (nb) out->rgb = nb;

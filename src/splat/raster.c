@@ -12,6 +12,7 @@
 #include "splat/sh.h"
 #include "core/mathx.h"
 #include "core/parallel.h"
+#include "core/status.h"
 
 #include <limits.h>
 #include <omp.h>
@@ -127,7 +128,7 @@ splat_kernel_kind splat_kernel_default(void)
         while (k < SPLAT_KERNELS && strcmp(env, splat_kernel_name((splat_kernel_kind)k)) != 0) k++;
         if (k < SPLAT_KERNELS && splat_kernel_supported((splat_kernel_kind)k)) chosen = k;
         else
-            fprintf(stderr, "prodygs: warning: PG_RASTER=%s is not %s; using %s\n", env,
+            pg_warn("PG_RASTER=%s is not %s; using %s", env,
                     k < SPLAT_KERNELS ? "supported by this CPU" : "one of scalar, avx2, avx512", splat_kernel_name(best));
     }
     return (splat_kernel_kind)chosen;

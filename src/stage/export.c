@@ -99,8 +99,10 @@ pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
     for (int i = 0; i < c->num_frames && st == PG_OK; i++) /* all checked before the first file */
         if (c->frames[i] < 0 || c->frames[i] >= frames)
             st = pg_fail(PG_ERR_ARG, "export: %s: --frame-list: frame %d is not in 0..%d", c->model, c->frames[i], frames - 1);
-    if (st == PG_OK) st = pg_mkdir_p(c->out);
-    if (st == PG_OK) st = copy_cameras(c->model, c->out, r);
+    pg_staged_dir out = { 0 };
+    if (st == PG_OK) st = pg_staged_dir_begin(&out, c->out, 0);
+    int staged = st == PG_OK;
+    if (st == PG_OK) st = copy_cameras(c->model, out.work, r);
     pg_gaussians clean = { 0 };
     char file[64];
     if (c->num_frames > 0 || c->all_frames) {
@@ -108,17 +110,19 @@ pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
         for (int i = 0; st == PG_OK && i < n; i++) {
             int f = c->all_frames ? i : c->frames[i];
             snprintf(file, sizeof file, "frame_%04d.%s", f, format);
-            st = export_one(rm, c->out, file, splat, train_frame_time(f, frames), &clean, r);
+            st = export_one(rm, out.work, file, splat, train_frame_time(f, frames), &clean, r);
         }
     } else {
         int n = c->num_times > 0 ? c->num_times : 1;
         for (int i = 0; st == PG_OK && i < n; i++) {
             float t = c->num_times > 0 ? c->times[i] : 0.0f;
             snprintf(file, sizeof file, "time_%.3f.%s", t, format);
-            st = export_one(rm, c->out, file, splat, t, &clean, r);
+            st = export_one(rm, out.work, file, splat, t, &clean, r);
         }
     }
     splat_gaussians_destroy(&clean);
     render_model_close(rm);
+    if (staged && st) pg_staged_dir_abort(&out);
+    else if (staged) st = pg_staged_dir_commit(&out);
     return st;
 }

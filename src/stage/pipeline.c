@@ -456,7 +456,7 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
             st = pg_render_run(&rc, &rr);
             fallback |= rr.fallback_png;
         }
-        if (fallback) fprintf(stderr, "prodygs: warning: no H.264/MPEG-4 encoder; wrote PNG sequences instead of MP4\n");
+        if (fallback) pg_warn("no H.264/MPEG-4 encoder; wrote PNG sequences instead of MP4");
         r->ran[ST_RENDER] = st == PG_OK;
         r->seconds[ST_RENDER] = pg_time_seconds() - tr;
         cJSON *me = cJSON_AddObjectToObject(p.stages, "render");

@@ -8,7 +8,9 @@
 
 #include "core/fileutil.h"
 #include "core/parallel.h"
+#include "core/fileutil.h"
 #include "core/status.h"
+#include "depth/depth_check.h"
 #include "depth/prepare.h"
 #include "io/dataset.h"
 #include "io/depth_io.h"
@@ -57,6 +59,20 @@ static pg_status check_config(const pg_prepare_config *c, io_depth_kind *kind, d
     popt->align = c->align;
     popt->keep_flow = c->keep_flow_vis;
     return PG_OK;
+}
+
+/* Depth passed as disparity (or the reverse) trains a scene with inverted parallax and no error
+ * anywhere, so a file whose near side is at the top of most frames is pointed out. */
+static void warn_if_inverted(const char *path, io_depth_kind kind, const io_depth *d)
+{
+    double share = depth_share_inverted_frames(d->data, d->frames, d->width, d->height);
+    if (share <= 0.5) return;
+    if (kind == IO_DEPTH_KIND_DEPTH)
+        pg_warn("%s: looks like disparity, not depth: larger values sit at the bottom of the frame in %.0f%% of the "
+                "frames; if larger means nearer, pass --depth-kind disparity", path, 100 * share);
+    else
+        pg_warn("%s: read as disparity, the result is nearer at the top of the frame in %.0f%% of the frames; "
+                "if larger values mean farther, pass --depth-kind depth", path, 100 * share);
 }
 
 /* depth_model: the depth stage writes OUT/depth.npy (resumable, skipped when current), then
@@ -109,6 +125,11 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
         return pg_fail_context(PG_ERR_ARG, "%s: --train-cam", c->input);
     }
     io_dataset_camera_label(ds, cam, r->train_camera, sizeof r->train_camera);
+    pg_staged_dir out;
+    if (pg_staged_dir_begin(&out, c->out, 0) != PG_OK) {
+        io_dataset_close(ds);
+        return PG_ERR_IO;
+    }
     const int F = io_dataset_num_frames(ds), W = io_dataset_width(ds), H = io_dataset_height(ds);
     pg_image *frames = calloc((size_t)(F > 0 ? F : 1), sizeof(pg_image));
     io_depth depth;
@@ -129,6 +150,7 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
         st = io_depth_load(c->depth, &o, &depth);
         if (!st && !(depth.max > 0))
             st = pg_fail(PG_ERR_FORMAT, "%s: no valid depth in any frame (every value is NaN, inf or <= 0)", c->depth);
+        if (!st) warn_if_inverted(c->depth, dkind, &depth);
     }
     /* Flow fields are kept only for the pictures; skip them when they would be large. */
     if (popt.keep_flow && (double)F * W * H * 2 * sizeof(float) > 1024.0 * 1024 * 1024) popt.keep_flow = 0;
@@ -144,7 +166,7 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
         cJSON_AddNumberToObject(src, "fps", io_dataset_fps(ds));
         char *text = cJSON_PrintUnformatted(src);
         cJSON_Delete(src);
-        st = depth_prepare_write(c->out, &popt, &res, frames, depth.data, text);
+        st = depth_prepare_write(out.work, &popt, &res, frames, depth.data, text);
         free(text);
     }
     if (!st) {
@@ -158,7 +180,7 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
             r->residual_after += res.info[i].resid_after / F;
             r->fallback_frames += res.info[i].fallback != DEPTH_FALLBACK_NONE;
             if (res.info[i].fallback == DEPTH_FALLBACK_COPIED)
-                fprintf(stderr, "prodygs: warning: frame %d has no valid depth; copied frame %d\n", i,
+                pg_warn("frame %d has no valid depth; copied frame %d", i,
                         res.info[i].source_frame);
         }
     }
@@ -168,5 +190,7 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
         for (int t = 0; t < F; t++) pg_image_destroy(&frames[t]);
     free(frames);
     io_dataset_close(ds);
+    if (st) pg_staged_dir_abort(&out);
+    else st = pg_staged_dir_commit(&out);
     return st;
 }

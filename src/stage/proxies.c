@@ -2,11 +2,14 @@
  * virtual cameras into a training-set directory (paper 3.2, docs/proxy.md, docs/FORMATS.md). */
 #include "stage/stage_internal.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
+#include "core/fileutil.h"
 #include "core/parallel.h"
 #include "core/status.h"
 #include "io/dataset.h"
@@ -140,6 +143,20 @@ static pg_status check_config(const pg_proxies_config *c, int *dataset_poses)
         else return pg_fail(PG_ERR_ARG, "proxies: --poses '%s' is not hemisphere or dataset", c->poses);
     }
     return PG_OK;
+}
+
+/* Proxies are computed in OUT.partial, which a crashed run leaves for the next one to resume (the
+ * finished frames are reused when the settings match); a finished earlier result in OUT is moved
+ * there first for the same reason. */
+static pg_status begin_output(const char *out, pg_staged_dir *staged)
+{
+    char done_file[4300];
+    PG_TRY(pg_staged_dir_begin(staged, out, 1));
+    snprintf(done_file, sizeof done_file, "%s/trainset.json", staged->final);
+    int fresh = !pg_path_exists(staged->work) || rmdir(staged->work) == 0; /* nothing to resume */
+    if (fresh && pg_path_exists(done_file) && rename(staged->final, staged->work) != 0)
+        return pg_fail(PG_ERR_IO, "%s: cannot move to %s: %s", staged->final, staged->work, strerror(errno));
+    return pg_mkdir_p(staged->work);
 }
 
 pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
@@ -292,7 +309,13 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
     po.fit.block = c->fit_block;
     if (c->pad >= 0) po.fit.pad = c->pad;
     proxy_result res;
-    st = proxy_generate(&po, &job, out, &res);
+    pg_staged_dir staged;
+    st = begin_output(out, &staged);
+    if (!st) {
+        st = proxy_generate(&po, &job, staged.work, &res);
+        if (st) pg_staged_dir_abort(&staged);
+        else st = pg_staged_dir_commit(&staged);
+    }
     free(tcams);
     if (st) goto done;
     r->frames = F;

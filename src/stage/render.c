@@ -124,7 +124,13 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
             vo.camera = sc->cams[k];
         }
         render_video_report rep;
-        st = render_video_write(rm, &real, sc->center, &vo, c->out, name, &rep);
+        pg_staged_dir out;
+        st = pg_staged_dir_begin(&out, c->out, 0);
+        if (st == PG_OK) {
+            st = render_video_write(rm, &real, sc->center, &vo, out.work, name, &rep);
+            if (st) pg_staged_dir_abort(&out);
+            else st = pg_staged_dir_commit(&out);
+        }
         if (st == PG_OK) {
             r->frames = rep.frames;
             r->fallback_png = rep.fallback_png;

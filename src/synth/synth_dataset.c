@@ -558,7 +558,11 @@ pg_status synth_write_dataset(const char *out_dir, const synth_options *o)
     writer_buffers b;
     memset(&b, 0, sizeof b);
     b.video_backend = -1;
-    pg_status st = write_dataset_impl(out_dir, o, &b);
+    pg_staged_dir out;
+    PG_TRY(pg_staged_dir_begin(&out, out_dir, 0));
+    pg_status st = write_dataset_impl(out.work, o, &b);
     writer_free(&b);
+    if (st) pg_staged_dir_abort(&out);
+    else st = pg_staged_dir_commit(&out);
     return st;
 }

@@ -1,0 +1,59 @@
+/* depth_check.c - plausibility checks on a user's depth (see depth_check.h). */
+#include "depth/depth_check.h"
+
+#include <math.h>
+#include <stdlib.h>
+
+typedef struct {
+    float value;
+    int index;
+} ranked;
+
+static int by_value(const void *a, const void *b)
+{
+    float x = ((const ranked *)a)->value, y = ((const ranked *)b)->value;
+    return (x > y) - (x < y);
+}
+
+/* Spearman rank correlation between the row order and the rows' mean depth (ties broken by row). */
+static double row_trend(const float *plane, int width, int height, ranked *rows)
+{
+    int n = 0;
+    for (int y = 0; y < height; y++) {
+        double sum = 0;
+        int valid = 0;
+        for (int x = 0; x < width; x++) {
+            float d = plane[(size_t)y * width + x];
+            if (d > 0 && isfinite(d)) { sum += d; valid++; }
+        }
+        if (valid * 10 >= width) {
+            rows[n].value = (float)(sum / valid);
+            rows[n].index = n;
+            n++;
+        }
+    }
+    if (n < 8) return 0;
+    qsort(rows, (size_t)n, sizeof *rows, by_value);
+    /* rank of the value of row i is its position after sorting; rank of the row itself is i */
+    double mean = (n - 1) / 2.0, sxy = 0, sxx = 0;
+    for (int r = 0; r < n; r++) {
+        double a = rows[r].index - mean, b = r - mean;
+        sxy += a * b;
+        sxx += a * a;
+    }
+    return sxx > 0 ? sxy / sxx : 0;
+}
+
+double depth_share_inverted_frames(const float *depth, int frames, int width, int height)
+{
+    if (frames <= 0 || width <= 0 || height <= 0) return 0;
+    ranked *rows = malloc((size_t)height * sizeof *rows);
+    if (!rows) return 0;
+    int step = frames > 32 ? (frames + 31) / 32 : 1, sampled = 0, inverted = 0;
+    for (int f = 0; f < frames; f += step) {
+        sampled++;
+        inverted += row_trend(depth + (size_t)f * width * height, width, height, rows) > 0.3;
+    }
+    free(rows);
+    return (double)inverted / sampled;
+}

@@ -1,0 +1,82 @@
+/* test_stage_outputs.c - a stage that dies half-way (here: killed by a file-size limit, as on a
+ * full disk) must not leave a complete-looking output folder, the next run must clean up and
+ * finish, and an output that cannot be written must be refused before any work. */
+#include "testlib.h"
+#include "core/fileutil.h"
+
+#include <signal.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/resource.h>
+
+static char dir[4096];
+
+/* Runs the CLI with writes capped at limit bytes per file (0: no cap). A process that crosses
+ * the cap is killed by SIGXFSZ, like a crash at the worst moment, or with crash = 0 sees its
+ * write fail (EFBIG), like a full disk. */
+static int run_capped(const char *args, rlim_t limit, int crash, char *err, size_t size)
+{
+    signal(SIGXFSZ, crash ? SIG_DFL : SIG_IGN); /* inherited by the CLI */
+    struct rlimit old, capped;
+    getrlimit(RLIMIT_FSIZE, &old);
+    capped = old;
+    if (limit) capped.rlim_cur = limit;
+    setrlimit(RLIMIT_FSIZE, &capped);
+    int rc = test_run_cli(args, err, size);
+    setrlimit(RLIMIT_FSIZE, &old);
+    signal(SIGXFSZ, SIG_IGN);
+    return rc;
+}
+
+static int exists_in(const char *name)
+{
+    char path[4300];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    return pg_path_exists(path);
+}
+
+int main(void)
+{
+    char err[8192], args[16000];
+    test_tmpdir("stage_outputs", dir, sizeof dir);
+
+    /* synth: killed when its first large file reaches 20 kB */
+    snprintf(args, sizeof args, "synth '%s/ds' --cams 2 --frames 4 --size 64x48 --spp 1 --threads 1", dir);
+    int rc = run_capped(args, 20000, 0, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "File too large"), "synth on a 'full disk': exit %d, %s", rc, err);
+    CHECK(!exists_in("ds") && !exists_in("ds.partial"), "a failed synth left ds/ or ds.partial/");
+    rc = run_capped(args, 20000, 1, err, sizeof err);
+    CHECK(rc != 0, "synth killed at a 20 kB file cap should fail, exit %d", rc);
+    CHECK(!exists_in("ds"), "a crashed synth left a complete-looking ds/");
+    CHECK(exists_in("ds.partial"), "the crashed synth's work folder should be ds.partial");
+    rc = run_capped(args, 0, 1, err, sizeof err);
+    CHECK(rc == 0, "synth rerun failed (%d): %s", rc, err);
+    CHECK(exists_in("ds/depth_mono/cam00.npy") && exists_in("ds/poses_bounds.npy"), "synth rerun: outputs missing");
+    CHECK(!exists_in("ds.partial"), "synth rerun left ds.partial behind");
+
+    /* prepare: the same, and a finished result is replaced only when the rerun completes */
+    snprintf(args, sizeof args, "prepare '%s/ds' --depth '%s/ds/depth_mono/cam00.npy' --out '%s/prep' --threads 1",
+             dir, dir, dir);
+    rc = run_capped(args, 20000, 1, err, sizeof err);
+    CHECK(rc != 0, "prepare killed at a 20 kB file cap should fail, exit %d", rc);
+    CHECK(!exists_in("prep/depth_aligned.npy") && !exists_in("prep/prepare.json"), "a failed prepare left outputs in prep/");
+    rc = run_capped(args, 0, 1, err, sizeof err);
+    CHECK(rc == 0, "prepare rerun failed (%d): %s", rc, err);
+    CHECK(exists_in("prep/depth_aligned.npy") && exists_in("prep/prepare.json") && exists_in("prep/vis"),
+          "prepare rerun: outputs missing");
+    CHECK(!exists_in("prep.partial"), "prepare rerun left prep.partial behind");
+    rc = run_capped(args, 20000, 0, err, sizeof err);
+    CHECK(rc == 2 && exists_in("prep/depth_aligned.npy"), "a failed rerun must keep the finished result (exit %d)", rc);
+
+    /* an output below a regular file cannot be created: refused at once, one line, exit 2 */
+    snprintf(args, sizeof args, "prepare '%s/ds' --depth '%s/ds/depth_mono/cam00.npy' --out '%s/ds/poses_bounds.npy/x'",
+             dir, dir, dir);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "not writable") && strchr(err, '\n') == strrchr(err, '\n'),
+          "unwritable prepare output: exit %d, %s", rc, err);
+    snprintf(args, sizeof args, "proxies '%s/ds' --depth '%s/prep/depth_aligned.npy' --out '%s/ds/poses_bounds.npy/x'",
+             dir, dir, dir);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "not writable"), "unwritable proxies output: exit %d, %s", rc, err);
+    return test_summary("test_stage_outputs");
+}
