@@ -189,6 +189,10 @@ typedef struct nn_graph {
     size_t scratch_floats;
     int scratch_threads;      /* threads the scratch is allocated for */
     double *profile_ms;       /* if set (NN_OP_COUNT entries, caller-owned), nn_graph_run adds each op's wall time */
+    /* set before import: the shape of the first graph input, binding the dims a model declares
+     * symbolic (exported with dynamic axes); its fixed dims must agree. bind_ndim 0: none. */
+    int bind_ndim;
+    int64_t bind_dims[NN_MAX_DIMS];
     int prepared;
 } nn_graph;
 

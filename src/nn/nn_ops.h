@@ -94,7 +94,8 @@ static inline float nn_erf(float x)
  * waits at the join for a partner that is not running), so memory-bound ops (copies, broadcasts,
  * bias adds) only fork for large tensors; compute-bound ones (exp, erf) fork sooner. */
 #define NN_PAR_MEMORY ((int64_t)1 << 21)
-#define NN_PAR_COMPUTE ((int64_t)1 << 15)
+#define NN_PAR_COMPUTE ((int64_t)1 << 18)
+#define NN_PAR_FLOPS 1e7 /* GEMM-like ops: about 0.1 ms on one core */
 
 /* Sets the shape of output i, checking the limits; fails naming the node. */
 pg_status nn_set_output(nn_graph *g, const nn_node *n, int i, int ndim, const int64_t *dims);

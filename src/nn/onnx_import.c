@@ -1277,8 +1277,22 @@ static pg_status import_graph(onnx_ctx *c, span bytes)
         span_str(name, nm, sizeof nm);
         if (elem != T_FLOAT) return pg_fail(PG_ERR_FORMAT, "%s: graph input '%s' is not float32 (type %d)", c->path, nm, elem);
         if (ndim < 0) return pg_fail(PG_ERR_FORMAT, "%s: graph input '%s' has no shape", c->path, nm);
+        if (nins == 0 && g->bind_ndim > 0) {
+            /* the caller's shape binds symbolic dims */
+            if (ndim != g->bind_ndim)
+                return pg_fail(PG_ERR_ARG, "%s: graph input '%s' has %d dims, %d were given", c->path, nm, ndim, g->bind_ndim);
+            for (int i = 0; i < ndim; i++) {
+                if (g->bind_dims[i] < 1 || g->bind_dims[i] > NN_MAX_DIM)
+                    return pg_fail(PG_ERR_ARG, "%s: input dim %d given as %lld", c->path, i, (long long)g->bind_dims[i]);
+                if (dims[i] >= 1 && dims[i] != g->bind_dims[i])
+                    return pg_fail(PG_ERR_ARG, "%s: graph input '%s' dim %d is fixed at %lld, %lld was given", c->path, nm, i,
+                                   (long long)dims[i], (long long)g->bind_dims[i]);
+                dims[i] = g->bind_dims[i];
+            }
+        }
         for (int i = 0; i < ndim; i++)
-            if (dims[i] < 1) return pg_fail(PG_ERR_FORMAT, "%s: graph input '%s' has a symbolic or empty dim %d (export with static shapes)", c->path, nm, i);
+            if (dims[i] < 1)
+                return pg_fail(PG_ERR_FORMAT, "%s: graph input '%s' has a symbolic or empty dim %d (export with static shapes, or load with nn_model_load_shaped)", c->path, nm, i);
         if (nins >= NN_MAX_IO) return pg_fail(PG_ERR_FORMAT, "%s: more than %d graph inputs", c->path, NN_MAX_IO);
         int id;
         pg_status st = nn_graph_add_tensor(g, nm, NN_F32, ndim, dims, &id);

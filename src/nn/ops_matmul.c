@@ -25,7 +25,7 @@ void nn_sgemm(int trans_a, int trans_b, int M, int N, int K, const float *A, int
 {
     int nt = omp_get_max_threads();
     double flops = 2.0 * M * N * (double)K;
-    if (nt <= 1 || flops < 2e6) { nn_sgemm1(trans_a, trans_b, M, N, K, A, lda, B, ldb, beta, C, ldc); return; }
+    if (nt <= 1 || flops < NN_PAR_FLOPS) { nn_sgemm1(trans_a, trans_b, M, N, K, A, lda, B, ldb, beta, C, ldc); return; }
     /* about four blocks per thread, handed out dynamically: a thread that the OS parks for a while
      * (the cores are often shared) leaves its remaining blocks to the others */
     int split_m = M >= 64 * nt;
@@ -119,7 +119,7 @@ void nn_run_matmul(const nn_ctx *c, const nn_node *n)
             acc_a *= da;
             acc_b *= db;
         }
-        #pragma omp parallel for schedule(dynamic, 1)
+        #pragma omp parallel for schedule(dynamic, 1) if (2.0 * batch * M * N * K >= NN_PAR_FLOPS)
         for (int64_t p = 0; p < batch; p++) {
             int64_t rem = p, oa = 0, ob = 0;
             for (int i = nb - 1; i >= 0; i--) {
@@ -199,7 +199,7 @@ void nn_run_attention(const nn_ctx *c, const nn_node *n)
     int nd = tq->ndim;
     int M = (int)tq->dims[nd - 2], D = (int)tq->dims[nd - 1], N = (int)tk->dims[nd - 2], E = (int)tv->dims[nd - 1];
     int64_t batch = nn_shape_count(nd - 2, tq->dims), blocks = (M + ATTN_ROWS - 1) / ATTN_ROWS;
-    #pragma omp parallel for schedule(dynamic, 1)
+    #pragma omp parallel for schedule(dynamic, 1) if (4.0 * batch * M * N * (D + E) / 2 >= NN_PAR_FLOPS)
     for (int64_t job = 0; job < batch * blocks; job++) {
         int64_t b = job / blocks;
         int r0 = (int)(job % blocks) * ATTN_ROWS, rows = M - r0 < ATTN_ROWS ? M - r0 : ATTN_ROWS;

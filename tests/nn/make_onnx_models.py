@@ -255,6 +255,17 @@ def main():
         np.save(os.path.join(out, name + "_in.npy"), x.numpy().astype(np.float32))
         np.save(os.path.join(out, name + "_out.npy"), y.numpy().astype(np.float32))
         names.append(name)
+    # dynamic axes: exported at 32x48, run at 45x61 (the C test binds the size with nn_model_load_shaped)
+    dyn = Lambda(lambda m, x: m.b(F.interpolate(F.relu(m.a(x)), size=x.shape[2:], mode="bilinear", align_corners=False)) + x,
+                 a=nn.Conv2d(3, 8, 3, stride=2, padding=1), b=nn.Conv2d(8, 3, 3, padding=1)).eval()
+    with torch.no_grad():
+        torch.onnx.export(dyn, (torch.randn(1, 3, 32, 48),), os.path.join(out, "dyn_conv_resize.onnx"), opset_version=OPSET,
+                          input_names=["input"], output_names=["output"], do_constant_folding=True,
+                          dynamic_axes={"input": {2: "h", 3: "w"}, "output": {2: "h", 3: "w"}})
+        x = torch.randn(1, 3, 45, 61, generator=g)
+        np.save(os.path.join(out, "dyn_conv_resize_in.npy"), x.numpy())
+        np.save(os.path.join(out, "dyn_conv_resize_out.npy"), dyn(x).numpy())
+    names.append("dyn_conv_resize")
     # weights stored as float16 and as per-channel int8 + DequantizeLinear (numpy reference)
     from onnx import TensorProto, helper, numpy_helper
     r = np.random.default_rng(2)
