@@ -169,7 +169,7 @@ void nn_run_gemm(const nn_ctx *c, const nn_node *n)
 
 /* ---- fused attention ---- */
 
-#define ATTN_ROWS 64 /* query rows per block: the (64, N) score block stays in L2 */
+#define ATTN_ROWS 128 /* query rows per block: the (128, N) score block stays in L2 */
 
 pg_status nn_infer_attention(nn_graph *g, nn_node *n)
 {
