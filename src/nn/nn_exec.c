@@ -603,7 +603,8 @@ pg_status nn_graph_run(nn_graph *g, int threads)
         if (!g->scratch) return pg_fail(PG_ERR_NOMEM, "out of memory for %zu MiB of scratch", bytes >> 20);
         g->scratch_threads = threads;
     }
-    int saved = omp_get_max_threads();
+    /* OpenMP threads split the work; OpenBLAS runs single-threaded inside them (both restored) */
+    int saved = omp_get_max_threads(), saved_blas = openblas_get_num_threads();
     omp_set_num_threads(threads);
     openblas_set_num_threads(1);
     nn_ctx c = { g, g->scratch, g->scratch_floats };
@@ -613,5 +614,6 @@ pg_status nn_graph_run(nn_graph *g, int threads)
         if (g->profile_ms) g->profile_ms[g->nodes[k].op] += (omp_get_wtime() - t0) * 1e3;
     }
     omp_set_num_threads(saved);
+    openblas_set_num_threads(saved_blas);
     return PG_OK;
 }
