@@ -256,7 +256,11 @@ static pg_status parse_tensor(onnx_ctx *c, span bytes, span name_override, int *
     if (!data) return PG_ERR_NOMEM;
     float *df = data;
     int64_t *di = data;
-    if (src_kind == 0) {
+    const uint16_t endian_probe = 1;
+    int little = *(const uint8_t *)&endian_probe == 1;
+    if (src_kind == 0 && type == T_FLOAT && little) {
+        memcpy(df, raw.p, (size_t)count * 4); /* the common case: float32 weights as stored */
+    } else if (src_kind == 0) {
         for (int64_t i = 0; i < count; i++) {
             double v = raw_value(raw.p + i * eb, type);
             if (fl) df[i] = (float)v;
