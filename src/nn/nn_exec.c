@@ -414,6 +414,8 @@ static pg_status fold_constants(nn_graph *g)
  *   Transpose(swap of the last two axes) -> MatMul's b   -> MatMul trans_b
  *   x / sqrt(2) -> Erf -> + 1 -> * x -> * 0.5            -> Gelu (torch's export of nn.GELU)
  *   MatMul(q, k, trans_b) -> Softmax(last) -> MatMul(., v) -> Attention (scores never leave cache)
+ *   LayerNorm as exported before opset 17: d = x - mean(x); d / sqrt(mean(d^2) + eps) (* g) (+ b)
+ *                                                         -> LayerNormalization
  * An intermediate tensor is fused away only if its one reader is the next node of the pattern and
  * it is not a graph output. */
 
@@ -424,6 +426,21 @@ static int const_scalar(const nn_graph *g, int id, float *v)
     if (!t->data || t->dtype != NN_F32 || nn_shape_count(t->ndim, t->dims) != 1) return 0;
     *v = ((float *)t->data)[0];
     return 1;
+}
+
+static int is_last_axis_mean(const nn_graph *g, const nn_node *n)
+{
+    const nn_tensor *x = &g->tensors[n->inputs[0]];
+    return n->op == NN_OP_REDUCE_MEAN && n->attr.keepdims && n->attr.num_axes == 1 && n->attr.axes[0] == x->ndim - 1;
+}
+
+/* The constant input of binary node n other than t, if it is a float constant of `count` values. */
+static int const_other(const nn_graph *g, const nn_node *n, int t, int64_t count)
+{
+    if (n->num_inputs != 2 || (n->inputs[0] == t) == (n->inputs[1] == t)) return -1;
+    int o = n->inputs[0] == t ? n->inputs[1] : n->inputs[0];
+    const nn_tensor *c = &g->tensors[o];
+    return c->data && c->dtype == NN_F32 && nn_shape_count(c->ndim, c->dims) == count ? o : -1;
 }
 
 static pg_status fuse_nodes(nn_graph *g)
@@ -483,6 +500,61 @@ static pg_status fuse_nodes(nn_graph *g)
             continue;
         }
     not_gelu:
+        /* decomposed LayerNorm, matched from its first ReduceMean */
+        if (is_last_axis_mean(g, n) && NEXT(k) >= 0) {
+            int x = n->inputs[0], sub = NEXT(k);
+            const nn_tensor *tx = &g->tensors[x];
+            int64_t C = tx->ndim ? tx->dims[tx->ndim - 1] : 1;
+            nn_node *sn = &g->nodes[sub];
+            if (sn->op != NN_OP_SUB || sn->inputs[0] != x || sn->inputs[1] != n->outputs[0]) goto not_ln;
+            int d = sn->outputs[0];
+            if (readers[d] != 2) goto not_ln;
+            int pw = -1, dv = -1;
+            for (int j = k + 1; j < N; j++) {
+                const nn_node *r = &g->nodes[j];
+                if (dead[j]) continue;
+                if (r->op == NN_OP_POW && r->inputs[0] == d) pw = j;
+                if (r->op == NN_OP_DIV && r->inputs[0] == d) dv = j;
+            }
+            float v;
+            if (pw < 0 || dv < 0 || !const_scalar(g, g->nodes[pw].inputs[1], &v) || v != 2.0f) goto not_ln;
+            int m2 = NEXT(pw);
+            if (m2 < 0 || !is_last_axis_mean(g, &g->nodes[m2])) goto not_ln;
+            int ad = NEXT(m2);
+            if (ad < 0 || g->nodes[ad].op != NN_OP_ADD) goto not_ln;
+            int eps_id = const_other(g, &g->nodes[ad], g->nodes[m2].outputs[0], 1);
+            if (eps_id < 0) goto not_ln;
+            float eps = ((float *)g->tensors[eps_id].data)[0];
+            int sq = NEXT(ad);
+            if (sq < 0 || g->nodes[sq].op != NN_OP_SQRT || NEXT(sq) != dv || g->nodes[dv].inputs[1] != g->nodes[sq].outputs[0])
+                goto not_ln;
+            /* optional scale and shift */
+            int last = dv, gamma = -1, beta = -1;
+            int mu = NEXT(dv);
+            if (mu >= 0 && g->nodes[mu].op == NN_OP_MUL && (gamma = const_other(g, &g->nodes[mu], g->nodes[dv].outputs[0], C)) >= 0) {
+                last = mu;
+                int ab = NEXT(mu);
+                if (ab >= 0 && g->nodes[ab].op == NN_OP_ADD && (beta = const_other(g, &g->nodes[ab], g->nodes[mu].outputs[0], C)) >= 0)
+                    last = ab;
+            }
+            nn_node *ln = &g->nodes[last];
+            int *in = realloc(ln->inputs, 3 * sizeof(int));
+            if (!in) { free(readers); free(reader); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
+            ln->inputs = in;
+            ln->inputs[0] = x;
+            ln->inputs[1] = gamma;
+            ln->inputs[2] = beta;
+            ln->num_inputs = 3;
+            ln->op = NN_OP_LAYER_NORM;
+            ln->attr.axis = tx->ndim - 1;
+            ln->attr.epsilon = eps;
+            ln->attr.act = NN_ACT_NONE;
+            int chain[] = { k, sub, pw, m2, ad, sq, dv, last == dv ? -1 : mu };
+            for (size_t i = 0; i < sizeof chain / sizeof chain[0]; i++)
+                if (chain[i] >= 0 && chain[i] != last) dead[chain[i]] = 1;
+            continue;
+        }
+    not_ln:
         /* attention: the transpose of k is already folded into trans_b (it comes earlier) */
         if (n->op == NN_OP_MATMUL && n->attr.trans_b && n->num_inputs == 2 && n->attr.act == NN_ACT_NONE && NEXT(k) >= 0) {
             int sm = NEXT(k), m2 = -1;
