@@ -664,7 +664,7 @@ static pg_status eval_node(onnx_ctx *c, span op, const int *in, int nin, const s
             for (int64_t k = 0; k < x[1].n; k++) {
                 int64_t v = d2i(x[1].v[k]);
                 if (v < 0) v += d;
-                if (v < 0 || v >= d) { st = node_fail(c, "index %lld out of range", (long long)x[1].v[k]); goto done; }
+                if (v < 0 || v >= d) { st = node_fail(c, "index %g out of range", x[1].v[k]); goto done; }
                 memcpy(y.v + (o * x[1].n + k) * inner, x[0].v + (o * d + v) * inner, (size_t)inner * sizeof(double));
             }
     } else if (span_eq(op, "Concat")) {
