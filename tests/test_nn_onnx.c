@@ -77,6 +77,8 @@ static double run_case(const char *dir, const char *model, const char *in, const
                 num = fmax(num, fabs((double)res[i] - y.data[i]));
             }
             if (hi > lo) printf("    %s: max abs error %.3g, %.3g of the output range\n", model, num, num / (hi - lo));
+            /* a test against an all-zero or constant output would prove nothing */
+            CHECK(hi > lo, "%s: torch's output is constant (%g)", model, hi);
         }
         free(res);
     } else {
