@@ -116,6 +116,9 @@ void nn_apply_act(float *x, size_t n, nn_activation act, float alpha);
  * split over the OpenMP threads along M (or N when M is small). Called outside parallel regions. */
 void nn_sgemm(int trans_a, int trans_b, int M, int N, int K, const float *A, int lda, const float *B, int ldb,
               float beta, float *C, int ldc);
+/* nn_sgemm plus C[i][j] += bias[j] (bias may be NULL) and an activation, applied per block. */
+void nn_sgemm_epilogue(int trans_a, int trans_b, int M, int N, int K, const float *A, int lda, const float *B, int ldb,
+                       float beta, float *C, int ldc, const float *bias, nn_activation act, float act_alpha);
 /* The same on one thread (inside a parallel region). */
 void nn_sgemm1(int trans_a, int trans_b, int M, int N, int K, const float *A, int lda, const float *B, int ldb,
                float beta, float *C, int ldc);
