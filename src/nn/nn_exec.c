@@ -383,8 +383,9 @@ static pg_status fold_constants(nn_graph *g)
             nn_tensor *t = nn_out(g, n, o);
             size_t count = (size_t)nn_shape_count(t->ndim, t->dims);
             folded += count * sizeof(float);
-            if (folded > NN_MAX_WORK_BYTES)
-                return pg_fail(PG_ERR_SIZE, "node '%s' (%s): folded constants exceed %zu MiB", n->name, nn_op_name(n->op), NN_MAX_WORK_BYTES >> 20);
+            if (folded > NN_MAX_FOLD_BYTES)
+                return pg_fail(PG_ERR_SIZE, "node '%s' (%s): constants computed at load exceed %zu MiB", n->name,
+                               nn_op_name(n->op), NN_MAX_FOLD_BYTES >> 20);
             t->data = pg_malloc((count ? count : 1) * sizeof(float), "folded constant");
             if (!t->data) return PG_ERR_NOMEM;
             t->producer = -1;
@@ -446,13 +447,18 @@ static int const_other(const nn_graph *g, const nn_node *n, int t, int64_t count
 static pg_status fuse_nodes(nn_graph *g)
 {
     int N = g->num_nodes, T = g->num_tensors;
+    /* per tensor: number of reading nodes, the first and the last of them */
     int *readers = calloc((size_t)T + 1, sizeof(int)), *reader = malloc(((size_t)T + 1) * sizeof(int));
+    int *first = malloc(((size_t)T + 1) * sizeof(int));
     char *dead = calloc((size_t)N + 1, 1);
-    if (!readers || !reader || !dead) { free(readers); free(reader); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
+    if (!readers || !reader || !first || !dead) {
+        free(readers); free(reader); free(first); free(dead);
+        return pg_fail(PG_ERR_NOMEM, "out of memory fusing");
+    }
     for (int k = 0; k < N; k++)
         for (int i = 0; i < g->nodes[k].num_inputs; i++) {
             int t = g->nodes[k].inputs[i];
-            if (t >= 0) { readers[t]++; reader[t] = k; }
+            if (t >= 0) { if (!readers[t]) first[t] = k; readers[t]++; reader[t] = k; }
         }
     for (int i = 0; i < g->num_outputs; i++) readers[g->outputs[i]] += 2;
     /* the only reader of node k's output, or -1 */
@@ -509,12 +515,12 @@ static pg_status fuse_nodes(nn_graph *g)
             if (sn->op != NN_OP_SUB || sn->inputs[0] != x || sn->inputs[1] != n->outputs[0]) goto not_ln;
             int d = sn->outputs[0];
             if (readers[d] != 2) goto not_ln;
-            int pw = -1, dv = -1;
-            for (int j = k + 1; j < N; j++) {
-                const nn_node *r = &g->nodes[j];
-                if (dead[j]) continue;
-                if (r->op == NN_OP_POW && r->inputs[0] == d) pw = j;
-                if (r->op == NN_OP_DIV && r->inputs[0] == d) dv = j;
+            int pw = -1, dv = -1, two[2] = { first[d], reader[d] };
+            for (int i = 0; i < 2; i++) {
+                const nn_node *r = &g->nodes[two[i]];
+                if (dead[two[i]] || r->inputs[0] != d) continue;
+                if (r->op == NN_OP_POW) pw = two[i];
+                if (r->op == NN_OP_DIV) dv = two[i];
             }
             float v;
             if (pw < 0 || dv < 0 || !const_scalar(g, g->nodes[pw].inputs[1], &v) || v != 2.0f) goto not_ln;
@@ -539,7 +545,7 @@ static pg_status fuse_nodes(nn_graph *g)
             }
             nn_node *ln = &g->nodes[last];
             int *in = realloc(ln->inputs, 3 * sizeof(int));
-            if (!in) { free(readers); free(reader); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
+            if (!in) { free(readers); free(reader); free(first); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
             ln->inputs = in;
             ln->inputs[0] = x;
             ln->inputs[1] = gamma;
@@ -568,7 +574,7 @@ static pg_status fuse_nodes(nn_graph *g)
                 if (same) {
                     nn_node *at = &g->nodes[m2];
                     int *in = realloc(at->inputs, 3 * sizeof(int));
-                    if (!in) { free(readers); free(reader); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
+                    if (!in) { free(readers); free(reader); free(first); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
                     at->inputs = in;
                     at->inputs[2] = at->inputs[1];
                     at->inputs[0] = n->inputs[0];
@@ -594,7 +600,7 @@ static pg_status fuse_nodes(nn_graph *g)
                            ad->inputs[0] != ad->inputs[1];
                 if (fits) {
                     int *in = realloc(n->inputs, 3 * sizeof(int));
-                    if (!in) { free(readers); free(reader); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
+                    if (!in) { free(readers); free(reader); free(first); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
                     n->inputs = in;
                     n->inputs[2] = bias;
                     n->num_inputs = 3;
@@ -621,7 +627,7 @@ static pg_status fuse_nodes(nn_graph *g)
     for (int t = 0; t < T; t++) g->tensors[t].producer = -1;
     for (int k = 0; k < kept; k++)
         for (int o = 0; o < g->nodes[k].num_outputs; o++) g->tensors[g->nodes[k].outputs[o]].producer = k;
-    free(readers); free(reader); free(dead);
+    free(readers); free(reader); free(first); free(dead);
     return PG_OK;
 }
 

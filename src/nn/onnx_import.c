@@ -52,6 +52,7 @@ typedef struct {
     name_slot *map;
     size_t cap, count;
     int opset;
+    size_t fold_left;   /* bytes the constant evaluator may still produce (64 MiB + 8 x the file) */
     /* the node being converted, for messages */
     char node[160];
     char op[64];
@@ -425,7 +426,10 @@ static pg_status cval_put(onnx_ctx *c, span out, cval *x)
 {
     char nm[128];
     span_str(out, nm, sizeof nm);
-    void *data = pg_malloc((size_t)(x->n ? x->n : 1) * (x->is_int ? sizeof(int64_t) : sizeof(float)), nm);
+    size_t bytes = (size_t)(x->n ? x->n : 1) * (x->is_int ? sizeof(int64_t) : sizeof(float));
+    if (bytes > c->fold_left) { cval_free(x); return node_fail(c, "constants folded at load exceed the budget (64 MiB + 8 x the file size)"); }
+    c->fold_left -= bytes;
+    void *data = pg_malloc(bytes, nm);
     if (!data) { cval_free(x); return PG_ERR_NOMEM; }
     for (int64_t i = 0; i < x->n; i++) {
         if (x->is_int) {
@@ -1351,6 +1355,7 @@ static pg_status import_graph(onnx_ctx *c, span bytes)
 pg_status nn_onnx_import(const uint8_t *data, size_t size, const char *name, nn_graph *g)
 {
     onnx_ctx c = { .path = name, .g = g, .opset = -1 };
+    c.fold_left = ((size_t)64 << 20) + (size < ((size_t)1 << 40) ? 8 * size : ((size_t)1 << 43));
     pb_reader r = { data, data + size };
     pb_field f;
     int rc;
