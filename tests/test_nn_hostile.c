@@ -249,6 +249,28 @@ static void test_hostile(void)
     model(&m, &g, 17);
     expect_refused(&m, "huge ConstantOfShape", "cos0");
     free(m.p); memset(&m, 0, sizeof m);
+    /* 40 ConstantOfShape of 4M elements each: each is under the per-tensor limit, together far over
+     * what a 300-byte file may make the loader compute */
+    {
+        pbw t = { 0 };
+        f_varint(&t, 1, 2);
+        f_varint(&t, 2, 7);
+        f_str(&t, 8, "shape");
+        int64_t sh[2] = { 2048, 2048 };
+        f_bytes(&t, 9, sh, sizeof sh);
+        f_msg(&g, 5, &t);
+        for (int i = 0; i < 40; i++) {
+            char out[16];
+            snprintf(out, sizeof out, "z%d", i);
+            node(&g, "ConstantOfShape", out, "shape", NULL, out, NULL);
+        }
+    }
+    node(&g, "Relu", "r", "x", NULL, "y", NULL);
+    value_info(&g, 11, "x", 1, (int64_t[]){ 1 });
+    value_info(&g, 12, "y", 0, NULL);
+    model(&m, &g, 17);
+    expect_refused(&m, "many big folded constants", "budget");
+    free(m.p); memset(&m, 0, sizeof m);
     /* unsupported op: named with its node */
     node(&g, "Relu", "ok0", "x", NULL, "r", NULL);
     node(&g, "NonMaxSuppression", "nms7", "r", NULL, "y", NULL);

@@ -195,9 +195,31 @@ static void test_matmul_fused(void)
     free(a); free(bt); free(bias);
 }
 
+/* The vectorisable exp and erf against libm (their scalar references). */
+static void test_exp_erf(void)
+{
+    double worst_exp = 0, worst_erf = 0, worst_erf_rel = 0;
+    for (int i = 0; i <= 2000000; i++) {
+        float x = -87.0f + 175.0f * (float)i / 2000000.0f;
+        double e = exp((double)x);
+        worst_exp = fmax(worst_exp, fabs(nn_exp(x) - e) / e);
+        float z = -6.0f + 12.0f * (float)i / 2000000.0f;
+        worst_erf = fmax(worst_erf, fabs(nn_erf(z) - erf((double)z)));
+        float w = 0.5f * (float)i / 2000000.0f + 1e-6f;
+        worst_erf_rel = fmax(worst_erf_rel, fabs(nn_erf(w) - erf((double)w)) / erf((double)w));
+    }
+    printf("  nn_exp on [-87, 88]: max rel error %.3g; nn_erf on [-6, 6]: max abs error %.3g, on (0, 0.5]: max rel error %.3g\n",
+           worst_exp, worst_erf, worst_erf_rel);
+    CHECK(worst_erf_rel < 1e-6, "nn_erf relative error near 0: %g", worst_erf_rel);
+    CHECK(worst_exp < 5e-7, "nn_exp relative error %g", worst_exp);
+    CHECK(worst_erf < 4e-7, "nn_erf absolute error %g", worst_erf);
+    CHECK(isnan(nn_exp(NAN)) && nn_exp(-1000.0f) >= 0 && nn_exp(-1000.0f) < 1e-37f, "nn_exp edge cases");
+}
+
 int main(void)
 {
     pg_rng_seed(&rng, 5);
+    test_exp_erf();
     test_conv(1, 3, 17, 13, 8, 3, 1, 1, 1, 1, 0);
     test_conv(2, 8, 15, 18, 12, 3, 2, 2, 2, 4, 1);
     test_conv(1, 3, 56, 42, 16, 14, 14, 0, 1, 1, 0);

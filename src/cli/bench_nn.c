@@ -15,13 +15,14 @@
 
 int bench_nn(int argc, char **argv)
 {
-    const char *model_path = NULL;
+    const char *model_path = NULL, *shape_text = NULL;
     int threads = 2, reps = 5, profile = 0;
     const cli_option opts[] = {
         { "--model", CLI_STR, &model_path, "model file (.onnx) (required)" },
         { "--threads", CLI_INT, &threads, "threads (default 2)" },
         { "--reps", CLI_INT, &reps, "timed repetitions (default 5)" },
         { "--profile", CLI_FLAG, &profile, "add the time per op kind (ms per frame) to the JSON" },
+        { "--shape", CLI_STR, &shape_text, "input shape for a model with dynamic axes, e.g. 1x3x392x518" },
     };
     cli_spec spec = { "prodygs bench nn", "--model FILE [options]", "time one forward pass of a network", opts,
                       (int)(sizeof(opts) / sizeof(opts[0])), 0, 0 };
@@ -30,11 +31,25 @@ int bench_nn(int argc, char **argv)
     if (rc) return rc < 0 ? 0 : rc;
     if (!model_path) return cli_usage_error("bench nn: --model FILE is required");
     if (threads < 1 || threads > 1024 || reps < 1 || reps > 10000) return cli_usage_error("bench nn: bad --threads/--reps");
+    int64_t bind[NN_MAX_DIMS];
+    int nbind = 0;
+    if (shape_text) {
+        const char *p = shape_text;
+        while (*p && nbind < NN_MAX_DIMS) {
+            char *end;
+            long long v = strtoll(p, &end, 10);
+            if (end == p || v < 1 || v > (1 << 24)) return cli_usage_error("bench nn: bad --shape '%s' (e.g. 1x3x392x518)", shape_text);
+            bind[nbind++] = v;
+            p = *end == 'x' ? end + 1 : end;
+            if (*end && *end != 'x') return cli_usage_error("bench nn: bad --shape '%s' (e.g. 1x3x392x518)", shape_text);
+        }
+        if (*p) return cli_usage_error("bench nn: --shape has more than %d dims", NN_MAX_DIMS);
+    }
     struct stat sb;
     if (stat(model_path, &sb) != 0) return cli_fail(pg_fail(PG_ERR_IO, "%s: cannot open", model_path));
     double t0 = pg_time_seconds();
     nn_model *m;
-    pg_status st = nn_model_load(model_path, &m);
+    pg_status st = nn_model_load_shaped(model_path, nbind, bind, &m);
     if (st) return cli_fail(st);
     double load_ms = (pg_time_seconds() - t0) * 1e3;
     int64_t di[NN_MAX_DIMS], dout[NN_MAX_DIMS];

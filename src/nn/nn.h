@@ -34,6 +34,11 @@ typedef struct nn_model nn_model;
 pg_status nn_model_load(const char *path, nn_model **model);
 /* The same from memory (data is not kept); name is used in messages. */
 pg_status nn_model_load_memory(const void *data, size_t size, const char *name, nn_model **model);
+/* The same for a model whose input has symbolic dims (exported with dynamic axes): dims (ndim
+ * values) is the input shape to use; dims the file fixes must agree with it. */
+pg_status nn_model_load_shaped(const char *path, int ndim, const int64_t *dims, nn_model **model);
+pg_status nn_model_load_memory_shaped(const void *data, size_t size, const char *name, int ndim, const int64_t *dims,
+                                      nn_model **model);
 void nn_model_destroy(nn_model *model); /* accepts NULL */
 
 /* Shape of the first graph input / output; returns ndim. */
@@ -41,7 +46,8 @@ int nn_model_input_shape(const nn_model *model, int64_t dims[NN_MAX_DIMS]);
 int nn_model_output_shape(const nn_model *model, int64_t dims[NN_MAX_DIMS]);
 
 /* Runs the model on input (the first graph input, its shape's element count) into output (the
- * first graph output) with threads threads (<= 0: all cores). */
+ * first graph output) with threads threads (<= 0: all cores). One run at a time per model (the
+ * activations live in the model); load the model once per concurrent user. */
 pg_status nn_model_run(nn_model *model, const float *input, float *output, int threads);
 
 /* Bytes the loaded model holds: weights + activation arena + scratch. */

@@ -383,8 +383,9 @@ static pg_status fold_constants(nn_graph *g)
             nn_tensor *t = nn_out(g, n, o);
             size_t count = (size_t)nn_shape_count(t->ndim, t->dims);
             folded += count * sizeof(float);
-            if (folded > NN_MAX_WORK_BYTES)
-                return pg_fail(PG_ERR_SIZE, "node '%s' (%s): folded constants exceed %zu MiB", n->name, nn_op_name(n->op), NN_MAX_WORK_BYTES >> 20);
+            if (folded > NN_MAX_FOLD_BYTES)
+                return pg_fail(PG_ERR_SIZE, "node '%s' (%s): constants computed at load exceed %zu MiB", n->name,
+                               nn_op_name(n->op), NN_MAX_FOLD_BYTES >> 20);
             t->data = pg_malloc((count ? count : 1) * sizeof(float), "folded constant");
             if (!t->data) return PG_ERR_NOMEM;
             t->producer = -1;
@@ -414,6 +415,8 @@ static pg_status fold_constants(nn_graph *g)
  *   Transpose(swap of the last two axes) -> MatMul's b   -> MatMul trans_b
  *   x / sqrt(2) -> Erf -> + 1 -> * x -> * 0.5            -> Gelu (torch's export of nn.GELU)
  *   MatMul(q, k, trans_b) -> Softmax(last) -> MatMul(., v) -> Attention (scores never leave cache)
+ *   LayerNorm as exported before opset 17: d = x - mean(x); d / sqrt(mean(d^2) + eps) (* g) (+ b)
+ *                                                         -> LayerNormalization
  * An intermediate tensor is fused away only if its one reader is the next node of the pattern and
  * it is not a graph output. */
 
@@ -426,16 +429,36 @@ static int const_scalar(const nn_graph *g, int id, float *v)
     return 1;
 }
 
+static int is_last_axis_mean(const nn_graph *g, const nn_node *n)
+{
+    const nn_tensor *x = &g->tensors[n->inputs[0]];
+    return n->op == NN_OP_REDUCE_MEAN && n->attr.keepdims && n->attr.num_axes == 1 && n->attr.axes[0] == x->ndim - 1;
+}
+
+/* The constant input of binary node n other than t, if it is a float constant of `count` values. */
+static int const_other(const nn_graph *g, const nn_node *n, int t, int64_t count)
+{
+    if (n->num_inputs != 2 || (n->inputs[0] == t) == (n->inputs[1] == t)) return -1;
+    int o = n->inputs[0] == t ? n->inputs[1] : n->inputs[0];
+    const nn_tensor *c = &g->tensors[o];
+    return c->data && c->dtype == NN_F32 && nn_shape_count(c->ndim, c->dims) == count ? o : -1;
+}
+
 static pg_status fuse_nodes(nn_graph *g)
 {
     int N = g->num_nodes, T = g->num_tensors;
+    /* per tensor: number of reading nodes, the first and the last of them */
     int *readers = calloc((size_t)T + 1, sizeof(int)), *reader = malloc(((size_t)T + 1) * sizeof(int));
+    int *first = malloc(((size_t)T + 1) * sizeof(int));
     char *dead = calloc((size_t)N + 1, 1);
-    if (!readers || !reader || !dead) { free(readers); free(reader); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
+    if (!readers || !reader || !first || !dead) {
+        free(readers); free(reader); free(first); free(dead);
+        return pg_fail(PG_ERR_NOMEM, "out of memory fusing");
+    }
     for (int k = 0; k < N; k++)
         for (int i = 0; i < g->nodes[k].num_inputs; i++) {
             int t = g->nodes[k].inputs[i];
-            if (t >= 0) { readers[t]++; reader[t] = k; }
+            if (t >= 0) { if (!readers[t]) first[t] = k; readers[t]++; reader[t] = k; }
         }
     for (int i = 0; i < g->num_outputs; i++) readers[g->outputs[i]] += 2;
     /* the only reader of node k's output, or -1 */
@@ -483,6 +506,61 @@ static pg_status fuse_nodes(nn_graph *g)
             continue;
         }
     not_gelu:
+        /* decomposed LayerNorm, matched from its first ReduceMean */
+        if (is_last_axis_mean(g, n) && NEXT(k) >= 0) {
+            int x = n->inputs[0], sub = NEXT(k);
+            const nn_tensor *tx = &g->tensors[x];
+            int64_t C = tx->ndim ? tx->dims[tx->ndim - 1] : 1;
+            nn_node *sn = &g->nodes[sub];
+            if (sn->op != NN_OP_SUB || sn->inputs[0] != x || sn->inputs[1] != n->outputs[0]) goto not_ln;
+            int d = sn->outputs[0];
+            if (readers[d] != 2) goto not_ln;
+            int pw = -1, dv = -1, two[2] = { first[d], reader[d] };
+            for (int i = 0; i < 2; i++) {
+                const nn_node *r = &g->nodes[two[i]];
+                if (dead[two[i]] || r->inputs[0] != d) continue;
+                if (r->op == NN_OP_POW) pw = two[i];
+                if (r->op == NN_OP_DIV) dv = two[i];
+            }
+            float v;
+            if (pw < 0 || dv < 0 || !const_scalar(g, g->nodes[pw].inputs[1], &v) || v != 2.0f) goto not_ln;
+            int m2 = NEXT(pw);
+            if (m2 < 0 || !is_last_axis_mean(g, &g->nodes[m2])) goto not_ln;
+            int ad = NEXT(m2);
+            if (ad < 0 || g->nodes[ad].op != NN_OP_ADD) goto not_ln;
+            int eps_id = const_other(g, &g->nodes[ad], g->nodes[m2].outputs[0], 1);
+            if (eps_id < 0) goto not_ln;
+            float eps = ((float *)g->tensors[eps_id].data)[0];
+            int sq = NEXT(ad);
+            if (sq < 0 || g->nodes[sq].op != NN_OP_SQRT || NEXT(sq) != dv || g->nodes[dv].inputs[1] != g->nodes[sq].outputs[0])
+                goto not_ln;
+            /* optional scale and shift */
+            int last = dv, gamma = -1, beta = -1;
+            int mu = NEXT(dv);
+            if (mu >= 0 && g->nodes[mu].op == NN_OP_MUL && (gamma = const_other(g, &g->nodes[mu], g->nodes[dv].outputs[0], C)) >= 0) {
+                last = mu;
+                int ab = NEXT(mu);
+                if (ab >= 0 && g->nodes[ab].op == NN_OP_ADD && (beta = const_other(g, &g->nodes[ab], g->nodes[mu].outputs[0], C)) >= 0)
+                    last = ab;
+            }
+            nn_node *ln = &g->nodes[last];
+            int *in = realloc(ln->inputs, 3 * sizeof(int));
+            if (!in) { free(readers); free(reader); free(first); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
+            ln->inputs = in;
+            ln->inputs[0] = x;
+            ln->inputs[1] = gamma;
+            ln->inputs[2] = beta;
+            ln->num_inputs = 3;
+            ln->op = NN_OP_LAYER_NORM;
+            ln->attr.axis = tx->ndim - 1;
+            ln->attr.epsilon = eps;
+            ln->attr.act = NN_ACT_NONE;
+            int chain[] = { k, sub, pw, m2, ad, sq, dv, last == dv ? -1 : mu };
+            for (size_t i = 0; i < sizeof chain / sizeof chain[0]; i++)
+                if (chain[i] >= 0 && chain[i] != last) dead[chain[i]] = 1;
+            continue;
+        }
+    not_ln:
         /* attention: the transpose of k is already folded into trans_b (it comes earlier) */
         if (n->op == NN_OP_MATMUL && n->attr.trans_b && n->num_inputs == 2 && n->attr.act == NN_ACT_NONE && NEXT(k) >= 0) {
             int sm = NEXT(k), m2 = -1;
@@ -496,7 +574,7 @@ static pg_status fuse_nodes(nn_graph *g)
                 if (same) {
                     nn_node *at = &g->nodes[m2];
                     int *in = realloc(at->inputs, 3 * sizeof(int));
-                    if (!in) { free(readers); free(reader); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
+                    if (!in) { free(readers); free(reader); free(first); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
                     at->inputs = in;
                     at->inputs[2] = at->inputs[1];
                     at->inputs[0] = n->inputs[0];
@@ -522,7 +600,7 @@ static pg_status fuse_nodes(nn_graph *g)
                            ad->inputs[0] != ad->inputs[1];
                 if (fits) {
                     int *in = realloc(n->inputs, 3 * sizeof(int));
-                    if (!in) { free(readers); free(reader); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
+                    if (!in) { free(readers); free(reader); free(first); free(dead); return pg_fail(PG_ERR_NOMEM, "out of memory fusing"); }
                     n->inputs = in;
                     n->inputs[2] = bias;
                     n->num_inputs = 3;
@@ -549,7 +627,7 @@ static pg_status fuse_nodes(nn_graph *g)
     for (int t = 0; t < T; t++) g->tensors[t].producer = -1;
     for (int k = 0; k < kept; k++)
         for (int o = 0; o < g->nodes[k].num_outputs; o++) g->tensors[g->nodes[k].outputs[o]].producer = k;
-    free(readers); free(reader); free(dead);
+    free(readers); free(reader); free(first); free(dead);
     return PG_OK;
 }
 
@@ -603,7 +681,8 @@ pg_status nn_graph_run(nn_graph *g, int threads)
         if (!g->scratch) return pg_fail(PG_ERR_NOMEM, "out of memory for %zu MiB of scratch", bytes >> 20);
         g->scratch_threads = threads;
     }
-    int saved = omp_get_max_threads();
+    /* OpenMP threads split the work; OpenBLAS runs single-threaded inside them (both restored) */
+    int saved = omp_get_max_threads(), saved_blas = openblas_get_num_threads();
     omp_set_num_threads(threads);
     openblas_set_num_threads(1);
     nn_ctx c = { g, g->scratch, g->scratch_floats };
@@ -613,5 +692,6 @@ pg_status nn_graph_run(nn_graph *g, int threads)
         if (g->profile_ms) g->profile_ms[g->nodes[k].op] += (omp_get_wtime() - t0) * 1e3;
     }
     omp_set_num_threads(saved);
+    openblas_set_num_threads(saved_blas);
     return PG_OK;
 }

@@ -46,7 +46,8 @@
 #define NN_MAX_IO 8                         /* graph inputs / outputs */
 #define NN_MAX_DIM ((int64_t)1 << 24)        /* largest single dim a model may declare */
 #define NN_MAX_ELEMENTS ((int64_t)1 << 28)   /* largest tensor (elements, 1 GiB of float) */
-#define NN_MAX_WORK_BYTES ((size_t)2 << 30)  /* activations + scratch + folded constants of one graph */
+#define NN_MAX_WORK_BYTES ((size_t)2 << 30)  /* activations + scratch of one graph */
+#define NN_MAX_FOLD_BYTES ((size_t)512 << 20) /* constants computed at load (a tiny file can ask for big ones) */
 #define NN_MAX_TENSORS (1 << 20)
 #define NN_MAX_NODES (1 << 20)
 
@@ -189,6 +190,10 @@ typedef struct nn_graph {
     size_t scratch_floats;
     int scratch_threads;      /* threads the scratch is allocated for */
     double *profile_ms;       /* if set (NN_OP_COUNT entries, caller-owned), nn_graph_run adds each op's wall time */
+    /* set before import: the shape of the first graph input, binding the dims a model declares
+     * symbolic (exported with dynamic axes); its fixed dims must agree. bind_ndim 0: none. */
+    int bind_ndim;
+    int64_t bind_dims[NN_MAX_DIMS];
     int prepared;
 } nn_graph;
 

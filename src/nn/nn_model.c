@@ -13,12 +13,16 @@ struct nn_model {
     nn_graph g;
 };
 
-pg_status nn_model_load_memory(const void *data, size_t size, const char *name, nn_model **model)
+pg_status nn_model_load_memory_shaped(const void *data, size_t size, const char *name, int ndim, const int64_t *dims,
+                                      nn_model **model)
 {
     *model = NULL;
+    if (ndim < 0 || ndim > NN_MAX_DIMS || (ndim && !dims)) return pg_fail(PG_ERR_ARG, "%s: bad input shape (%d dims)", name, ndim);
     nn_model *m = pg_calloc(1, sizeof *m, "nn model");
     if (!m) return PG_ERR_NOMEM;
     nn_graph_init(&m->g);
+    m->g.bind_ndim = ndim;
+    for (int i = 0; i < ndim; i++) m->g.bind_dims[i] = dims[i];
     const uint8_t *d = data;
     pg_status st;
     if (size >= 8 && memcmp(d + 4, "TFL3", 4) == 0) st = nn_tflite_import(d, size, name, &m->g);
@@ -36,7 +40,12 @@ pg_status nn_model_load_memory(const void *data, size_t size, const char *name, 
     return PG_OK;
 }
 
-pg_status nn_model_load(const char *path, nn_model **model)
+pg_status nn_model_load_memory(const void *data, size_t size, const char *name, nn_model **model)
+{
+    return nn_model_load_memory_shaped(data, size, name, 0, NULL, model);
+}
+
+pg_status nn_model_load_shaped(const char *path, int ndim, const int64_t *dims, nn_model **model)
 {
     *model = NULL;
     FILE *f = fopen(path, "rb");
@@ -50,10 +59,12 @@ pg_status nn_model_load(const char *path, nn_model **model)
     size_t got = fread(buf, 1, (size_t)len, f);
     fclose(f);
     if (got != (size_t)len) { free(buf); return pg_fail(PG_ERR_IO, "%s: short read", path); }
-    pg_status st = nn_model_load_memory(buf, (size_t)len, path, model);
+    pg_status st = nn_model_load_memory_shaped(buf, (size_t)len, path, ndim, dims, model);
     free(buf);
     return st;
 }
+
+pg_status nn_model_load(const char *path, nn_model **model) { return nn_model_load_shaped(path, 0, NULL, model); }
 
 void nn_model_destroy(nn_model *model)
 {

@@ -52,6 +52,7 @@ typedef struct {
     name_slot *map;
     size_t cap, count;
     int opset;
+    size_t fold_left;   /* bytes the constant evaluator may still produce (64 MiB + 8 x the file) */
     /* the node being converted, for messages */
     char node[160];
     char op[64];
@@ -256,7 +257,11 @@ static pg_status parse_tensor(onnx_ctx *c, span bytes, span name_override, int *
     if (!data) return PG_ERR_NOMEM;
     float *df = data;
     int64_t *di = data;
-    if (src_kind == 0) {
+    const uint16_t endian_probe = 1;
+    int little = *(const uint8_t *)&endian_probe == 1;
+    if (src_kind == 0 && type == T_FLOAT && little) {
+        memcpy(df, raw.p, (size_t)count * 4); /* the common case: float32 weights as stored */
+    } else if (src_kind == 0) {
         for (int64_t i = 0; i < count; i++) {
             double v = raw_value(raw.p + i * eb, type);
             if (fl) df[i] = (float)v;
@@ -421,7 +426,10 @@ static pg_status cval_put(onnx_ctx *c, span out, cval *x)
 {
     char nm[128];
     span_str(out, nm, sizeof nm);
-    void *data = pg_malloc((size_t)(x->n ? x->n : 1) * (x->is_int ? sizeof(int64_t) : sizeof(float)), nm);
+    size_t bytes = (size_t)(x->n ? x->n : 1) * (x->is_int ? sizeof(int64_t) : sizeof(float));
+    if (bytes > c->fold_left) { cval_free(x); return node_fail(c, "constants folded at load exceed the budget (64 MiB + 8 x the file size)"); }
+    c->fold_left -= bytes;
+    void *data = pg_malloc(bytes, nm);
     if (!data) { cval_free(x); return PG_ERR_NOMEM; }
     for (int64_t i = 0; i < x->n; i++) {
         if (x->is_int) {
@@ -660,7 +668,7 @@ static pg_status eval_node(onnx_ctx *c, span op, const int *in, int nin, const s
             for (int64_t k = 0; k < x[1].n; k++) {
                 int64_t v = d2i(x[1].v[k]);
                 if (v < 0) v += d;
-                if (v < 0 || v >= d) { st = node_fail(c, "index %lld out of range", (long long)x[1].v[k]); goto done; }
+                if (v < 0 || v >= d) { st = node_fail(c, "index %g out of range", x[1].v[k]); goto done; }
                 memcpy(y.v + (o * x[1].n + k) * inner, x[0].v + (o * d + v) * inner, (size_t)inner * sizeof(double));
             }
     } else if (span_eq(op, "Concat")) {
@@ -1277,8 +1285,22 @@ static pg_status import_graph(onnx_ctx *c, span bytes)
         span_str(name, nm, sizeof nm);
         if (elem != T_FLOAT) return pg_fail(PG_ERR_FORMAT, "%s: graph input '%s' is not float32 (type %d)", c->path, nm, elem);
         if (ndim < 0) return pg_fail(PG_ERR_FORMAT, "%s: graph input '%s' has no shape", c->path, nm);
+        if (nins == 0 && g->bind_ndim > 0) {
+            /* the caller's shape binds symbolic dims */
+            if (ndim != g->bind_ndim)
+                return pg_fail(PG_ERR_ARG, "%s: graph input '%s' has %d dims, %d were given", c->path, nm, ndim, g->bind_ndim);
+            for (int i = 0; i < ndim; i++) {
+                if (g->bind_dims[i] < 1 || g->bind_dims[i] > NN_MAX_DIM)
+                    return pg_fail(PG_ERR_ARG, "%s: input dim %d given as %lld", c->path, i, (long long)g->bind_dims[i]);
+                if (dims[i] >= 1 && dims[i] != g->bind_dims[i])
+                    return pg_fail(PG_ERR_ARG, "%s: graph input '%s' dim %d is fixed at %lld, %lld was given", c->path, nm, i,
+                                   (long long)dims[i], (long long)g->bind_dims[i]);
+                dims[i] = g->bind_dims[i];
+            }
+        }
         for (int i = 0; i < ndim; i++)
-            if (dims[i] < 1) return pg_fail(PG_ERR_FORMAT, "%s: graph input '%s' has a symbolic or empty dim %d (export with static shapes)", c->path, nm, i);
+            if (dims[i] < 1)
+                return pg_fail(PG_ERR_FORMAT, "%s: graph input '%s' has a symbolic or empty dim %d (export with static shapes, or load with nn_model_load_shaped)", c->path, nm, i);
         if (nins >= NN_MAX_IO) return pg_fail(PG_ERR_FORMAT, "%s: more than %d graph inputs", c->path, NN_MAX_IO);
         int id;
         pg_status st = nn_graph_add_tensor(g, nm, NN_F32, ndim, dims, &id);
@@ -1333,6 +1355,7 @@ static pg_status import_graph(onnx_ctx *c, span bytes)
 pg_status nn_onnx_import(const uint8_t *data, size_t size, const char *name, nn_graph *g)
 {
     onnx_ctx c = { .path = name, .g = g, .opset = -1 };
+    c.fold_left = ((size_t)64 << 20) + (size < ((size_t)1 << 40) ? 8 * size : ((size_t)1 << 43));
     pb_reader r = { data, data + size };
     pb_field f;
     int rc;

@@ -201,7 +201,7 @@ void nn_run_conv(const nn_ctx *c, const nn_node *n)
     int direct = !q.nhwc && q.kh == 1 && q.kw == 1 && q.sh == 1 && q.sw == 1 && !q.pt && !q.pl && !q.pb && !q.pr;
     int64_t jobs = jobs_ng * tiles;
     const nn_attrs *a = &n->attr;
-    #pragma omp parallel for schedule(dynamic, 1)
+    #pragma omp parallel for schedule(dynamic, 1) if (2.0 * q.N * q.O * (double)P * K >= NN_PAR_FLOPS)
     for (int64_t job = 0; job < jobs; job++) {
         int t = (int)(job % tiles), gi = (int)(job / tiles % q.G), ni = (int)(job / tiles / q.G);
         int p0 = t * pt, len = P - p0 < pt ? P - p0 : pt;
@@ -249,7 +249,7 @@ void nn_run_conv_transpose(const nn_ctx *c, const nn_node *n)
                 nn_sgemm(1, 0, R, HW, q.Cg, wg, R, x + ((size_t)ni * q.C + (size_t)gi * q.Cg) * HW, HW, 0.0f, col, HW);
             else
                 nn_sgemm(0, 0, HW, R, q.Cg, x + (size_t)ni * HW * q.C + (size_t)gi * q.Cg, q.C, wg, R, 0.0f, col, R);
-            #pragma omp parallel for schedule(static)
+            #pragma omp parallel for schedule(static) if ((int64_t)q.Og * (OP + (int64_t)kk * HW) >= NN_PAR_COMPUTE)
             for (int o = 0; o < q.Og; o++) {
                 int oc = gi * q.Og + o;
                 float bv = b ? b[oc] : 0.0f;

@@ -20,14 +20,29 @@ void nn_sgemm1(int trans_a, int trans_b, int M, int N, int K, const float *A, in
                 A, lda, B, ldb, beta, C, ldc);
 }
 
-void nn_sgemm(int trans_a, int trans_b, int M, int N, int K, const float *A, int lda, const float *B, int ldb,
-              float beta, float *C, int ldc)
+/* bias (one value per column, NULL: none) and activation on rows [r0, r1) x columns [c0, c1) of C. */
+static void epilogue(float *C, int ldc, int r0, int r1, int c0, int c1, const float *bias, nn_activation act, float alpha)
+{
+    for (int r = r0; r < r1; r++) {
+        float *row = C + (size_t)r * ldc;
+        if (bias) for (int j = c0; j < c1; j++) row[j] += bias[j];
+        nn_apply_act(row + c0, (size_t)(c1 - c0), act, alpha);
+    }
+}
+
+void nn_sgemm_epilogue(int trans_a, int trans_b, int M, int N, int K, const float *A, int lda, const float *B, int ldb,
+                       float beta, float *C, int ldc, const float *bias, nn_activation act, float act_alpha)
 {
     int nt = omp_get_max_threads();
     double flops = 2.0 * M * N * (double)K;
-    if (nt <= 1 || flops < 2e6) { nn_sgemm1(trans_a, trans_b, M, N, K, A, lda, B, ldb, beta, C, ldc); return; }
+    if (nt <= 1 || flops < NN_PAR_FLOPS) {
+        nn_sgemm1(trans_a, trans_b, M, N, K, A, lda, B, ldb, beta, C, ldc);
+        if (bias || act != NN_ACT_NONE) epilogue(C, ldc, 0, M, 0, N, bias, act, act_alpha);
+        return;
+    }
     /* about four blocks per thread, handed out dynamically: a thread that the OS parks for a while
-     * (the cores are often shared) leaves its remaining blocks to the others */
+     * (the cores are often shared) leaves its remaining blocks to the others; each block's bias and
+     * activation are applied while it is still in cache */
     int split_m = M >= 64 * nt;
     int total = split_m ? M : N, align = split_m ? 16 : 64;
     int step = (total + 4 * nt - 1) / (4 * nt);
@@ -37,12 +52,21 @@ void nn_sgemm(int trans_a, int trans_b, int M, int N, int K, const float *A, int
     #pragma omp parallel for schedule(dynamic, 1) num_threads(nt)
     for (int blk = 0; blk < blocks; blk++) {
         int s = blk * step, e = s + step < total ? s + step : total;
-        if (split_m)
+        if (split_m) {
             nn_sgemm1(trans_a, trans_b, e - s, N, K, trans_a ? A + s : A + (size_t)s * lda, lda, B, ldb, beta,
                       C + (size_t)s * ldc, ldc);
-        else
+            if (bias || act != NN_ACT_NONE) epilogue(C, ldc, s, e, 0, N, bias, act, act_alpha);
+        } else {
             nn_sgemm1(trans_a, trans_b, M, e - s, K, A, lda, trans_b ? B + (size_t)s * ldb : B + s, ldb, beta, C + s, ldc);
+            if (bias || act != NN_ACT_NONE) epilogue(C, ldc, 0, M, s, e, bias, act, act_alpha);
+        }
     }
+}
+
+void nn_sgemm(int trans_a, int trans_b, int M, int N, int K, const float *A, int lda, const float *B, int ldb,
+              float beta, float *C, int ldc)
+{
+    nn_sgemm_epilogue(trans_a, trans_b, M, N, K, A, lda, B, ldb, beta, C, ldc, NULL, NN_ACT_NONE, 0.0f);
 }
 
 size_t nn_scratch_matmul(const nn_graph *g, const nn_node *n) { (void)g; (void)n; return 0; }
@@ -104,8 +128,10 @@ void nn_run_matmul(const nn_ctx *c, const nn_node *n)
     int ba = ta->ndim > 2 ? ta->ndim - 2 : 0, bb = tb->ndim > 2 ? tb->ndim - 2 : 0;
     int64_t count_a = nn_shape_count(ba, ta->dims), count_b = nn_shape_count(bb, tb->dims);
     if (count_b == 1) {
-        /* B shared by every batch: one product with the batches stacked as rows */
-        nn_sgemm(0, trb, (int)(count_a * M), N, K, a, K, b, ldb, 0.0f, y, N);
+        /* B shared by every batch: one product with the batches stacked as rows, bias and
+         * activation applied per block */
+        nn_sgemm_epilogue(0, trb, (int)(count_a * M), N, K, a, K, b, ldb, 0.0f, y, N, bias, n->attr.act, n->attr.act_alpha);
+        return;
     } else {
         int nb = ty->ndim - (ta->ndim >= 2) - (tb->ndim >= 2);
         int64_t batch = nn_shape_count(nb, ty->dims);
@@ -119,7 +145,7 @@ void nn_run_matmul(const nn_ctx *c, const nn_node *n)
             acc_a *= da;
             acc_b *= db;
         }
-        #pragma omp parallel for schedule(dynamic, 1)
+        #pragma omp parallel for schedule(dynamic, 1) if (2.0 * batch * M * N * K >= NN_PAR_FLOPS)
         for (int64_t p = 0; p < batch; p++) {
             int64_t rem = p, oa = 0, ob = 0;
             for (int i = nb - 1; i >= 0; i--) {
@@ -169,7 +195,7 @@ void nn_run_gemm(const nn_ctx *c, const nn_node *n)
 
 /* ---- fused attention ---- */
 
-#define ATTN_ROWS 64 /* query rows per block: the (64, N) score block stays in L2 */
+#define ATTN_ROWS 128 /* query rows per block: the (128, N) score block stays in L2 */
 
 pg_status nn_infer_attention(nn_graph *g, nn_node *n)
 {
@@ -199,7 +225,7 @@ void nn_run_attention(const nn_ctx *c, const nn_node *n)
     int nd = tq->ndim;
     int M = (int)tq->dims[nd - 2], D = (int)tq->dims[nd - 1], N = (int)tk->dims[nd - 2], E = (int)tv->dims[nd - 1];
     int64_t batch = nn_shape_count(nd - 2, tq->dims), blocks = (M + ATTN_ROWS - 1) / ATTN_ROWS;
-    #pragma omp parallel for schedule(dynamic, 1)
+    #pragma omp parallel for schedule(dynamic, 1) if (4.0 * batch * M * N * (D + E) / 2 >= NN_PAR_FLOPS)
     for (int64_t job = 0; job < batch * blocks; job++) {
         int64_t b = job / blocks;
         int r0 = (int)(job % blocks) * ATTN_ROWS, rows = M - r0 < ATTN_ROWS ? M - r0 : ATTN_ROWS;

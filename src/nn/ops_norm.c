@@ -122,6 +122,19 @@ void nn_run_reduce_mean(const nn_ctx *c, const nn_node *n)
     for (int i = 0; i < n->attr.num_axes; i++) reduce[n->attr.axes[i]] = 1;
     int64_t out_count = nn_shape_count(ty->ndim, ty->dims), red = 1;
     for (int i = 0; i < tx->ndim; i++) if (reduce[i]) red *= tx->dims[i];
+    /* reduced axes the trailing ones (LayerNorm decomposed): contiguous rows */
+    int trailing = n->attr.num_axes > 0;
+    for (int i = 0; i < n->attr.num_axes; i++) trailing &= n->attr.axes[i] == tx->ndim - n->attr.num_axes + i;
+    if (trailing) {
+        #pragma omp parallel for schedule(static) if (out_count * red >= NN_PAR_MEMORY)
+        for (int64_t o = 0; o < out_count; o++) {
+            const float *xr = x + o * red;
+            double sum = 0;
+            for (int64_t r = 0; r < red; r++) sum += xr[r];
+            y[o] = red ? (float)(sum / (double)red) : 0.0f;
+        }
+        return;
+    }
     /* strides of x */
     int64_t stride[NN_MAX_DIMS], acc = 1;
     for (int i = tx->ndim - 1; i >= 0; i--) { stride[i] = acc; acc *= tx->dims[i]; }

@@ -118,8 +118,9 @@ void nn_run_resize(const nn_ctx *c, const nn_node *n)
     axis_table(a, H, OH, sh, iy, wy);
     axis_table(a, W, OW, sw, ix, wx);
     int taps = a->resize_mode == NN_RESIZE_NEAREST ? 1 : a->resize_mode == NN_RESIZE_LINEAR ? 2 : 4;
+    int par = (int64_t)N * C * OH * OW * taps * taps >= NN_PAR_COMPUTE;
     if (!nhwc) {
-        #pragma omp parallel for schedule(static)
+        #pragma omp parallel for schedule(static) if (par)
         for (int64_t r = 0; r < (int64_t)N * C * OH; r++) {
             int oy = (int)(r % OH);
             int64_t plane = r / OH;
@@ -148,7 +149,7 @@ void nn_run_resize(const nn_ctx *c, const nn_node *n)
             }
         }
     } else {
-        #pragma omp parallel for schedule(static)
+        #pragma omp parallel for schedule(static) if (par)
         for (int64_t r = 0; r < (int64_t)N * OH; r++) {
             int oy = (int)(r % OH), ni = (int)(r / OH);
             for (int ox = 0; ox < OW; ox++) {

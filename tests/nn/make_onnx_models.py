@@ -114,6 +114,8 @@ class DepthNet(nn.Module):
         self.out1 = nn.Conv2d(feat, feat // 2, 3, padding=1)
         self.out2a = nn.Conv2d(feat // 2, 32, 3, padding=1)
         self.out2b = nn.Conv2d(32, 1, 1)
+        with torch.no_grad():
+            self.out2b.bias.fill_(0.05)  # positive output (a depth map), not a ReLU of mostly negatives
 
     def forward(self, img):
         B = img.shape[0]
@@ -224,19 +226,22 @@ def op_cases():
     c.append(("leakyrelu_max", Lambda(lambda m, x: F.leaky_relu(x, 0.2) + t.maximum(x, m.a), a=P(40)), (3, 40)))
     c.append(("pad_reflect", Lambda(lambda m, x: F.pad(x, (2, 1, 1, 2), mode="reflect")), (1, 2, 5, 6)))
     c.append(("attention_head", Attention(32, 4), (1, 9, 32)))
+    # a whole ViT block at opset 13: LayerNorm decomposed by the exporter, Unsqueeze/Squeeze axes as inputs
+    c.append(("vit_block_opset13", Block(48, 4, 96), (1, 10, 48), 13))
     return c
 
 
-def export(module, inputs, path, dynamic=False):
+def export(module, inputs, path, opset=OPSET):
     module.eval()
     with torch.no_grad():
-        torch.onnx.export(module, (inputs,), path, opset_version=OPSET, input_names=["input"],
+        torch.onnx.export(module, (inputs,), path, opset_version=opset, input_names=["input"],
                           output_names=["output"], do_constant_folding=True)
 
 
 def main():
     torch.manual_seed(0)
     if len(sys.argv) == 3 and sys.argv[1] == "--bench":
+        torch.manual_seed(10)
         net = DepthNet(392, 518)
         export(net, torch.from_numpy(seeded_images(1, 392, 518)[0]), sys.argv[2])
         return 0
@@ -247,14 +252,26 @@ def main():
     os.makedirs(out, exist_ok=True)
     names = []
     g = torch.Generator().manual_seed(1)
-    for name, mod, shape in op_cases():
+    for case in op_cases():
+        name, mod, shape = case[:3]
         x = torch.randn(*shape, generator=g)
-        export(mod, x, os.path.join(out, name + ".onnx"))
+        export(mod, x, os.path.join(out, name + ".onnx"), case[3] if len(case) > 3 else OPSET)
         with torch.no_grad():
             y = mod(x)
         np.save(os.path.join(out, name + "_in.npy"), x.numpy().astype(np.float32))
         np.save(os.path.join(out, name + "_out.npy"), y.numpy().astype(np.float32))
         names.append(name)
+    # dynamic axes: exported at 32x48, run at 45x61 (the C test binds the size with nn_model_load_shaped)
+    dyn = Lambda(lambda m, x: m.b(F.interpolate(F.relu(m.a(x)), size=x.shape[2:], mode="bilinear", align_corners=False)) + x,
+                 a=nn.Conv2d(3, 8, 3, stride=2, padding=1), b=nn.Conv2d(8, 3, 3, padding=1)).eval()
+    with torch.no_grad():
+        torch.onnx.export(dyn, (torch.randn(1, 3, 32, 48),), os.path.join(out, "dyn_conv_resize.onnx"), opset_version=OPSET,
+                          input_names=["input"], output_names=["output"], do_constant_folding=True,
+                          dynamic_axes={"input": {2: "h", 3: "w"}, "output": {2: "h", 3: "w"}})
+        x = torch.randn(1, 3, 45, 61, generator=g)
+        np.save(os.path.join(out, "dyn_conv_resize_in.npy"), x.numpy())
+        np.save(os.path.join(out, "dyn_conv_resize_out.npy"), dyn(x).numpy())
+    names.append("dyn_conv_resize")
     # weights stored as float16 and as per-channel int8 + DequantizeLinear (numpy reference)
     from onnx import TensorProto, helper, numpy_helper
     r = np.random.default_rng(2)
@@ -281,15 +298,21 @@ def main():
     ref = np.concatenate([x.astype(np.float64) @ w16.astype(np.float64), x.astype(np.float64) @ wq.astype(np.float64)], 1)
     np.save(os.path.join(out, "weights_fp16_int8_out.npy"), ref.astype(np.float32))
     names.append("weights_fp16_int8")
-    # the whole network at 266x196 (19x14 patches) on three images
+    # the whole network at 266x196 (19x14 patches) on three images; its own seed, so adding op cases
+    # above does not change it
     h, w = 196, 266
+    torch.manual_seed(10)
     net = DepthNet(h, w).eval()
     imgs = seeded_images(3, h, w)
     export(net, torch.from_numpy(imgs[0]), os.path.join(out, "net.onnx"))
     with torch.no_grad():
         for i, im in enumerate(imgs):
             np.save(os.path.join(out, "net_in%d.npy" % i), im)
-            np.save(os.path.join(out, "net_out%d.npy" % i), net(torch.from_numpy(im)).numpy().astype(np.float32))
+            y = net(torch.from_numpy(im)).numpy().astype(np.float32)
+            if (y > 0).mean() < 0.5 or y.std() <= 0:
+                print("make_onnx_models: the test network's output is degenerate (%.2f positive)" % (y > 0).mean())
+                return 1
+            np.save(os.path.join(out, "net_out%d.npy" % i), y)
     with open(os.path.join(out, "cases.txt"), "w") as f:
         f.write("\n".join(names) + "\n")
     return 0
