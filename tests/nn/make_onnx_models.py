@@ -225,6 +225,8 @@ def op_cases():
     c.append(("gelu_tanh", nn.GELU(approximate="tanh"), (3, 40)))
     c.append(("leakyrelu_max", Lambda(lambda m, x: F.leaky_relu(x, 0.2) + t.maximum(x, m.a), a=P(40)), (3, 40)))
     c.append(("pad_reflect", Lambda(lambda m, x: F.pad(x, (2, 1, 1, 2), mode="reflect")), (1, 2, 5, 6)))
+    c.append(("pad_edge_constant", Lambda(lambda m, x: F.pad(F.pad(x, (3, 0, 2, 1), mode="replicate"), (1, 2, 0, 1), value=1.5)),
+                                   (1, 2, 4, 5)))
     c.append(("attention_head", Attention(32, 4), (1, 9, 32)))
     # a whole ViT block at opset 13: LayerNorm decomposed by the exporter, Unsqueeze/Squeeze axes as inputs
     c.append(("vit_block_opset13", Block(48, 4, 96), (1, 10, 48), 13))
