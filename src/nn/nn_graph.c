@@ -108,7 +108,7 @@ pg_status nn_graph_add_const_f32(nn_graph *g, const char *name, int ndim, const 
     size_t n = (size_t)nn_shape_count(ndim, dims);
     float *copy = pg_malloc((n ? n : 1) * sizeof(float), name);
     if (!copy) return PG_ERR_NOMEM;
-    memcpy(copy, data, n * sizeof(float));
+    if (n) memcpy(copy, data, n * sizeof(float));
     return nn_graph_add_const(g, name, NN_F32, ndim, dims, copy, id);
 }
 
@@ -136,7 +136,7 @@ pg_status nn_graph_add_node(nn_graph *g, nn_op op, const char *name, const int *
     n->name = dup_name(name);
     n->inputs = pg_malloc((size_t)(num_inputs ? num_inputs : 1) * sizeof(int), "nn node inputs");
     if (!n->name || !n->inputs) { free(n->name); free(n->inputs); return PG_ERR_NOMEM; }
-    memcpy(n->inputs, inputs, (size_t)num_inputs * sizeof(int));
+    if (num_inputs) memcpy(n->inputs, inputs, (size_t)num_inputs * sizeof(int));
     n->num_inputs = num_inputs;
     memcpy(n->outputs, outputs, (size_t)num_outputs * sizeof(int));
     n->num_outputs = num_outputs;
@@ -156,7 +156,7 @@ pg_status nn_graph_set_io(nn_graph *g, const int *inputs, int num_inputs, const 
         if (inputs[i] < 0 || inputs[i] >= g->num_tensors) return pg_fail(PG_ERR_FORMAT, "graph input %d: bad tensor id", i);
     for (int i = 0; i < num_outputs; i++)
         if (outputs[i] < 0 || outputs[i] >= g->num_tensors) return pg_fail(PG_ERR_FORMAT, "graph output %d: bad tensor id", i);
-    memcpy(g->inputs, inputs, (size_t)num_inputs * sizeof(int));
+    if (num_inputs) memcpy(g->inputs, inputs, (size_t)num_inputs * sizeof(int));
     memcpy(g->outputs, outputs, (size_t)num_outputs * sizeof(int));
     g->num_inputs = num_inputs;
     g->num_outputs = num_outputs;

@@ -106,8 +106,9 @@ typedef enum {
     NN_OP_CONCAT,         /* (x0, x1, ...) attr: axis */
     NN_OP_GATHER,         /* (x, indices[i64 const]) attr: axis */
     NN_OP_EXPAND,         /* (x) attr: shape num_shape (numpy broadcast to it) */
-    NN_OP_PAD,            /* (x) attr: pads[2*ndim] (begins then ends, as ONNX) pad_mode pad_value */
-    NN_OP_RESIZE,         /* (x) attr: layout out_h out_w resize_mode coord_mode nearest_mode */
+    NN_OP_PAD,            /* (x) attr: pad_amounts[2*ndim] (begins then ends, as ONNX) pad_mode pad_value */
+    NN_OP_RESIZE,         /* (x) attr: layout out_h out_w scale_h scale_w resize_mode coord_mode nearest_mode
+                           * cubic_a exclude_outside */
     NN_OP_IDENTITY,       /* (x) copy */
     NN_OP_ABS,            /* (x) unary */
     NN_OP_ATTENTION,      /* (q[..., M, D], k[..., N, D], v[..., N, E]) softmax(q k^T) v per batch, in row blocks

@@ -93,11 +93,12 @@ pg_status nn_model_run(nn_model *model, const float *input, float *output, int t
 {
     nn_graph *g = &model->g;
     const nn_tensor *ti = &g->tensors[g->inputs[0]], *to = &g->tensors[g->outputs[0]];
-    memcpy(nn_graph_data(g, g->inputs[0]), input, (size_t)nn_shape_count(ti->ndim, ti->dims) * sizeof(float));
+    size_t nin = (size_t)nn_shape_count(ti->ndim, ti->dims), nout = (size_t)nn_shape_count(to->ndim, to->dims);
+    if (nin) memcpy(nn_graph_data(g, g->inputs[0]), input, nin * sizeof(float));
     PG_TRY(nn_graph_run(g, threads));
     const float *y = nn_graph_data(g, g->outputs[0]);
     if (!y) return pg_fail(PG_ERR_FORMAT, "output '%s' is not float32", to->name);
-    memcpy(output, y, (size_t)nn_shape_count(to->ndim, to->dims) * sizeof(float));
+    if (nout) memcpy(output, y, nout * sizeof(float));
     return PG_OK;
 }
 

@@ -68,7 +68,7 @@ static int64_t d2i(double v)
     return (int64_t)v;
 }
 
-static int span_eq(span a, const char *s) { return a.n == strlen(s) && memcmp(a.p, s, a.n) == 0; }
+static int span_eq(span a, const char *s) { return a.n == strlen(s) && (a.n == 0 || memcmp(a.p, s, a.n) == 0); }
 
 static void span_str(span a, char *out, size_t size)
 {
@@ -108,7 +108,7 @@ static int map_get(const onnx_ctx *c, span name)
     for (size_t i = hash_span(name.p, name.n) & (c->cap - 1);; i = (i + 1) & (c->cap - 1)) {
         const name_slot *s = &c->map[i];
         if (!s->key) return -1;
-        if (s->len == name.n && memcmp(s->key, name.p, name.n) == 0) return s->id;
+        if (s->len == name.n && (name.n == 0 || memcmp(s->key, name.p, name.n) == 0)) return s->id;
     }
 }
 
@@ -129,9 +129,10 @@ static pg_status map_put(onnx_ctx *c, span name, int id)
         c->cap = cap;
     }
     size_t i = hash_span(name.p, name.n) & (c->cap - 1);
-    while (c->map[i].key && !(c->map[i].len == name.n && memcmp(c->map[i].key, name.p, name.n) == 0)) i = (i + 1) & (c->cap - 1);
+    while (c->map[i].key && !(c->map[i].len == name.n && (name.n == 0 || memcmp(c->map[i].key, name.p, name.n) == 0)))
+        i = (i + 1) & (c->cap - 1);
     if (!c->map[i].key) c->count++;
-    c->map[i] = (name_slot){ name.p, name.n, id };
+    c->map[i] = (name_slot){ name.p ? name.p : (const uint8_t *)"", name.n, id };
     return PG_OK;
 }
 
@@ -1218,7 +1219,8 @@ static pg_status parse_value_info(onnx_ctx *c, span bytes, span *name, int *elem
     int rc;
     *ndim = -1;
     *elem = 0;
-    name->p = NULL; name->n = 0;
+    name->p = (const uint8_t *)""; /* never NULL: names are compared with memcmp */
+    name->n = 0;
     while ((rc = pb_next(&r, &f)) > 0) {
         if (f.number == 1 && f.wire == PB_LEN) *name = (span){ f.data, f.len };
         if (f.number != 2 || f.wire != PB_LEN) continue;

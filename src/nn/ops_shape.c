@@ -266,29 +266,56 @@ pg_status nn_infer_pad(nn_graph *g, nn_node *n)
     return nn_set_output(g, n, 0, x->ndim, dims);
 }
 
+/* Source index along one axis for output index o (pads b in front), or -1 for the constant. */
+static int64_t pad_source(int64_t o, int64_t b, int64_t len, nn_pad_mode mode)
+{
+    int64_t i = o - b;
+    if (i >= 0 && i < len) return i;
+    if (mode == NN_PAD_CONSTANT) return -1;
+    if (mode == NN_PAD_EDGE) return i < 0 ? 0 : len - 1;
+    return i < 0 ? -i : 2 * (len - 1) - i; /* reflect: prepare checked the pads are < len */
+}
+
+/* One output row (the last axis) at a time: the source row of the outer indices (or the constant),
+ * then the row itself with its ends padded. */
 void nn_run_pad(const nn_ctx *c, const nn_node *n)
 {
     const nn_tensor *tx = nn_in(c->g, n, 0), *ty = nn_out(c->g, n, 0);
     const float *x = nn_in_data(c, n, 0);
     float *y = nn_out_data(c, n, 0);
+    const nn_attrs *a = &n->attr;
     int nd = tx->ndim;
+    if (nd == 0) { y[0] = x[0]; return; }
     int64_t sx[NN_MAX_DIMS];
     contiguous_strides(nd, tx->dims, sx);
-    int64_t count = nn_shape_count(nd, ty->dims);
-    #pragma omp parallel for schedule(static) if (count >= NN_PAR_MEMORY / 4)
-    for (int64_t o = 0; o < count; o++) {
-        int64_t rem = o, off = 0;
+    int64_t len = ty->dims[nd - 1], in_len = tx->dims[nd - 1], b = a->pad_amounts[nd - 1];
+    int64_t rows = nn_shape_count(nd - 1, ty->dims);
+    if (len == 0) return;
+    #pragma omp parallel for schedule(static) if (rows * len >= NN_PAR_MEMORY)
+    for (int64_t r = 0; r < rows; r++) {
+        float *yr = y + r * len;
+        int64_t rem = r, off = 0;
         int inside = 1;
-        for (int d = nd - 1; d >= 0; d--) {
-            int64_t i = rem % ty->dims[d] - n->attr.pad_amounts[d], len = tx->dims[d];
+        for (int d = nd - 2; d >= 0; d--) {
+            int64_t i = pad_source(rem % ty->dims[d], a->pad_amounts[d], tx->dims[d], a->pad_mode);
             rem /= ty->dims[d];
-            if (i < 0 || i >= len) {
-                if (n->attr.pad_mode == NN_PAD_CONSTANT) { inside = 0; break; }
-                if (n->attr.pad_mode == NN_PAD_EDGE) i = i < 0 ? 0 : len - 1;
-                else i = i < 0 ? -i : 2 * (len - 1) - i;
-            }
+            if (i < 0) { inside = 0; break; }
             off += i * sx[d];
         }
-        y[o] = inside ? x[off] : n->attr.pad_value;
+        if (!inside || in_len == 0) {
+            for (int64_t i = 0; i < len; i++) yr[i] = a->pad_value;
+            continue;
+        }
+        const float *xr = x + off;
+        for (int64_t i = 0; i < b && i < len; i++) {
+            int64_t j = pad_source(i, b, in_len, a->pad_mode);
+            yr[i] = j < 0 ? a->pad_value : xr[j];
+        }
+        int64_t copy = in_len < len - b ? in_len : len - b;
+        if (copy > 0) memcpy(yr + b, xr, (size_t)copy * sizeof(float));
+        for (int64_t i = b + in_len; i < len; i++) {
+            int64_t j = pad_source(i, b, in_len, a->pad_mode);
+            yr[i] = j < 0 ? a->pad_value : xr[j];
+        }
     }
 }

@@ -225,10 +225,76 @@ def op_cases():
     c.append(("gelu_tanh", nn.GELU(approximate="tanh"), (3, 40)))
     c.append(("leakyrelu_max", Lambda(lambda m, x: F.leaky_relu(x, 0.2) + t.maximum(x, m.a), a=P(40)), (3, 40)))
     c.append(("pad_reflect", Lambda(lambda m, x: F.pad(x, (2, 1, 1, 2), mode="reflect")), (1, 2, 5, 6)))
+    c.append(("pad_edge_constant", Lambda(lambda m, x: F.pad(F.pad(x, (3, 0, 2, 1), mode="replicate"), (1, 2, 0, 1), value=1.5)),
+                                   (1, 2, 4, 5)))
     c.append(("attention_head", Attention(32, 4), (1, 9, 32)))
     # a whole ViT block at opset 13: LayerNorm decomposed by the exporter, Unsqueeze/Squeeze axes as inputs
     c.append(("vit_block_opset13", Block(48, 4, 96), (1, 10, 48), 13))
     return c
+
+
+def resize_reference(x, out_h, out_w, mode, coord, nearest):
+    """ONNX Resize of the last two dims with sizes given (scale = out / in), written from the spec."""
+    def axis(in_len, out_len):
+        scale = out_len / in_len
+        w = np.zeros((out_len, in_len))
+        for o in range(out_len):
+            if coord == "half_pixel":
+                c = (o + 0.5) / scale - 0.5
+            elif coord == "pytorch_half_pixel":
+                c = (o + 0.5) / scale - 0.5 if out_len > 1 else 0.0
+            elif coord == "align_corners":
+                c = o * (in_len - 1) / (out_len - 1) if out_len > 1 else 0.0
+            elif coord == "asymmetric":
+                c = o / scale
+            else:  # tf_half_pixel_for_nn
+                c = (o + 0.5) / scale
+            if mode == "nearest":
+                f = math.floor(c)
+                d = c - f
+                i = {"round_prefer_floor": f + (d > 0.5), "round_prefer_ceil": f + (d >= 0.5),
+                     "floor": f, "ceil": math.ceil(c)}[nearest]
+                w[o, min(max(i, 0), in_len - 1)] = 1
+            else:
+                c = min(max(c, 0), in_len - 1)
+                f = int(math.floor(c))
+                w[o, f] += 1 - (c - f)
+                w[o, min(f + 1, in_len - 1)] += c - f
+        return w
+    wh, ww = axis(x.shape[2], out_h), axis(x.shape[3], out_w)
+    return np.einsum("ah,nchw,bw->ncab", wh, x.astype(np.float64), ww)
+
+
+def resize_modes_model(out):
+    """Every coordinate mode (linear) and nearest rounding mode in one model, outputs flattened and
+    concatenated, with the numpy reference above (torch only emits three of the modes)."""
+    from onnx import TensorProto, helper, numpy_helper
+    r = np.random.default_rng(4)
+    x = r.standard_normal((1, 2, 5, 7)).astype(np.float32)
+    combos = [("linear", c, "floor") for c in ("half_pixel", "pytorch_half_pixel", "align_corners", "asymmetric",
+                                                  "tf_half_pixel_for_nn")]
+    combos += [("nearest", c, n) for c in ("asymmetric", "half_pixel") for n in ("round_prefer_floor", "round_prefer_ceil",
+                                                                                  "floor", "ceil")]
+    sizes = [(11, 3), (1, 9), (4, 1), (13, 16)]
+    nodes, inits, parts, refs = [], [], [], []
+    for k, (mode, coord, nearest) in enumerate(combos):
+        oh, ow = sizes[k % len(sizes)]
+        inits.append(numpy_helper.from_array(np.array([1, 2, oh, ow], np.int64), "sizes%d" % k))
+        nodes.append(helper.make_node("Resize", ["input", "", "", "sizes%d" % k], ["r%d" % k], mode=mode,
+                                      coordinate_transformation_mode=coord, nearest_mode=nearest))
+        nodes.append(helper.make_node("Reshape", ["r%d" % k, "flat"], ["f%d" % k]))
+        parts.append("f%d" % k)
+        refs.append(resize_reference(x, oh, ow, mode, coord, nearest).reshape(-1))
+    inits.append(numpy_helper.from_array(np.array([-1], np.int64), "flat"))
+    nodes.append(helper.make_node("Concat", parts, ["output"], axis=0))
+    ref = np.concatenate(refs).astype(np.float32)
+    graph = helper.make_graph(nodes, "resize_modes", [helper.make_tensor_value_info("input", TensorProto.FLOAT, list(x.shape))],
+                              [helper.make_tensor_value_info("output", TensorProto.FLOAT, [ref.size])], inits)
+    m = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
+    m.ir_version = 8
+    onnx.save(m, os.path.join(out, "resize_modes.onnx"))
+    np.save(os.path.join(out, "resize_modes_in.npy"), x)
+    np.save(os.path.join(out, "resize_modes_out.npy"), ref)
 
 
 def export(module, inputs, path, opset=OPSET):
@@ -272,6 +338,8 @@ def main():
         np.save(os.path.join(out, "dyn_conv_resize_in.npy"), x.numpy())
         np.save(os.path.join(out, "dyn_conv_resize_out.npy"), dyn(x).numpy())
     names.append("dyn_conv_resize")
+    resize_modes_model(out)
+    names.append("resize_modes")
     # weights stored as float16 and as per-channel int8 + DequantizeLinear (numpy reference)
     from onnx import TensorProto, helper, numpy_helper
     r = np.random.default_rng(2)
