@@ -193,6 +193,57 @@ static void test_cli(const char *tmp, const char *clip, const char *model)
     CHECK(pg_path_exists(path), "prepare finished");
 }
 
+/* A dynamic-input ONNX model (exported here with torch when /usr/bin/python3 has it, else
+ * skipped): refused without --size, run at the longer side rounded to multiples of 14. */
+static void test_dynamic_onnx(const char *tmp, const char *clip)
+{
+    char script[4200], model[4200], cmd[16384], out[4200];
+    snprintf(script, sizeof script, "%s/mkdyn.py", tmp);
+    snprintf(model, sizeof model, "%s/dyn_depth.onnx", tmp);
+    const char *py =
+        "import sys, torch, torch.nn as nn\n"
+        "class Net(nn.Module):\n"
+        "    def __init__(s):\n"
+        "        super().__init__(); s.a = nn.Conv2d(3, 4, 3, padding=1); s.b = nn.Conv2d(4, 1, 3, padding=1)\n"
+        "    def forward(s, x): return torch.relu(s.b(torch.relu(s.a(x)))) + 1.0\n"
+        "torch.manual_seed(0)\n"
+        "with torch.no_grad():\n"
+        "    torch.onnx.export(Net().eval(), (torch.rand(1, 3, 28, 42),), sys.argv[1], opset_version=17, input_names=['image'],\n"
+        "                      output_names=['depth'], dynamic_axes={'image': {2: 'h', 3: 'w'}, 'depth': {2: 'h', 3: 'w'}})\n";
+    write_bytes(script, (const uint8_t *)py, strlen(py));
+    snprintf(cmd, sizeof cmd, "/usr/bin/python3 '%s' '%s' >/dev/null 2>&1", script, model);
+    if (system(cmd) != 0 || !pg_path_exists(model)) {
+        printf("SKIP dynamic ONNX model: /usr/bin/python3 with torch not available\n");
+        return;
+    }
+    snprintf(out, sizeof out, "%s/dyn.npy", tmp);
+    pg_depth_config c;
+    pg_depth_defaults(&c);
+    c.input = clip;
+    c.model = model;
+    c.out = out;
+    c.threads = 2;
+    pg_depth_report r;
+    CHECK(pg_depth_run(&c, &r) == PG_ERR_ARG && strstr(pg_last_error(), "--size"), "no size: %s", pg_last_error());
+    c.size = 100;
+    CHECK_OK(pg_depth_run(&c, &r));
+    CHECK(r.model_width == 98 && r.model_height == 70 && !strcmp(r.kind, "disparity"), "dynamic input %dx%d (98x70 wanted), kind %s",
+          r.model_width, r.model_height, r.kind);
+    pg_array a;
+    CHECK_OK(io_npy_load(out, &a));
+    CHECK(a.ndim == 3 && a.shape[0] == VF && a.shape[1] == VH && a.shape[2] == VW, "dynamic model output (%zu, %zu, %zu)", a.shape[0],
+          a.shape[1], a.shape[2]);
+    pg_array_destroy(&a);
+    /* or the size from the sidecar (as the pipeline's --depth-model has no --size) */
+    char side[4300];
+    snprintf(side, sizeof side, "%s.json", model);
+    const char *js = "{\"input_size\": [56, 42]}";
+    write_bytes(side, (const uint8_t *)js, strlen(js));
+    c.size = 0;
+    CHECK_OK(pg_depth_run(&c, &r));
+    CHECK(r.model_width == 56 && r.model_height == 42, "sidecar input_size %dx%d (56x42 wanted)", r.model_width, r.model_height);
+}
+
 /* The pipeline with depth_model: the depth stage runs first and has its own marker; a rerun
  * skips it; a model with new content reruns it and every stage after. */
 static void run_with_model(const char *data, const char *model, const char *out, pg_pipeline_report *r)
@@ -257,6 +308,7 @@ int main(void)
     free(bytes);
     test_stage(tmp, clip, model);
     test_cli(tmp, clip, model);
+    test_dynamic_onnx(tmp, clip);
     test_pipeline(tmp, model);
     return test_summary("test_depth_model");
 }

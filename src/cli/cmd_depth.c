@@ -12,7 +12,7 @@ int cmd_depth(int argc, char **argv)
         { "--model", CLI_STR, &c.model, "depth network: .tflite or .onnx (required); MODEL.json beside it is read" },
         { "--out", CLI_STR, &c.out, "output .npy (F,H,W) float32 depth at the video's size (required)" },
         { "--kind", CLI_STR, &c.kind, "the model's raw output: depth or disparity (default: MODEL.json, else by format)" },
-        { "--size", CLI_INT, &c.size, "inference size, longer side (default: the model's input)" },
+        { "--size", CLI_INT, &c.size, "inference size, longer side: models with a dynamic input (a fixed one must match)" },
         { "--frames", CLI_INT, &c.frames, "only the first N frames (default: all)" },
         { "--train-cam", CLI_STR, &c.train_camera, "dataset camera, name or index (default: the first)" },
         { "--threads", CLI_INT, &c.threads, "worker threads (default: all cores)" },

@@ -51,7 +51,7 @@ static pg_status read_sidecar(depth_net *net)
     const cJSON *it;
     if ((it = cJSON_GetObjectItemCaseSensitive(j, "name")) && cJSON_IsString(it)) snprintf(in->name, sizeof in->name, "%s", it->valuestring);
     if ((it = cJSON_GetObjectItemCaseSensitive(j, "license")) && cJSON_IsString(it)) snprintf(in->license, sizeof in->license, "%s", it->valuestring);
-    if (!st && cJSON_GetObjectItemCaseSensitive(j, "input_size")) {
+    if (!st && cJSON_GetObjectItemCaseSensitive(j, "input_size") && !in->dynamic) { /* dynamic: used at load */
         float wh[2];
         st = io_json_get_floats(j, "input_size", side, wh, 2);
         if (!st && ((int)wh[0] != in->width || (int)wh[1] != in->height))
@@ -77,13 +77,65 @@ static pg_status read_sidecar(depth_net *net)
     return st;
 }
 
-pg_status depth_net_open(const char *model_path, const char *kind, depth_net **out)
+/* MODEL.json's "multiple_of" (def when absent or unreadable; read_sidecar reports errors). */
+static int sidecar_multiple(const char *model_path, int def)
+{
+    char side[4200];
+    snprintf(side, sizeof side, "%s.json", model_path);
+    cJSON *j;
+    if (!pg_path_exists(side) || io_json_load(side, &j) != PG_OK) return def;
+    double v = io_json_number_or(j, "multiple_of", def);
+    cJSON_Delete(j);
+    return v >= 1 && v <= 1024 ? (int)v : def;
+}
+
+/* MODEL.json's "input_size" [w, h] into wh (0 when absent or not two positive numbers). */
+static void sidecar_input_size(const char *model_path, int wh[2])
+{
+    char side[4200];
+    snprintf(side, sizeof side, "%s.json", model_path);
+    wh[0] = wh[1] = 0;
+    cJSON *j;
+    if (!pg_path_exists(side) || io_json_load(side, &j) != PG_OK) return;
+    float v[2];
+    if (cJSON_GetObjectItemCaseSensitive(j, "input_size") && io_json_get_floats(j, "input_size", side, v, 2) == PG_OK && v[0] >= 1 &&
+        v[1] >= 1 && v[0] <= 8192 && v[1] <= 8192)
+        wh[0] = (int)v[0], wh[1] = (int)v[1];
+    cJSON_Delete(j);
+}
+
+/* A dynamic-input model as NCHW (1, 3, h, w): longer side size, the frame's aspect, sides
+ * rounded to multiples of the sidecar's multiple_of; without a size, the sidecar's input_size. */
+static pg_status load_dynamic(depth_net *net, int size, int frame_width, int frame_height)
+{
+    int wh[2];
+    sidecar_input_size(net->path, wh);
+    if (!size && wh[0]) {
+        int64_t fixed[4] = { 1, 3, wh[1], wh[0] };
+        net->info.dynamic = 1;
+        return nn_model_load_shaped(net->path, 4, fixed, &net->model);
+    }
+    if (!size) return pg_fail(PG_ERR_ARG, "%s: the model's input size is not fixed; give one with --size N (longer side) or "
+                                          "\"input_size\" in %s.json", net->path, net->path);
+    int mult = sidecar_multiple(net->path, 14);
+    double aspect = frame_width > 0 && frame_height > 0 ? (double)frame_height / frame_width : 1.0;
+    double lw = aspect <= 1 ? size : size / aspect, lh = aspect <= 1 ? size * aspect : size;
+    int64_t w = (int64_t)(lw / mult + 0.5) * mult, h = (int64_t)(lh / mult + 0.5) * mult;
+    if (w < mult) w = mult;
+    if (h < mult) h = mult;
+    int64_t dims[4] = { 1, 3, h, w };
+    net->info.dynamic = 1;
+    return nn_model_load_shaped(net->path, 4, dims, &net->model);
+}
+
+pg_status depth_net_open(const char *model_path, const char *kind, int size, int frame_width, int frame_height, depth_net **out)
 {
     *out = NULL;
     depth_net *net = pg_calloc(1, sizeof *net, "depth network");
     if (!net) return PG_ERR_NOMEM;
     snprintf(net->path, sizeof net->path, "%s", model_path);
     pg_status st = nn_model_load(model_path, &net->model);
+    if (st == PG_ERR_FORMAT && strstr(pg_last_error(), "symbolic")) st = load_dynamic(net, size, frame_width, frame_height);
     depth_net_info *in = &net->info;
     if (!st) {
         FILE *f = fopen(model_path, "rb");

@@ -47,6 +47,8 @@ static pg_status make_key(const pg_depth_config *c, const char *source, const ch
     cJSON_AddStringToObject(k, "camera", camera);
     cJSON_AddStringToObject(k, "kind", info->disparity ? "disparity" : "depth");
     cJSON_AddNumberToObject(k, "scale", info->scale);
+    cJSON_AddNumberToObject(k, "input_width", info->width);
+    cJSON_AddNumberToObject(k, "input_height", info->height);
     cJSON_AddItemToObject(k, "mean", io_json_float_array(info->mean, 3));
     cJSON_AddItemToObject(k, "std", io_json_float_array(info->std, 3));
     cJSON_AddNumberToObject(k, "frames", frames);
@@ -104,28 +106,29 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
     PG_TRY(check_config(c));
     double t0 = pg_time_seconds();
     r->threads = stage_use_threads(c->threads);
-    depth_net *net = NULL;
-    PG_TRY(depth_net_open(c->model, c->kind, &net));
-    const depth_net_info *info = depth_net_get_info(net);
-    int side = info->width > info->height ? info->width : info->height;
-    if (c->size && c->size != side) {
-        pg_status st = pg_fail(PG_ERR_ARG, "%s: the model's input is fixed at %dx%d; --size %d cannot change it", c->model,
-                               info->width, info->height, c->size);
-        depth_net_close(net);
-        return st;
-    }
-    snprintf(r->model_name, sizeof r->model_name, "%s", info->name);
-    snprintf(r->kind, sizeof r->kind, "%s", info->disparity ? "disparity" : "depth");
-    r->model_width = info->width;
-    r->model_height = info->height;
-
     pg_dataset *ds = NULL;
     io_dataset_options dopt = io_dataset_defaults();
     dopt.count = c->frames;
-    pg_status st = io_dataset_open(c->input, &dopt, &ds);
+    PG_TRY(io_dataset_open(c->input, &dopt, &ds));
     int cam = 0;
-    if (!st && c->train_camera && io_dataset_resolve_camera(ds, c->train_camera, &cam) != PG_OK)
+    depth_net *net = NULL;
+    pg_status st = PG_OK;
+    if (c->train_camera && io_dataset_resolve_camera(ds, c->train_camera, &cam) != PG_OK)
         st = pg_fail_context(PG_ERR_ARG, "%s: --train-cam", c->input);
+    if (!st) st = depth_net_open(c->model, c->kind, c->size, io_dataset_width(ds), io_dataset_height(ds), &net);
+    const depth_net_info *info = net ? depth_net_get_info(net) : NULL;
+    if (!st) {
+        int side = info->width > info->height ? info->width : info->height;
+        if (c->size && c->size != side && !info->dynamic)
+            st = pg_fail(PG_ERR_ARG, "%s: the model's input is fixed at %dx%d; --size %d cannot change it", c->model, info->width,
+                         info->height, c->size);
+    }
+    if (!st) {
+        snprintf(r->model_name, sizeof r->model_name, "%s", info->name);
+        snprintf(r->kind, sizeof r->kind, "%s", info->disparity ? "disparity" : "depth");
+        r->model_width = info->width;
+        r->model_height = info->height;
+    }
     cJSON *key = NULL;
     char cache[4200], meta[4200], frame_path[4400];
     snprintf(cache, sizeof cache, "%s.cache", c->out);
