@@ -22,6 +22,8 @@
  * window + 1 (a positive "depth" brighter = farther) -> (1,16,24,1). */
 static float tiny_w[27], tiny_b[1] = { 1.0f };
 
+/* unsupported: 1 adds a SOFTMAX; 2 makes the conv read its own output (a cycle); 3 gives the
+ * input a 2^30 dimension; 4 makes the weights' shape lie about their buffer. */
 static uint8_t *tiny_model(size_t *n, int unsupported)
 {
     for (int i = 0; i < 27; i++) tiny_w[i] = 0.3f / 9.0f;
@@ -31,7 +33,10 @@ static uint8_t *tiny_model(size_t *n, int unsupported)
     int b = tw_tensor(m, "b", 1, (int[]){ 1 }, TW_F32, tiny_b, sizeof tiny_b);
     int y = tw_tensor(m, "depth", 4, (int[]){ 1, 16, 24, 1 }, TW_F32, NULL, 0);
     tw_op(m, 3, (int[]){ x, w, b }, 3, y, 1, 4, (int32_t[]){ 0, 1, 1, 0 }, "biib");
-    if (unsupported) {
+    if (unsupported == 2) m->ops[0].inputs[0] = y;
+    if (unsupported == 3) m->tensors[x].dims[1] = 1 << 30;
+    if (unsupported == 4) m->tensors[w].dims[0] = 4;
+    if (unsupported == 1) {
         int z = tw_tensor(m, "probs", 4, (int[]){ 1, 16, 24, 1 }, TW_F32, NULL, 0);
         tw_op(m, 25, (int[]){ y }, 1, z, 0, 0, NULL, ""); /* SOFTMAX */
         y = z;
@@ -176,6 +181,16 @@ static void test_cli(const char *tmp, const char *clip, const char *model)
     snprintf(args, sizeof args, "depth '%s' --model '%s' --out '%s/x.npy'", clip, clip, tmp);
     rc = test_run_cli(args, err, sizeof err);
     CHECK(rc == 2 && one_line(err), "a video as the model: rc %d: %s", rc, err);
+    static const char *hostile[3] = { "cycle", "huge_dims", "lying_size" };
+    for (int k = 0; k < 3; k++) {
+        uint8_t *hb = tiny_model(&n, 2 + k);
+        snprintf(bad, sizeof bad, "%s/%s.tflite", tmp, hostile[k]);
+        write_bytes(bad, hb, n);
+        free(hb);
+        snprintf(args, sizeof args, "depth '%s' --model '%s' --out '%s/x.npy'", clip, bad, tmp);
+        rc = test_run_cli(args, err, sizeof err);
+        CHECK(rc == 2 && one_line(err) && strstr(err, hostile[k]), "%s model: rc %d: %s", hostile[k], rc, err);
+    }
     snprintf(args, sizeof args, "depth '%s' --out '%s/x.npy'", clip, tmp);
     rc = test_run_cli(args, err, sizeof err);
     CHECK(rc == 2 && one_line(err), "no --model: rc %d: %s", rc, err);
