@@ -1,6 +1,8 @@
 /* depth.c - the depth stage: a depth network over the frames of a video (pg_depth_run, see
  * prodygs.h), with a per-frame cache so an interrupted run resumes.
  *
+ * Frames go in batches of one per thread, each thread with its own copy of the network running
+ * single-threaded (a lone frame uses all threads in one network).
  * OUT.cache/ holds key.json (the content hashes of the model and the camera's source, and the
  * settings) and one NNNNN.npy (H, W) per finished frame. A cache whose key differs is emptied
  * first. Once every frame is there, OUT is written atomically, then the key beside it as
@@ -22,6 +24,8 @@
 #include "io/json.h"
 #include "io/npy.h"
 #include "stage/marker.h"
+
+#define DEPTH_MAX_NETS 16 /* networks run side by side (one per thread, one frame each) */
 
 void pg_depth_defaults(pg_depth_config *c) { memset(c, 0, sizeof *c); }
 
@@ -161,36 +165,68 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
         all = pg_malloc(total * sizeof(float), "depth frames");
         if (!all) st = PG_ERR_NOMEM;
     }
+    /* one network per thread, each on its own frame with one thread: no fork/join per layer, which
+     * on shared cores costs more than it gains (the threads wait for each other at every layer) */
+    int T = r->threads < 1 ? 1 : r->threads > DEPTH_MAX_NETS ? DEPTH_MAX_NETS : r->threads, nets = 1;
+    if (T > r->frames) T = r->frames > 0 ? r->frames : 1;
+    depth_net *net_of[DEPTH_MAX_NETS] = { net };
+    for (; !st && nets < T; nets++)
+        if (depth_net_open(c->model, c->kind, c->size, r->width, r->height, &net_of[nets]) != PG_OK) break; /* fewer copies */
     double infer_seconds = 0;
-    for (int t = 0; !st && t < r->frames; t++) {
-        snprintf(frame_path, sizeof frame_path, "%s/%05d.npy", cache, t);
-        if (pg_path_exists(frame_path)) {
-            pg_array a;
-            if (io_npy_load(frame_path, &a) == PG_OK && a.ndim == 2 && a.shape[0] == (size_t)r->height && a.shape[1] == (size_t)r->width) {
-                memcpy(all + plane * (size_t)t, a.data, plane * sizeof(float));
-                pg_array_destroy(&a);
-                r->reused++;
-                pg_progress_report("depth", t + 1, r->frames, "frame %d cached", t);
+    int t = 0, stop = 0;
+    while (!st && !stop && t < r->frames) {
+        int batch[DEPTH_MAX_NETS], nb = 0;
+        pg_image img[DEPTH_MAX_NETS];
+        memset(img, 0, sizeof img);
+        while (!st && t < r->frames && nb < nets) {
+            snprintf(frame_path, sizeof frame_path, "%s/%05d.npy", cache, t);
+            if (pg_path_exists(frame_path)) {
+                pg_array a;
+                if (io_npy_load(frame_path, &a) == PG_OK && a.ndim == 2 && a.shape[0] == (size_t)r->height &&
+                    a.shape[1] == (size_t)r->width) {
+                    memcpy(all + plane * (size_t)t, a.data, plane * sizeof(float));
+                    pg_array_destroy(&a);
+                    r->reused++;
+                    pg_progress_report("depth", t + 1, r->frames, "frame %d cached", t);
+                    t++;
+                    continue;
+                }
+                pg_array_destroy(&a); /* unreadable (saves are atomic, so not a crash mid-write): recompute */
+            }
+            if (c->stop_after && r->computed + nb >= c->stop_after) {
+                stop = 1;
+                break;
+            }
+            st = io_dataset_frame(ds, cam, t, &img[nb]);
+            if (st) pg_fail_context(st, "%s: frame %d: ", c->input, t);
+            else batch[nb++] = t;
+            t++;
+        }
+        pg_status bst[DEPTH_MAX_NETS];
+        char msg[DEPTH_MAX_NETS][512];
+        double ti = pg_time_seconds();
+        int inner = nb > 1 ? 1 : r->threads;
+        #pragma omp parallel for num_threads(nb > 1 ? nb : 1) schedule(static, 1)
+        for (int b = 0; b < nb; b++) {
+            bst[b] = depth_net_infer(net_of[b], &img[b], all + plane * (size_t)batch[b], inner);
+            if (bst[b]) snprintf(msg[b], sizeof msg[b], "%s", pg_last_error()); /* messages are per thread */
+        }
+        infer_seconds += pg_time_seconds() - ti;
+        for (int b = 0; b < nb; b++) {
+            pg_image_destroy(&img[b]);
+            if (st) continue;
+            if (bst[b]) {
+                st = pg_fail(bst[b], "%s: frame %d: %s", c->input, batch[b], msg[b]);
                 continue;
             }
-            pg_array_destroy(&a); /* unreadable (a crash mid-write cannot leave one: saves are atomic): recompute */
+            snprintf(frame_path, sizeof frame_path, "%s/%05d.npy", cache, batch[b]);
+            size_t shape[2] = { (size_t)r->height, (size_t)r->width };
+            st = io_npy_save(frame_path, all + plane * (size_t)batch[b], 2, shape);
+            r->computed++;
+            pg_progress_report("depth", batch[b] + 1, r->frames, "%.0f ms/frame", 1e3 * infer_seconds / r->computed);
         }
-        if (c->stop_after && r->computed >= c->stop_after) break;
-        pg_image img = { 0 };
-        st = io_dataset_frame(ds, cam, t, &img);
-        double ti = pg_time_seconds();
-        if (!st) st = depth_net_infer(net, &img, all + plane * (size_t)t, r->threads);
-        infer_seconds += pg_time_seconds() - ti;
-        pg_image_destroy(&img);
-        if (st) {
-            pg_fail_context(st, "%s: frame %d: ", c->input, t);
-            break;
-        }
-        size_t shape[2] = { (size_t)r->height, (size_t)r->width };
-        st = io_npy_save(frame_path, all + plane * (size_t)t, 2, shape);
-        r->computed++;
-        pg_progress_report("depth", t + 1, r->frames, "%.0f ms/frame", 1e3 * infer_seconds / r->computed);
     }
+    for (int k = 1; k < nets; k++) depth_net_close(net_of[k]);
     r->ms_per_frame = r->computed ? 1e3 * infer_seconds / r->computed : 0;
     r->finished = !st && r->computed + r->reused == r->frames;
     if (r->finished) {
