@@ -49,10 +49,38 @@ const char *pg_status_name(pg_status code);
 #define PG_CAMERA_LABEL 160  /* "name (index i)" */
 #define PG_CAMERA_LABELS 2048 /* a comma-separated list of labels */
 
+/* ---- depth: per-frame depth from a monocular depth network (TFLite or ONNX) ----
+ * Writes OUT (an (F,H,W) float32 .npy at the video's size, DEPTH: larger = farther, the model's
+ * relative units; a disparity model's output is inverted) and beside it OUT minus ".npy" plus
+ * ".json" (model, kind, hashes). Finished frames are kept in OUT.cache/ until OUT is written, so
+ * an interrupted run resumes; a rerun with the same model, input and settings does nothing. */
+typedef struct {
+    const char *input, *model, *out; /* video, frame folder or dataset; .tflite / .onnx; .npy (required) */
+    const char *train_camera; /* dataset camera (NULL: the first) */
+    const char *kind;         /* the model's raw output: "depth" or "disparity" (NULL: MODEL.json or the default) */
+    int size;                 /* inference size, longer side (0: the model's; a fixed-size model must match) */
+    int frames;               /* first N frames (0: all) */
+    int threads;              /* 0: all cores */
+    int stop_after;           /* tests: stop after computing N frames as if killed (0: off) */
+} pg_depth_config;
+
+typedef struct {
+    char train_camera[PG_CAMERA_LABEL], model_name[128], kind[16];
+    int frames, computed, reused, width, height, model_width, model_height, threads;
+    int finished;             /* 0 after stop_after */
+    int skipped;              /* 1: OUT was already current */
+    double seconds, ms_per_frame;
+} pg_depth_report;
+
+void pg_depth_defaults(pg_depth_config *c);
+pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r);
+
 /* ---- prepare: refine and temporally align per-frame depth (paper 3.1) ---- */
 typedef struct {
     const char *input;        /* video, frame folder or dataset (required) */
-    const char *depth;        /* per-frame depth: (F,H,W) .npy or a folder (required) */
+    const char *depth;        /* per-frame depth: (F,H,W) .npy or a folder (this or depth_model) */
+    const char *depth_model;  /* or: a depth network run first into OUT/depth.npy (pg_depth_run; its
+                                 output is depth, so depth_kind and depth_scale do not apply) */
     const char *out;          /* output directory (required) */
     const char *train_camera; /* dataset camera (NULL: the first) */
     const char *depth_kind;   /* "depth" (default) or "disparity" */
@@ -222,8 +250,8 @@ pg_status pg_view_serve(const char *dir, int port, long max_requests, void (*on_
 typedef struct pg_pipeline_report {
     char train_camera[PG_CAMERA_LABEL], test_cameras[PG_CAMERA_LABELS];
     int width, height, iters, proxies, threads;
-    int ran[5];                       /* prepare, proxies, train, evaluate, render: 1 ran, 0 skipped/off */
-    double seconds[5];
+    int ran[6];                       /* prepare, proxies, train, evaluate, render, depth: 1 ran, 0 skipped/off */
+    double seconds[6];
     pg_train_report train;
     pg_evaluate_report evaluation;
     double seconds_total;
@@ -231,7 +259,9 @@ typedef struct pg_pipeline_report {
 } pg_pipeline_report;
 
 typedef struct {
-    const char *input, *depth, *out;  /* required */
+    const char *input, *depth, *out;  /* required (depth, or depth_model instead) */
+    const char *depth_model;          /* a depth network run first into OUT/depth/depth.npy (stage
+                                         "depth", rerun when the model or input changes) */
     const char *preset;               /* "fast" (default) or "quality" */
     const char *train_camera, *test_cameras;
     const char *poses;                /* NULL: dataset with test cameras, else hemisphere */

@@ -49,6 +49,7 @@ int cli_parse_count_or_all(const char *option, const char *text, int *n);
 
 int cmd_info(int argc, char **argv);
 int cmd_synth(int argc, char **argv);
+int cmd_depth(int argc, char **argv);
 int cmd_prepare(int argc, char **argv);
 int cmd_proxies(int argc, char **argv);
 int cmd_train(int argc, char **argv);

@@ -10,8 +10,9 @@ int bench_iteration(int argc, char **argv);
 int bench_deform(int argc, char **argv);
 int bench_loss(int argc, char **argv);
 int bench_flow(int argc, char **argv);
+int bench_nn(int argc, char **argv);
 
-#define BENCH_KINDS "raster, proxy, iteration, deform, loss, flow"
+#define BENCH_KINDS "raster, proxy, iteration, deform, loss, flow, nn"
 
 int cmd_bench(int argc, char **argv)
 {
@@ -25,7 +26,8 @@ int cmd_bench(int argc, char **argv)
                "  iteration  one fine-stage training iteration, split by part\n"
                "  deform     HexPlane + MLP deformation forward/backward\n"
                "  loss       image losses (L1, SSIM) forward/backward\n"
-               "  flow       optical flow between two frames\n\n"
+               "  flow       optical flow between two frames\n"
+               "  nn         one forward pass of a network (--model FILE.onnx)\n\n"
                "prodygs bench KIND --help lists the options of each.\n");
         return 0;
     }
@@ -35,5 +37,6 @@ int cmd_bench(int argc, char **argv)
     if (strcmp(argv[1], "deform") == 0) return bench_deform(argc - 1, argv + 1);
     if (strcmp(argv[1], "loss") == 0) return bench_loss(argc - 1, argv + 1);
     if (strcmp(argv[1], "flow") == 0) return bench_flow(argc - 1, argv + 1);
+    if (strcmp(argv[1], "nn") == 0) return bench_nn(argc - 1, argv + 1);
     return cli_usage_error("bench: unknown benchmark '%s' (" BENCH_KINDS ")", argv[1]);
 }

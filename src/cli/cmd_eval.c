@@ -9,7 +9,7 @@ int cmd_eval(int argc, char **argv)
     pipeline_cli_text t;
     cli_option options[40];
     int n = pipeline_cli_options(&c, &t, options, 40);
-    const cli_spec spec = { "prodygs eval", "DATASET --depth PATH --out DIR [options]",
+    const cli_spec spec = { "prodygs eval", "DATASET (--depth PATH | --depth-model FILE) --out DIR [options]",
                             "DyNeRF protocol: trains on one real camera (--train-cam, default the first) plus\n"
                             "proxies at the other cameras' poses (never the test cameras, default cam05,cam06),\n"
                             "then scores every frame of the test cameras. Writes DIR/metrics.json, DIR/report.md\n"

@@ -1,19 +1,22 @@
 /* cmd_prepare.c - `prodygs prepare`: options -> pg_prepare_config -> pg_prepare_run -> one line. */
 #include "cli/cli.h"
 
+#include <math.h>
 #include <stdio.h>
 
 int cmd_prepare(int argc, char **argv)
 {
     pg_prepare_config c;
     pg_prepare_defaults(&c);
-    const char *size = NULL;
+    const char *size = NULL, *kind = NULL;
+    float scale = NAN; /* NAN: not given (the parser refuses NaN values) */
     int no_refine = 0, no_align = 0, no_fuse = 0, no_flow_vis = 0;
     const cli_option options[] = {
-        { "--depth", CLI_STR, &c.depth, "per-frame depth: (F,H,W) .npy or a folder of .npy/.pfm/.png/.exr (required)" },
+        { "--depth", CLI_STR, &c.depth, "per-frame depth: (F,H,W) .npy or a folder of .npy/.pfm/.png/.exr (or --depth-model)" },
+        { "--depth-model", CLI_STR, &c.depth_model, "instead of --depth: a depth network (.tflite/.onnx) run first into DIR/depth.npy" },
         { "--out", CLI_STR, &c.out, "output directory (required)" },
-        { "--depth-kind", CLI_STR, &c.depth_kind, "depth (z along the optical axis, default) or disparity (1/depth)" },
-        { "--depth-scale", CLI_FLOAT, &c.depth_scale, "multiply raw depth values by S first (default 1)" },
+        { "--depth-kind", CLI_STR, &kind, "depth (z along the optical axis, default) or disparity (1/depth)" },
+        { "--depth-scale", CLI_FLOAT, &scale, "multiply raw depth values by S first (default 1)" },
         { "--refine", CLI_STR, &c.refine, "refiner: edge-snap (default), bilateral or none" },
         { "--no-refine", CLI_FLAG, &no_refine, "skip the edge-aware refinement (= --refine none)" },
         { "--no-align", CLI_FLAG, &no_align, "skip the per-frame scale/shift alignment (alpha=1, beta=0)" },
@@ -24,14 +27,20 @@ int cmd_prepare(int argc, char **argv)
         { "--threads", CLI_INT, &c.threads, "worker threads (default: all cores)" },
         { "--no-flow-vis", CLI_FLAG, &no_flow_vis, "do not keep flow fields for vis/flow_*.png (automatic above 1 GiB)" },
     };
-    const cli_spec spec = { "prodygs prepare", "INPUT --depth PATH --out DIR [options]",
+    const cli_spec spec = { "prodygs prepare", "INPUT (--depth PATH | --depth-model FILE) --out DIR [options]",
                             "Refines per-frame depth at colour edges, finds static pixels and aligns the depth\n"
                             "scale over time. Writes DIR/depth_aligned.npy, static_masks.npy, prepare.json, vis/.\n\n"
                             "example: prodygs prepare clip.mp4 --depth depth.npy --out out/prepare",
                             options, (int)(sizeof options / sizeof options[0]), 1, 1 };
     int rc = cli_parse(&spec, argc, argv, &c.input, NULL);
     if (rc) return rc < 0 ? 0 : rc;
-    if (!c.depth || !c.out) return cli_usage_error("prepare: --depth PATH and --out DIR are required");
+    if ((!c.depth && !c.depth_model) || !c.out) return cli_usage_error("prepare: --depth PATH (or --depth-model FILE) and --out DIR are required");
+    if (c.depth && c.depth_model) return cli_usage_error("prepare: give --depth or --depth-model, not both");
+    if (c.depth_model && (kind || !isnan(scale)))
+        return cli_usage_error("prepare: --depth-kind and --depth-scale apply to --depth; a model's output kind comes from "
+                               "MODEL.json (\"output\": \"depth\" or \"disparity\")");
+    if (kind) c.depth_kind = kind;
+    if (!isnan(scale)) c.depth_scale = scale;
     if ((rc = cli_parse_size("--size", size, &c.width, &c.height))) return rc;
     if (no_refine) c.refine = "none";
     c.align = !no_align;

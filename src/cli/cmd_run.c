@@ -8,7 +8,7 @@ int cmd_run(int argc, char **argv)
     pipeline_cli_text t;
     cli_option options[40];
     int n = pipeline_cli_options(&c, &t, options, 40);
-    const cli_spec spec = { "prodygs run", "INPUT --depth PATH --out DIR [options]",
+    const cli_spec spec = { "prodygs run", "INPUT (--depth PATH | --depth-model FILE) --out DIR [options]",
                             "The whole pipeline on a static-camera video (file, frame folder, or a dataset with\n"
                             "--train-cam): depth preparation -> proxy views -> 4D training -> novel-view videos\n"
                             "(DIR/renders: fixed.mp4 with fixed_compare.mp4, orbit.mp4, spiral.mp4, *_depth.mp4)\n"

@@ -17,6 +17,7 @@ static const command commands[] = {
     { "demo",    cmd_demo,    "build the sample scene and run the pipeline on it" },
     { "info",    cmd_info,    "describe a video, frame folder, dataset, depth file or PLY" },
     { "synth",   cmd_synth,   "render the built-in sample scene (DyNeRF layout)" },
+    { "depth",   cmd_depth,   "per-frame depth from a depth network (TFLite/ONNX)" },
     { "prepare", cmd_prepare, "refine and temporally align per-frame depth" },
     { "proxies", cmd_proxies, "render proxy views from virtual cameras" },
     { "train",   cmd_train,   "train canonical Gaussians + deformation network" },

@@ -10,7 +10,8 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
     pg_pipeline_defaults(c);
     memset(t, 0, sizeof *t);
     const cli_option shared[] = {
-        { "--depth", CLI_STR, &c->depth, "per-frame depth of the training camera: .npy (F,H,W) or a folder (required)" },
+        { "--depth", CLI_STR, &c->depth, "per-frame depth of the training camera: .npy (F,H,W) or a folder (or --depth-model)" },
+        { "--depth-model", CLI_STR, &c->depth_model, "instead of --depth: a depth network (.tflite/.onnx) run first into DIR/depth/" },
         { "--out", CLI_STR, &c->out, "output directory (required)" },
         { "--preset", CLI_STR, &c->preset, "fast (default) or quality" },
         { "--train-cam", CLI_STR, &c->train_camera, "dataset camera that is the real view: name or index (default: the first)" },
@@ -44,7 +45,11 @@ int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pg_pipeline_
     int rc = cli_parse(spec, argc, argv, &c->input, NULL);
     if (rc) return rc;
     const char *verb = strchr(spec->command, ' ') ? strchr(spec->command, ' ') + 1 : spec->command;
-    if (!c->depth || !c->out) return cli_usage_error("%s: --depth and --out are required", verb);
+    if ((!c->depth && !c->depth_model) || !c->out) return cli_usage_error("%s: --depth (or --depth-model) and --out are required", verb);
+    if (c->depth && c->depth_model) return cli_usage_error("%s: give --depth or --depth-model, not both", verb);
+    if (c->depth_model && (c->depth_kind || c->depth_scale))
+        return cli_usage_error("%s: --depth-kind and --depth-scale apply to --depth; a model's output kind comes from "
+                               "MODEL.json (\"output\": \"depth\" or \"disparity\")", verb);
     if ((rc = cli_parse_size("--size", t->size, &c->width, &c->height))) return rc;
     if ((rc = cli_parse_count_or_all("--proxies", t->proxies, &c->proxies))) return rc;
     c->refine = !t->no_refine;

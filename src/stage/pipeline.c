@@ -15,8 +15,9 @@
 #include "io/dataset.h"
 #include "stage/marker.h"
 
-enum { ST_PREPARE, ST_PROXIES, ST_TRAIN, ST_EVALUATE, ST_RENDER, ST_COUNT };
-static const char *stage_names[ST_COUNT] = { "prepare", "proxies", "train", "evaluate", "render" };
+/* depth is last in the report's arrays (it was added later) but runs first */
+enum { ST_PREPARE, ST_PROXIES, ST_TRAIN, ST_EVALUATE, ST_RENDER, ST_DEPTH, ST_COUNT };
+static const char *stage_names[ST_COUNT] = { "prepare", "proxies", "train", "evaluate", "render", "depth" };
 
 typedef struct {
     const char *name;
@@ -47,11 +48,13 @@ typedef struct {
     char train_camera[128], test_cameras[1024];
     int width, height, iters, proxies, threads;
     const char *poses;
+    char depth[4200];         /* the depth file prepare reads: c->depth or the depth stage's output */
 } pipeline_plan;
 
 static pg_status check_config(const pg_pipeline_config *c, const preset **p)
 {
-    if (!c->input || !c->depth || !c->out) return pg_fail(PG_ERR_ARG, "input, depth and out are required");
+    if (!c->input || !c->out || (!c->depth && !c->depth_model)) return pg_fail(PG_ERR_ARG, "input, depth (or a depth model) and out are required");
+    if (c->depth && c->depth_model) return pg_fail(PG_ERR_ARG, "give --depth or --depth-model, not both");
     if (c->iters < 0) return pg_fail(PG_ERR_ARG, "--iters must be >= 1 (got %d)", c->iters);
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "--frames must be >= 1 (got %d)", c->frames);
     PG_TRY(stage_check_threads("pipeline", c->threads));
@@ -194,11 +197,11 @@ static pg_status run_prepare(pipeline_run *p, const pipeline_plan *plan, const c
     pg_prepare_config pc;
     pg_prepare_defaults(&pc);
     pc.input = c->input;
-    pc.depth = c->depth;
+    pc.depth = plan->depth;
     pc.out = dir;
     pc.train_camera = plan->train_camera;
-    if (c->depth_kind) pc.depth_kind = c->depth_kind;
-    if (c->depth_scale > 0) pc.depth_scale = c->depth_scale;
+    if (c->depth_kind && !c->depth_model) pc.depth_kind = c->depth_kind; /* a model's output is depth */
+    if (c->depth_scale > 0 && !c->depth_model) pc.depth_scale = c->depth_scale;
     if (!c->refine) pc.refine = "none";
     pc.align = c->align;
     pc.fuse = c->fuse;
@@ -207,11 +210,41 @@ static pg_status run_prepare(pipeline_run *p, const pipeline_plan *plan, const c
     pc.height = plan->height;
     pc.threads = plan->threads;
     cJSON *config = stage_prepare_config_json(&pc), *inputs;
-    pg_status st = hash_inputs(&inputs, "input", c->input, "depth", c->depth);
+    pg_status st = hash_inputs(&inputs, "input", c->input, "depth", plan->depth);
     if (!st && !stage_is_current(p, ST_PREPARE, config, inputs)) {
         pg_prepare_report pr;
         st = pg_prepare_run(&pc, &pr);
         if (!st) st = stage_finished(p, ST_PREPARE, config, inputs, pr.seconds, pr.threads);
+    }
+    cJSON_Delete(config);
+    cJSON_Delete(inputs);
+    return st;
+}
+
+/* The depth network into OUT/depth/depth.npy; its marker holds the model's and the input's
+ * content hashes, so a new model reruns it and (through the depth file's hash) every stage after. */
+static pg_status run_depth(pipeline_run *p, pipeline_plan *plan, const char *dir)
+{
+    const pg_pipeline_config *c = p->c;
+    PG_TRY(pg_path_join(plan->depth, sizeof plan->depth, dir, "depth.npy"));
+    pg_depth_config dc;
+    pg_depth_defaults(&dc);
+    dc.input = c->input;
+    dc.model = c->depth_model;
+    dc.out = plan->depth;
+    dc.train_camera = plan->train_camera;
+    dc.frames = c->frames;
+    dc.threads = plan->threads;
+    cJSON *config = cJSON_CreateObject(), *inputs;
+    cJSON_AddStringToObject(config, "model", c->depth_model);
+    cJSON_AddStringToObject(config, "train_camera", plan->train_camera);
+    cJSON_AddNumberToObject(config, "frames", c->frames);
+    pg_status st = hash_inputs(&inputs, "input", c->input, "depth_model", c->depth_model);
+    if (!st && !stage_is_current(p, ST_DEPTH, config, inputs)) {
+        pg_depth_report dr;
+        st = pg_mkdir_p(dir);
+        if (!st) st = pg_depth_run(&dc, &dr);
+        if (!st) st = stage_finished(p, ST_DEPTH, config, inputs, dr.seconds, dr.threads);
     }
     cJSON_Delete(config);
     cJSON_Delete(inputs);
@@ -295,7 +328,8 @@ static cJSON *config_record(const pg_pipeline_config *c, const pipeline_plan *pl
     cJSON *j = cJSON_CreateObject();
     if (c->command) cJSON_AddStringToObject(j, "command", c->command);
     cJSON_AddStringToObject(j, "input", c->input);
-    cJSON_AddStringToObject(j, "depth", c->depth);
+    if (c->depth) cJSON_AddStringToObject(j, "depth", c->depth);
+    if (c->depth_model) cJSON_AddStringToObject(j, "depth_model", c->depth_model);
     cJSON_AddStringToObject(j, "preset", c->preset ? c->preset : "fast");
     cJSON_AddStringToObject(j, "train_camera", r->train_camera);
     if (r->test_cameras[0]) cJSON_AddStringToObject(j, "test_cameras", r->test_cameras);
@@ -379,7 +413,14 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
     PG_TRY(pg_path_join(model_dir, sizeof model_dir, c->out, "model"));
     pipeline_run p = { c, r, cJSON_CreateObject(), 0 };
     cJSON *config = config_record(c, &plan, r);
-    pg_status st = run_prepare(&p, &plan, prepare_dir);
+    pg_status st = PG_OK;
+    if (c->depth_model) {
+        char depth_dir[4200];
+        st = pg_path_join(depth_dir, sizeof depth_dir, c->out, "depth");
+        if (!st) st = run_depth(&p, &plan, depth_dir);
+    } else
+        snprintf(plan.depth, sizeof plan.depth, "%s", c->depth);
+    if (!st) st = run_prepare(&p, &plan, prepare_dir);
     if (!st) st = run_proxies(&p, &plan, prepare_dir, proxies_dir);
     if (!st) st = run_train(&p, &plan, proxies_dir, model_dir);
     if (!st && c->evaluate) {

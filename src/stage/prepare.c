@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/fileutil.h"
 #include "core/parallel.h"
 #include "core/fileutil.h"
 #include "core/status.h"
@@ -42,7 +43,7 @@ cJSON *stage_prepare_config_json(const pg_prepare_config *c)
 
 static pg_status check_config(const pg_prepare_config *c, io_depth_kind *kind, depth_prepare_options *popt)
 {
-    if (!c->input || !c->depth || !c->out) return pg_fail(PG_ERR_ARG, "prepare: input, depth and out are required");
+    if (!c->input || !c->depth || !c->out) return pg_fail(PG_ERR_ARG, "prepare: input, depth (or depth_model) and out are required");
     PG_TRY(stage_check_size("prepare", c->width, c->height));
     PG_TRY(stage_check_threads("prepare", c->threads));
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "prepare: --frames %d must be >= 1 (0 = all)", c->frames);
@@ -77,9 +78,39 @@ static void warn_if_inverted(const char *path, io_depth_kind kind, const io_dept
                 "if larger values mean farther, pass --depth-kind depth", path, 100 * share);
 }
 
+/* depth_model: the depth stage writes OUT/depth.npy (resumable, skipped when current), then
+ * prepare runs on it as on any depth file. */
+static pg_status prepare_with_model(const pg_prepare_config *c, pg_prepare_report *r)
+{
+    if (c->depth) return pg_fail(PG_ERR_ARG, "prepare: give depth or depth_model, not both");
+    if (!c->input || !c->out) return pg_fail(PG_ERR_ARG, "prepare: input, depth_model and out are required");
+    char path[4200];
+    PG_TRY(pg_mkdir_p(c->out));
+    PG_TRY(pg_path_join(path, sizeof path, c->out, "depth.npy"));
+    pg_depth_config dc;
+    pg_depth_defaults(&dc);
+    dc.input = c->input;
+    dc.model = c->depth_model;
+    dc.out = path;
+    dc.train_camera = c->train_camera;
+    dc.frames = c->frames;
+    dc.threads = c->threads;
+    pg_depth_report dr;
+    PG_TRY(pg_depth_run(&dc, &dr));
+    pg_prepare_config cc = *c;
+    cc.depth = path;
+    cc.depth_model = NULL;
+    cc.depth_kind = "depth"; /* the depth stage's output is depth whatever the model's kind */
+    cc.depth_scale = 1.0f;
+    PG_TRY(pg_prepare_run(&cc, r));
+    r->seconds += dr.seconds;
+    return PG_OK;
+}
+
 pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
 {
     memset(r, 0, sizeof *r);
+    if (c->depth_model) return prepare_with_model(c, r);
     io_depth_kind dkind = IO_DEPTH_KIND_DEPTH;
     depth_prepare_options popt;
     PG_TRY(check_config(c, &dkind, &popt));

@@ -1,0 +1,163 @@
+/* ops_elementwise.c - binary ops with numpy broadcasting (Add Sub Mul Div Pow Max Min), unary ops
+ * and activations (Sqrt Erf Exp Tanh Neg Relu LeakyRelu Sigmoid Gelu), fused activations. */
+#include "nn/nn_ops.h"
+
+#include <math.h>
+#include <string.h>
+
+void nn_apply_act(float *x, size_t n, nn_activation act, float alpha)
+{
+    switch (act) {
+    case NN_ACT_NONE: break;
+    case NN_ACT_RELU: for (size_t i = 0; i < n; i++) x[i] = x[i] > 0 ? x[i] : 0; break;
+    case NN_ACT_RELU6: for (size_t i = 0; i < n; i++) x[i] = x[i] > 0 ? (x[i] < 6 ? x[i] : 6) : 0; break;
+    case NN_ACT_LEAKY_RELU: for (size_t i = 0; i < n; i++) x[i] = x[i] >= 0 ? x[i] : alpha * x[i]; break;
+    }
+}
+
+pg_status nn_infer_binary(nn_graph *g, nn_node *n)
+{
+    nn_tensor *a = nn_in(g, n, 0), *b = nn_in(g, n, 1);
+    if (!b) return nn_node_fail(n, "second input missing");
+    int nd = a->ndim > b->ndim ? a->ndim : b->ndim;
+    int64_t dims[NN_MAX_DIMS];
+    for (int i = 0; i < nd; i++) {
+        int ia = i - (nd - a->ndim), ib = i - (nd - b->ndim);
+        int64_t da = ia >= 0 ? a->dims[ia] : 1, db = ib >= 0 ? b->dims[ib] : 1;
+        if (da != db && da != 1 && db != 1)
+            return nn_node_fail(n, "shapes of '%s' and '%s' do not broadcast (dim %d: %lld vs %lld)", a->name, b->name, i,
+                                (long long)da, (long long)db);
+        dims[i] = da == 1 ? db : da;
+    }
+    return nn_set_output(g, n, 0, nd, dims);
+}
+
+static inline float binary_one(nn_op op, float x, float y)
+{
+    switch (op) {
+    case NN_OP_ADD: return x + y;
+    case NN_OP_SUB: return x - y;
+    case NN_OP_MUL: return x * y;
+    case NN_OP_DIV: return x / y;
+    case NN_OP_POW: return y == 2.0f ? x * x : y == 0.5f ? sqrtf(x) : powf(x, y);
+    case NN_OP_MAXIMUM: return x > y ? x : y;
+    case NN_OP_MINIMUM: return x < y ? x : y;
+    default: return 0;
+    }
+}
+
+/* y[i] = x[i * sx] op z[i * sz] for i < len; the switch sits outside the loops so they vectorise. */
+static void binary_row(nn_op op, float *y, const float *x, int64_t sx, const float *z, int64_t sz, int64_t len)
+{
+#define ROW(expr) for (int64_t i = 0; i < len; i++) { float a = x[i * sx], b = z[i * sz]; y[i] = (expr); } break
+    switch (op) {
+    case NN_OP_ADD: ROW(a + b);
+    case NN_OP_SUB: ROW(a - b);
+    case NN_OP_MUL: ROW(a * b);
+    case NN_OP_DIV: ROW(a / b);
+    case NN_OP_MAXIMUM: ROW(a > b ? a : b);
+    case NN_OP_MINIMUM: ROW(a < b ? a : b);
+    default: ROW(binary_one(op, a, b));
+    }
+#undef ROW
+}
+
+void nn_run_binary(const nn_ctx *c, const nn_node *n)
+{
+    nn_graph *g = c->g;
+    const nn_tensor *ta = nn_in(g, n, 0), *tb = nn_in(g, n, 1), *ty = nn_out(g, n, 0);
+    const float *a = nn_in_data(c, n, 0), *b = nn_in_data(c, n, 1);
+    float *y = nn_out_data(c, n, 0);
+    int nd = ty->ndim;
+    /* per output dim: size and the strides of a and b (0 where broadcast), then coalesce dims */
+    int64_t size[NN_MAX_DIMS], sa[NN_MAX_DIMS], sb[NN_MAX_DIMS];
+    int64_t acc_a = 1, acc_b = 1;
+    for (int i = nd - 1; i >= 0; i--) {
+        int ia = i - (nd - ta->ndim), ib = i - (nd - tb->ndim);
+        int64_t da = ia >= 0 ? ta->dims[ia] : 1, db = ib >= 0 ? tb->dims[ib] : 1;
+        size[i] = ty->dims[i];
+        sa[i] = da == 1 ? 0 : acc_a;
+        sb[i] = db == 1 ? 0 : acc_b;
+        acc_a *= da;
+        acc_b *= db;
+    }
+    int m = 0;
+    int64_t cs[NN_MAX_DIMS], ca[NN_MAX_DIMS], cb[NN_MAX_DIMS];
+    for (int i = 0; i < nd; i++) {
+        if (size[i] == 1) continue;
+        if (m > 0 && ca[m - 1] == sa[i] * size[i] && cb[m - 1] == sb[i] * size[i]) {
+            cs[m - 1] *= size[i]; ca[m - 1] = sa[i]; cb[m - 1] = sb[i];
+        } else { cs[m] = size[i]; ca[m] = sa[i]; cb[m] = sb[i]; m++; }
+    }
+    if (m == 0) { cs[0] = 1; ca[0] = cb[0] = 0; m = 1; }
+    int64_t len = cs[m - 1], outer = 1;
+    for (int i = 0; i < m - 1; i++) outer *= cs[i];
+    nn_op op = n->op;
+    if (outer == 1 && len >= NN_PAR_MEMORY) {
+        /* one long row: split it */
+        #pragma omp parallel for schedule(static)
+        for (int64_t s = 0; s < len; s += 16384) {
+            int64_t l = len - s < 16384 ? len - s : 16384;
+            binary_row(op, y + s, a + s * ca[m - 1], ca[m - 1], b + s * cb[m - 1], cb[m - 1], l);
+        }
+    } else {
+        #pragma omp parallel for schedule(static) if (outer * len >= NN_PAR_MEMORY)
+        for (int64_t o = 0; o < outer; o++) {
+            int64_t rem = o, oa = 0, ob = 0;
+            for (int i = m - 2; i >= 0; i--) {
+                int64_t idx = rem % cs[i];
+                rem /= cs[i];
+                oa += idx * ca[i];
+                ob += idx * cb[i];
+            }
+            binary_row(op, y + o * len, a + oa, ca[m - 1], b + ob, cb[m - 1], len);
+        }
+    }
+    nn_apply_act(y, (size_t)nn_shape_count(ty->ndim, ty->dims), n->attr.act, n->attr.act_alpha);
+}
+
+pg_status nn_infer_unary(nn_graph *g, nn_node *n)
+{
+    nn_tensor *x = nn_in(g, n, 0);
+    return nn_set_output(g, n, 0, x->ndim, x->dims);
+}
+
+/* One chunk of a unary op; separate from the parallel loop so the pointers are plain locals and
+ * the loops vectorise (nn_exp / nn_erf are arithmetic only). */
+static void unary_chunk(nn_op op, float *restrict y, const float *restrict x, int64_t n, float alpha, int gelu_tanh)
+{
+    switch (op) {
+    case NN_OP_SQRT: for (int64_t i = 0; i < n; i++) y[i] = sqrtf(x[i]); break;
+    case NN_OP_ERF: for (int64_t i = 0; i < n; i++) y[i] = nn_erf(x[i]); break;
+    case NN_OP_EXP: for (int64_t i = 0; i < n; i++) y[i] = expf(x[i]); break;
+    case NN_OP_TANH: for (int64_t i = 0; i < n; i++) y[i] = tanhf(x[i]); break;
+    case NN_OP_NEG: for (int64_t i = 0; i < n; i++) y[i] = -x[i]; break;
+    case NN_OP_ABS: for (int64_t i = 0; i < n; i++) y[i] = fabsf(x[i]); break;
+    case NN_OP_RELU: for (int64_t i = 0; i < n; i++) y[i] = x[i] > 0 ? x[i] : 0; break;
+    case NN_OP_LEAKY_RELU: for (int64_t i = 0; i < n; i++) y[i] = x[i] >= 0 ? x[i] : alpha * x[i]; break;
+    case NN_OP_SIGMOID: for (int64_t i = 0; i < n; i++) y[i] = 1.0f / (1.0f + nn_exp(-x[i])); break;
+    case NN_OP_GELU:
+        if (gelu_tanh)
+            for (int64_t i = 0; i < n; i++)
+                y[i] = 0.5f * x[i] * (1.0f + tanhf(0.7978845608f * (x[i] + 0.044715f * x[i] * x[i] * x[i])));
+        else
+            for (int64_t i = 0; i < n; i++) y[i] = 0.5f * x[i] * (1.0f + nn_erf(x[i] * 0.70710678118654752f));
+        break;
+    default: break;
+    }
+}
+
+void nn_run_unary(const nn_ctx *c, const nn_node *n)
+{
+    const nn_tensor *tx = nn_in(c->g, n, 0);
+    const float *x = nn_in_data(c, n, 0);
+    float *y = nn_out_data(c, n, 0);
+    int64_t count = nn_shape_count(tx->ndim, tx->dims);
+    float alpha = n->attr.alpha;
+    nn_op op = n->op;
+    int gelu_tanh = n->attr.gelu_tanh;
+    int heavy = op == NN_OP_ERF || op == NN_OP_EXP || op == NN_OP_TANH || op == NN_OP_SIGMOID || op == NN_OP_GELU || op == NN_OP_SQRT;
+    #pragma omp parallel for schedule(static) if (count >= (heavy ? NN_PAR_COMPUTE : NN_PAR_MEMORY))
+    for (int64_t s = 0; s < count; s += 4096)
+        unary_chunk(op, y + s, x + s, count - s < 4096 ? count - s : 4096, alpha, gelu_tanh);
+}
