@@ -10,6 +10,8 @@
  */
 #include "nn/tflite.h"
 
+#include "io/npy.h" /* io_half_to_float */
+
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -236,23 +238,6 @@ static size_t type_bytes(int type)
     }
 }
 
-static float half_to_float(uint16_t h)
-{
-    uint32_t sign = (uint32_t)(h >> 15) << 31, exp = (h >> 10) & 0x1f, mant = h & 0x3ff, bits;
-    if (exp == 0) {
-        if (mant == 0) bits = sign;
-        else {
-            exp = 127 - 15 + 1;
-            while (!(mant & 0x400)) { mant <<= 1; exp--; }
-            bits = sign | (exp << 23) | ((mant & 0x3ff) << 13);
-        }
-    } else if (exp == 31) bits = sign | 0x7f800000u | (mant << 13);
-    else bits = sign | ((exp + 127 - 15) << 23) | (mant << 13);
-    float v;
-    memcpy(&v, &bits, 4);
-    return v;
-}
-
 /* The bytes of buffer b: Buffer.data (field 0), or for files over 2 GiB Buffer.offset/size
  * (fields 1, 2: relative to the file start). *len 0 when the buffer is empty. */
 static pg_status buffer_bytes(const parse_ctx *c, uint32_t b, const uint8_t **ptr, size_t *len)
@@ -350,7 +335,7 @@ static pg_status parse_tensor(parse_ctx *c, const fb_table *tt, int i)
     if (type == 0) {
         for (size_t k = 0; k < n; k++) t->values[k] = rd_f32(data + 4 * k);
     } else if (type == 1) {
-        for (size_t k = 0; k < n; k++) t->values[k] = half_to_float(rd_u16(data + 2 * k));
+        for (size_t k = 0; k < n; k++) t->values[k] = io_half_to_float(rd_u16(data + 2 * k));
     } else {
         /* int8 / uint8 weights: value = scale[c] * (q - zero_point[c]) along quantized_dimension */
         fb_table qt;
