@@ -204,15 +204,23 @@ typedef struct {
     int bad;
 } rd;
 
+/* off never passes size: skip() refuses to, so size - off cannot wrap around. */
+static int has(const rd *r, size_t n) { return !r->bad && r->off <= r->size && r->size - r->off >= n; }
+
 static void get(rd *r, void *dst, size_t n)
 {
-    if (r->bad || r->size - r->off < n) {
+    if (!has(r, n)) {
         r->bad = 1;
         memset(dst, 0, n);
         return;
     }
     memcpy(dst, r->p + r->off, n);
     r->off += n;
+}
+static void skip(rd *r, size_t n)
+{
+    if (has(r, n)) r->off += n;
+    else r->bad = 1;
 }
 static int32_t get_i32(rd *r) { int32_t x; get(r, &x, 4); return x; }
 static uint64_t get_u64(rd *r) { uint64_t x; get(r, &x, 8); return x; }
@@ -354,7 +362,7 @@ static pg_status read_net(rd *r, const char *path, train_net_config *nc, train_n
         get_adam(r, s->nopt);
         if (r->bad) return pg_fail(PG_ERR_FORMAT, "%s: corrupt network Adam state in the checkpoint", path);
     } else {
-        r->off += adam_bytes;
+        skip(r, adam_bytes);
     }
     return PG_OK;
 }
@@ -422,7 +430,6 @@ pg_status train_model_load(const char *path, train_model *m)
     PG_TRY(pg_read_file(path, (size_t)1 << 34, &data, &size));
     rd r = {(const unsigned char *)data, size - 4, 0, 0};
     ckpt_header h;
-    pg_gaussians skip = {0};
     pg_status st = check_crc((const unsigned char *)data, size, path);
     if (!st) st = read_header(&r, path, &h);
     if (st) goto done;
@@ -430,14 +437,14 @@ pg_status train_model_load(const char *path, train_model *m)
     get_gaussians(&r, &m->g, h.n);
     if ((st = check_finite(&m->g, h.n, path))) goto done;
     m->g.sh_degree = h.sh_degree;
-    r.off += OPTIM_GAUSS_GROUPS * 4 + (size_t)h.n * GAUSS_FLOATS * 4 * 2; /* Adam state */
+    skip(&r, OPTIM_GAUSS_GROUPS * 4 + (size_t)h.n * GAUSS_FLOATS * 4 * 2); /* Adam state */
     m->is_static = pg_malloc((size_t)h.n, "model static flags");
     if (!m->is_static) {
         st = PG_ERR_NOMEM;
         goto done;
     }
     get(&r, m->is_static, (size_t)h.n);
-    r.off += (size_t)h.n * 8;
+    skip(&r, (size_t)h.n * 8);
     if (h.fine) {
         train_net_config nc;
         if ((st = read_net(&r, path, &nc, &m->net, NULL))) goto done;
@@ -446,7 +453,6 @@ pg_status train_model_load(const char *path, train_model *m)
     m->frames = h.frames;
     memcpy(m->bg, h.bg, sizeof h.bg);
 done:
-    splat_gaussians_destroy(&skip);
     free(data);
     if (st) train_model_destroy(m);
     return st;
