@@ -18,6 +18,7 @@
 
 #include "core/mathx.h"
 #include "depth/moving_mask.h"
+#include "proxy/outpaint.h"
 
 
 typedef struct {
@@ -54,11 +55,32 @@ static pg_status points_push(point_list *p, const float x[3], const float c[3], 
 #define INIT_MOVING_THRESH 0.08f
 #define INIT_MOVING_DILATE 3
 
+/* The view's static background: each pixel's colour and depth at the first frame it is not
+ * moving (depth 0 where it always moves or never has valid depth). */
+static void background_image(const train_view *v, int F, size_t px, const uint8_t *moving, float *bg_rgb,
+                             float *bg_depth)
+{
+    for (size_t p = 0; p < px; p++) {
+        bg_depth[p] = 0;
+        for (int k = 0; k < 3; k++) bg_rgb[3 * p + k] = 0;
+        for (int f = 0; f < F; f++) {
+            size_t q = (size_t)f * px + p;
+            float d = v->depth[q];
+            if (moving[q] || !(d > 0) || (v->mask && !v->mask[q])) continue;
+            for (int k = 0; k < 3; k++) bg_rgb[3 * p + k] = v->rgb[q * 3 + k] / 255.0f;
+            bg_depth[p] = d;
+            break;
+        }
+    }
+}
+
 /* Back-projects the depth of view vi (every `stride` pixels): static pixels once, moving ones
  * at each frame they move (dynamic) plus once as background (static). Proxy views give static
  * points only, from a frame where the pixel is not moving: their colours and masks change from
- * frame to frame where a disocclusion moves, and the real view already places the movers. */
-static pg_status points_from_depth(const train_set *ts, int vi, int stride, point_list *pts)
+ * frame to frame where a disocclusion moves, and the real view already places the movers.
+ * bg_rgb (H,W,3) / bg_depth (H,W), when not NULL, receive the view's static background. */
+static pg_status points_from_depth(const train_set *ts, int vi, int stride, point_list *pts, float *bg_rgb,
+                                   float *bg_depth)
 {
     const train_view *v = &ts->views[vi];
     int W = ts->width, H = ts->height, F = ts->frames;
@@ -67,6 +89,7 @@ static pg_status points_from_depth(const train_set *ts, int vi, int stride, poin
     uint8_t *moving = pg_malloc((size_t)F * px, "init moving masks");
     if (!moving) return PG_ERR_NOMEM;
     pg_status st = depth_moving_masks(v->rgb, F, W, H, INIT_MOVING_THRESH, INIT_MOVING_DILATE, moving);
+    if (bg_rgb) background_image(v, F, px, moving, bg_rgb, bg_depth);
     for (int y = stride / 2; y < H && !st; y += stride)
         for (int x = stride / 2; x < W && !st; x += stride) {
             size_t p = (size_t)y * W + x;
@@ -294,14 +317,82 @@ static pg_status voxels_to_gaussians(train_session *s, const voxel_table *t, con
     return PG_OK;
 }
 
+/* Novel views turned further than any proxy camera look past the real frame, where no view put
+ * anything, and would show the background colour (black wedges). The real view's static
+ * background is continued past its borders (proxy/outpaint.h: planes continue, colours blur out)
+ * and the continuation gets one static Gaussian per block, wide and opaque enough to close the
+ * gaps between blocks. Proxies that see the margin refine it; elsewhere it stays the best guess. */
+#define INIT_MARGIN_PAD 0.5f  /* margin on each side, fraction of the larger frame side */
+#define INIT_MARGIN_BLOCKS 40 /* block side = larger frame side / this */
+#define INIT_MARGIN_OPACITY 0.9f
+
+static int margin_block(const pg_camera *cam)
+{
+    int side = cam->width > cam->height ? cam->width : cam->height;
+    return side / INIT_MARGIN_BLOCKS > 2 ? side / INIT_MARGIN_BLOCKS : 2;
+}
+
+static pg_status margin_points(const pg_camera *cam, const float *bg_rgb, const float *bg_depth, point_list *out)
+{
+    int W = cam->width, H = cam->height, side = W > H ? W : H, B = margin_block(cam);
+    int pad = (int)ceilf(INIT_MARGIN_PAD * side / B) * B, W2 = W + 2 * pad, H2 = H + 2 * pad;
+    float *rgb2 = pg_malloc((size_t)W2 * H2 * 3 * sizeof(float), "init margin rgb");
+    float *depth2 = pg_malloc((size_t)W2 * H2 * sizeof(float), "init margin depth");
+    pg_status st = rgb2 && depth2 ? proxy_outpaint(W, H, bg_rgb, bg_depth, pad, rgb2, depth2) : PG_ERR_NOMEM;
+    for (int by = 0; by + B <= H2 && !st; by += B)
+        for (int bx = 0; bx + B <= W2 && !st; bx += B) {
+            float u = bx + 0.5f * B - pad, w = by + 0.5f * B - pad; /* block centre, real-view pixels */
+            if (u >= 0 && u < W && w >= 0 && w < H) continue;
+            double c[3] = { 0, 0, 0 }, d = 0;
+            int nd = 0;
+            for (int y = by; y < by + B; y++)
+                for (int x = bx; x < bx + B; x++) {
+                    size_t q = (size_t)y * W2 + x;
+                    if (!(depth2[q] > 0)) continue;
+                    for (int k = 0; k < 3; k++) c[k] += rgb2[3 * q + k];
+                    d += depth2[q];
+                    nd++;
+                }
+            if (nd < B * B / 2) continue;
+            float X[3], col[3] = { (float)(c[0] / nd), (float)(c[1] / nd), (float)(c[2] / nd) };
+            pg_camera_unproject(cam, u, w, (float)(d / nd), X);
+            st = points_push(out, X, col, 0);
+        }
+    free(rgb2);
+    free(depth2);
+    return st;
+}
+
+/* Appends the margin points as static Gaussians at row *n: std 0.6 block (in the world, at the
+ * point's depth in the real view), opacity INIT_MARGIN_OPACITY. */
+static void margin_to_gaussians(train_session *s, const pg_camera *cam, const point_list *m, int *n)
+{
+    float opacity_logit = logf(INIT_MARGIN_OPACITY / (1 - INIT_MARGIN_OPACITY)), B = (float)margin_block(cam);
+    for (size_t i = 0; i < m->n; i++) {
+        float uv[2], z = pg_camera_project(cam, m->xyz + 3 * i, uv);
+        int r = (*n)++;
+        float log_s = logf(0.6f * B * fmaxf(z, 1e-6f) / cam->fx);
+        for (int k = 0; k < 3; k++) {
+            s->g.means[3 * r + k] = m->xyz[3 * i + k];
+            s->g.log_scales[3 * r + k] = log_s;
+            s->g.sh[(size_t)r * PG_SH_COEFFS * 3 + k] = (m->rgb[3 * i + k] - 0.5f) / SPLAT_SH_C0;
+        }
+        s->g.quats[4 * r] = 1.0f;
+        s->g.opacity[r] = opacity_logit;
+        s->is_static[r] = 1;
+    }
+}
+
 /* Share of the initial budget for the moving points (when there are enough of them). */
 #define INIT_DYNAMIC_SHARE 0.35f
 
 pg_status train_init_gaussians(train_session *s)
 {
     const train_set *ts = s->ts;
-    point_list pts = {0};
+    point_list pts = {0}, margin = {0};
     voxel_table t = {0};
+    float *bg_rgb = NULL, *bg_depth = NULL;
+    int margin_view = -1;
     pg_status st = PG_OK;
     int target = s->cfg.init_points < s->cfg.max_gaussians ? s->cfg.init_points : s->cfg.max_gaussians;
     if (target < 16) target = 16;
@@ -313,8 +404,18 @@ pg_status train_init_gaussians(train_session *s)
             cand += (size_t)ts->width * ts->height * 2;
     int stride = 1;
     while (cand / ((size_t)stride * stride) > 3000000) stride++;
+    for (int i = 0; i < ts->num_views && margin_view < 0; i++)
+        if (ts->views[i].depth && ts->views[i].role == IO_ROLE_REAL) margin_view = i;
+    if (margin_view >= 0) {
+        size_t px = (size_t)ts->width * ts->height;
+        bg_rgb = pg_malloc(px * 3 * sizeof(float), "init background rgb");
+        bg_depth = pg_malloc(px * sizeof(float), "init background depth");
+        if (!bg_rgb || !bg_depth) st = PG_ERR_NOMEM;
+    }
     for (int i = 0; i < ts->num_views && !st; i++)
-        if (ts->views[i].depth && ts->views[i].role != IO_ROLE_TEST) st = points_from_depth(ts, i, stride, &pts);
+        if (ts->views[i].depth && ts->views[i].role != IO_ROLE_TEST)
+            st = points_from_depth(ts, i, stride, &pts, i == margin_view ? bg_rgb : NULL, bg_depth);
+    if (!st && margin_view >= 0) st = margin_points(&ts->views[margin_view].cam, bg_rgb, bg_depth, &margin);
     if (!st && pts.n < (size_t)target / 4) st = points_from_frustum(s, &pts, target - (int)pts.n);
     if (!st && pts.n > 0) st = points_fill_uncovered(s, &pts);
     if (st) goto done;
@@ -376,14 +477,21 @@ pg_status train_init_gaussians(train_session *s)
         st = pg_fail(PG_ERR_INTERNAL, "init: voxel downsampling kept %zu points", udyn + ustat);
         goto done;
     }
-    if ((st = train_resize_all(s, (int)(udyn + ustat)))) goto done;
+    size_t nmargin = margin.n < (size_t)s->cfg.max_gaussians - (udyn + ustat) ? margin.n : 0;
+    if ((st = train_resize_all(s, (int)(udyn + ustat + nmargin)))) goto done;
     int n = (int)udyn;
     if (ustat > 0 && (st = voxels_to_gaussians(s, &t, &pts, 0, vox_stat, &n))) goto done;
+    if (nmargin > 0) margin_to_gaussians(s, &ts->views[margin_view].cam, &margin, &n);
     s->g.sh_degree = 0;
 done:
     free(pts.xyz);
     free(pts.rgb);
     free(pts.dyn);
+    free(margin.xyz);
+    free(margin.rgb);
+    free(margin.dyn);
+    free(bg_rgb);
+    free(bg_depth);
     free(t.keys);
     free(t.used);
     free(t.slot);
