@@ -114,7 +114,7 @@ typedef struct {
     float fov;                       /* single video: horizontal field of view in degrees (60) */
     float pad;                       /* outpainted margin, fraction of the larger side (< 0: default 0.3) */
     float pose_scale;                /* pose units per depth unit (0: fitted on a dataset, 1 otherwise) */
-    int fit_steps, fit_block;        /* per-frame Gaussian fit: Adam steps (100), pixel block (1) */
+    int fit_steps, fit_block;        /* per-frame Gaussian fit: Adam steps (50), pixel block (1) */
     int frames, width, height, threads, force; /* force: recompute cached frames */
 } pg_proxies_config;
 

@@ -25,7 +25,7 @@ static pg_status bench_frame(void *ctx, int camera, int frame, pg_image *out)
 
 int bench_proxy(int argc, char **argv)
 {
-    int width = 320, height = 240, num = 18, threads = 2, frames = 0, steps = 100, block = 1;
+    int width = 320, height = 240, num = 18, threads = 2, frames = 0, steps = proxy_default_fit_options().steps, block = 1;
     float pad = proxy_default_fit_options().pad;
     const char *out = NULL;
     cli_option opts[] = {
@@ -34,7 +34,7 @@ int bench_proxy(int argc, char **argv)
         { "--num", CLI_INT, &num, "proxy cameras M (18)" },
         { "--threads", CLI_INT, &threads, "frame workers (2)" },
         { "--frames", CLI_INT, &frames, "frames to process (2 x threads)" },
-        { "--steps", CLI_INT, &steps, "Adam steps per frame (100)" },
+        { "--steps", CLI_INT, &steps, "Adam steps per frame (50)" },
         { "--block", CLI_INT, &block, "one Gaussian per k x k block (1)" },
         { "--pad", CLI_FLOAT, &pad, "outpainted margin, fraction of the larger side (0.3)" },
         { "--out", CLI_STR, &out, "scratch directory (/tmp/prodygs-bench-proxy-PID)" },

@@ -14,7 +14,7 @@ int cmd_proxies(int argc, char **argv)
         { "--proxies", CLI_STR, &proxies, "proxy cameras: a count or all (18 on the hemisphere; dataset: all others)" },
         { "--poses", CLI_STR, &c.poses, "hemisphere or dataset (default: dataset for a multi-camera input)" },
         { "--max-angle", CLI_FLOAT, &c.max_angle, "hemisphere: max angle from the real camera in degrees (20)" },
-        { "--fit-steps", CLI_INT, &c.fit_steps, "Adam steps of the per-frame Gaussian fit (100)" },
+        { "--fit-steps", CLI_INT, &c.fit_steps, "Adam steps of the per-frame Gaussian fit (50)" },
         { "--fit-block", CLI_INT, &c.fit_block, "per-frame fit: one Gaussian per BxB pixel block (1)" },
         { "--pad", CLI_FLOAT, &c.pad, "outpainted margin around the real view, fraction of the larger side (0.3)" },
         { "--train-cam", CLI_STR, &c.train_camera, "the real (training) camera: name or index (default: the first)" },

@@ -62,7 +62,7 @@ proxy_fit_options proxy_default_fit_options(void)
 {
     proxy_fit_options o;
     o.block = 1;
-    o.steps = 100;
+    o.steps = 50;
     o.ssim_weight = 0.2f;
     o.ssim_every = 8;
     o.depth_weight = 0.1f;

@@ -5,7 +5,7 @@
  *   proxy_model_create(&m, W, H, &o);                       // one per worker, reused across frames
  *   for each frame:
  *       proxy_model_init(m, &real_cam, rgb, depth);         // one Gaussian per pixel (or k x k block)
- *       proxy_model_fit(m, &loss);                          // ~100 Adam steps on the source view
+ *       proxy_model_fit(m, &loss);                          // ~50 Adam steps on the source view
  *       for each proxy camera:
  *           proxy_model_render(m, &cam, rgb, depth, mask);  // RGB, depth/alpha, validity mask
  *   proxy_model_destroy(m);
@@ -23,7 +23,7 @@
 
 typedef struct {
     int block;            /* k: one Gaussian per k x k pixel block (1) */
-    int steps;            /* Adam steps on the source view (100) */
+    int steps;            /* Adam steps on the source view (50) */
     float ssim_weight;    /* weight of D-SSIM against L1 (0.2) */
     int ssim_every;       /* D-SSIM (forward + backward) only every k-th step and the last; L1 alone between (8) */
     float depth_weight;   /* weight of the relative depth L1 term (0.1) */

@@ -95,7 +95,7 @@ void pg_proxies_defaults(pg_proxies_config *c)
     c->max_angle = 20;
     c->fov = 60;
     c->pad = -1;
-    c->fit_steps = 100;
+    c->fit_steps = 50;
     c->fit_block = 1;
 }
 
