@@ -1,6 +1,7 @@
 /* test_train.c - trainer machinery on a tiny rendered scene: training-set loader, training
  * lowers the error, checkpoint -> render gives the session's image, kill + --resume gives a
  * byte-identical final checkpoint (in process and through the CLI), clean CLI errors. */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #include <zlib.h>
@@ -33,12 +34,67 @@ static train_config small_config(void)
     return c;
 }
 
+/* A real camera facing a textured wall that fills its frame, trained briefly: a view turned right
+ * by a quarter of the field of view has its right fifth past the real frame, where only the
+ * outpainted margin's Gaussians can be (without them: a black wedge). */
+static void test_margin_past_frame(const char *dir)
+{
+    enum { W = 64, H = 48, F = 2 };
+    train_set ts = { .frames = F, .width = W, .height = H, .fps = 30, .num_views = 1 };
+    ts.views = calloc(1, sizeof *ts.views);
+    if (!ts.views) return;
+    train_view *v = &ts.views[0];
+    snprintf(v->name, sizeof v->name, "cam00");
+    v->role = IO_ROLE_REAL;
+    toy_camera(&v->cam, W, H, 0, 0);
+    pg_camera_look_at(&v->cam, (const float[3]){ 0, 0, 0 }, (const float[3]){ 0, 0, 1 }, (const float[3]){ 0, -1, 0 });
+    v->rgb = malloc((size_t)F * W * H * 3);
+    v->depth = malloc((size_t)F * W * H * sizeof(float));
+    for (int i = 0; v->rgb && v->depth && i < F * W * H; i++) {
+        int x = i % W, y = i / W % H;
+        for (int k = 0; k < 3; k++) v->rgb[3 * i + k] = (uint8_t)(60 + 40 * k + ((x / 8 + y / 8) & 1) * 60);
+        v->depth[i] = 5.0f;
+    }
+    train_config c = small_config();
+    c.iters = 4;
+    c.coarse_iters = 4;
+    c.max_gaussians = 8000; /* room for the margin: ~2,800 blocks of 2 px around 64 x 48 */
+    char ckpt[1200];
+    snprintf(ckpt, sizeof ckpt, "%s/wall.ckpt", dir);
+    train_session *s = NULL;
+    CHECK_OK(train_session_create(&s, &ts, &c, ckpt, 0));
+    if (s) CHECK_OK(train_session_run(s));
+    train_session_destroy(s);
+    render_model *rm = NULL;
+    CHECK_OK(render_model_open(ckpt, &rm));
+    if (rm) {
+        pg_camera turned = v->cam;
+        float th = 0.5f * atanf(0.5f * W / turned.fx), cs = cosf(th), sn = sinf(th);
+        const float Q[9] = { cs, 0, -sn, 0, 1, 0, sn, 0, cs };
+        for (int i = 0; i < 3; i++) {
+            for (int j = 0; j < 3; j++)
+                turned.R[3 * i + j] = Q[3 * i] * v->cam.R[j] + Q[3 * i + 1] * v->cam.R[3 + j] + Q[3 * i + 2] * v->cam.R[6 + j];
+            turned.t[i] = Q[3 * i] * v->cam.t[0] + Q[3 * i + 1] * v->cam.t[1] + Q[3 * i + 2] * v->cam.t[2];
+        }
+        pg_render_output out;
+        CHECK_OK(render_model_frame(rm, &turned, 0.0f, &out));
+        int covered = 0, total = 0;
+        for (int y = 0; y < H; y++)
+            for (int x = W * 4 / 5; x < W; x++, total++) covered += out.alpha[y * W + x] > 0.5f;
+        CHECK(covered >= total * 9 / 10, "view turned past the real frame: %d of %d outside pixels covered", covered,
+              total);
+    }
+    render_model_close(rm);
+    train_set_destroy(&ts);
+}
+
 int main(void)
 {
     char dir[1024], data[1100], a[1200], b[1200], cmd[8192], err[4096];
     test_tmpdir("test_train", dir, sizeof dir);
     snprintf(data, sizeof data, "%s/set", dir);
     pg_set_threads(2);
+    test_margin_past_frame(dir);
     CHECK_OK(toy_write_trainset(data, 64, 48, 4, 3, 1));
 
     train_set ts;
