@@ -597,6 +597,67 @@ static void test_gemm_bf16(const char *name)
            e2, es);
 }
 
+/* The f32 kernels of the bf16 path (first layer, heads) vs double products: f32 output with bias
+ * into a sub-block (ragged M, N, K), the epilogue's f32 and bf16 outputs, and the per-output dot
+ * products with their own input offsets. */
+static void test_gemm_f32(void)
+{
+    enum { M = 37, N = 45, K = 50, LDA = 53, LDB = 64, LDC = 70, MP = 64, NP = 64, ND = 11 };
+    pg_rng rng;
+    pg_rng_seed(&rng, 12);
+    static float A[MP * LDA], B[K * LDB], C[MP * LDC], F[MP * NP], bias[NP];
+    static uint16_t rm[MP * NP];
+    for (int i = 0; i < MP * LDA; i++) A[i] = (float)pg_rng_range(&rng, -1, 1);
+    for (int k = 0; k < K; k++)
+        for (int j = 0; j < LDB; j++) B[k * LDB + j] = j < N ? (float)pg_rng_range(&rng, -1, 1) : 0.0f;
+    for (int j = 0; j < NP; j++) bias[j] = (float)pg_rng_range(&rng, -0.5, 0.5);
+    for (int i = 0; i < MP * LDC; i++) C[i] = 7.0f;
+    gemm_amx_epilogue ec = { .c = C + 5, .ldc = LDC, .bias = bias };
+    gemm_f32(A, LDA, B, LDB, M, N, K, &ec);
+    double e = 0, eb = 0, ed = 0;
+    int outside = 0, layout = 0;
+    for (int i = 0; i < MP; i++)
+        for (int j = 0; j < LDC; j++) {
+            if (i >= M || j < 5 || j >= 5 + N) {
+                outside |= C[i * LDC + j] != 7.0f;
+                continue;
+            }
+            double r = bias[j - 5];
+            for (int k = 0; k < K; k++) r += (double)A[i * LDA + k] * B[k * LDB + j - 5];
+            e = fmax(e, fabs(C[i * LDC + j] - r));
+        }
+    /* bf16 epilogue (bias, ReLU) with its f32 output: rm must be f rounded to nearest even */
+    gemm_amx_epilogue ee = { .bias = bias, .relu = 1, .rm = rm, .ldrm = NP, .f = F, .ldf = NP };
+    gemm_f32(A, LDA, B, LDB, MP, NP, K, &ee);
+    for (int i = 0; i < MP; i++)
+        for (int j = 0; j < NP; j++) {
+            double r = bias[j];
+            for (int k = 0; k < K; k++) r += (double)A[i * LDA + k] * B[k * LDB + j];
+            eb = fmax(eb, fabs(F[i * NP + j] - fmax(r, 0.0)));
+            layout |= rm[i * NP + j] != gemm_amx_bf16(F[i * NP + j]);
+        }
+    /* dots: output o reads K inputs from column koff[o] */
+    static float D[K * ND], Y[M * 16];
+    int koff[ND];
+    for (int o = 0; o < ND; o++) koff[o] = o % 4;
+    for (int i = 0; i < K * ND; i++) D[i] = (float)pg_rng_range(&rng, -1, 1);
+    for (int i = 0; i < M * 16; i++) Y[i] = 7.0f;
+    gemm_f32_dots(A, LDA, D, koff, bias, M, ND, K, Y, 16);
+    for (int i = 0; i < M; i++)
+        for (int o = 0; o < 16; o++) {
+            if (o >= ND) {
+                outside |= Y[i * 16 + o] != 7.0f;
+                continue;
+            }
+            double r = bias[o];
+            for (int k = 0; k < K; k++) r += (double)A[i * LDA + koff[o] + k] * D[o * K + k];
+            ed = fmax(ed, fabs(Y[i * 16 + o] - r));
+        }
+    CHECK(e < 1e-5 && eb < 1e-5 && ed < 1e-5 && !outside && !layout,
+          "gemm f32: err %g, epilogue %g, dots %g, wrote outside %d, bf16 layout %d", e, eb, ed, outside, layout);
+    printf("gemm f32 (37x45x50): max err %.2e, epilogue %.2e, dots %.2e\n", e, eb, ed);
+}
+
 /* The bf16 network path (backend `name`) agrees with the f32 path to bf16 accuracy. */
 static void test_network_bf16(const char *name)
 {
@@ -752,6 +813,8 @@ int main(void)
     test_network_fd();
     test_identity_blob_reg();
     /* every bf16 backend this CPU can run, each forced in turn */
+    /* the f32 kernels of the bf16 path need AVX-512F, which every bf16 backend implies */
+    if (gemm_bf16_supported(GEMM_BF16_AVX512) || gemm_bf16_supported(GEMM_BF16_AMX)) test_gemm_f32();
     const gemm_bf16_kind kinds[2] = { GEMM_BF16_AMX, GEMM_BF16_AVX512 };
     for (int k = 0; k < 2; k++) {
         const char *name = gemm_bf16_name(kinds[k]);
