@@ -695,10 +695,12 @@ static void test_network_bf16(const char *name)
     }
     /* Relative L2 error per group. Max-norm is the wrong measure here: a hidden unit whose
      * pre-activation is within bf16 rounding of 0 switches its ReLU, which changes that point's
-     * gradient by ~1/sqrt(width) of its norm. Measured: the heads' last layers (no ReLU after
-     * the bf16 GEMMs) agree to ~0.5%, the layers behind ReLUs to ~5%, which we attribute to such flips
-     * (dA = dY W2 is computed identically in both paths; only the mask a > 0 differs). A wrong
-     * kernel (transposed or misaligned operand) gives errors of order 1. */
+     * gradient by ~1/sqrt(width) of its norm. Measured: outputs 3.0e-3 (issue 14 asks <= 0.5%;
+     * the first layer and the heads' forward run in f32, what is left are the roundings of the
+     * bf16 layers' weights and activations); gradients of the heads' last layers ~0.5%, of the
+     * layers behind ReLUs ~5%, which we attribute to such flips (dA = dY W2 is computed
+     * identically in both paths; only the mask a > 0 differs). A wrong kernel (transposed or
+     * misaligned operand) gives errors of order 1. */
     double e[4] = { 0 }, n[4] = { 0 };
     for (int i = 0; i < N * DEFORM_OUT_DIM; i++) { e[0] += pow(o32[i] - o16[i], 2); n[0] += pow(o32[i], 2); }
     for (size_t i = 0; i < P; i++) {
@@ -708,7 +710,7 @@ static void test_network_bf16(const char *name)
     }
     for (int i = 0; i < N * 3; i++) { e[3] += pow(dm32[i] - dm16[i], 2); n[3] += pow(dm32[i], 2); }
     for (int k = 0; k < 4; k++) e[k] = sqrt(e[k] / n[k]);
-    CHECK(e[0] < 1e-2 && e[1] < 0.15 && e[2] < 0.15 && e[3] < 0.15,
+    CHECK(e[0] < 5e-3 && e[1] < 0.15 && e[2] < 0.15 && e[3] < 0.15,
           "%s bf16 vs f32 rel L2: out %g planes %g mlp %g means %g", name, e[0], e[1], e[2], e[3]);
     printf("network %s bf16 vs f32 (relative L2): out %.1e, d/dplanes %.1e, d/dmlp %.1e, d/dmeans %.1e\n", name, e[0],
            e[1], e[2], e[3]);
@@ -741,8 +743,9 @@ static void test_network_bf16(const char *name)
 }
 
 /* Fits the network to a smooth time-varying displacement field with plain Adam; returns the final
- * mean squared error of dpos over the training points. */
-static double fit_field(int bf16, int steps)
+ * mean squared error of dpos over the training points, and in *tail the mean of the last 40 steps'
+ * (5 passes over the 8 times). */
+static double fit_field(int bf16, int steps, double *tail)
 {
     deform_config cfg;
     deform_config_default(&cfg);
@@ -755,6 +758,7 @@ static double fit_field(int bf16, int steps)
     const float aabb[6] = { -1, -1, -1, 1, 1, 1 };
     deform_network *net = NULL;
     deform_ws *ws = NULL;
+    *tail = 1e9;
     if (deform_network_create(&net, &cfg, aabb) || deform_ws_create(&ws, net, 512)) return 1e9;
     enum { N = 512 };
     static float means[N * 3], out[N * DEFORM_OUT_DIM], dout[N * DEFORM_OUT_DIM];
@@ -764,6 +768,7 @@ static double fit_field(int bf16, int steps)
     const size_t P = net->num_params;
     float *m1 = calloc(P, sizeof(float)), *m2 = calloc(P, sizeof(float));
     double mse = 0;
+    *tail = 0;
     for (int it = 1; it <= steps; it++) {
         float t = (float)((it * 7) % 8) / 7.0f;
         deform_network_forward(net, ws, means, NULL, N, t, out);
@@ -777,6 +782,7 @@ static double fit_field(int bf16, int steps)
                 mse += r * r / (3.0 * N);
                 dout[i * DEFORM_OUT_DIM + a] = (float)(2 * r / (3.0 * N));
             }
+        if (it > steps - 40) *tail += mse / 40;
         deform_network_zero_grad(net);
         deform_network_backward(net, ws, dout, NULL);
         const float lr = 3e-3f, b1 = 0.9f, b2 = 0.999f;
@@ -795,14 +801,18 @@ static double fit_field(int bf16, int steps)
     return mse;
 }
 
-/* Training quality: the bf16 backend `name` reaches the same fit as f32 on a small regression. */
+/* Training quality: the bf16 backend `name` reaches the same fit as f32 on a small regression.
+ * Compared on the mean of the last 40 steps: the last step alone depends chaotically on rounding
+ * (its bf16/f32 ratio measured 0.2-2.1 over network seeds, against 0.86-1.34 for the mean). */
 static void test_fit_bf16(const char *name)
 {
-    double e32 = fit_field(0, 300);
+    double t32, t16;
+    double e32 = fit_field(0, 300, &t32);
     CHECK(e32 < 0.15 * 0.0025, "f32 fit did not learn the field: mse %g (field variance ~2.5e-3)", e32);
-    double e16 = fit_field(1, 300);
-    CHECK(e16 < 1.5 * e32 + 1e-6, "%s bf16 fit mse %g vs f32 %g", name, e16, e32);
-    printf("fit (300 Adam steps): mse f32 %.3e, %s bf16 %.3e\n", e32, name, e16);
+    double e16 = fit_field(1, 300, &t16);
+    CHECK(t16 < 1.5 * t32 + 1e-6, "%s bf16 fit mse %g vs f32 %g (last 40 steps)", name, t16, t32);
+    printf("fit (300 Adam steps): mse f32 %.3e, %s bf16 %.3e; last 40 steps: f32 %.3e, bf16 %.3e\n", e32, name, e16,
+           t32, t16);
 }
 
 int main(void)
