@@ -597,6 +597,67 @@ static void test_gemm_bf16(const char *name)
            e2, es);
 }
 
+/* The f32 kernels of the bf16 path (first layer, heads) vs double products: f32 output with bias
+ * into a sub-block (ragged M, N, K), the epilogue's f32 and bf16 outputs, and the per-output dot
+ * products with their own input offsets. */
+static void test_gemm_f32(void)
+{
+    enum { M = 37, N = 45, K = 50, LDA = 53, LDB = 64, LDC = 70, MP = 64, NP = 64, ND = 11 };
+    pg_rng rng;
+    pg_rng_seed(&rng, 12);
+    static float A[MP * LDA], B[K * LDB], C[MP * LDC], F[MP * NP], bias[NP];
+    static uint16_t rm[MP * NP];
+    for (int i = 0; i < MP * LDA; i++) A[i] = (float)pg_rng_range(&rng, -1, 1);
+    for (int k = 0; k < K; k++)
+        for (int j = 0; j < LDB; j++) B[k * LDB + j] = j < N ? (float)pg_rng_range(&rng, -1, 1) : 0.0f;
+    for (int j = 0; j < NP; j++) bias[j] = (float)pg_rng_range(&rng, -0.5, 0.5);
+    for (int i = 0; i < MP * LDC; i++) C[i] = 7.0f;
+    gemm_amx_epilogue ec = { .c = C + 5, .ldc = LDC, .bias = bias };
+    gemm_f32(A, LDA, B, LDB, M, N, K, &ec);
+    double e = 0, eb = 0, ed = 0;
+    int outside = 0, layout = 0;
+    for (int i = 0; i < MP; i++)
+        for (int j = 0; j < LDC; j++) {
+            if (i >= M || j < 5 || j >= 5 + N) {
+                outside |= C[i * LDC + j] != 7.0f;
+                continue;
+            }
+            double r = bias[j - 5];
+            for (int k = 0; k < K; k++) r += (double)A[i * LDA + k] * B[k * LDB + j - 5];
+            e = fmax(e, fabs(C[i * LDC + j] - r));
+        }
+    /* bf16 epilogue (bias, ReLU) with its f32 output: rm must be f rounded to nearest even */
+    gemm_amx_epilogue ee = { .bias = bias, .relu = 1, .rm = rm, .ldrm = NP, .f = F, .ldf = NP };
+    gemm_f32(A, LDA, B, LDB, MP, NP, K, &ee);
+    for (int i = 0; i < MP; i++)
+        for (int j = 0; j < NP; j++) {
+            double r = bias[j];
+            for (int k = 0; k < K; k++) r += (double)A[i * LDA + k] * B[k * LDB + j];
+            eb = fmax(eb, fabs(F[i * NP + j] - fmax(r, 0.0)));
+            layout |= rm[i * NP + j] != gemm_amx_bf16(F[i * NP + j]);
+        }
+    /* dots: output o reads K inputs from column koff[o] */
+    static float D[K * ND], Y[M * 16];
+    int koff[ND];
+    for (int o = 0; o < ND; o++) koff[o] = o % 4;
+    for (int i = 0; i < K * ND; i++) D[i] = (float)pg_rng_range(&rng, -1, 1);
+    for (int i = 0; i < M * 16; i++) Y[i] = 7.0f;
+    gemm_f32_dots(A, LDA, D, koff, bias, M, ND, K, Y, 16);
+    for (int i = 0; i < M; i++)
+        for (int o = 0; o < 16; o++) {
+            if (o >= ND) {
+                outside |= Y[i * 16 + o] != 7.0f;
+                continue;
+            }
+            double r = bias[o];
+            for (int k = 0; k < K; k++) r += (double)A[i * LDA + koff[o] + k] * D[o * K + k];
+            ed = fmax(ed, fabs(Y[i * 16 + o] - r));
+        }
+    CHECK(e < 1e-5 && eb < 1e-5 && ed < 1e-5 && !outside && !layout,
+          "gemm f32: err %g, epilogue %g, dots %g, wrote outside %d, bf16 layout %d", e, eb, ed, outside, layout);
+    printf("gemm f32 (37x45x50): max err %.2e, epilogue %.2e, dots %.2e\n", e, eb, ed);
+}
+
 /* The bf16 network path (backend `name`) agrees with the f32 path to bf16 accuracy. */
 static void test_network_bf16(const char *name)
 {
@@ -634,10 +695,12 @@ static void test_network_bf16(const char *name)
     }
     /* Relative L2 error per group. Max-norm is the wrong measure here: a hidden unit whose
      * pre-activation is within bf16 rounding of 0 switches its ReLU, which changes that point's
-     * gradient by ~1/sqrt(width) of its norm. Measured: the heads' last layers (no ReLU after
-     * the bf16 GEMMs) agree to ~0.5%, the layers behind ReLUs to ~5%, which we attribute to such flips
-     * (dA = dY W2 is computed identically in both paths; only the mask a > 0 differs). A wrong
-     * kernel (transposed or misaligned operand) gives errors of order 1. */
+     * gradient by ~1/sqrt(width) of its norm. Measured: outputs 3.0e-3 (issue 14 asks <= 0.5%;
+     * the first layer and the heads' forward run in f32, what is left are the roundings of the
+     * bf16 layers' weights and activations); gradients of the heads' last layers ~0.5%, of the
+     * layers behind ReLUs ~5%, which we attribute to such flips (dA = dY W2 is computed
+     * identically in both paths; only the mask a > 0 differs). A wrong kernel (transposed or
+     * misaligned operand) gives errors of order 1. */
     double e[4] = { 0 }, n[4] = { 0 };
     for (int i = 0; i < N * DEFORM_OUT_DIM; i++) { e[0] += pow(o32[i] - o16[i], 2); n[0] += pow(o32[i], 2); }
     for (size_t i = 0; i < P; i++) {
@@ -647,7 +710,7 @@ static void test_network_bf16(const char *name)
     }
     for (int i = 0; i < N * 3; i++) { e[3] += pow(dm32[i] - dm16[i], 2); n[3] += pow(dm32[i], 2); }
     for (int k = 0; k < 4; k++) e[k] = sqrt(e[k] / n[k]);
-    CHECK(e[0] < 1e-2 && e[1] < 0.15 && e[2] < 0.15 && e[3] < 0.15,
+    CHECK(e[0] < 5e-3 && e[1] < 0.15 && e[2] < 0.15 && e[3] < 0.15,
           "%s bf16 vs f32 rel L2: out %g planes %g mlp %g means %g", name, e[0], e[1], e[2], e[3]);
     printf("network %s bf16 vs f32 (relative L2): out %.1e, d/dplanes %.1e, d/dmlp %.1e, d/dmeans %.1e\n", name, e[0],
            e[1], e[2], e[3]);
@@ -680,8 +743,9 @@ static void test_network_bf16(const char *name)
 }
 
 /* Fits the network to a smooth time-varying displacement field with plain Adam; returns the final
- * mean squared error of dpos over the training points. */
-static double fit_field(int bf16, int steps)
+ * mean squared error of dpos over the training points, and in *tail the mean of the last 40 steps'
+ * (5 passes over the 8 times). */
+static double fit_field(int bf16, int steps, double *tail)
 {
     deform_config cfg;
     deform_config_default(&cfg);
@@ -694,6 +758,7 @@ static double fit_field(int bf16, int steps)
     const float aabb[6] = { -1, -1, -1, 1, 1, 1 };
     deform_network *net = NULL;
     deform_ws *ws = NULL;
+    *tail = 1e9;
     if (deform_network_create(&net, &cfg, aabb) || deform_ws_create(&ws, net, 512)) return 1e9;
     enum { N = 512 };
     static float means[N * 3], out[N * DEFORM_OUT_DIM], dout[N * DEFORM_OUT_DIM];
@@ -703,6 +768,7 @@ static double fit_field(int bf16, int steps)
     const size_t P = net->num_params;
     float *m1 = calloc(P, sizeof(float)), *m2 = calloc(P, sizeof(float));
     double mse = 0;
+    *tail = 0;
     for (int it = 1; it <= steps; it++) {
         float t = (float)((it * 7) % 8) / 7.0f;
         deform_network_forward(net, ws, means, NULL, N, t, out);
@@ -716,6 +782,7 @@ static double fit_field(int bf16, int steps)
                 mse += r * r / (3.0 * N);
                 dout[i * DEFORM_OUT_DIM + a] = (float)(2 * r / (3.0 * N));
             }
+        if (it > steps - 40) *tail += mse / 40;
         deform_network_zero_grad(net);
         deform_network_backward(net, ws, dout, NULL);
         const float lr = 3e-3f, b1 = 0.9f, b2 = 0.999f;
@@ -734,14 +801,18 @@ static double fit_field(int bf16, int steps)
     return mse;
 }
 
-/* Training quality: the bf16 backend `name` reaches the same fit as f32 on a small regression. */
+/* Training quality: the bf16 backend `name` reaches the same fit as f32 on a small regression.
+ * Compared on the mean of the last 40 steps: the last step alone depends chaotically on rounding
+ * (its bf16/f32 ratio measured 0.2-2.1 over network seeds, against 0.86-1.34 for the mean). */
 static void test_fit_bf16(const char *name)
 {
-    double e32 = fit_field(0, 300);
+    double t32, t16;
+    double e32 = fit_field(0, 300, &t32);
     CHECK(e32 < 0.15 * 0.0025, "f32 fit did not learn the field: mse %g (field variance ~2.5e-3)", e32);
-    double e16 = fit_field(1, 300);
-    CHECK(e16 < 1.5 * e32 + 1e-6, "%s bf16 fit mse %g vs f32 %g", name, e16, e32);
-    printf("fit (300 Adam steps): mse f32 %.3e, %s bf16 %.3e\n", e32, name, e16);
+    double e16 = fit_field(1, 300, &t16);
+    CHECK(t16 < 1.5 * t32 + 1e-6, "%s bf16 fit mse %g vs f32 %g (last 40 steps)", name, t16, t32);
+    printf("fit (300 Adam steps): mse f32 %.3e, %s bf16 %.3e; last 40 steps: f32 %.3e, bf16 %.3e\n", e32, name, e16,
+           t32, t16);
 }
 
 int main(void)
@@ -752,6 +823,8 @@ int main(void)
     test_network_fd();
     test_identity_blob_reg();
     /* every bf16 backend this CPU can run, each forced in turn */
+    /* the f32 kernels of the bf16 path need AVX-512F, which every bf16 backend implies */
+    if (gemm_bf16_supported(GEMM_BF16_AVX512) || gemm_bf16_supported(GEMM_BF16_AMX)) test_gemm_f32();
     const gemm_bf16_kind kinds[2] = { GEMM_BF16_AMX, GEMM_BF16_AVX512 };
     for (int k = 0; k < 2; k++) {
         const char *name = gemm_bf16_name(kinds[k]);

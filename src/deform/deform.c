@@ -244,7 +244,7 @@ static size_t ws_scratch_floats(const deform_ws *ws)
     size_t c = (size_t)ws->chunk;
     size_t n;
     if (ws->amx) { /* features, d_out rows, head outputs; the activations live in the AMX module */
-        n = c * ws->F + c * DEFORM_OUT_DIM + c * DEFORM_AMX_OUT_LD;
+        n = c * ws->F + 2 * c * DEFORM_OUT_DIM;
     } else { /* acts + d_out copy + dA (c, 5W) + two ping-pong (c, max(W, F)) */
         size_t big = (size_t)DEFORM_HEADS * ws->W;
         size_t mx = (size_t)(ws->W > ws->F ? ws->W : ws->F);
@@ -479,7 +479,6 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
     PG_TRY(ws_sort_points(ws, &net->grid, n));
     hex_slice_layout(&ws->sl, ws->slice_buf, &net->grid, t);
     hex_slice_forward(&ws->sl, &net->grid);
-    const int ldy = ws->amx ? DEFORM_AMX_OUT_LD : DEFORM_OUT_DIM;
     long nchunks = (n + ws->chunk - 1) / ws->chunk;
     if (ws->amx) {
         PG_TRY(deform_amx_prepare(ws->amxp, nchunks));
@@ -494,7 +493,7 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
         float *y = ws->amx ? scr + (size_t)ws->chunk * (ws->F + DEFORM_OUT_DIM) : scr + (size_t)ws->chunk * ws->act_pp;
         chunk_forward(net, ws, k, m, tid, y);
         for (int i = 0; i < m; i++)
-            memcpy(out + (size_t)ws->order[start + i] * DEFORM_OUT_DIM, y + (size_t)i * ldy, DEFORM_OUT_DIM * sizeof(float));
+            memcpy(out + (size_t)ws->order[start + i] * DEFORM_OUT_DIM, y + (size_t)i * DEFORM_OUT_DIM, DEFORM_OUT_DIM * sizeof(float));
     }
     return PG_OK;
 }

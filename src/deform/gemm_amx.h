@@ -36,11 +36,11 @@ void gemm_amx_pack_a(uint16_t *dst, int ld, int Mp, int Kp, const float *src, lo
 void gemm_amx_pack_b(uint16_t *dst, const float *src, long rs, long cs, int K, int N);
 
 /* What happens to each block of the product v = A*B. Either an f32 output (c != NULL: c = v or
- * c += v (accumulate), then c += bias[j] if bias), or bf16 outputs of
+ * c += v (accumulate), then c += bias[j] if bias), or the epilogue of
  *     v = v + bias[j] (bias != NULL), v = max(v, 0) (relu), v = 0 where mask(i, j) == 0 (mask != NULL),
- * written to any of rm (row-major), tr (transposed: tr[j*ldtr + i]) and vn (VNNI pairs of rows:
- * vn[(i/2)*ldvn + 2j + i%2]); colsum[j] += sum of v over rows i < rows. All pointers are relative to
- * the block (0, 0) of C, strides in elements. */
+ * written as bf16 to any of rm (row-major), tr (transposed: tr[j*ldtr + i]) and vn (VNNI pairs of
+ * rows: vn[(i/2)*ldvn + 2j + i%2]), and as f32 to f (row-major); colsum[j] += sum of v over rows
+ * i < rows. All pointers are relative to the block (0, 0) of C, strides in elements. */
 typedef struct {
     float *c;
     int ldc, accumulate;
@@ -52,6 +52,8 @@ typedef struct {
     int rows;
     uint16_t *rm, *tr, *vn;
     int ldrm, ldtr, ldvn;
+    float *f;
+    int ldf;
 } gemm_amx_epilogue;
 
 void gemm_amx(const uint16_t *A, int lda, const uint16_t *B, int ldb, int M, int N, int K, const gemm_amx_epilogue *e);
@@ -59,7 +61,18 @@ void gemm_amx(const uint16_t *A, int lda, const uint16_t *B, int ldb, int M, int
  * (gemm_avx512bf16.c); M and N multiples of 16 for an f32 output, of 32 for bf16 outputs. */
 void gemm_avx512bf16(const uint16_t *A, int lda, const uint16_t *B, int ldb, int M, int N, int K,
                      const gemm_amx_epilogue *e);
-/* The bf16 epilogue of one 32x32 f32 block v (row stride 32) at C position (i, j) (gemm_epilogue.c). */
+/* f32 products for the bf16 path's first layer and heads (gemm_avx512f32.c, AVX-512F), where bf16
+ * roundings cost most of the accuracy for little of the time (docs/deform.md). gemm_f32: the same
+ * product and epilogues with A f32 row-major (lda) and B f32 row-major (K, N) with row stride ldb
+ * (columns up to N rounded to 16 read: zero padded); an f32 output is c = v (+ bias), any M and N,
+ * no accumulate; bf16 outputs need M and N multiples of 32. gemm_f32_dots: N <= 16 outputs that
+ * each read their own K inputs (the small heads of a block-diagonal layer),
+ *     c[i*ldc + o] = bias[o] + sum_k A[i*lda + koff[o] + k] * B[o*K + k]   (i < M, o < N). */
+void gemm_f32(const float *A, int lda, const float *B, int ldb, int M, int N, int K, const gemm_amx_epilogue *e);
+void gemm_f32_dots(const float *A, int lda, const float *B, const int *koff, const float *bias, int M, int N, int K,
+                   float *c, int ldc);
+/* The epilogue (bf16 and f32 outputs) of one 32x32 f32 block v (row stride 32) at C position (i, j)
+ * (gemm_epilogue.c). */
 void gemm_block_epilogue(const gemm_amx_epilogue *e, const float *v, int i, int j);
 
 /* Backends, chosen once at run time (gemm_dispatch.c): the best the CPU has, or PG_KERNELS=amx|

@@ -1,6 +1,7 @@
-/* gemm_epilogue.c - the bf16 epilogue shared by the bf16 GEMM backends (gemm_amx.h): bias, ReLU,
- * mask and column sums on one 32x32 f32 block, written once in the bf16 layouts the next GEMMs
- * read. Runs only on CPUs with AVX512-BF16 (every bf16 backend implies it). */
+/* gemm_epilogue.c - the epilogue shared by the bf16 GEMM backends (gemm_amx.h): bias, ReLU, mask
+ * and column sums on one 32x32 f32 block, written once in the bf16 layouts the next GEMMs read (or
+ * in f32, the input of the f32 heads). Runs only on CPUs with AVX512-BF16 (every bf16 backend
+ * implies it). */
 #include "deform/gemm_amx.h"
 
 #if defined(__x86_64__) && defined(__GNUC__)
@@ -11,7 +12,7 @@
 /* Two f32 halves -> 32 bf16 (round to nearest even, as gemm_amx_bf16 for normal numbers). */
 static inline EPI_TARGET __m512i to_bf16(__m512 lo, __m512 hi) { return (__m512i)_mm512_cvtne2ps_pbh(hi, lo); }
 
-/* The bf16 epilogue of one 32x32 block v (row stride 32) at C position (i, j). Pairs of rows are
+/* The epilogue of one 32x32 block v (row stride 32) at C position (i, j). Pairs of rows are
  * processed together: their bf16 values interleaved as 32-bit pairs are the VNNI output, and the
  * same pairs gathered down a column give the transposed output. */
 EPI_TARGET void gemm_block_epilogue(const gemm_amx_epilogue *e, const float *v, int i, int j)
@@ -49,6 +50,11 @@ EPI_TARGET void gemm_block_epilogue(const gemm_amx_epilogue *e, const float *v, 
             if (e->colsum && r + s < nr) {
                 cs0 = _mm512_add_ps(cs0, x0);
                 cs1 = _mm512_add_ps(cs1, x1);
+            }
+            if (e->f) {
+                float *o = e->f + (size_t)(i + r + s) * e->ldf + j;
+                _mm512_storeu_ps(o, x0);
+                _mm512_storeu_ps(o + 16, x1);
             }
             h[s] = to_bf16(x0, x1);
             if (e->rm) _mm512_storeu_si512(e->rm + (size_t)(i + r + s) * e->ldrm + j, h[s]);
