@@ -10,6 +10,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 
 /* ---- a growable protobuf writer ---- */
 typedef struct { uint8_t *p; size_t n, cap; } pbw;
@@ -446,8 +447,34 @@ static void test_cli(void)
     CHECK(rc == 0, "bench nn on a valid model: exit %d: %s", rc, err);
 }
 
+/* 256 MiB activations declared by a 100-byte file: loading plans the arena but must not touch it
+ * (fuzz_onnx spent seconds zeroing such arenas; only a run may fault the pages in). Runs first, so
+ * the peak RSS it compares against is not an earlier test's. */
+static void test_untouched_arena(void)
+{
+    pbw g = { 0 }, m = { 0 };
+    node(&g, "Relu", "r", "x", NULL, "y", NULL);
+    value_info(&g, 11, "x", 2, (int64_t[]){ 4, (int64_t)1 << 24 });
+    value_info(&g, 12, "y", 0, NULL);
+    model(&m, &g, 17);
+    {
+        struct rusage ru0, ru1;
+        getrusage(RUSAGE_SELF, &ru0);
+        nn_model *nm = NULL;
+        CHECK_OK(nn_model_load_memory(m.p, m.n, "big_arena.onnx", &nm));
+        getrusage(RUSAGE_SELF, &ru1);
+        CHECK(nm && nn_model_memory_bytes(nm) >= ((size_t)256 << 20), "planned arena %zu bytes",
+              nm ? nn_model_memory_bytes(nm) : 0);
+        CHECK(ru1.ru_maxrss - ru0.ru_maxrss < 64 * 1024, "loading touched %ld KiB of a 512 MiB arena",
+              ru1.ru_maxrss - ru0.ru_maxrss);
+        nn_model_destroy(nm);
+    }
+    free(m.p);
+}
+
 int main(void)
 {
+    test_untouched_arena();
     test_seeds();
     test_cli();
     test_valid();

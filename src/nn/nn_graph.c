@@ -20,7 +20,7 @@ void nn_graph_destroy(nn_graph *g)
     for (int i = 0; i < g->num_nodes; i++) { free(g->nodes[i].name); free(g->nodes[i].inputs); }
     free(g->tensors);
     free(g->nodes);
-    free(g->arena);
+    free(g->arena_block);
     free(g->scratch);
     memset(g, 0, sizeof *g);
 }

@@ -184,7 +184,8 @@ typedef struct nn_graph {
     int inputs[NN_MAX_IO], num_inputs;
     int outputs[NN_MAX_IO], num_outputs;
     /* filled by nn_graph_prepare */
-    float *arena;
+    float *arena;             /* 64-byte aligned inside arena_block */
+    void *arena_block;        /* calloc'd: a large arena costs no page until a run touches it */
     size_t arena_floats;      /* planned size */
     size_t const_bytes;       /* bytes of constant data */
     float *scratch;           /* per-run temporaries (im2col etc.), scratch_floats per thread */
