@@ -465,7 +465,8 @@ static void test_untouched_arena(void)
         getrusage(RUSAGE_SELF, &ru1);
         CHECK(nm && nn_model_memory_bytes(nm) >= ((size_t)256 << 20), "planned arena %zu bytes",
               nm ? nn_model_memory_bytes(nm) : 0);
-        CHECK(ru1.ru_maxrss - ru0.ru_maxrss < 64 * 1024, "loading touched %ld KiB of a 512 MiB arena",
+        /* ASan's shadow of the allocation (an eighth of it, 64 MiB) is allowed */
+        CHECK(ru1.ru_maxrss - ru0.ru_maxrss < 128 * 1024, "loading touched %ld KiB of a 512 MiB arena",
               ru1.ru_maxrss - ru0.ru_maxrss);
         nn_model_destroy(nm);
     }
