@@ -75,14 +75,14 @@ static void ref_linear(double *y, const double *x, const ref_net *r, const defor
 static void ref_network(double *out, const ref_net *r, const double *pos, double t)
 {
     const deform_network *net = r->net;
-    int W = net->cfg.width;
+    int Wh = deform_head_width(&net->cfg);
     double x[4096], y[4096];
     ref_hex(x, r, pos, t);
     for (int l = 0; l < net->num_layers; l++) {
         ref_linear(y, x, r, &net->layers[l], 1);
         memcpy(x, y, net->layers[l].out * sizeof(double));
     }
-    for (int h = 0; h < DEFORM_HEADS; h++) ref_linear(out + deform_head_offset[h], x + h * W, r, &net->heads[h], 0);
+    for (int h = 0; h < DEFORM_HEADS; h++) ref_linear(out + deform_head_offset[h], x + h * Wh, r, &net->heads[h], 0);
 }
 
 /* ---------------------------------------------------------------------------------------------- */
@@ -312,10 +312,12 @@ static void test_linear(void)
 }
 
 /* Whole network: L = sum_i sum_j r_ij out_ij over a subset of points given by idx. */
-static void test_network_fd(void)
+/* head_width: 0 (= the width, 8) or another hidden width of the heads. */
+static void test_network_fd(int head_width)
 {
     deform_config cfg;
     small_config(&cfg);
+    cfg.head_width = head_width;
     const float aabb[6] = { -1, -1, -1, 1, 1, 1 };
     deform_network *net = NULL;
     CHECK_OK(deform_network_create(&net, &cfg, aabb));
@@ -390,8 +392,8 @@ static void test_network_fd(void)
     double e_pos = test_grad_err(dmeans, fdm, N * 3);
     CHECK(e_pos < 1e-3, "network d/dmeans rel err %g", e_pos);
     CHECK(dmeans[6] == 0 && dmeans[15] == 0, "static points got position gradients");
-    printf("network: forward %.2e, d/dplanes %.2e, d/dmlp %.2e, d/dmeans %.2e (%zu params)\n", worst_out, e_planes,
-           e_mlp, e_pos, P);
+    printf("network (head width %d): forward %.2e, d/dplanes %.2e, d/dmlp %.2e, d/dmeans %.2e (%zu params)\n",
+           deform_head_width(&cfg), worst_out, e_planes, e_mlp, e_pos, P);
 
     /* stored vs recomputed activations and thread counts: same gradients */
     float *g1 = malloc(P * sizeof(float));
@@ -436,6 +438,7 @@ static void test_identity_blob_reg(void)
     cfg.res_space = 8;
     cfg.res_time = 6;
     cfg.width = 16;
+    cfg.head_width = 32; /* stored in the blob */
     const float aabb[6] = { 0, 0, 0, 1, 1, 1 };
     deform_network *net = NULL;
     CHECK_OK(deform_network_create(&net, &cfg, aabb));
@@ -492,7 +495,7 @@ static void test_identity_blob_reg(void)
     CHECK_OK(deform_network_load(&back, path));
     CHECK(back && back->num_params == net->num_params &&
               memcmp(back->params, net->params, net->num_params * sizeof(float)) == 0 &&
-              back->cfg.res_time == 6 && back->grid.aabb[4] == 1.0f,
+              back->cfg.res_time == 6 && back->cfg.head_width == 32 && back->grid.aabb[4] == 1.0f,
           "blob round trip differs");
     size_t n = deform_network_blob_size(net);
     unsigned char *buf = malloc(n);
@@ -500,12 +503,19 @@ static void test_identity_blob_reg(void)
     deform_network *bad = NULL;
     CHECK(deform_network_read_blob(&bad, buf, n - 4, "trunc.bin") == PG_ERR_FORMAT && !bad, "truncated blob accepted");
     CHECK(strstr(pg_last_error(), "trunc.bin") != NULL, "error does not name the file: %s", pg_last_error());
+    memcpy(buf, "PGDEFRM1", 8);
+    CHECK(deform_network_read_blob(&bad, buf, n, "v1.bin") == PG_ERR_FORMAT && strstr(pg_last_error(), "PGDEFRM1"),
+          "format 1 blob: %s", pg_last_error());
     buf[0] = 'X';
     CHECK(deform_network_read_blob(&bad, buf, n, "magic.bin") == PG_ERR_FORMAT, "bad magic accepted");
     free(buf);
     deform_config c2 = cfg;
     c2.channels = 0;
     CHECK(deform_network_create(&bad, &c2, aabb) == PG_ERR_ARG, "channels 0 accepted");
+    c2 = cfg;
+    c2.head_width = -1;
+    CHECK(deform_network_create(&bad, &c2, aabb) == PG_ERR_ARG && strstr(pg_last_error(), "head_width"),
+          "head_width -1: %s", pg_last_error());
     const float flat[6] = { 0, 0, 0, 1, 0, 1 };
     CHECK(deform_network_create(&bad, &cfg, flat) == PG_ERR_ARG, "empty aabb accepted");
     deform_network_destroy(back);
@@ -658,14 +668,16 @@ static void test_gemm_f32(void)
     printf("gemm f32 (37x45x50): max err %.2e, epilogue %.2e, dots %.2e\n", e, eb, ed);
 }
 
-/* The bf16 network path (backend `name`) agrees with the f32 path to bf16 accuracy. */
-static void test_network_bf16(const char *name)
+/* The bf16 network path (backend `name`) agrees with the f32 path to bf16 accuracy, with heads of
+ * head_width hidden units (0: the width, 48). */
+static void test_network_bf16(const char *name, int head_width)
 {
     deform_config cfg;
     small_config(&cfg);
     cfg.channels = 8;
     cfg.res_space = 8;
     cfg.width = 48;
+    cfg.head_width = head_width;
     const float aabb[6] = { -1, -1, -1, 1, 1, 1 };
     deform_network *net = NULL;
     CHECK_OK(deform_network_create(&net, &cfg, aabb));
@@ -711,9 +723,10 @@ static void test_network_bf16(const char *name)
     for (int i = 0; i < N * 3; i++) { e[3] += pow(dm32[i] - dm16[i], 2); n[3] += pow(dm32[i], 2); }
     for (int k = 0; k < 4; k++) e[k] = sqrt(e[k] / n[k]);
     CHECK(e[0] < 5e-3 && e[1] < 0.15 && e[2] < 0.15 && e[3] < 0.15,
-          "%s bf16 vs f32 rel L2: out %g planes %g mlp %g means %g", name, e[0], e[1], e[2], e[3]);
-    printf("network %s bf16 vs f32 (relative L2): out %.1e, d/dplanes %.1e, d/dmlp %.1e, d/dmeans %.1e\n", name, e[0],
-           e[1], e[2], e[3]);
+          "%s head width %d bf16 vs f32 rel L2: out %g planes %g mlp %g means %g", name, deform_head_width(&cfg), e[0],
+          e[1], e[2], e[3]);
+    printf("network %s, head width %d: bf16 vs f32 (relative L2): out %.1e, d/dplanes %.1e, d/dmlp %.1e, d/dmeans "
+           "%.1e\n", name, deform_head_width(&cfg), e[0], e[1], e[2], e[3]);
     /* bf16 path determinism with 2 threads: two runs give the same bytes */
     {
         float *ga = malloc(P * sizeof(float)), *oa = malloc(N * DEFORM_OUT_DIM * sizeof(float));
@@ -820,7 +833,9 @@ int main(void)
     pg_set_threads(1);
     test_hexplane();
     test_linear();
-    test_network_fd();
+    test_network_fd(0);
+    test_network_fd(4);
+    test_network_fd(12);
     test_identity_blob_reg();
     /* every bf16 backend this CPU can run, each forced in turn */
     /* the f32 kernels of the bf16 path need AVX-512F, which every bf16 backend implies */
@@ -833,7 +848,8 @@ int main(void)
             continue;
         }
         test_gemm_bf16(name);
-        test_network_bf16(name);
+        test_network_bf16(name, 0);
+        test_network_bf16(name, 24);
 #ifndef __SANITIZE_ADDRESS__ /* a training-quality check; the sanitizer pass covers the same code above */
         test_fit_bf16(name);
 #else

@@ -196,7 +196,12 @@ int main(void)
         pg_write_file_atomic(c, blob, n / 2);
         train_model m;
         CHECK(train_model_load(c, &m) == PG_ERR_FORMAT, "truncated checkpoint rejected");
-        /* another format version (here the old one) is refused, in one line naming the file */
+        /* another format version (here the old ones) is refused, in one line naming the file */
+        const char version = blob[8];
+        blob[8] = 3; /* before the head width */
+        pg_write_file_atomic(c, blob, n);
+        CHECK(train_model_load(c, &m) == PG_ERR_FORMAT && strstr(pg_last_error(), "format version 3"),
+              "version 3 checkpoint: %s", pg_last_error());
         blob[8] = 1;
         pg_write_file_atomic(c, blob, n);
         CHECK(train_model_load(c, &m) == PG_ERR_FORMAT && strstr(pg_last_error(), "cut.ckpt") &&
@@ -205,7 +210,7 @@ int main(void)
         train_session *sv = NULL;
         CHECK(train_session_create(&sv, &ts, &c2, c, 1) == PG_ERR_FORMAT && !sv && strstr(pg_last_error(), "cut.ckpt"),
               "resume from a version 1 checkpoint: %s", pg_last_error());
-        blob[8] = 3;
+        blob[8] = version;
         /* every flipped bit is caught (the CRC), in one line naming the file */
         pg_rng fr;
         pg_rng_seed(&fr, 99);
@@ -254,6 +259,11 @@ int main(void)
         train_session *sr = NULL;
         CHECK(train_session_create(&sr, &ts, &c3, c, 1) == PG_ERR_ARG && !sr && strstr(pg_last_error(), "lambda_dssim"),
               "resume with another lambda_dssim: %s", pg_last_error());
+        c3 = c2;
+        c3.deform_head_width = 16;
+        CHECK(train_session_create(&sr, &ts, &c3, c, 1) == PG_ERR_ARG && !sr &&
+                  strstr(pg_last_error(), "deform_head_width=16"),
+              "resume with another head width: %s", pg_last_error());
         /* a temporary file of a killed checkpoint write is removed by the next run */
         char tmp[1300];
         snprintf(tmp, sizeof tmp, "%s.tmp.12345", c);
@@ -268,9 +278,10 @@ int main(void)
     }
     train_set_destroy(&ts);
 
-    /* CLI: kill via PG_TEST_STOP_AT_ITER, resume, same bytes as one run */
+    /* CLI: kill via PG_TEST_STOP_AT_ITER, resume, same bytes as one run (heads narrower than the
+     * network: the head width goes through the checkpoint) */
     const char *opts = "--iters 24 --coarse-iters 8 --checkpoint-every 8 --init-points 1500 --threads 2 --seed 5 "
-                       "--deform-res 8 --deform-width 32";
+                       "--deform-res 8 --deform-width 32 --deform-head-width 16";
     snprintf(cmd, sizeof cmd, "train '%s' --out '%s/m1' %s", data, dir, opts);
     CHECK(test_run_cli(cmd, err, sizeof err) == 0, "train CLI: %s", err);
     setenv("PG_TEST_STOP_AT_ITER", "19", 1);
@@ -282,6 +293,9 @@ int main(void)
     snprintf(a, sizeof a, "%s/m1/model.ckpt", dir);
     snprintf(b, sizeof b, "%s/m2/model.ckpt", dir);
     CHECK(test_files_equal(a, b), "CLI resume: final checkpoints differ");
+    snprintf(cmd, sizeof cmd, "train '%s' --out '%s/m2' %s --deform-head-width 32 --resume", data, dir, opts);
+    CHECK(test_run_cli(cmd, err, sizeof err) != 0 && strstr(err, "deform_head_width=16"),
+          "CLI resume with another head width: %s", err);
     snprintf(a, sizeof a, "%s/m1/train.json", dir);
     CHECK(pg_path_exists(a), "train.json written");
 

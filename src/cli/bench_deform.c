@@ -33,6 +33,7 @@ int bench_deform(int argc, char **argv)
         { "--res-time", CLI_INT, &cfg.res_time, "time resolution T (default 150)" },
         { "--width", CLI_INT, &cfg.width, "MLP width (default 64)" },
         { "--feature-layers", CLI_INT, &cfg.feature_layers, "Linear+ReLU layers before the heads (default 1)" },
+        { "--head-width", CLI_INT, &cfg.head_width, "hidden width of each head (default 0 = --width)" },
     };
     cli_spec spec = { "prodygs bench deform", "[options]", "time the deformation network forward/backward", opts,
                       (int)(sizeof(opts) / sizeof(opts[0])), 0, 0 };
@@ -90,9 +91,9 @@ int bench_deform(int argc, char **argv)
         qsort(tb, reps, sizeof(double), pg_cmp_double);
         printf("{\"bench\":\"deform\",\"points\":%d,\"threads\":%d,\"forward_ms\":%.2f,\"backward_ms\":%.2f,\"forward_min_ms\":%.2f,\"backward_min_ms\":%.2f,"
                "\"forward_cpu_ms\":%.2f,\"backward_cpu_ms\":%.2f,\"regularize_ms\":%.2f,"
-               "\"params\":%zu,\"channels\":%d,\"res\":%d,\"res_time\":%d,\"width\":%d,\"chunk\":%d,\"store\":%d,\"sorted\":%d,\"deform_kernel\":\"%s\"}\n",
+               "\"params\":%zu,\"channels\":%d,\"res\":%d,\"res_time\":%d,\"width\":%d,\"head_width\":%d,\"chunk\":%d,\"store\":%d,\"sorted\":%d,\"deform_kernel\":\"%s\"}\n",
                points, threads, tf[reps / 2], tb[reps / 2], tf[0], tb[0], cpu_f, cpu_b, reg_ms, net->num_params, cfg.channels, cfg.res_space,
-               cfg.res_time, cfg.width, deform_ws_chunk(ws), store, sorted,
+               cfg.res_time, cfg.width, deform_head_width(&cfg), deform_ws_chunk(ws), store, sorted,
                deform_ws_uses_amx(ws) ? gemm_bf16_name(gemm_bf16_backend()) : "f32");
     }
     free(means); free(out); free(dout); free(dmeans); free(tf); free(tb);

@@ -14,6 +14,7 @@
 
 #include "cli/cli.h"
 #include "splat/sh.h"
+#include "deform/deform.h"
 #include "deform/gemm_amx.h"
 #include "splat/raster.h"
 #include "core/parallel.h"
@@ -33,7 +34,7 @@ static double cpu_ms(void)
 
 int bench_iteration(int argc, char **argv)
 {
-    int width = 320, height = 240, n = 100000, threads = 2, reps = 7, no_cull = 0;
+    int width = 320, height = 240, n = 100000, threads = 2, reps = 7, no_cull = 0, head_width = 0;
     float static_fraction = 0;
     cli_option opts[] = {
         {"--width", CLI_INT, &width, "image width (320)"},
@@ -43,6 +44,7 @@ int bench_iteration(int argc, char **argv)
         {"--reps", CLI_INT, &reps, "timed iterations after 2 warm-up ones (7)"},
         {"--static-fraction", CLI_FLOAT, &static_fraction, "fraction of Gaussians flagged static (0)"},
         {"--no-cull", CLI_FLAG, &no_cull, "no frustum culling before the network"},
+        {"--head-width", CLI_INT, &head_width, "hidden width of each deformation head (0 = the network width)"},
     };
     cli_spec spec = {"prodygs bench iteration", "[options]",
                      "Time one fine-stage training iteration (deformation, rasterizer, loss, optimiser).", opts,
@@ -54,6 +56,7 @@ int bench_iteration(int argc, char **argv)
     if (n < 16 || n > 5000000) return cli_usage_error("bench iteration: --gaussians must be in 16..5000000");
     if (threads < 1 || threads > 256 || reps < 1 || reps > 1000) return cli_usage_error("bench iteration: bad threads/reps");
     if (!(static_fraction >= 0 && static_fraction <= 1)) return cli_usage_error("bench iteration: bad --static-fraction");
+    if (head_width < 0 || head_width > 4096) return cli_usage_error("bench iteration: --head-width must be in 0..4096");
     pg_set_threads(threads);
 
     train_set ts;
@@ -88,6 +91,7 @@ int bench_iteration(int argc, char **argv)
     cfg.sh_ramp_every = 0;
     cfg.sh_max_degree = 3;
     cfg.use_frustum_cull = !no_cull;
+    cfg.deform_head_width = head_width;
     cfg.coarse_iters = 1;
     if ((st = train_session_create(&s, &ts, &cfg, NULL, 0))) goto done;
 
@@ -124,6 +128,9 @@ int bench_iteration(int argc, char **argv)
         }
     }
     int deformed = 0;
+    deform_config net_cfg; /* the trainer's network: library defaults but the head width */
+    deform_config_default(&net_cfg);
+    net_cfg.head_width = head_width;
     for (int r = -2; r < reps; r++) {
         double t0 = pg_time_seconds(), c0 = cpu_ms();
         if ((st = train_session_step(s))) goto done;
@@ -146,10 +153,12 @@ int bench_iteration(int argc, char **argv)
     printf("{\"ms_per_iteration\": %.2f, \"cpu_ms_per_iteration\": %.2f, \"deform_forward\": %.2f, \"deform_backward\": %.2f, "
            "\"regularize\": %.2f, \"raster_forward\": %.2f, \"raster_backward\": %.2f, \"loss\": %.2f, \"optimizer\": %.2f, "
            "\"other\": %.2f, \"deformed\": %d, \"gaussians\": %d, \"width\": %d, \"height\": %d, \"threads\": %d, "
-           "\"static_fraction\": %.2f, \"cull\": %s, \"deform_kernel\": \"%s\", \"raster_kernel\": \"%s\"}\n",
+           "\"static_fraction\": %.2f, \"cull\": %s, \"deform_width\": %d, \"head_width\": %d, \"deform_kernel\": \"%s\", "
+           "\"raster_kernel\": \"%s\"}\n",
            pg_median(t[0], reps), pg_median(t[9], reps), pg_median(t[1], reps), pg_median(t[2], reps), pg_median(t[8], reps), pg_median(t[3], reps), pg_median(t[4], reps),
            pg_median(t[5], reps), pg_median(t[6], reps), pg_median(t[7], reps), deformed, n, width, height, threads,
-           static_fraction, no_cull ? "false" : "true", gemm_bf16_name(gemm_bf16_backend()),
+           static_fraction, no_cull ? "false" : "true", net_cfg.width, deform_head_width(&net_cfg),
+           gemm_bf16_name(gemm_bf16_backend()),
            splat_kernel_name(splat_kernel_default()));
 done:
     for (int k = 0; k < 10; k++) free(t[k]);

@@ -50,6 +50,8 @@ pg_status deform_config_validate(const deform_config *c)
     if (c->width < 1 || c->width > 4096) return pg_fail(PG_ERR_ARG, "deform: width %d not in [1, 4096]", c->width);
     if (c->feature_layers < 1 || c->feature_layers > DEFORM_MAX_FEATURE_LAYERS)
         return pg_fail(PG_ERR_ARG, "deform: feature_layers %d not in [1, %d]", c->feature_layers, DEFORM_MAX_FEATURE_LAYERS);
+    if (c->head_width < 0 || c->head_width > 4096)
+        return pg_fail(PG_ERR_ARG, "deform: head_width %d not in [1, 4096] (0 = width)", c->head_width);
     if (!(c->space_init_lo <= c->space_init_hi)) return pg_fail(PG_ERR_ARG, "deform: space init range is empty");
     return PG_OK;
 }
@@ -82,12 +84,12 @@ static size_t plan_layout(deform_network *net)
             off += (hex_plane_size(&net->grid, s, p) + 15) & ~(size_t)15; /* keep planes 64-byte aligned */
         }
     net->num_plane_params = off;
-    int W = c->width, in = c->channels * c->num_scales;
+    int W = c->width, Wh = deform_head_width(c), in = c->channels * c->num_scales;
     net->num_layers = c->feature_layers + 1;
     for (int l = 0; l < net->num_layers; l++) {
         deform_layer *L = &net->layers[l];
         L->in = l == 0 ? in : W;
-        L->out = l == net->num_layers - 1 ? DEFORM_HEADS * W : W;
+        L->out = l == net->num_layers - 1 ? DEFORM_HEADS * Wh : W;
         L->w_off = off;
         off += (size_t)L->in * L->out;
         L->b_off = off;
@@ -95,7 +97,7 @@ static size_t plan_layout(deform_network *net)
     }
     for (int k = 0; k < DEFORM_HEADS; k++) {
         deform_layer *L = &net->heads[k];
-        L->in = W;
+        L->in = Wh;
         L->out = deform_head_dim[k];
         L->w_off = off;
         off += (size_t)L->in * L->out;
@@ -209,8 +211,8 @@ void deform_network_zero_grad(deform_network *net)
 
 struct deform_ws {
     int chunk;            /* points per chunk */
-    int F, W, L;          /* features, width, layers with stored outputs (num_layers) */
-    size_t act_pp;        /* activation floats per point: F + (L-1)*W + 5W */
+    int F, W, Wh, L;      /* features, width, head width, layers with stored outputs (num_layers) */
+    size_t act_pp;        /* activation floats per point: F + (L-1)*W + 5Wh */
     long store_points;    /* activations kept for the first store_points points (a whole chunk multiple) */
     float *store;         /* (store_points, act_pp) chunk-blocked */
     int nthreads;
@@ -245,8 +247,8 @@ static size_t ws_scratch_floats(const deform_ws *ws)
     size_t n;
     if (ws->amx) { /* features, d_out rows, head outputs; the activations live in the AMX module */
         n = c * ws->F + 2 * c * DEFORM_OUT_DIM;
-    } else { /* acts + d_out copy + dA (c, 5W) + two ping-pong (c, max(W, F)) */
-        size_t big = (size_t)DEFORM_HEADS * ws->W;
+    } else { /* acts + d_out copy + dA (c, 5Wh) + two ping-pong (c, max(W, F)) */
+        size_t big = (size_t)DEFORM_HEADS * ws->Wh;
         size_t mx = (size_t)(ws->W > ws->F ? ws->W : ws->F);
         n = c * ws->act_pp + c * DEFORM_OUT_DIM + c * big + 2 * c * mx;
     }
@@ -283,8 +285,9 @@ pg_status deform_ws_create_chunked(deform_ws **out, const deform_network *net, l
     ws->chunk = chunk;
     ws->F = net->cfg.channels * net->cfg.num_scales;
     ws->W = net->cfg.width;
+    ws->Wh = deform_head_width(&net->cfg);
     ws->L = net->num_layers;
-    ws->act_pp = (size_t)ws->F + (size_t)(ws->L - 1) * ws->W + (size_t)DEFORM_HEADS * ws->W;
+    ws->act_pp = (size_t)ws->F + (size_t)(ws->L - 1) * ws->W + (size_t)DEFORM_HEADS * ws->Wh;
     ws->num_params = net->num_params;
     ws->amx = net->cfg.bf16 && gemm_bf16_backend() != GEMM_BF16_NONE;
     ws->scratch_floats = ws_scratch_floats(ws);
@@ -406,7 +409,7 @@ static pg_status ws_sort_points(deform_ws *ws, const hex_grid *g, long n)
 }
 
 /* f32 path: activations of chunk k, stored or this thread's scratch. Layout (m rows each): feat
- * (m, F), layer outputs 0..L-2 (m, W), last layer (m, 5W). */
+ * (m, F), layer outputs 0..L-2 (m, W), last layer (m, 5Wh). */
 static float *chunk_acts(deform_ws *ws, long k, int tid, int *stored)
 {
     long start = k * ws->chunk;
@@ -462,7 +465,7 @@ static void chunk_forward(const deform_network *net, deform_ws *ws, long k, int 
     const float *a = layer_out(ws, acts, net->num_layers - 1, m);
     for (int h = 0; h < DEFORM_HEADS; h++) {
         const deform_layer *L = &net->heads[h];
-        mlp_linear_forward(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->W, DEFORM_HEADS * ws->W,
+        mlp_linear_forward(y + deform_head_offset[h], DEFORM_OUT_DIM, a + (size_t)h * ws->Wh, DEFORM_HEADS * ws->Wh,
                            net->params + L->w_off, net->params + L->b_off, m, L->in, L->out, 0);
     }
 }
@@ -502,7 +505,7 @@ pg_status deform_network_forward(deform_network *net, deform_ws *ws, const float
 static const float *chunk_backward_f32(const deform_network *net, deform_ws *ws, long k, int m, int tid, float *dy,
                                        float *grads)
 {
-    const int W = ws->W, W5 = DEFORM_HEADS * W, F = ws->F;
+    const int W = ws->W, Wh = ws->Wh, W5 = DEFORM_HEADS * Wh, F = ws->F;
     const size_t c = (size_t)ws->chunk, mx = (size_t)(W > F ? W : F);
     int stored;
     float *acts = chunk_acts(ws, k, tid, &stored);
@@ -512,8 +515,8 @@ static const float *chunk_backward_f32(const deform_network *net, deform_ws *ws,
     const float *a = layer_out(ws, acts, net->num_layers - 1, m);
     for (int h = 0; h < DEFORM_HEADS; h++) {
         const deform_layer *L = &net->heads[h];
-        mlp_linear_backward(dA + (size_t)h * W, W5, grads + L->w_off, grads + L->b_off, dy + deform_head_offset[h],
-                            DEFORM_OUT_DIM, NULL, 0, a + (size_t)h * W, W5, net->params + L->w_off, m, L->in, L->out, 0);
+        mlp_linear_backward(dA + (size_t)h * Wh, W5, grads + L->w_off, grads + L->b_off, dy + deform_head_offset[h],
+                            DEFORM_OUT_DIM, NULL, 0, a + (size_t)h * Wh, W5, net->params + L->w_off, m, L->in, L->out, 0);
     }
     float *dcur = dA, *dnext = dB;
     for (int l = net->num_layers - 1; l >= 0; l--) {
@@ -670,8 +673,14 @@ float deform_network_regularize(deform_network *net, float w_tv, float w_time, f
 /* ---------------------------------------------------------------------------------------------- */
 /* blobs                                                                                           */
 
-#define BLOB_MAGIC "PGDEFRM1"
-#define BLOB_HEADER (8 + 4 * 6 + 4 * 6 + 8)
+/* magic, i32 channels, res_space, num_scales, res_time, width, feature_layers, head_width, f32 aabb[6],
+ * u64 parameter count. Version 1 (no head_width) is refused. */
+#define BLOB_MAGIC "PGDEFRM2"
+#define BLOB_MAGIC_V1 "PGDEFRM1"
+#define BLOB_INTS 7
+#define BLOB_AABB (8 + 4 * BLOB_INTS)
+#define BLOB_COUNT (BLOB_AABB + 4 * 6)
+#define BLOB_HEADER (BLOB_COUNT + 8)
 
 size_t deform_network_blob_size(const deform_network *net) { return BLOB_HEADER + net->num_params * sizeof(float); }
 
@@ -681,12 +690,13 @@ pg_status deform_network_write_blob(const deform_network *net, void *buf, size_t
         return pg_fail(PG_ERR_SIZE, "deform_network_write_blob: buffer of %zu bytes is too small", size);
     unsigned char *p = buf;
     const deform_config *c = &net->cfg;
-    int32_t h[6] = { c->channels, c->res_space, c->num_scales, c->res_time, c->width, c->feature_layers };
+    int32_t h[BLOB_INTS] = { c->channels, c->res_space, c->num_scales, c->res_time, c->width, c->feature_layers,
+                             c->head_width };
     uint64_t np = net->num_params;
     memcpy(p, BLOB_MAGIC, 8);
     memcpy(p + 8, h, sizeof(h));
-    memcpy(p + 32, net->grid.aabb, 6 * sizeof(float));
-    memcpy(p + 56, &np, 8);
+    memcpy(p + BLOB_AABB, net->grid.aabb, 6 * sizeof(float));
+    memcpy(p + BLOB_COUNT, &np, 8);
     memcpy(p + BLOB_HEADER, net->params, net->num_params * sizeof(float));
     return PG_OK;
 }
@@ -695,14 +705,17 @@ pg_status deform_network_read_blob(deform_network **out, const void *buf, size_t
 {
     *out = NULL;
     const unsigned char *p = buf;
+    if (size >= 8 && memcmp(p, BLOB_MAGIC_V1, 8) == 0)
+        return pg_fail(PG_ERR_FORMAT, "%s: deformation network blob format %s (before head_width), this build reads only %s",
+                       what, BLOB_MAGIC_V1, BLOB_MAGIC);
     if (size < BLOB_HEADER || memcmp(p, BLOB_MAGIC, 8) != 0)
         return pg_fail(PG_ERR_FORMAT, "%s: not a deformation network blob", what);
-    int32_t h[6];
+    int32_t h[BLOB_INTS];
     float aabb[6];
     uint64_t np;
     memcpy(h, p + 8, sizeof(h));
-    memcpy(aabb, p + 32, sizeof(aabb));
-    memcpy(&np, p + 56, 8);
+    memcpy(aabb, p + BLOB_AABB, sizeof(aabb));
+    memcpy(&np, p + BLOB_COUNT, 8);
     deform_config c;
     deform_config_default(&c);
     c.channels = h[0];
@@ -711,6 +724,7 @@ pg_status deform_network_read_blob(deform_network **out, const void *buf, size_t
     c.res_time = h[3];
     c.width = h[4];
     c.feature_layers = h[5];
+    c.head_width = h[6];
     pg_status st = deform_config_validate(&c);
     if (st) return pg_fail_context(PG_ERR_FORMAT, "%s: ", what);
     deform_network *net;

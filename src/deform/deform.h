@@ -2,12 +2,12 @@
  *
  * For a canonical Gaussian centre x and a time t in [0,1] the network predicts
  *     out (59) = [ dpos(3) | dlogscale(3) | dquat(4) | dopacity(1) | dSH(48) ]
- * Pipeline per point (F = S*C features, W = width):
+ * Pipeline per point (F = S*C features, W = width, Wh = head width, default W):
  *     feat (F)  = HexPlane(x, t)                       (hexplane.h)
  *     h    (W)  = [Linear + ReLU] x feature_layers      (first layer F -> W, then W -> W)
- *     a    (5W) = ReLU(Linear_W->5W(h))                 (the five heads' first layers, fused;
+ *     a   (5Wh) = ReLU(Linear_W->5Wh(h))                (the five heads' first layers, fused;
  *                                                        h is already ReLU'd = the heads' first ReLU)
- *     out_k     = Linear_W->d_k(a[kW:(k+1)W])           (head k's last layer, init 0 => identity)
+ *     out_k     = Linear_Wh->d_k(a[kWh:(k+1)Wh])        (head k's last layer, init 0 => identity)
  *
  * Parameters live in ONE flat array (net->params, net->num_params floats) with a matching gradient
  * array (net->grads), so Adam runs over flat arrays. The planes come first:
@@ -65,6 +65,9 @@ typedef struct {
     int res_time;          /* T, time resolution (default 150; >= 2) */
     int width;             /* W, MLP width (default 64: measured as good as 128, docs/deform.md) */
     int feature_layers;    /* Linear+ReLU layers before the heads (default 1) */
+    int head_width;        /* Wh, hidden width of each head (0, the default: = width). Any value in
+                            * [1, 4096]: the bf16 path pads 5*Wh to a multiple of 32 itself (as it
+                            * does 5W), so multiples of 32 waste no padding there. */
     float space_init_lo;   /* spatial planes ~ U(lo, hi) (default 0.1, 0.5); time planes = 1 */
     float space_init_hi;
     float head_init_scale; /* heads' last layers = scale * Xavier-uniform (default 0: identity) */
@@ -88,15 +91,17 @@ typedef struct {
     size_t num_plane_params;           /* planes = params[0, num_plane_params) */
     float *params;                     /* (num_params) */
     float *grads;                      /* (num_params), += by backward / regularize */
-    int num_layers;                    /* feature_layers + 1 (the fused head first layers) */
+    int num_layers;                    /* feature_layers + 1 (the fused head first layers, W -> 5Wh) */
     deform_layer layers[DEFORM_MAX_FEATURE_LAYERS + 1];
-    deform_layer heads[DEFORM_HEADS];  /* last layers W -> d_k */
+    deform_layer heads[DEFORM_HEADS];  /* last layers Wh -> d_k */
     size_t plane_off[HEX_MAX_SCALES][HEX_PLANES];
 } deform_network;
 
 typedef struct deform_ws deform_ws;
 
 void deform_config_default(deform_config *cfg);
+/* Wh: cfg->head_width, or the width when it is 0. */
+static inline int deform_head_width(const deform_config *cfg) { return cfg->head_width > 0 ? cfg->head_width : cfg->width; }
 /* Checks sizes; PG_ERR_ARG with the offending field otherwise. */
 pg_status deform_config_validate(const deform_config *cfg);
 

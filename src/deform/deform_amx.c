@@ -28,15 +28,15 @@ typedef struct {
 } amx_thread;
 
 struct deform_amx {
-    int L, W, F, mp, k4;             /* layers, width, features, padded chunk, 32-aligned start of head 4's inputs */
-    int d[MAX_ACTS];                 /* padded widths of the activations: d[0] features, d[L] = 5W padded */
+    int L, Wh, F, mp, k4;            /* layers, head width, features, padded chunk, 32-aligned start of head 4's inputs */
+    int d[MAX_ACTS];                 /* padded widths of the activations: d[0] features, d[L] = 5Wh padded */
     size_t rm_off[MAX_ACTS], tr_off[MAX_ACTS], act_elems; /* activations 1..L in a thread's acts */
     float *feats;                    /* (feat_chunks, mp, F): the f32 features of every chunk (layer 0's A) */
     long feat_chunks;
     float *w0;                       /* layer 0's w^T (F, d_1), f32: B of the f32 first layer */
     uint16_t *wf[DEFORM_MAX_FEATURE_LAYERS + 1], *wb[DEFORM_MAX_FEATURE_LAYERS + 1]; /* w as B of x w^T (l >= 1), of d_y w */
-    float *hsh;                      /* SH head's w^T (W, 48), f32 */
-    float *hsm;                      /* the small heads' w rows (11, W), f32 */
+    float *hsh;                      /* SH head's w^T (Wh, 48), f32 */
+    float *hsm;                      /* the small heads' w rows (11, Wh), f32 */
     float *hbias;                    /* the heads' biases (59) in output order */
     int koff[DEFORM_OUT_SH];         /* the small heads' outputs: start of their head's inputs */
     uint16_t *hb;                    /* heads' last layers, block-diagonal (64, d_L), as B of d a = d_out W_heads */
@@ -95,15 +95,15 @@ static size_t shared_layout(deform_amx *a, char *base)
     size_t p = 0;
     deform_amx dummy;
     deform_amx *s = base ? a : &dummy;
-    const size_t W = (size_t)a->W;
+    const size_t Wh = (size_t)a->Wh;
     s->w0 = carve(base, &p, (size_t)a->F * a->d[1] * sizeof(float));
     for (int l = 0; l < a->L; l++) {
         if (l > 0) s->wf[l] = carve(base, &p, (size_t)a->d[l] * a->d[l + 1] * 2);
         s->wb[l] = carve(base, &p, (size_t)a->d[l] * a->d[l + 1] * 2);
         s->bias[l] = carve(base, &p, (size_t)a->d[l + 1] * sizeof(float));
     }
-    s->hsh = carve(base, &p, W * deform_head_dim[SH_HEAD] * sizeof(float));
-    s->hsm = carve(base, &p, W * DEFORM_OUT_SH * sizeof(float));
+    s->hsh = carve(base, &p, Wh * deform_head_dim[SH_HEAD] * sizeof(float));
+    s->hsm = carve(base, &p, Wh * DEFORM_OUT_SH * sizeof(float));
     s->hbias = carve(base, &p, DEFORM_OUT_DIM * sizeof(float));
     s->hb = carve(base, &p, (size_t)a->d[a->L] * HEAD_N * 2);
     return p;
@@ -115,16 +115,16 @@ pg_status deform_amx_create(deform_amx **out, const deform_network *net, int chu
     deform_amx *a = pg_calloc(1, sizeof(*a), "deform AMX path");
     if (!a) return PG_ERR_NOMEM;
     a->L = net->num_layers;
-    a->W = net->cfg.width;
+    a->Wh = deform_head_width(&net->cfg);
     a->F = net->layers[0].in;
     a->mp = gemm_amx_round(chunk);
-    a->k4 = (4 * a->W) & ~31;
+    a->k4 = (4 * a->Wh) & ~31;
     for (int l = 0; l < a->L; l++) {
         a->d[l] = gemm_amx_round(net->layers[l].in);
         a->d[l + 1] = gemm_amx_round(net->layers[l].out);
     }
     for (int h = 0; h < SH_HEAD; h++)
-        for (int r = 0; r < deform_head_dim[h]; r++) a->koff[deform_head_offset[h] + r] = h * a->W;
+        for (int r = 0; r < deform_head_dim[h]; r++) a->koff[deform_head_offset[h] + r] = h * a->Wh;
     size_t off = 0;
     for (int i = 1; i <= a->L; i++) {
         a->rm_off[i] = off;
@@ -176,19 +176,19 @@ void deform_amx_destroy(deform_amx *a)
     free(a);
 }
 
-/* Weight of the heads' last layers as one block-diagonal (5W, 59) matrix: input k, output o (the
+/* Weight of the heads' last layers as one block-diagonal (5Wh, 59) matrix: input k, output o (the
  * backward's bf16 operand). */
 static float head_weight(const deform_network *net, int k, int o)
 {
-    int W = net->cfg.width, h = DEFORM_HEADS - 1;
+    int Wh = deform_head_width(&net->cfg), h = DEFORM_HEADS - 1;
     while (deform_head_offset[h] > o) h--;
-    if (o >= DEFORM_OUT_DIM || k / W != h) return 0.0f;
-    return net->params[net->heads[h].w_off + (size_t)(o - deform_head_offset[h]) * W + (k - h * W)];
+    if (o >= DEFORM_OUT_DIM || k / Wh != h) return 0.0f;
+    return net->params[net->heads[h].w_off + (size_t)(o - deform_head_offset[h]) * Wh + (k - h * Wh)];
 }
 
 void deform_amx_pack_forward(deform_amx *a, const deform_network *net)
 {
-    const int W = a->W, d1 = a->d[1];
+    const int Wh = a->Wh, d1 = a->d[1];
     const float *w0 = net->params + net->layers[0].w_off;
     for (int k = 0; k < a->F; k++)
         for (int n = 0; n < d1; n++) a->w0[(size_t)k * d1 + n] = n < net->layers[0].out ? w0[(size_t)n * a->F + k] : 0.0f;
@@ -199,12 +199,12 @@ void deform_amx_pack_forward(deform_amx *a, const deform_network *net)
     }
     const int nsh = deform_head_dim[SH_HEAD];
     const float *wsh = net->params + net->heads[SH_HEAD].w_off;
-    for (int k = 0; k < W; k++)
-        for (int o = 0; o < nsh; o++) a->hsh[(size_t)k * nsh + o] = wsh[(size_t)o * W + k];
+    for (int k = 0; k < Wh; k++)
+        for (int o = 0; o < nsh; o++) a->hsh[(size_t)k * nsh + o] = wsh[(size_t)o * Wh + k];
     for (int h = 0; h < DEFORM_HEADS; h++) {
         const deform_layer *Ly = &net->heads[h];
         if (h < SH_HEAD)
-            memcpy(a->hsm + (size_t)deform_head_offset[h] * W, net->params + Ly->w_off, (size_t)Ly->out * W * sizeof(float));
+            memcpy(a->hsm + (size_t)deform_head_offset[h] * Wh, net->params + Ly->w_off, (size_t)Ly->out * Wh * sizeof(float));
         memcpy(a->hbias + deform_head_offset[h], net->params + Ly->b_off, (size_t)Ly->out * sizeof(float));
     }
 }
@@ -215,7 +215,7 @@ void deform_amx_pack_backward(deform_amx *a, const deform_network *net)
         const deform_layer *Ly = &net->layers[l];
         gemm_amx_pack_b(a->wb[l], net->params + Ly->w_off, Ly->in, 1, Ly->out, Ly->in);
     }
-    const int N = a->d[a->L], in = DEFORM_HEADS * a->W;
+    const int N = a->d[a->L], in = DEFORM_HEADS * a->Wh;
     for (int oo = 0; oo < HEAD_N / 2; oo++)
         for (int k = 0; k < N; k++)
             for (int e = 0; e < 2; e++)
@@ -239,7 +239,7 @@ pg_status deform_amx_prepare(deform_amx *a, long nchunks)
 void deform_amx_chunk_forward(deform_amx *a, int tid, long k, const float *feat, int m, float *y)
 {
     amx_thread *t = &a->th[tid];
-    const int mp = a->mp, F = a->F, L = a->L, W = a->W;
+    const int mp = a->mp, F = a->F, L = a->L, Wh = a->Wh;
     float *fk = a->feats + (size_t)k * mp * F;
     if (feat) { /* padding rows are zero, so padded points stay finite and add nothing to gradients */
         memcpy(fk, feat, (size_t)m * F * sizeof(float));
@@ -273,9 +273,9 @@ void deform_amx_chunk_forward(deform_amx *a, int tid, long k, const float *feat,
     /* the heads in f32: the 11 outputs of the small heads, then the 48 of SH */
     const float *hid = t->hid;
     const int dL = a->d[L], nsh = deform_head_dim[SH_HEAD];
-    gemm_f32_dots(hid, dL, a->hsm, a->koff, a->hbias, m, DEFORM_OUT_SH, W, y, DEFORM_OUT_DIM);
+    gemm_f32_dots(hid, dL, a->hsm, a->koff, a->hbias, m, DEFORM_OUT_SH, Wh, y, DEFORM_OUT_DIM);
     gemm_amx_epilogue eh = { .c = y + DEFORM_OUT_SH, .ldc = DEFORM_OUT_DIM, .bias = a->hbias + DEFORM_OUT_SH };
-    gemm_f32(hid + (size_t)SH_HEAD * W, dL, a->hsh, nsh, m, nsh, W, &eh);
+    gemm_f32(hid + (size_t)SH_HEAD * Wh, dL, a->hsh, nsh, m, nsh, Wh, &eh);
 }
 
 void deform_amx_backward_begin(deform_amx *a, int tid)
@@ -342,13 +342,13 @@ void deform_amx_backward_end(deform_amx *a, const deform_network *net, int tid, 
             for (int o = 0; o < Ly->out; o++) gw[(size_t)o * Ly->in + i] += t->dwt[l][(size_t)i * dout + o];
         for (int o = 0; o < Ly->out; o++) gb[o] += t->db[l][o];
     }
-    const int W = a->W, dL = a->d[a->L];
+    const int Wh = a->Wh, dL = a->d[a->L];
     for (int h = 0; h < DEFORM_HEADS; h++) {
         const deform_layer *Ly = &net->heads[h];
         for (int r = 0; r < Ly->out; r++) {
-            const float *s = t->dwh + (size_t)(deform_head_offset[h] + r) * dL + (size_t)h * W;
-            float *gw = grads + Ly->w_off + (size_t)r * W;
-            for (int c = 0; c < W; c++) gw[c] += s[c];
+            const float *s = t->dwh + (size_t)(deform_head_offset[h] + r) * dL + (size_t)h * Wh;
+            float *gw = grads + Ly->w_off + (size_t)r * Wh;
+            for (int c = 0; c < Wh; c++) gw[c] += s[c];
             grads[Ly->b_off + r] += t->dbh[deform_head_offset[h] + r];
         }
     }

@@ -11,14 +11,15 @@
  *     act 0 = features, act l+1 = output of layer l (the last one = the heads' hidden layer a)
  *     act a row-major (mp, d_a)  - A operand of the next forward GEMM, and the backward ReLU mask
  *     act a transposed (d_a, mp) - A operand of the weight gradient d_W^T += x^T d_y (a < last)
- * (mp = chunk rounded up to 32, d_a = width rounded up to 32; act 0 is bf16 only in its transposed
- * copy, packed by the backward); the forward writes the last one in f32 instead, the input of the
- * f32 heads. The backward writes each input gradient once as row-major (A of the next input
+ * (mp = chunk rounded up to 32, d_a = its width (W, or 5Wh for the last) rounded up to 32; act 0
+ * is bf16 only in its transposed copy, packed by the backward); the forward writes the last one in
+ * f32 instead, the input of the f32 heads. The backward writes each input gradient once as row-major (A of the next input
  * gradient) and as VNNI pairs of points (B of the weight gradient). Its five heads' last layers
- * run as one 5W -> 64 block-diagonal GEMM split into two calls that skip the all-zero blocks
- * (outputs 0-15 hold the 11 small-head outputs and read all 5W inputs; outputs 16-63 are SH only
- * and read head 4's W inputs). Weight gradients accumulate in f32 per thread and are added to the
- * caller's gradient buffer by deform_amx_backward_end.
+ * run as one 5Wh -> 64 block-diagonal GEMM (Wh = head width) split into two calls that skip the
+ * all-zero blocks (outputs 0-15 hold the 11 small-head outputs and read all 5Wh inputs; outputs
+ * 16-63 are SH only and read head 4's Wh inputs, from the 32-aligned column k4 <= 4Wh on). Weight
+ * gradients accumulate in f32 per thread and are added to the caller's gradient buffer by
+ * deform_amx_backward_end.
  */
 #ifndef PG_DEFORM_DEFORM_AMX_H
 #define PG_DEFORM_DEFORM_AMX_H

@@ -63,6 +63,8 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "--seed must be >= 0 (got %d)", c->seed);
     if (c->deform_width < 0 || c->deform_width > 1024)
         return pg_fail(PG_ERR_ARG, "--deform-width must be in 1..1024 (got %d)", c->deform_width);
+    if (c->deform_head_width < 0 || c->deform_head_width > 1024)
+        return pg_fail(PG_ERR_ARG, "--deform-head-width must be in 1..1024 (got %d)", c->deform_head_width);
     if (c->depth_scale < 0) return pg_fail(PG_ERR_ARG, "--depth-scale must be > 0 (got %g)", c->depth_scale);
     if (c->pose_scale < 0) return pg_fail(PG_ERR_ARG, "--pose-scale must be > 0 (got %g)", c->pose_scale);
     if (c->max_angle < 0 || c->max_angle >= 90)
@@ -303,6 +305,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.out = dir;
     tc.iters = plan->iters;
     tc.deform_width = c->deform_width;
+    tc.deform_head_width = c->deform_head_width;
     tc.seed = c->seed;
     tc.threads = plan->threads;
     /* the proxies' marker holds the hashes of the video and depth they were made from */

@@ -39,10 +39,10 @@ cJSON *stage_train_config_json(const pg_train_config *c)
     cJSON *j = cJSON_CreateObject();
     const int ints[] = { c->iters, c->coarse_iters, c->seed, c->max_gaussians, c->init_points, c->sh_degree,
                          c->proxies, c->frames, c->width, c->views_per_step, c->deform_res, c->deform_width,
-                         c->static_check_every, c->use_static, c->use_cull };
+                         c->deform_head_width, c->static_check_every, c->use_static, c->use_cull };
     static const char *int_names[] = { "iters", "coarse_iters", "seed", "max_gaussians", "init_points", "sh_degree",
                                        "proxies", "frames", "width", "views_per_step", "deform_res", "deform_width",
-                                       "static_check_every", "use_static", "use_cull" };
+                                       "deform_head_width", "static_check_every", "use_static", "use_cull" };
     for (size_t k = 0; k < sizeof ints / sizeof ints[0]; k++) cJSON_AddNumberToObject(j, int_names[k], ints[k]);
     const float floats[] = { c->real_weight, c->moving_weight, c->lambda_depth, c->lambda_dssim };
     static const char *float_names[] = { "real_weight", "moving_weight", "lambda_depth", "lambda_dssim" };
@@ -75,6 +75,9 @@ static pg_status check_config(const pg_train_config *c)
     if (c->sh_degree < 0 || c->sh_degree > 3) return pg_fail(PG_ERR_ARG, "train: --sh-degree must be 0..3");
     if (c->deform_res < 0 || c->deform_res > 1024 || c->deform_width < 0 || c->deform_width > 1024)
         return pg_fail(PG_ERR_ARG, "train: --deform-res/--deform-width out of range 0..1024");
+    if (c->deform_head_width < 0 || c->deform_head_width > 1024)
+        return pg_fail(PG_ERR_ARG, "train: --deform-head-width %d out of range 1..1024 (0 = --deform-width)",
+                       c->deform_head_width);
     if (c->checkpoint_every < 0) return pg_fail(PG_ERR_ARG, "train: --checkpoint-every must be >= 0");
     if (c->static_check_every < 0) return pg_fail(PG_ERR_ARG, "train: --static-check-every must be >= 0");
     return PG_OK;
@@ -225,6 +228,7 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
     if (c->lambda_dssim >= 0) cfg.lambda_dssim = c->lambda_dssim;
     cfg.deform_res = c->deform_res;
     cfg.deform_width = c->deform_width;
+    cfg.deform_head_width = c->deform_head_width;
     cfg.use_static_flags = c->use_static;
     cfg.static_check_every = c->static_check_every;
     cfg.use_frustum_cull = c->use_cull;

@@ -25,6 +25,7 @@ typedef struct train_net train_net;
 typedef struct {
     float aabb_min[3], aabb_max[3]; /* position normalisation box */
     int width, res, tres, channels;  /* 0 = defaults */
+    int head_width;                  /* 0 = width */
     uint64_t seed;
 } train_net_config;
 

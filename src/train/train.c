@@ -180,6 +180,7 @@ static pg_status start_fine(train_session *s)
         nc.aabb_max[k] = hi[k] + pad;
     }
     nc.width = s->cfg.deform_width;
+    nc.head_width = s->cfg.deform_head_width;
     nc.res = s->cfg.deform_res;
     /* one time texel per frame: motion that changes between frames needs its own texel */
     nc.tres = s->cfg.deform_tres > 0 ? s->cfg.deform_tres : (s->ts->frames > 2 ? s->ts->frames : 2);

@@ -31,6 +31,7 @@ static void deform_config_of(const train_net_config *cfg, deform_config *dc)
     if (cfg->res > 0) dc->res_space = cfg->res;
     if (cfg->tres > 0) dc->res_time = cfg->tres;
     if (cfg->channels > 0) dc->channels = cfg->channels;
+    dc->head_width = cfg->head_width;
     dc->seed = cfg->seed;
 }
 
