@@ -143,7 +143,7 @@ typedef struct {
     int views_per_step;     /* real view + proxies of one time per deformation (4) */
     float real_weight, moving_weight, lambda_depth, lambda_dssim; /* < 0: defaults */
     int deform_res, deform_width, static_check_every; /* 0: defaults / off */
-    int deform_head_width;  /* hidden width of each deformation head (0: deform_width) */
+    int deform_head_width;  /* hidden width of each deformation head (0: the trainer's default, 32) */
     int use_static, use_cull; /* static Gaussians skip the network; frustum culling (1, 1) */
     int eval_train;         /* also score the real views, moving and static pixels apart */
     int stop_at_iter;       /* tests: stop after this iteration as if killed (0: off) */
@@ -273,7 +273,7 @@ typedef struct {
     int refine, align, fuse;          /* (1, 1, 1) */
     int frames, width, height, iters; /* 0: all / the preset's */
     int deform_width;                 /* 0: the trainer's default */
-    int deform_head_width;            /* 0: the deformation width */
+    int deform_head_width;            /* 0: the trainer's default (32) */
     int threads;                      /* 0: all cores; every stage uses this count */
     int seed;                         /* (1) */
     int evaluate;                     /* score the test cameras into OUT/metrics.json, report.md */

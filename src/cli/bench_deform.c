@@ -9,6 +9,7 @@
 #include "core/parallel.h"
 #include "core/rng.h"
 #include "deform/deform.h"
+#include "train/train.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -20,6 +21,7 @@ int bench_deform(int argc, char **argv)
     int points = 100000, threads = 1, reps = 5, chunk = 0, store = 1, sorted = 0;
     deform_config cfg;
     deform_config_default(&cfg);
+    cfg.head_width = train_default_config().deform_head_width; /* the trainer's network */
     const cli_option opts[] = {
         { "--points", CLI_INT, &points, "number of points (default 100000)" },
         { "--threads", CLI_INT, &threads, "threads (default 1)" },
@@ -33,7 +35,7 @@ int bench_deform(int argc, char **argv)
         { "--res-time", CLI_INT, &cfg.res_time, "time resolution T (default 150)" },
         { "--width", CLI_INT, &cfg.width, "MLP width (default 64)" },
         { "--feature-layers", CLI_INT, &cfg.feature_layers, "Linear+ReLU layers before the heads (default 1)" },
-        { "--head-width", CLI_INT, &cfg.head_width, "hidden width of each head (default 0 = --width)" },
+        { "--head-width", CLI_INT, &cfg.head_width, "hidden width of each head (default 32, the trainer's; 0 = --width)" },
     };
     cli_spec spec = { "prodygs bench deform", "[options]", "time the deformation network forward/backward", opts,
                       (int)(sizeof(opts) / sizeof(opts[0])), 0, 0 };

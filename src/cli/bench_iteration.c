@@ -34,7 +34,7 @@ static double cpu_ms(void)
 
 int bench_iteration(int argc, char **argv)
 {
-    int width = 320, height = 240, n = 100000, threads = 2, reps = 7, no_cull = 0, head_width = 0;
+    int width = 320, height = 240, n = 100000, threads = 2, reps = 7, no_cull = 0, head_width = train_default_config().deform_head_width;
     float static_fraction = 0;
     cli_option opts[] = {
         {"--width", CLI_INT, &width, "image width (320)"},
@@ -44,7 +44,7 @@ int bench_iteration(int argc, char **argv)
         {"--reps", CLI_INT, &reps, "timed iterations after 2 warm-up ones (7)"},
         {"--static-fraction", CLI_FLOAT, &static_fraction, "fraction of Gaussians flagged static (0)"},
         {"--no-cull", CLI_FLAG, &no_cull, "no frustum culling before the network"},
-        {"--head-width", CLI_INT, &head_width, "hidden width of each deformation head (0 = the network width)"},
+        {"--head-width", CLI_INT, &head_width, "hidden width of each deformation head (the trainer's 32; 0 = the network width)"},
     };
     cli_spec spec = {"prodygs bench iteration", "[options]",
                      "Time one fine-stage training iteration (deformation, rasterizer, loss, optimiser).", opts,

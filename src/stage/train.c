@@ -228,7 +228,7 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
     if (c->lambda_dssim >= 0) cfg.lambda_dssim = c->lambda_dssim;
     cfg.deform_res = c->deform_res;
     cfg.deform_width = c->deform_width;
-    cfg.deform_head_width = c->deform_head_width;
+    if (c->deform_head_width > 0) cfg.deform_head_width = c->deform_head_width;
     cfg.use_static_flags = c->use_static;
     cfg.static_check_every = c->static_check_every;
     cfg.use_frustum_cull = c->use_cull;

@@ -64,6 +64,7 @@ train_config train_default_config(void)
     c.percent_dense = 0.01f;
     c.prune_opacity = 0.005f;
     c.prune_big_scale = 0.2f;
+    c.deform_head_width = 32; /* half the width: as good as 64 on tabletop_dev, the network ~28 % cheaper (docs/deform.md) */
     c.use_static_flags = 1;
     c.use_frustum_cull = 1;
     c.static_check_every = 0;

@@ -51,7 +51,7 @@ typedef struct {
     int static_check_every;  /* learned static flags: re-check every k fine iterations (0 = off) */
     float static_eps;        /* max |delta position| / extent to call a Gaussian static */
     int deform_width, deform_res, deform_tres, deform_channels; /* 0 = library defaults */
-    int deform_head_width;   /* hidden width of each of the network's five heads (0 = deform_width) */
+    int deform_head_width;   /* hidden width of each of the network's five heads (32; 0 = deform_width) */
 } train_config;
 
 /* Most views trained against one deformation (views_per_step is clamped to it). */
