@@ -14,6 +14,7 @@
 #include "core/fileutil.h"
 #include "core/rng.h"
 #include "io/image_io.h"
+#include "io/json.h"
 #include "io/ply.h"
 #include "prodygs.h"
 #include "render/scene_cameras.h"
@@ -141,6 +142,21 @@ static void check_exports(const char *dir, const char *model)
     snprintf(path, sizeof path, "%s/ex/cameras.json", dir);
     scene_cameras *sc = malloc(sizeof *sc);
     CHECK_OK(scene_cameras_load(path, sc));
+    { /* a frame count no int holds is refused in one line (fuzz_trainset: UB casting 3e62 to int) */
+        cJSON *root = NULL;
+        char bad[1500];
+        snprintf(bad, sizeof bad, "%s/ex/cameras_bad.json", dir);
+        CHECK_OK(io_json_load(path, &root));
+        if (root) {
+            cJSON_ReplaceItemInObject(root, "frames", cJSON_CreateNumber(3e62));
+            CHECK_OK(io_json_write_atomic(bad, root));
+            cJSON_Delete(root);
+            CHECK(scene_cameras_load(bad, sc) == PG_ERR_FORMAT && strstr(pg_last_error(), "cameras_bad.json") &&
+                      strstr(pg_last_error(), "frames") && !strchr(pg_last_error(), '\n'),
+                  "frames 3e62: %s", pg_last_error());
+        }
+        CHECK_OK(scene_cameras_load(path, sc));
+    }
     pg_gaussians g = { 0 };
     snprintf(path, sizeof path, "%s/ex/time_0.500.ply", dir);
     CHECK_OK(io_ply_load(path, &g));

@@ -47,7 +47,9 @@ pg_status scene_cameras_load(const char *path, scene_cameras *sc)
         st = pg_fail(PG_ERR_FORMAT, "%s: no camera has role \"real\"", file);
         goto done;
     }
-    sc->frames = (int)io_json_number_or(root, "frames", 0);
+    sc->frames = 0; /* optional; a huge or fractional count is refused, not cast */
+    if (cJSON_GetObjectItem(root, "frames") && (st = io_json_get_int(root, "frames", file, 0, 1000000, &sc->frames)))
+        goto done;
     sc->fps = io_json_number_or(root, "fps", 30);
     const cJSON *scene = cJSON_GetObjectItem(root, "scene");
     if (!scene || io_json_get_floats(scene, "center", "scene", sc->center, 3) != PG_OK) {
