@@ -269,7 +269,17 @@ pg_status nn_tfl_ref_run(const nn_tfl_model *m, const float *input, float **out,
     }
     for (int k = 0; !st && k < m->num_ops; k++) {
         const nn_tfl_op *op = &m->ops[k];
+        /* a file may order its ops so that one reads what nothing wrote yet, or write a constant */
+        for (int j = 0; j < op->num_inputs && !st; j++)
+            if (op->inputs[j] >= 0 && ((!buf[op->inputs[j]] && !nn_tfl_is_const(&m->tensors[op->inputs[j]])) ||
+                                       op->inputs[j] == op->output))
+                st = pg_fail(PG_ERR_FORMAT, "reference run: op %d reads tensor %d %s", k, op->inputs[j],
+                             op->inputs[j] == op->output ? "that it also writes" : "before anything writes it");
+        if (!st && nn_tfl_is_const(&m->tensors[op->output]))
+            st = pg_fail(PG_ERR_FORMAT, "reference run: op %d writes the constant tensor %d", k, op->output);
+        if (st) break;
         const nn_tfl_tensor *yt = &m->tensors[op->output], *t0 = &m->tensors[op->inputs[0]];
+        free(buf[op->output]); /* written twice: the earlier value is dead */
         float *y = pg_malloc((size_t)yt->count * sizeof(float), "reference activation");
         if (!y) {
             st = PG_ERR_NOMEM;
@@ -316,8 +326,13 @@ pg_status nn_tfl_ref_run(const nn_tfl_model *m, const float *input, float **out,
             }
         }
     }
-    for (int j = 0; !st && j < num_outputs; j++)
+    for (int j = 0; !st && j < num_outputs; j++) {
+        if (!buf[m->outputs[j]]) {
+            st = pg_fail(PG_ERR_FORMAT, "reference run: output tensor %d is never computed", m->outputs[j]);
+            break;
+        }
         memcpy(out[j], buf[m->outputs[j]], (size_t)m->tensors[m->outputs[j]].count * sizeof(float));
+    }
     for (int i = 0; buf && i < m->num_tensors; i++)
         if (!nn_tfl_is_const(&m->tensors[i])) free(buf[i]);
     free(buf);
