@@ -522,21 +522,21 @@ static void write_corpus(const char *dir)
     free(b);
 }
 
-/* fuzz_tflite: a graph whose output no op writes made the reference interpreter memcpy from NULL;
- * it is refused in one line now. */
-static void test_reference_refuses_unwritten_output(void)
+/* fuzz_tflite: graphs whose output no op writes, or whose ADD reads an integer tensor, made the
+ * reference interpreter read through NULL; they are refused in one line now. */
+static void test_reference_refuses_broken_graph(const char *file)
 {
-    char *data = NULL;
+    char *data = NULL, path[4096];
     size_t size = 0;
-    CHECK_OK(pg_read_file(PG_SOURCE_DIR "/tests/fuzz/corpus/tflite/crash-output-never-written.tflite", 1 << 20, &data,
-                          &size));
+    snprintf(path, sizeof path, "%s/tests/fuzz/corpus/tflite/%s", PG_SOURCE_DIR, file);
+    CHECK_OK(pg_read_file(path, 1 << 20, &data, &size));
     nn_tfl_model m;
     if (data && nn_tfl_parse((const uint8_t *)data, size, "unwritten.tflite", &m) == PG_OK) {
         float *x = calloc((size_t)m.tensors[m.inputs[0]].count + 1, sizeof(float));
         float *y = calloc((size_t)m.tensors[m.outputs[0]].count + 1, sizeof(float));
         pg_status st = nn_tfl_ref_run(&m, x, &y, 1);
         CHECK(st == PG_ERR_FORMAT && strstr(pg_last_error(), "reference run") && !strchr(pg_last_error(), '\n'),
-              "graph with an unwritten output: status %d, %s", st, pg_last_error());
+              "%s: status %d, %s", file, st, pg_last_error());
         free(x);
         free(y);
         nn_tfl_destroy(&m);
@@ -547,7 +547,8 @@ static void test_reference_refuses_unwritten_output(void)
 int main(void)
 {
     char tmp[4096];
-    test_reference_refuses_unwritten_output();
+    test_reference_refuses_broken_graph("crash-output-never-written.tflite");
+    test_reference_refuses_broken_graph("crash-int-tensor-as-floats.tflite");
     test_tmpdir("nn_tflite", tmp, sizeof tmp);
     fill_weights();
     test_parse_and_reference();

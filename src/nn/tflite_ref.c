@@ -244,6 +244,18 @@ static void ref_unary(const nn_tfl_op *op, const float *x, size_t n, float *y)
     }
 }
 
+/* Whether op input j is read as float data (the others are int shapes, sizes or paddings). */
+static int reads_floats(const nn_tfl_op *op, int j)
+{
+    switch (op->code) {
+    case NN_TFL_TRANSPOSE_CONV: return j >= 1;
+    case NN_TFL_CONV_2D: case NN_TFL_DEPTHWISE_CONV_2D: return j <= 2;
+    case NN_TFL_ADD: case NN_TFL_SUB: case NN_TFL_MUL: case NN_TFL_MAXIMUM: case NN_TFL_MINIMUM: return j <= 1;
+    case NN_TFL_CONCATENATION: return 1;
+    default: return j == 0;
+    }
+}
+
 pg_status nn_tfl_ref_run(const nn_tfl_model *m, const float *input, float **out, int num_outputs)
 {
     if (num_outputs < 0 || num_outputs > m->num_outputs) return pg_fail(PG_ERR_ARG, "reference run: %d outputs asked, the model has %d", num_outputs, m->num_outputs);
@@ -270,11 +282,16 @@ pg_status nn_tfl_ref_run(const nn_tfl_model *m, const float *input, float **out,
     for (int k = 0; !st && k < m->num_ops; k++) {
         const nn_tfl_op *op = &m->ops[k];
         /* a file may order its ops so that one reads what nothing wrote yet, or write a constant */
-        for (int j = 0; j < op->num_inputs && !st; j++)
-            if (op->inputs[j] >= 0 && ((!buf[op->inputs[j]] && !nn_tfl_is_const(&m->tensors[op->inputs[j]])) ||
-                                       op->inputs[j] == op->output))
-                st = pg_fail(PG_ERR_FORMAT, "reference run: op %d reads tensor %d %s", k, op->inputs[j],
-                             op->inputs[j] == op->output ? "that it also writes" : "before anything writes it");
+        for (int j = 0; j < op->num_inputs && !st; j++) {
+            int t = op->inputs[j];
+            if (t < 0) continue;
+            if (t == op->output)
+                st = pg_fail(PG_ERR_FORMAT, "reference run: op %d reads tensor %d that it also writes", k, t);
+            else if (!buf[t] && !nn_tfl_is_const(&m->tensors[t]))
+                st = pg_fail(PG_ERR_FORMAT, "reference run: op %d reads tensor %d before anything writes it", k, t);
+            else if (!buf[t] && reads_floats(op, j))
+                st = pg_fail(PG_ERR_FORMAT, "reference run: op %d reads the integer tensor %d as floats", k, t);
+        }
         if (!st && nn_tfl_is_const(&m->tensors[op->output]))
             st = pg_fail(PG_ERR_FORMAT, "reference run: op %d writes the constant tensor %d", k, op->output);
         if (st) break;
