@@ -177,6 +177,21 @@ static void ref_slice(const nn_tfl_op *op, const nn_tfl_tensor *xt, const float 
 
 /* TFLite's RESIZE_BILINEAR: source coordinate = dst * in/out (align_corners: dst * (in-1)/(out-1);
  * half_pixel_centers: (dst + 0.5) * in/out - 0.5), neighbours clamped to the image. */
+/* The two source taps (clamped to [0, size)) of output index o along one axis with scale s, and the
+ * weight d of the second. */
+static void resize_taps(const nn_tfl_op *op, int o, double s, int size, int *i0, int *i1, double *d)
+{
+    double f = op->half_pixel_centers ? (o + 0.5) * s - 0.5 : o * s;
+    double f0 = floor(f);
+    int a = (int)f0, b = a + 1;
+    *d = f - f0;
+    if (a < 0) a = 0;
+    if (b > size - 1) b = size - 1;
+    if (a > size - 1) a = size - 1;
+    *i0 = a;
+    *i1 = b;
+}
+
 static void ref_resize(const nn_tfl_op *op, const nn_tfl_tensor *xt, const float *x, const nn_tfl_tensor *yt, float *y)
 {
     int N = xt->dims[0], H = xt->dims[1], W = xt->dims[2], C = xt->dims[3], OH = yt->dims[1], OW = yt->dims[2];
@@ -184,21 +199,13 @@ static void ref_resize(const nn_tfl_op *op, const nn_tfl_tensor *xt, const float
     double sx = op->align_corners && OW > 1 ? (double)(W - 1) / (OW - 1) : (double)W / OW;
     for (int n = 0; n < N; n++)
         for (int oy = 0; oy < OH; oy++) {
-            double fy = op->half_pixel_centers ? (oy + 0.5) * sy - 0.5 : oy * sy;
-            double y0f = floor(fy);
-            int y0 = (int)y0f, y1 = y0 + 1;
-            double dy = fy - y0f;
-            if (y0 < 0) y0 = 0;
-            if (y1 > H - 1) y1 = H - 1;
-            if (y0 > H - 1) y0 = H - 1;
+            int y0, y1;
+            double dy;
+            resize_taps(op, oy, sy, H, &y0, &y1, &dy);
             for (int ox = 0; ox < OW; ox++) {
-                double fx = op->half_pixel_centers ? (ox + 0.5) * sx - 0.5 : ox * sx;
-                double x0f = floor(fx);
-                int x0 = (int)x0f, x1 = x0 + 1;
-                double dx = fx - x0f;
-                if (x0 < 0) x0 = 0;
-                if (x1 > W - 1) x1 = W - 1;
-                if (x0 > W - 1) x0 = W - 1;
+                int x0, x1;
+                double dx;
+                resize_taps(op, ox, sx, W, &x0, &x1, &dx);
                 for (int c = 0; c < C; c++) {
 #define PX(yy, xx) (double)x[(((size_t)n * H + (yy)) * W + (xx)) * C + c]
                     double v = PX(y0, x0) * (1 - dy) * (1 - dx) + PX(y0, x1) * (1 - dy) * dx + PX(y1, x0) * dy * (1 - dx) +
