@@ -283,6 +283,20 @@ static void promote_near_dynamic(voxel_table *t, point_list *p, const float lo[3
     for (size_t i = 0; i < p->n; i++) p->dyn[i] = p->dyn[i] != 0;
 }
 
+/* Row r of the session's Gaussians: an isotropic, unrotated Gaussian with SH DC colour sh0. */
+static void put_isotropic(train_session *s, int r, const float mean[3], const float sh0[3], float log_s,
+                          float opacity_logit, int is_static)
+{
+    for (int k = 0; k < 3; k++) {
+        s->g.means[3 * r + k] = mean[k];
+        s->g.log_scales[3 * r + k] = log_s;
+        s->g.sh[(size_t)r * PG_SH_COEFFS * 3 + k] = sh0[k];
+    }
+    s->g.quats[4 * r] = 1.0f;
+    s->g.opacity[r] = opacity_logit;
+    s->is_static[r] = (uint8_t)is_static;
+}
+
 /* One Gaussian per voxel of the points with dyn == want (after voxel_assign): mean position and
  * colour, isotropic scale 0.6 voxel, opacity 0.3. Appends at row *n. */
 static pg_status voxels_to_gaussians(train_session *s, const voxel_table *t, const point_list *p, int want, float vox,
@@ -303,15 +317,12 @@ static pg_status voxels_to_gaussians(train_session *s, const voxel_table *t, con
     for (size_t h = 0; h < t->size; h++) {
         if (!t->used[h]) continue;
         const double *a = acc + h * 7;
-        int r = (*n)++;
+        float mean[3], sh0[3];
         for (int k = 0; k < 3; k++) {
-            s->g.means[3 * r + k] = (float)(a[k] / a[6]);
-            s->g.log_scales[3 * r + k] = log_s;
-            s->g.sh[(size_t)r * PG_SH_COEFFS * 3 + k] = (float)((a[3 + k] / a[6] - 0.5) / SPLAT_SH_C0);
+            mean[k] = (float)(a[k] / a[6]);
+            sh0[k] = (float)((a[3 + k] / a[6] - 0.5) / SPLAT_SH_C0);
         }
-        s->g.quats[4 * r] = 1.0f;
-        s->g.opacity[r] = opacity_logit;
-        s->is_static[r] = !want;
+        put_isotropic(s, (*n)++, mean, sh0, log_s, opacity_logit, !want);
     }
     free(acc);
     return PG_OK;
@@ -370,16 +381,9 @@ static void margin_to_gaussians(train_session *s, const pg_camera *cam, const po
     float opacity_logit = logf(INIT_MARGIN_OPACITY / (1 - INIT_MARGIN_OPACITY)), B = (float)margin_block(cam);
     for (size_t i = 0; i < m->n; i++) {
         float uv[2], z = pg_camera_project(cam, m->xyz + 3 * i, uv);
-        int r = (*n)++;
-        float log_s = logf(0.6f * B * fmaxf(z, 1e-6f) / cam->fx);
-        for (int k = 0; k < 3; k++) {
-            s->g.means[3 * r + k] = m->xyz[3 * i + k];
-            s->g.log_scales[3 * r + k] = log_s;
-            s->g.sh[(size_t)r * PG_SH_COEFFS * 3 + k] = (m->rgb[3 * i + k] - 0.5f) / SPLAT_SH_C0;
-        }
-        s->g.quats[4 * r] = 1.0f;
-        s->g.opacity[r] = opacity_logit;
-        s->is_static[r] = 1;
+        float sh0[3];
+        for (int k = 0; k < 3; k++) sh0[k] = (m->rgb[3 * i + k] - 0.5f) / SPLAT_SH_C0;
+        put_isotropic(s, (*n)++, m->xyz + 3 * i, sh0, logf(0.6f * B * fmaxf(z, 1e-6f) / cam->fx), opacity_logit, 1);
     }
 }
 
