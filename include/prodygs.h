@@ -88,6 +88,7 @@ typedef struct {
     const char *refine;       /* "edge-snap" (default), "bilateral" or "none" */
     int align;                /* per-frame scale/shift alignment (1) */
     int fuse;                 /* static pixels take their temporal median depth (1) */
+    int planes;               /* static depth snapped onto the scene's dominant planes (1) */
     int frames;               /* first N frames (0: all) */
     int width, height;        /* resize (0, 0: keep; one side 0 keeps the aspect) */
     int threads;              /* worker threads (0: all cores) */
@@ -114,14 +115,17 @@ typedef struct {
     float fov;                       /* single video: horizontal field of view in degrees (60) */
     float pad;                       /* outpainted margin, fraction of the larger side (< 0: default 0.3) */
     float pose_scale;                /* pose units per depth unit (0: fitted on a dataset, 1 otherwise) */
-    int fit_steps, fit_block;        /* per-frame Gaussian fit: Adam steps (50), pixel block (1) */
+    const char *render;              /* proxy renderer: "mesh" (NULL: default) or "splat" (the paper's
+                                        per-frame Gaussians, fitted with fit_steps / fit_block) */
+    int fit_steps, fit_block;        /* splat: per-frame fit Adam steps (50), pixel block (1) */
     int frames, width, height, threads, force; /* force: recompute cached frames */
 } pg_proxies_config;
 
 typedef struct {
     char train_camera[PG_CAMERA_LABEL], test_cameras[PG_CAMERA_LABELS], poses[16];
     int frames, computed, reused, proxies, threads, pose_scale_fitted;
-    double pose_scale, pose_scale_cost, mean_valid_fraction, mean_source_psnr, seconds;
+    double pose_scale, pose_scale_cost, mean_valid_fraction, seconds;
+    double mean_source_psnr;         /* splat: fitted model vs the real frame; NaN for mesh */
 } pg_proxies_report;
 
 void pg_proxies_defaults(pg_proxies_config *c);
@@ -268,9 +272,10 @@ typedef struct {
     const char *poses;                /* NULL: dataset with test cameras, else hemisphere */
     int proxies;                      /* -1: the preset's */
     float max_angle, fov, pad, pose_scale; /* 0 (pad < 0): defaults */
+    const char *proxy_render;         /* "mesh" (NULL: default) or "splat" */
     const char *depth_kind;
     float depth_scale;                /* 0: 1 */
-    int refine, align, fuse;          /* (1, 1, 1) */
+    int refine, align, fuse, planes;  /* (1, 1, 1, 1) */
     int frames, width, height, iters; /* 0: all / the preset's */
     int deform_width;                 /* 0: the trainer's default */
     int deform_head_width;            /* 0: the trainer's default (32) */

@@ -77,7 +77,7 @@ static void test_warp_and_mesh(void)
     for (int i = 0; i < W * H * 3; i++) err = fmax(err, fabs(wrgb[i] - rgb[i]));
     CHECK(err < 1e-6, "identity warp changed colours by %g", err);
     proxy_mask_options mo = proxy_default_mask_options();
-    CHECK_OK(proxy_mesh_depth(&cam, depth, 0, &cam, &mo, zmesh, NULL));
+    CHECK_OK(proxy_mesh_depth(&cam, depth, 0, &cam, &mo, zmesh, NULL, NULL, NULL));
     int inner_bad = 0;
     for (int v = 1; v < H - 1; v++)
         for (int u = 1; u < W - 1; u++)
@@ -90,7 +90,7 @@ static void test_warp_and_mesh(void)
     pg_camera_look_at(&side, eye, c, up);
     float *tdepth = malloc(sizeof(float) * W * H);
     proxy_procedural_render(&side, 0, 1, NULL, tdepth);
-    CHECK_OK(proxy_mesh_depth(&cam, depth, 0, &side, &mo, zside, NULL));
+    CHECK_OK(proxy_mesh_depth(&cam, depth, 0, &side, &mo, zside, NULL, NULL, NULL));
     /* Ground-truth visibility from cam of what side sees: reproject and compare with cam's depth. */
     long vis = 0, vis_cov = 0, hidden = 0, hidden_cov = 0;
     for (int v = 0; v < H; v++) {

@@ -2,6 +2,7 @@
  * write) on the analytic RGB-D scene, printed as one JSON line. */
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -27,15 +28,16 @@ int bench_proxy(int argc, char **argv)
 {
     int width = 320, height = 240, num = 18, threads = 2, frames = 0, steps = proxy_default_fit_options().steps, block = 1;
     float pad = proxy_default_fit_options().pad;
-    const char *out = NULL;
+    const char *out = NULL, *render = "mesh";
     cli_option opts[] = {
+        { "--render", CLI_STR, &render, "mesh (default) or splat (per-frame Gaussians, fitted)" },
         { "--width", CLI_INT, &width, "frame width (320)" },
         { "--height", CLI_INT, &height, "frame height (240)" },
         { "--num", CLI_INT, &num, "proxy cameras M (18)" },
         { "--threads", CLI_INT, &threads, "frame workers (2)" },
         { "--frames", CLI_INT, &frames, "frames to process (2 x threads)" },
-        { "--steps", CLI_INT, &steps, "Adam steps per frame (50)" },
-        { "--block", CLI_INT, &block, "one Gaussian per k x k block (1)" },
+        { "--steps", CLI_INT, &steps, "splat: Adam steps per frame (50)" },
+        { "--block", CLI_INT, &block, "splat: one Gaussian per k x k block (1)" },
         { "--pad", CLI_FLOAT, &pad, "outpainted margin, fraction of the larger side (0.3)" },
         { "--out", CLI_STR, &out, "scratch directory (/tmp/prodygs-bench-proxy-PID)" },
     };
@@ -49,6 +51,8 @@ int bench_proxy(int argc, char **argv)
     if (threads < 1 || threads > 64) return cli_usage_error("bench proxy: --threads %d not in 1..64", threads);
     if (frames < 0) return cli_usage_error("bench proxy: --frames %d must be >= 1 (0 = 2 x threads)", frames);
     if (!(pad >= 0 && pad <= 1)) return cli_usage_error("bench proxy: --pad %g not in [0, 1]", pad);
+    if (strcmp(render, "mesh") != 0 && strcmp(render, "splat") != 0)
+        return cli_usage_error("bench proxy: --render must be mesh or splat, not '%s'", render);
     if (frames == 0) frames = 2 * threads;
     if (frames > 1000) return cli_usage_error("bench proxy: --frames %d too many", frames);
     char dir[256];
@@ -82,6 +86,7 @@ int bench_proxy(int argc, char **argv)
     proxy_options o = proxy_default_options();
     o.threads = threads;
     o.force = 1;
+    o.fit.render = strcmp(render, "splat") == 0 ? PROXY_RENDER_SPLAT : PROXY_RENDER_MESH;
     o.fit.steps = steps;
     o.fit.block = block;
     o.fit.pad = pad;
@@ -97,12 +102,13 @@ int bench_proxy(int argc, char **argv)
     free(depth); free(cams); free(names); free(pnames);
     if (st) return cli_fail(st);
     double pf = 1.0 / frames;
-    printf("{\"bench\": \"proxy\", \"width\": %d, \"height\": %d, \"num\": %d, \"threads\": %d, \"frames\": %d, "
+    char psnr[32];
+    printf("{\"bench\": \"proxy\", \"render\": \"%s\", \"width\": %d, \"height\": %d, \"num\": %d, \"threads\": %d, \"frames\": %d, "
            "\"steps\": %d, \"block\": %d, \"pad\": %g, \"seconds_per_frame\": %.3f, \"cpu_seconds_per_frame\": %.3f, \"worker_seconds_per_frame\": %.3f, "
-           "\"init_s\": %.3f, \"fit_s\": %.3f, \"render_s\": %.3f, \"write_s\": %.3f, \"source_psnr\": %.2f, "
+           "\"init_s\": %.3f, \"fit_s\": %.3f, \"render_s\": %.3f, \"write_s\": %.3f, \"source_psnr\": %s, "
            "\"mean_valid_fraction\": %.3f, \"out\": \"%s\"}\n",
-           width, height, num, threads, frames, steps, block, pad, r.wall_s * pf, cpu * pf,
+           render, width, height, num, threads, frames, steps, block, pad, r.wall_s * pf, cpu * pf,
            (r.init_s + r.fit_s + r.render_s + r.write_s) * pf, r.init_s * pf, r.fit_s * pf, r.render_s * pf,
-           r.write_s * pf, r.mean_source_psnr, r.mean_valid_fraction, dir);
+           r.write_s * pf, cli_json_number(r.mean_source_psnr, 2, psnr, sizeof psnr), r.mean_valid_fraction, dir);
     return 0;
 }

@@ -5,6 +5,7 @@
 
 #include <errno.h>
 #include <stdarg.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -142,6 +143,13 @@ int cli_parse_size(const char *option, const char *text, int *w, int *h)
     *w = (int)lw;
     *h = (int)lh;
     return 0;
+}
+
+const char *cli_json_number(double v, int decimals, char *buf, size_t size)
+{
+    if (isfinite(v)) snprintf(buf, size, "%.*f", decimals, v);
+    else snprintf(buf, size, "null");
+    return buf;
 }
 
 int cli_parse_count_or_all(const char *option, const char *text, int *n)

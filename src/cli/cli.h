@@ -44,6 +44,8 @@ int cli_parse_int_list(const char *text, int *out, int n);
  * also take "all" (--proxies N|all: *n = -1 for all). */
 int cli_parse_size(const char *option, const char *text, int *w, int *h);
 int cli_parse_count_or_all(const char *option, const char *text, int *n);
+/* A JSON number with `decimals` decimals, or null for a value that was not measured (NaN). */
+const char *cli_json_number(double v, int decimals, char *buf, size_t size);
 /* Largest image side the commands accept for a requested size (--width, --size). */
 #define CLI_MAX_SIDE 8192
 

@@ -14,8 +14,9 @@ int cmd_proxies(int argc, char **argv)
         { "--proxies", CLI_STR, &proxies, "proxy cameras: a count or all (18 on the hemisphere; dataset: all others)" },
         { "--poses", CLI_STR, &c.poses, "hemisphere or dataset (default: dataset for a multi-camera input)" },
         { "--max-angle", CLI_FLOAT, &c.max_angle, "hemisphere: max angle from the real camera in degrees (20)" },
-        { "--fit-steps", CLI_INT, &c.fit_steps, "Adam steps of the per-frame Gaussian fit (50)" },
-        { "--fit-block", CLI_INT, &c.fit_block, "per-frame fit: one Gaussian per BxB pixel block (1)" },
+        { "--render", CLI_STR, &c.render, "mesh (default: the depth map as a textured mesh) or splat (per-frame Gaussians)" },
+        { "--fit-steps", CLI_INT, &c.fit_steps, "splat: Adam steps of the per-frame Gaussian fit (50)" },
+        { "--fit-block", CLI_INT, &c.fit_block, "splat: one Gaussian per BxB pixel block (1)" },
         { "--pad", CLI_FLOAT, &c.pad, "outpainted margin around the real view, fraction of the larger side (0.3)" },
         { "--train-cam", CLI_STR, &c.train_camera, "the real (training) camera: name or index (default: the first)" },
         { "--test-cams", CLI_STR, &c.test_cameras, "held-out cameras, names or indices (dataset default cam05,cam06)" },
@@ -37,14 +38,15 @@ int cmd_proxies(int argc, char **argv)
     if ((rc = cli_parse_count_or_all("--proxies", proxies, &c.proxies))) return rc;
 
     pg_proxies_report r;
+    char psnr[32];
     pg_status st = pg_proxies_run(&c, &r);
     if (st) return cli_fail(st);
     printf("proxies: training camera %s%s%s\n", r.train_camera, r.test_cameras[0] ? "; test cameras " : "",
            r.test_cameras);
     printf("{\"out\": \"%s\", \"frames\": %d, \"computed\": %d, \"reused\": %d, \"proxies\": %d, \"poses\": \"%s\", "
            "\"pose_scale\": %.6g, \"pose_scale_fitted\": %s, \"pose_scale_cost\": %.5f, \"mean_valid_fraction\": %.4f, "
-           "\"mean_source_psnr\": %.2f, \"threads\": %d, \"seconds\": %.1f}\n",
+           "\"mean_source_psnr\": %s, \"threads\": %d, \"seconds\": %.1f}\n",
            c.out, r.frames, r.computed, r.reused, r.proxies, r.poses, r.pose_scale, r.pose_scale_fitted ? "true" : "false",
-           r.pose_scale_cost, r.mean_valid_fraction, r.mean_source_psnr, r.threads, r.seconds);
+           r.pose_scale_cost, r.mean_valid_fraction, cli_json_number(r.mean_source_psnr, 2, psnr, sizeof psnr), r.threads, r.seconds);
     return 0;
 }

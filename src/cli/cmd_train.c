@@ -6,14 +6,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-/* "12.345" or "null" for a score that was not measured. */
-static const char *score_text(double v, char *buf, size_t size)
-{
-    if (isfinite(v)) snprintf(buf, size, "%.3f", v);
-    else snprintf(buf, size, "null");
-    return buf;
-}
-
 int cmd_train(int argc, char **argv)
 {
     pg_train_config c;
@@ -74,8 +66,8 @@ int cmd_train(int argc, char **argv)
     printf("{\"iterations\": %d, \"gaussians\": %d, \"static\": %d, \"test_psnr\": %s, \"train_real_psnr\": %s, "
            "\"train_real_psnr_moving\": %s, \"train_real_psnr_static\": %s, \"threads\": %d, \"seed\": %d, "
            "\"seconds\": %.1f}\n",
-           r.iterations, r.gaussians, r.static_gaussians, score_text(r.test_psnr, a, sizeof a),
-           score_text(r.train_psnr, b, sizeof b), score_text(r.train_psnr_moving, d, sizeof d),
-           score_text(r.train_psnr_static, e, sizeof e), r.threads, r.seed, r.seconds);
+           r.iterations, r.gaussians, r.static_gaussians, cli_json_number(r.test_psnr, 3, a, sizeof a),
+           cli_json_number(r.train_psnr, 3, b, sizeof b), cli_json_number(r.train_psnr_moving, 3, d, sizeof d),
+           cli_json_number(r.train_psnr_static, 3, e, sizeof e), r.threads, r.seed, r.seconds);
     return 0;
 }

@@ -21,9 +21,11 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
         { "--max-angle", CLI_FLOAT, &c->max_angle, "hemisphere cap angle in degrees (default 20)" },
         { "--fov", CLI_FLOAT, &c->fov, "single video: horizontal field of view in degrees (default 60)" },
         { "--pad", CLI_FLOAT, &c->pad, "proxies: outpainted margin, fraction of the larger side (0.3; 0 = none)" },
+        { "--proxy-render", CLI_STR, &c->proxy_render, "proxy renderer: mesh (default) or splat (the paper's per-frame Gaussians)" },
         { "--no-refine", CLI_FLAG, &t->no_refine, "skip edge-aware depth refinement (ablation)" },
         { "--no-align", CLI_FLAG, &t->no_align, "skip temporal scale/shift alignment (ablation)" },
         { "--no-fuse", CLI_FLAG, &t->no_fuse, "keep per-frame depth on static pixels (no temporal median; ablation)" },
+        { "--no-planes", CLI_FLAG, &t->no_planes, "do not snap static depth onto the scene's dominant planes (ablation)" },
         { "--depth-kind", CLI_STR, &c->depth_kind, "depth (default) or disparity" },
         { "--depth-scale", CLI_FLOAT, &c->depth_scale, "multiply raw depth by S" },
         { "--frames", CLI_INT, &c->frames, "use only the first N frames (default: all)" },
@@ -56,6 +58,7 @@ int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pg_pipeline_
     c->refine = !t->no_refine;
     c->align = !t->no_align;
     c->fuse = !t->no_fuse;
+    c->planes = !t->no_planes;
     size_t len = (size_t)snprintf(t->command, sizeof t->command, "prodygs");
     for (int i = 0; i < argc && len < sizeof t->command; i++)
         len += (size_t)snprintf(t->command + len, sizeof t->command - len, " %s", argv[i]);

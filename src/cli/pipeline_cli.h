@@ -7,7 +7,7 @@
 
 typedef struct {
     const char *size, *proxies; /* parsed by cli_parse_size / cli_parse_count_or_all */
-    int no_refine, no_align, no_fuse;
+    int no_refine, no_align, no_fuse, no_planes;
     char command[4096];         /* the command line, recorded in report.md */
 } pipeline_cli_text;
 

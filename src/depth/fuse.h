@@ -13,7 +13,14 @@
 
 /* depth (F, n): aligned depth, 0 = invalid; static_masks (F, n): 1 = static in that frame. Each
  * pixel static and valid in at least min_frames frames gets its median over those frames in
- * each of them; other frames and pixels are unchanged. Returns the number of pixels fused. */
+ * each of them; other frames and pixels are unchanged. Returns the number of pixels fused, -1 when
+ * out of memory. */
 long depth_fuse_static(float *depth, const unsigned char *static_masks, int frames, size_t n, int min_frames);
+
+/* ref (n): each pixel's median over the frames where it is static with valid depth, 0 where it has
+ * fewer than min_frames such frames. Returns the number of pixels given a value, -1 when out of
+ * memory. */
+long depth_static_reference(const float *depth, const unsigned char *static_masks, int frames, size_t n,
+                            int min_frames, float *ref);
 
 #endif

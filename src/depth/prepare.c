@@ -21,10 +21,12 @@ void depth_prepare_defaults(depth_prepare_options *opt)
     opt->refine = DEPTH_REFINE_EDGE_SNAP;
     opt->align = 1;
     opt->fuse_static = 1;
+    opt->snap_planes = 1;
     opt->min_valid_fraction = 0.01f;
     depth_refine_defaults(&opt->refine_params);
     depth_static_defaults(&opt->static_params);
     depth_align_defaults(&opt->align_params);
+    depth_scene_planes_defaults(&opt->planes_params);
 }
 
 void depth_prepare_result_destroy(depth_prepare_result *res)
@@ -35,6 +37,7 @@ void depth_prepare_result_destroy(depth_prepare_result *res)
     free(res->dynamic_prob);
     free(res->flow);
     free(res->info);
+    free(res->plane_label);
     memset(res, 0, sizeof *res);
 }
 
@@ -184,7 +187,21 @@ static pg_status prepare_frames(const depth_prepare_options *opt, const pg_image
     /* 4. One depth per static surface: pixels static in at least a quarter of the valid frames (and
      *    3) take their median over those frames (invalid frames are still zero here, so they do not
      *    count; they copy a fused frame next). */
-    if (!st && opt->fuse_static) res->fused_pixels = depth_fuse_static(res->depth, res->static_masks, F, n, F / 4 > 3 ? F / 4 : 3);
+    const int min_static = F / 4 > 3 ? F / 4 : 3;
+    if (!st && opt->fuse_static) {
+        res->fused_pixels = depth_fuse_static(res->depth, res->static_masks, F, n, min_static);
+        if (res->fused_pixels < 0) st = pg_fail(PG_ERR_NOMEM, "depth preparation: out of memory fusing static depth");
+    }
+
+    /* 4b. Static depth near a dominant plane of the scene takes the plane's depth (scene_planes.h). */
+    if (!st && opt->snap_planes) {
+        depth_scene_planes_params pp = opt->planes_params;
+        pp.min_frames = min_static;
+        res->plane_label = pg_malloc(n, "plane labels");
+        st = res->plane_label ? depth_scene_planes_snap(&pp, res->depth, res->static_masks, F, W, H, &res->planes,
+                                                        res->plane_label)
+                              : PG_ERR_NOMEM;
+    }
 
     /* 5. Invalid frames copy the nearest earlier valid frame (later one if none earlier). */
     for (int i = 0; i < F && !st; i++) {
@@ -294,6 +311,9 @@ static pg_status write_json(const char *path, const depth_prepare_options *opt, 
     cJSON_AddStringToObject(set, "flow", opt->flow ? opt->flow->name : "tvl1");
     cJSON_AddBoolToObject(set, "align", opt->align);
     cJSON_AddBoolToObject(set, "fuse_static", opt->fuse_static);
+    cJSON_AddBoolToObject(set, "snap_planes", opt->snap_planes);
+    cJSON_AddNumberToObject(set, "plane_tolerance", opt->planes_params.tolerance);
+    cJSON_AddNumberToObject(set, "plane_min_support", opt->planes_params.min_support);
     cJSON_AddNumberToObject(set, "refine_radius", opt->refine_params.radius);
     cJSON_AddNumberToObject(set, "refine_sigma_color", opt->refine_params.sigma_color);
     cJSON_AddNumberToObject(set, "refine_edge_thresh", opt->refine_params.edge_thresh);
@@ -302,6 +322,22 @@ static pg_status write_json(const char *path, const depth_prepare_options *opt, 
     cJSON_AddNumberToObject(set, "align_iterations", opt->align_params.iterations);
     cJSON_AddBoolToObject(set, "align_fit_shift", opt->align_params.fit_shift);
     cJSON_AddNumberToObject(set, "min_valid_fraction", opt->min_valid_fraction);
+    if (opt->snap_planes) {
+        /* 1/d = a x + b y + c with x, y the pixel centre over the width/height minus 0.5 */
+        cJSON *pl = cJSON_AddArrayToObject(root, "planes");
+        const double npx = (double)res->width * res->height;
+        for (int i = 0; i < res->planes.count; i++) {
+            const depth_scene_plane *p = &res->planes.planes[i];
+            cJSON *o = cJSON_CreateObject();
+            cJSON_AddNumberToObject(o, "a", p->a);
+            cJSON_AddNumberToObject(o, "b", p->b);
+            cJSON_AddNumberToObject(o, "c", p->c);
+            cJSON_AddNumberToObject(o, "support", p->inliers / npx);
+            cJSON_AddNumberToObject(o, "median_residual", p->median_residual);
+            cJSON_AddItemToArray(pl, o);
+        }
+        cJSON_AddNumberToObject(root, "plane_snapped_values", (double)res->planes.snapped);
+    }
     cJSON *tm = cJSON_AddObjectToObject(root, "timing");
     cJSON_AddNumberToObject(tm, "refine_s", res->seconds_refine);
     cJSON_AddNumberToObject(tm, "flow_s", res->seconds_flow);
@@ -416,6 +452,20 @@ pg_status depth_prepare_write(const char *dir, const depth_prepare_options *opt,
             st = pg_path_join(path, sizeof path, vis, name);
             if (!st) st = io_image_save_png(path, &img);
         }
+    }
+    if (!st && res->plane_label && frames) {
+        /* The reference frame in grey with each plane's pixels tinted in its own colour. */
+        static const float tint[6][3] = { { 0.9f, 0.3f, 0.2f }, { 0.2f, 0.7f, 0.9f }, { 0.3f, 0.9f, 0.3f },
+                                          { 0.9f, 0.8f, 0.2f }, { 0.7f, 0.3f, 0.9f }, { 0.9f, 0.5f, 0.7f } };
+        const pg_image *f0 = &frames[res->reference > 0 ? res->reference : 0];
+        for (size_t k = 0; k < n; k++) {
+            const float *src = f0->data + k * f0->channels;
+            float g = f0->channels >= 3 ? 0.299f * src[0] + 0.587f * src[1] + 0.114f * src[2] : src[0];
+            int l = res->plane_label[k];
+            for (int c = 0; c < 3; c++) img.data[3 * k + c] = l < 0 ? 0.5f * g : 0.4f * g + 0.6f * tint[l % 6][c];
+        }
+        st = pg_path_join(path, sizeof path, vis, "planes.png");
+        if (!st) st = io_image_save_png(path, &img);
     }
     pg_image_destroy(&img);
     pg_image_destroy(&gray);

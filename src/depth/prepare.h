@@ -4,7 +4,8 @@
  * and the reference frame (frame 0) in both directions; static mask B_i from flow, colour and the
  * forward-backward check; robust (alpha_i, beta_i) with alpha_i R_i + beta_i ~ R_ref on B_i;
  * output D'_i = alpha_i R_i + beta_i (0 = invalid); then every pixel static in enough frames takes
- * its temporal median in those frames (fuse.h: one depth per static surface).
+ * its temporal median in those frames (fuse.h: one depth per static surface), and static depth
+ * near one of the scene's dominant planes takes the plane's (scene_planes.h).
  *
  *   depth_prepare_options opt;
  *   depth_prepare_defaults(&opt);
@@ -29,6 +30,7 @@
 #include "depth/align.h"
 #include "depth/flow.h"
 #include "depth/refine.h"
+#include "depth/scene_planes.h"
 #include "depth/static_mask.h"
 
 typedef struct {
@@ -37,11 +39,13 @@ typedef struct {
     const depth_flow_backend *flow;  /* NULL = built-in TV-L1 */
     int align;                       /* 0: alpha = 1, beta = 0 for every frame (--no-align) */
     int fuse_static;                 /* 1: static pixels take their temporal median (fuse.h; --no-fuse) */
+    int snap_planes;                 /* 1: static depth snapped onto dominant planes (scene_planes.h; --no-planes) */
     int keep_flow;                   /* 1: result.flow holds the flow of every frame (for vis) */
     float min_valid_fraction;        /* below this a frame counts as invalid (default 0.01) */
     depth_refine_params refine_params;
     depth_static_params static_params;
     depth_align_params align_params;
+    depth_scene_planes_params planes_params;
 } depth_prepare_options;
 
 typedef enum { DEPTH_FALLBACK_NONE, DEPTH_FALLBACK_COPIED, DEPTH_FALLBACK_ALL_PIXELS, DEPTH_FALLBACK_IDENTITY } depth_fallback;
@@ -66,6 +70,8 @@ typedef struct {
     float *flow;                  /* (F,H,W,2) frame i -> reference, only with keep_flow */
     depth_prepare_frame *info;    /* (F) */
     long fused_pixels;            /* pixels given their temporal median (fuse_static) */
+    depth_scene_planes_result planes; /* dominant planes found (snap_planes) */
+    signed char *plane_label;     /* (H,W) plane index of each pixel, -1 none (snap_planes) */
     double seconds_refine, seconds_flow, seconds_align, seconds_total;
 } depth_prepare_result;
 

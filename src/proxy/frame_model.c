@@ -61,6 +61,7 @@ static const optim_group_desc fit_groups[FIT_GROUPS] = {
 proxy_fit_options proxy_default_fit_options(void)
 {
     proxy_fit_options o;
+    o.render = PROXY_RENDER_MESH;
     o.block = 1;
     o.steps = 50;
     o.ssim_weight = 0.2f;
@@ -123,6 +124,18 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
     m->H = height + 2 * m->pad;
     m->opt = opt;
     size_t npix = (size_t)width * height, npad = (size_t)m->W * m->H;
+    m->rgb = pg_malloc(npad * 3 * sizeof(float), "proxy padded rgb");
+    m->depth = pg_malloc(npad * sizeof(float), "proxy padded depth");
+    m->src_rgb = pg_malloc(npix * 3 * sizeof(float), "proxy source rgb");
+    m->src_depth = pg_malloc(npix * sizeof(float), "proxy source depth");
+    if (!m->rgb || !m->depth || !m->src_rgb || !m->src_depth) {
+        proxy_model_destroy(m);
+        return PG_ERR_NOMEM;
+    }
+    if (opt.render == PROXY_RENDER_MESH) { /* no Gaussians, no fit */
+        *out = m;
+        return PG_OK;
+    }
     size_t ng = (size_t)((width + opt.block - 1) / opt.block) * ((height + opt.block - 1) / opt.block) +
                 (size_t)((m->W + km - 1) / km) * ((m->H + km - 1) / km);
     pg_status st = splat_gaussians_create(&m->g, (int)ng);
@@ -132,17 +145,12 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
     if (st) { proxy_model_destroy(m); return st; }
     m->dc = pg_malloc(ng * 3 * sizeof(float), "proxy colour");
     m->d_dc = pg_malloc(ng * 3 * sizeof(float), "proxy colour gradient");
-    m->rgb = pg_malloc(npad * 3 * sizeof(float), "proxy padded rgb");
-    m->depth = pg_malloc(npad * sizeof(float), "proxy padded depth");
-    m->src_rgb = pg_malloc(npix * 3 * sizeof(float), "proxy source rgb");
-    m->src_depth = pg_malloc(npix * sizeof(float), "proxy source depth");
     m->d_rgb = pg_malloc(npix * 3 * sizeof(float), "proxy d_rgb");
     m->d_depth = pg_malloc(npix * sizeof(float), "proxy d_depth");
     m->d_alpha = pg_malloc(npix * sizeof(float), "proxy d_alpha");
     m->vmask = pg_malloc(npix * sizeof(float), "proxy loss mask");
     m->block_depths = pg_malloc((size_t)km * km * sizeof(float), "proxy block depths");
-    if (!m->vmask || !m->block_depths || !m->dc || !m->d_dc || !m->rgb || !m->depth || !m->src_rgb || !m->src_depth || !m->d_rgb ||
-        !m->d_depth || !m->d_alpha) {
+    if (!m->vmask || !m->block_depths || !m->dc || !m->d_dc || !m->d_rgb || !m->d_depth || !m->d_alpha) {
         proxy_model_destroy(m);
         return PG_ERR_NOMEM;
     }
@@ -285,7 +293,7 @@ pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const flo
     for (size_t i = 0; i < npix; i++) {
         int ok = isfinite(depth[i]) && depth[i] > 0;
         m->src_depth[i] = ok ? depth[i] : 0;
-        m->vmask[i] = (float)ok;
+        if (m->vmask) m->vmask[i] = (float)ok;
         valid += ok;
     }
     if (valid == 0) return pg_fail(PG_ERR_ARG, "proxy model: the depth map has no valid pixel");
@@ -297,6 +305,10 @@ pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const flo
     m->cam.height = H;
     m->cam.cx += p;
     m->cam.cy += p;
+    if (m->opt.render == PROXY_RENDER_MESH) {
+        m->stats.init_s += pg_time_seconds() - t0;
+        return PG_OK;
+    }
 
     int n = 0;
     double dsum = 0;
@@ -442,6 +454,7 @@ static pg_status fit_steps(proxy_frame_model *m);
 /* Fits the frame's Gaussians alone: the margin's are hidden from the steps by the count. */
 pg_status proxy_model_fit(proxy_frame_model *m)
 {
+    if (m->opt.render == PROXY_RENDER_MESH) return PG_OK;
     double t0 = pg_time_seconds();
     int n_all = m->g.count;
     m->g.count = m->n_fit;
@@ -489,22 +502,14 @@ static pg_status fit_steps(proxy_frame_model *m)
     return PG_OK;
 }
 
-pg_status proxy_model_render(proxy_frame_model *m, const pg_camera *view, float *rgb, float *depth,
-                             unsigned char *mask, float *valid_fraction)
+/* The Gaussians splatted into the view; the mask also needs the mesh to agree (mask.h). */
+static pg_status render_splat(proxy_frame_model *m, const pg_camera *view, float *rgb, float *depth,
+                              unsigned char *mask, float *valid_fraction)
 {
-    double t0 = pg_time_seconds();
     pg_render_settings s = model_settings();
     pg_render_output out;
     PG_TRY(splat_render_forward(m->raster, &m->g, view, &s, &out));
     size_t n = (size_t)view->width * view->height;
-    if (m->zmesh_size < n) {
-        free(m->zmesh);
-        free(m->vmargin);
-        m->zmesh = pg_malloc(n * sizeof(float), "proxy mesh depth");
-        m->vmargin = pg_malloc(n, "proxy margin flags");
-        m->zmesh_size = m->zmesh && m->vmargin ? n : 0;
-        if (!m->zmesh_size) return PG_ERR_NOMEM;
-    }
     /* Depth normalised by alpha, into the caller's buffer or a temporary. */
     float *dn = depth;
     float *tmp = NULL;
@@ -517,7 +522,7 @@ pg_status proxy_model_render(proxy_frame_model *m, const pg_camera *view, float 
     if (rgb) memcpy(rgb, out.rgb, n * 3 * sizeof(float));
     pg_status st = PG_OK;
     if (mask || valid_fraction) {
-        st = proxy_mesh_depth(&m->cam, m->depth, m->pad, view, &m->opt.mask, m->zmesh, m->vmargin);
+        st = proxy_mesh_depth(&m->cam, m->depth, m->pad, view, &m->opt.mask, m->zmesh, m->vmargin, NULL, NULL);
         if (!st) {
             unsigned char *mk = mask ? mask : pg_malloc(n, "proxy mask");
             if (!mk) {
@@ -534,6 +539,37 @@ pg_status proxy_model_render(proxy_frame_model *m, const pg_camera *view, float 
         }
     }
     free(tmp);
+    return st;
+}
+
+/* The frame's depth mesh rasterised into the view: colour, depth and mask in one pass. */
+static pg_status render_mesh(proxy_frame_model *m, const pg_camera *view, float *rgb, float *depth,
+                             unsigned char *mask, float *valid_fraction)
+{
+    PG_TRY(proxy_mesh_depth(&m->cam, m->depth, m->pad, view, &m->opt.mask, m->zmesh, m->vmargin,
+                            rgb ? m->rgb : NULL, rgb));
+    size_t n = (size_t)view->width * view->height;
+    if (depth) memcpy(depth, m->zmesh, n * sizeof(float));
+    float f = proxy_mask_mesh(view->width, view->height, m->zmesh, m->vmargin, &m->opt.mask, mask);
+    if (valid_fraction) *valid_fraction = f;
+    return PG_OK;
+}
+
+pg_status proxy_model_render(proxy_frame_model *m, const pg_camera *view, float *rgb, float *depth,
+                             unsigned char *mask, float *valid_fraction)
+{
+    double t0 = pg_time_seconds();
+    size_t n = (size_t)view->width * view->height;
+    if (m->zmesh_size < n) {
+        free(m->zmesh);
+        free(m->vmargin);
+        m->zmesh = pg_malloc(n * sizeof(float), "proxy mesh depth");
+        m->vmargin = pg_malloc(n, "proxy margin flags");
+        m->zmesh_size = m->zmesh && m->vmargin ? n : 0;
+        if (!m->zmesh_size) return PG_ERR_NOMEM;
+    }
+    pg_status st = m->opt.render == PROXY_RENDER_MESH ? render_mesh(m, view, rgb, depth, mask, valid_fraction)
+                                                      : render_splat(m, view, rgb, depth, mask, valid_fraction);
     m->stats.render_s += pg_time_seconds() - t0;
     return st;
 }

@@ -18,6 +18,7 @@ typedef struct {
     float x, y, z; /* target pixel coordinates (continuous) and camera depth */
     int ok;
     int margin;    /* the source pixel lies in the outpainted margin */
+    const float *rgb; /* the source pixel's colour (NULL when colours are not rendered) */
 } proj_vertex;
 
 static int edge_ok(const proj_vertex *a, const proj_vertex *b, float da, float db, const proxy_mask_options *o)
@@ -32,7 +33,7 @@ static int edge_ok(const proj_vertex *a, const proj_vertex *b, float da, float d
  * a coverage test), depth interpolated as 1/z, which is linear in screen space. margin (may be
  * NULL) records whether the nearest triangle touches the outpainted margin. */
 static void raster_triangle(const proj_vertex *a, const proj_vertex *b, const proj_vertex *c, int W, int H,
-                            float *zbuf, unsigned char *margin)
+                            float *zbuf, unsigned char *margin, float *rgb)
 {
     const unsigned char from_margin = (unsigned char)(a->margin || b->margin || c->margin);
     float minx = fminf(a->x, fminf(b->x, c->x)), maxx = fmaxf(a->x, fmaxf(b->x, c->x));
@@ -62,17 +63,25 @@ static void raster_triangle(const proj_vertex *a, const proj_vertex *b, const pr
             if (*zb == 0 || z < *zb) {
                 *zb = z;
                 if (margin) margin[(size_t)y * W + x] = from_margin;
+                if (rgb) {
+                    /* perspective-correct: attributes over z are linear on screen */
+                    float pa = w0 * iza * z, pb = w1 * izb * z, pc = w2 * izc * z;
+                    float *o = rgb + ((size_t)y * W + x) * 3;
+                    for (int k = 0; k < 3; k++) o[k] = pa * a->rgb[k] + pb * b->rgb[k] + pc * c->rgb[k];
+                }
             }
         }
     }
 }
 
 pg_status proxy_mesh_depth(const pg_camera *src, const float *depth, int pad, const pg_camera *dst,
-                           const proxy_mask_options *opt, float *zmesh, unsigned char *margin)
+                           const proxy_mask_options *opt, float *zmesh, unsigned char *margin, const float *rgb,
+                           float *rgb_out)
 {
     int W = src->width, H = src->height, W2 = dst->width, H2 = dst->height;
     memset(zmesh, 0, (size_t)W2 * H2 * sizeof(float));
     if (margin) memset(margin, 0, (size_t)W2 * H2);
+    if (rgb_out) memset(rgb_out, 0, (size_t)W2 * H2 * 3 * sizeof(float));
     /* Two rows of projected vertices at a time keep the memory at O(W). */
     proj_vertex *rows = pg_malloc((size_t)2 * W * sizeof(proj_vertex), "mesh vertex rows");
     if (!rows) return PG_ERR_NOMEM;
@@ -92,6 +101,7 @@ pg_status proxy_mesh_depth(const pg_camera *src, const float *depth, int pad, co
             p->z = z;
             p->ok = 1;
             p->margin = u < pad || v < pad || u >= W - pad || v >= H - pad;
+            p->rgb = rgb ? rgb + ((size_t)v * W + u) * 3 : NULL;
         }
         if (v == 0) continue;
         const float *drow = depth + (size_t)v * W, *dprev = depth + (size_t)(v - 1) * W;
@@ -108,11 +118,11 @@ pg_status proxy_mesh_depth(const pg_camera *src, const float *depth, int pad, co
             /* Split along whichever diagonal is intact, so a corner behind an edge does not kill the
              * whole quad. */
             if (bc) {
-                if (ab && ac) raster_triangle(a, b, c, W2, H2, zmesh, margin);
-                if (bd && cd) raster_triangle(b, d, c, W2, H2, zmesh, margin);
+                if (ab && ac) raster_triangle(a, b, c, W2, H2, zmesh, margin, rgb_out);
+                if (bd && cd) raster_triangle(b, d, c, W2, H2, zmesh, margin, rgb_out);
             } else if (ad) {
-                if (ab && bd) raster_triangle(a, b, d, W2, H2, zmesh, margin);
-                if (ac && cd) raster_triangle(a, d, c, W2, H2, zmesh, margin);
+                if (ab && bd) raster_triangle(a, b, d, W2, H2, zmesh, margin, rgb_out);
+                if (ac && cd) raster_triangle(a, d, c, W2, H2, zmesh, margin, rgb_out);
             }
         }
     }
@@ -120,15 +130,33 @@ pg_status proxy_mesh_depth(const pg_camera *src, const float *depth, int pad, co
     return PG_OK;
 }
 
+static unsigned char margin_value(const proxy_mask_options *opt)
+{
+    return (unsigned char)lroundf(clampf(opt->margin_weight, 0, 1) * PROXY_MASK_REAL);
+}
+
+float proxy_mask_mesh(int width, int height, const float *zmesh, const unsigned char *margin,
+                      const proxy_mask_options *opt, unsigned char *mask)
+{
+    size_t n = (size_t)width * height, valid = 0;
+    const unsigned char mv = margin_value(opt);
+    for (size_t i = 0; i < n; i++) {
+        int ok = zmesh[i] > 0;
+        if (mask) mask[i] = !ok ? 0 : (margin && margin[i]) ? mv : PROXY_MASK_REAL;
+        valid += ok;
+    }
+    return n ? (float)valid / n : 0;
+}
+
 float proxy_mask_combine(int width, int height, const float *alpha, const float *depth_norm, const float *zmesh,
                          const unsigned char *margin, const proxy_mask_options *opt, unsigned char *mask)
 {
     size_t n = (size_t)width * height, valid = 0;
-    const unsigned char margin_value = (unsigned char)lroundf(clampf(opt->margin_weight, 0, 1) * PROXY_MASK_REAL);
+    const unsigned char mv = margin_value(opt);
     for (size_t i = 0; i < n; i++) {
         int ok = alpha[i] > opt->alpha_min && zmesh[i] > 0 &&
                  fabsf(depth_norm[i] - zmesh[i]) <= opt->depth_tol * zmesh[i];
-        mask[i] = !ok ? 0 : (margin && margin[i]) ? margin_value : PROXY_MASK_REAL;
+        mask[i] = !ok ? 0 : (margin && margin[i]) ? mv : PROXY_MASK_REAL;
         valid += ok;
     }
     return n ? (float)valid / n : 0;

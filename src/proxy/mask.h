@@ -32,11 +32,19 @@ typedef struct {
 proxy_mask_options proxy_default_mask_options(void);
 
 /* Rasterises the depth mesh of src (depth (H,W) in pose units, 0 = invalid) into dst.
- * zmesh (H2,W2) receives the nearest kept-triangle depth, 0 where no kept triangle lands.
+ * zmesh (H2,W2) receives the nearest kept-triangle depth, 0 where no kept triangle lands. With rgb
+ * (H,W,3) given, rgb_out (H2,W2,3) receives the nearest triangle's colour, interpolated
+ * perspective-correctly between its corner pixels (0 where none lands); both may be NULL.
  * The outer `pad` pixels of src are an outpainted margin: margin (H2,W2, may be NULL) gets 1
  * where the nearest triangle touches it. */
 pg_status proxy_mesh_depth(const pg_camera *src, const float *depth, int pad, const pg_camera *dst,
-                           const proxy_mask_options *opt, float *zmesh, unsigned char *margin);
+                           const proxy_mask_options *opt, float *zmesh, unsigned char *margin, const float *rgb,
+                           float *rgb_out);
+
+/* The mask of a mesh-rendered view (H2,W2): covered by a kept triangle = valid (the margin's weight
+ * where it shows the margin). mask may be NULL. Returns the valid fraction. */
+float proxy_mask_mesh(int width, int height, const float *zmesh, const unsigned char *margin,
+                      const proxy_mask_options *opt, unsigned char *mask);
 
 /* Combines splat alpha (H2,W2), splat depth normalised by alpha (H2,W2), zmesh and margin (may be
  * NULL) into mask (H2,W2): 0, the margin weight x 255, or PROXY_MASK_REAL. Returns the valid

@@ -57,8 +57,9 @@ static unsigned long long settings_hash(const proxy_options *o, const proxy_job 
 {
     unsigned long long h = 1469598103934665603ULL;
     const proxy_fit_options *f = &o->fit;
-    h = hash_int(h, 4); /* format version of the cache (3: shared Adam, 4: filled holes) */
+    h = hash_int(h, 5); /* format version of the cache (3: shared Adam, 4: filled holes, 5: mesh renderer) */
     h = hash_int(h, o->fill_holes);
+    h = hash_int(h, f->render);
     h = hash_int(h, f->block);
     h = hash_int(h, f->steps);
     h = hash_int(h, f->surfels);
@@ -113,6 +114,7 @@ typedef struct {
     unsigned char *observed;    /* (H,W) scratch of the hole filling */
     int fill_max_run;           /* longest hole run filled (0: no filling) */
     unsigned char fill_weight;  /* mask value of filled pixels (the margin's weight) */
+    int fitted;                 /* the model is fitted (SPLAT): it has a source-view PSNR */
     double write_s, valid_sum, psnr_sum;
     long views, frames;
 } worker;
@@ -160,7 +162,7 @@ static pg_status process_frame(const proxy_job *j, const char *dir, const char *
     }
     pg_image_destroy(&frame);
     if (st) return pg_fail_context(st, "frame %d: ", f);
-    if (!empty && j->num_proxies > 0) {
+    if (!empty && j->num_proxies > 0 && w->fitted) {
         w->psnr_sum += proxy_model_get_stats(w->model)->source_psnr;
         w->frames++;
     }
@@ -207,6 +209,7 @@ static pg_status worker_init(worker *w, const proxy_options *o, const proxy_job 
     memset(w, 0, sizeof *w);
     size_t npix = (size_t)j->width * j->height;
     PG_TRY(proxy_model_create(&w->model, j->width, j->height, &o->fit));
+    w->fitted = o->fit.render == PROXY_RENDER_SPLAT;
     w->rgb = pg_malloc(npix * 3 * sizeof(float), "proxy view rgb");
     w->depth = pg_malloc(npix * sizeof(float), "proxy view depth");
     w->fmask = pg_malloc(npix * sizeof(float), "proxy mask image");
@@ -346,9 +349,12 @@ pg_status proxy_generate(const proxy_options *opt_in, const proxy_job *j, const 
                     if (!fs) {
                         done++;
                         const proxy_model_stats *ms = proxy_model_get_stats(w->model);
-                        pg_progress_report("proxies", res->frames_skipped + done, j->frames,
-                                           "frame=%d source_psnr=%.2f loss=%.4f->%.4f", todo[i], ms->source_psnr,
-                                           ms->first_loss, ms->last_loss);
+                        if (w->fitted)
+                            pg_progress_report("proxies", res->frames_skipped + done, j->frames,
+                                               "frame=%d source_psnr=%.2f loss=%.4f->%.4f", todo[i], ms->source_psnr,
+                                               ms->first_loss, ms->last_loss);
+                        else
+                            pg_progress_report("proxies", res->frames_skipped + done, j->frames, "frame=%d", todo[i]);
                     }
                 }
             }
@@ -369,7 +375,7 @@ pg_status proxy_generate(const proxy_options *opt_in, const proxy_job *j, const 
     long views = 0, frames = 0;
     for (int t = 0; t < threads; t++) { views += workers[t].views; frames += workers[t].frames; }
     if (views) res->mean_valid_fraction /= views;
-    if (frames) res->mean_source_psnr /= frames;
+    res->mean_source_psnr = frames ? res->mean_source_psnr / frames : NAN;
     res->frames_done = done;
     for (int t = 0; t < threads; t++) worker_free(&workers[t]);
     free(workers);

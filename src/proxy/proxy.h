@@ -56,7 +56,7 @@ typedef struct {
     double init_s, fit_s, render_s, write_s; /* summed over workers */
     double wall_s;
     double mean_valid_fraction; /* over computed proxy views */
-    double mean_source_psnr;    /* fitted model vs the real frame, over computed frames */
+    double mean_source_psnr;    /* fitted model vs the real frame, over computed frames (NaN: none fitted) */
     unsigned long long settings_hash;
 } proxy_result;
 

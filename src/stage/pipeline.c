@@ -40,7 +40,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
     c->preset = "fast";
     c->proxies = -1;
     c->pad = -1;
-    c->refine = c->align = c->fuse = 1;
+    c->refine = c->align = c->fuse = c->planes = 1;
     c->seed = 1;
 }
 
@@ -210,6 +210,7 @@ static pg_status run_prepare(pipeline_run *p, const pipeline_plan *plan, const c
     if (!c->refine) pc.refine = "none";
     pc.align = c->align;
     pc.fuse = c->fuse;
+    pc.planes = c->planes;
     pc.frames = c->frames;
     pc.width = plan->width;
     pc.height = plan->height;
@@ -274,6 +275,7 @@ static pg_status run_proxies(pipeline_run *p, const pipeline_plan *plan, const c
     if (c->fov > 0) xc.fov = c->fov;
     if (c->pad >= 0) xc.pad = c->pad;
     xc.fit_steps = plan->fit_steps;
+    xc.render = c->proxy_render;
     xc.pose_scale = c->pose_scale;
     xc.frames = c->frames;
     xc.width = plan->width;
@@ -343,9 +345,11 @@ static cJSON *config_record(const pg_pipeline_config *c, const pipeline_plan *pl
     cJSON_AddStringToObject(j, "poses", plan->poses);
     cJSON_AddNumberToObject(j, "proxies", plan->proxies);
     if (c->pad >= 0) cJSON_AddNumberToObject(j, "pad", c->pad);
+    cJSON_AddStringToObject(j, "proxy_render", c->proxy_render ? c->proxy_render : "mesh");
     cJSON_AddBoolToObject(j, "refine", c->refine);
     cJSON_AddBoolToObject(j, "align", c->align);
     cJSON_AddBoolToObject(j, "fuse", c->fuse);
+    cJSON_AddBoolToObject(j, "planes", c->planes);
     cJSON_AddNumberToObject(j, "iters", plan->iters);
     cJSON_AddNumberToObject(j, "frames", c->frames);
     if (plan->width || plan->height) {

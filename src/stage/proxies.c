@@ -110,6 +110,7 @@ cJSON *stage_proxies_config_json(const pg_proxies_config *c)
     cJSON_AddNumberToObject(j, "fov", c->fov);
     cJSON_AddNumberToObject(j, "pad", c->pad);
     cJSON_AddNumberToObject(j, "pose_scale", c->pose_scale);
+    cJSON_AddStringToObject(j, "render", c->render ? c->render : "mesh");
     cJSON_AddNumberToObject(j, "fit_steps", c->fit_steps);
     cJSON_AddNumberToObject(j, "fit_block", c->fit_block);
     cJSON_AddNumberToObject(j, "frames", c->frames);
@@ -128,6 +129,8 @@ static pg_status check_config(const pg_proxies_config *c, int *dataset_poses)
     if (!(c->max_angle > 0 && c->max_angle < 90))
         return pg_fail(PG_ERR_ARG, "proxies: --max-angle %g not in (0, 90) degrees", c->max_angle);
     if (!(c->fov > 0 && c->fov < 180)) return pg_fail(PG_ERR_ARG, "proxies: --fov %g not in (0, 180)", c->fov);
+    if (c->render && strcmp(c->render, "mesh") != 0 && strcmp(c->render, "splat") != 0)
+        return pg_fail(PG_ERR_ARG, "proxies: --render must be mesh or splat, not '%s'", c->render);
     if (c->fit_steps < 0 || c->fit_steps > 100000)
         return pg_fail(PG_ERR_ARG, "proxies: --fit-steps %d out of range 0..100000", c->fit_steps);
     if (c->fit_block < 1 || c->fit_block > 64) return pg_fail(PG_ERR_ARG, "proxies: --fit-block %d not in 1..64", c->fit_block);
@@ -305,6 +308,7 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
     proxy_options po = proxy_default_options();
     po.threads = r->threads;
     po.force = c->force;
+    po.fit.render = c->render && strcmp(c->render, "splat") == 0 ? PROXY_RENDER_SPLAT : PROXY_RENDER_MESH;
     po.fit.steps = c->fit_steps;
     po.fit.block = c->fit_block;
     if (c->pad >= 0) po.fit.pad = c->pad;
