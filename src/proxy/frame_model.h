@@ -6,7 +6,7 @@
  *    z-buffered. Exact on planar surfaces and at the source view, no fitting.
  *  - PROXY_RENDER_SPLAT (the paper's): one Gaussian per pixel, briefly fitted to the source view,
  *    splatted. Measured on tabletop_dev (GT depth, dataset cameras 7-21 degrees away): its texture
- *    lands 0.25-0.4 px off at every proxy camera, towards the side the camera moved to - overlapping
+ *    lands 0.25-0.4 px off at every proxy camera, the direction following the camera's side - overlapping
  *    Gaussians of one surface composite front to back, so whichever neighbour sorts first wins the
  *    shared pixels - which costs 1.4-2.4 dB and 0.035-0.065 SSIM against the mesh (docs/proxy.md).
  *
@@ -14,15 +14,15 @@
  *   proxy_fit_options o = proxy_default_fit_options();
  *   proxy_model_create(&m, W, H, &o);                       // one per worker, reused across frames
  *   for each frame:
- *       proxy_model_init(m, &real_cam, rgb, depth);         // one Gaussian per pixel (or k x k block)
- *       proxy_model_fit(m, &loss);                          // ~50 Adam steps on the source view
+ *       proxy_model_init(m, &real_cam, rgb, depth);         // margin; SPLAT: one Gaussian per pixel
+ *       proxy_model_fit(m);                                 // SPLAT: ~50 Adam steps on the source view
  *       for each proxy camera:
  *           proxy_model_render(m, &cam, rgb, depth, mask);  // RGB, depth/alpha, validity mask
  *   proxy_model_destroy(m);
  *
  * depth is in the pose units of the cameras (already multiplied by any pose scale), 0 = invalid.
- * With opt.pad > 0 the model also covers an outpainted margin around the frame (one Gaussian per
- * 4k x 4k block there, not fitted), so proxies turned away from the real view have no empty borders.
+ * With opt.pad > 0 the model also covers an outpainted margin around the frame (SPLAT: one Gaussian
+ * per 4k x 4k block there, not fitted), so proxies turned away from the real view have no empty borders.
  */
 #ifndef PG_PROXY_FRAME_MODEL_H
 #define PG_PROXY_FRAME_MODEL_H
@@ -34,7 +34,7 @@
 typedef enum { PROXY_RENDER_MESH, PROXY_RENDER_SPLAT } proxy_render_kind;
 
 typedef struct {
-    proxy_render_kind render; /* MESH (default) or SPLAT; the fields below up to pad are SPLAT's */
+    proxy_render_kind render; /* MESH (default) or SPLAT; block .. lr_color apply to SPLAT only */
     int block;            /* k: one Gaussian per k x k pixel block (1) */
     int steps;            /* Adam steps on the source view (50) */
     float ssim_weight;    /* weight of D-SSIM against L1 (0.2) */
