@@ -24,7 +24,7 @@ typedef struct {
     int iters;
     int proxies;  /* hemisphere proxy cameras (-1: all dataset cameras) */
     int max_side; /* shrink larger inputs so the longer side is at most this */
-    int fit_steps; /* Adam steps of the proxies' per-frame fit */
+    int fit_steps; /* Adam steps of the proxies' per-frame fit (--proxy-render splat only) */
 } preset;
 
 /* fast: minutes on 2 cores for a short clip at up to 320 px; quality: 5x the iterations at up to 640 px.
