@@ -92,6 +92,31 @@ int main(void)
     CHECK(a.ndim == 3 && a.shape[0] == 1 && a.shape[1] == 60 && a.shape[2] == 80, "proxy depth shape");
     pg_array_destroy(&a);
 
+    /* Hemisphere poses on the dataset, scored at its test cameras: the depth (here twice the truth)
+     * must still be brought into pose units, or every test camera sees the scene at the wrong scale. */
+    snprintf(path, sizeof path, "%s/depth_gt/cam00.npy", data);
+    CHECK_OK(io_npy_load(path, &a));
+    if (a.data) {
+        float *v = a.data;
+        for (size_t k = 0; k < a.shape[0] * a.shape[1] * a.shape[2]; k++) v[k] *= 2.0f;
+        snprintf(path, sizeof path, "%s/depth_x2.npy", dir);
+        CHECK_OK(io_npy_save(path, v, 3, a.shape));
+    }
+    pg_array_destroy(&a);
+    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_x2.npy' --out '%s/hemi_eval' --poses hemisphere --proxies 2 "
+             "--frames 1", data, dir, dir);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 0, "hemisphere proxies on a dataset failed (%d): %s", rc, err);
+    snprintf(path, sizeof path, "%s/hemi_eval/trainset.json", dir);
+    j = load_json(path);
+    CHECK(j != NULL, "%s missing", path);
+    if (j) {
+        double s = cJSON_GetObjectItem(cJSON_GetObjectItem(j, "source"), "pose_scale")->valuedouble;
+        CHECK(count_role(j, "proxy") == 2 && count_role(j, "test") == 2, "hemisphere + test roles");
+        CHECK(fabs(s - 0.5) < 0.01, "hemisphere poses with test cameras: pose scale %g, want 0.5 (depth x2)", s);
+        cJSON_Delete(j);
+    }
+
     /* Dataset poses limited to the 2 cameras closest to the real one, real camera given by name. */
     snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s/two' --fit-steps 1 --proxies 2 "
              "--train-cam cam00 --pose-scale 1", data, data, dir);

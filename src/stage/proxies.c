@@ -49,6 +49,23 @@ static float median_valid(const float *d, size_t n)
     return m;
 }
 
+/* The dataset's cameras other than the real and the test ones, in index order: their poses,
+ * names and indices. Returns the count. */
+static int other_cameras(pg_dataset *ds, int ncam, int train_cam, const int *tests, int ntest, pg_camera *cams,
+                         const char **names, int *idx)
+{
+    int m = 0;
+    for (int c = 0; c < ncam; c++) {
+        int is_test = 0;
+        for (int k = 0; k < ntest; k++) is_test |= tests[k] == c;
+        if (c == train_cam || is_test) continue;
+        io_dataset_camera(ds, c, &cams[m]);
+        names[m] = io_dataset_camera_name(ds, c);
+        idx[m++] = c;
+    }
+    return m;
+}
+
 /* Fits the depth-to-pose scale on frame 0 against the proxy (training) cameras. */
 static pg_status fit_scale(pg_dataset *ds, int real_idx, const pg_camera *real, const float *depth0, int n,
                            const int *idx, const pg_camera *cams, float *scale, proxy_scale_report *rep)
@@ -262,15 +279,7 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
     proxy_scale_report rep = { 0 };
     int fitted = 0;
     if (use_dataset_poses) {
-        int m = 0;
-        for (int c = 0; c < ncam; c++) {
-            int is_test = 0;
-            for (int k = 0; k < ntest; k++) is_test |= tests[k] == c;
-            if (c == train_cam || is_test) continue;
-            io_dataset_camera(ds, c, &cams[m]);
-            names[m] = io_dataset_camera_name(ds, c);
-            idx[m++] = c;
-        }
+        other_cameras(ds, ncam, train_cam, tests, ntest, cams, names, idx);
         if (pose_scale == 0) {
             st = fit_scale(ds, train_cam, &real, depth.data, M, idx, cams, &pose_scale, &rep);
             if (st) { free(tcams); goto done; }
@@ -285,8 +294,23 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
                 }
             M = num;
         }
-    } else {
-        if (pose_scale == 0) pose_scale = 1;
+    } else if (pose_scale == 0 && ntest > 0 && ncam - 1 - ntest > 0) {
+        /* Hemisphere proxies scored at dataset test cameras: the depth must still be in pose units,
+         * or every test camera sees the scene at the wrong scale. Fitted as for dataset poses. */
+        int n = ncam - 1 - ntest;
+        pg_camera *ocams = calloc((size_t)n, sizeof *ocams);
+        const char **onames = calloc((size_t)n, sizeof *onames);
+        int *oidx = calloc((size_t)n, sizeof *oidx);
+        if (!ocams || !onames || !oidx) st = pg_fail(PG_ERR_NOMEM, "proxies: out of memory");
+        if (!st) other_cameras(ds, ncam, train_cam, tests, ntest, ocams, onames, oidx);
+        if (!st) st = fit_scale(ds, train_cam, &real, depth.data, n, oidx, ocams, &pose_scale, &rep);
+        free(ocams);
+        free(onames);
+        free(oidx);
+        if (st) { free(tcams); goto done; }
+        fitted = 1;
+    } else if (pose_scale == 0) {
+        pose_scale = 1;
     }
     proxy_job job = { 0 };
     st = proxy_scene_center(&real, depth.data, pose_scale, job.center, &job.radius);
