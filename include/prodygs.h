@@ -104,7 +104,7 @@ typedef struct {
 void pg_prepare_defaults(pg_prepare_config *c);
 pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r);
 
-/* ---- proxies: virtual views rendered from per-frame RGB-D Gaussians (paper 3.2) ---- */
+/* ---- proxies: virtual views rendered from each RGB-D frame (paper 3.2) ---- */
 typedef struct {
     const char *input, *depth, *out; /* depth: prepare's depth_aligned.npy (required) */
     const char *train_camera;        /* NULL: the first */

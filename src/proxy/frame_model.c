@@ -1,4 +1,5 @@
-/* frame_model.c - per-frame RGB-D Gaussians: seed from pixels, short Adam fit, render proxies. */
+/* frame_model.c - the per-frame model: outpainted RGB-D frame rendered as a depth mesh, or (splat)
+ * Gaussians seeded from its pixels, fitted briefly by Adam and splatted. */
 #include "proxy/frame_model.h"
 #include "splat/sh.h"
 

@@ -1,7 +1,7 @@
 /* proxy.h - the proxy-view stage: frames + aligned depth -> training-set directory.
  *
- * For every frame: seed per-pixel RGB-D Gaussians, fit them briefly on the real view, render every
- * proxy camera (RGB, depth, validity mask), write them to DIR (docs/FORMATS.md) and free the model.
+ * For every frame: build its model (frame_model.h: the depth mesh, or per-pixel Gaussians fitted
+ * briefly on the real view), render every proxy camera (RGB, depth, validity mask), write them to DIR (docs/FORMATS.md) and free the model.
  * Frames run in parallel (one model per worker, so memory is bounded by the worker count). Each
  * finished frame leaves a marker holding the settings hash; a rerun with the same settings skips
  * those frames (resumable), a change of settings recomputes everything.
