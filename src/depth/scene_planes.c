@@ -253,10 +253,10 @@ pg_status depth_scene_planes_snap(const depth_scene_planes_params *p, float *dep
     unsigned char *free_px = pg_malloc(n, "plane detection mask");
     unsigned char *inlier = pg_malloc(n, "plane inliers");
     signed char *own_label = label ? NULL : pg_malloc(n, "plane labels");
-    unsigned char *near = pg_malloc(n * DEPTH_SCENE_PLANES_MAX, "plane neighbourhoods");
+    unsigned char *near = NULL;
     int *sample = pg_malloc(n * sizeof(int), "plane detection sample");
     pg_status st = PG_OK;
-    if (!ref || !resid || !free_px || !inlier || (!label && !own_label) || !near || !sample ||
+    if (!ref || !resid || !free_px || !inlier || (!label && !own_label) || !sample ||
         depth_static_reference(depth, static_masks, F, n, min_frames, ref) < 0)
         st = pg_fail(PG_ERR_NOMEM, "plane detection: out of memory for %d x %d", W, H);
     if (!st) {
@@ -267,11 +267,13 @@ pg_status depth_scene_planes_snap(const depth_scene_planes_params *p, float *dep
             res->static_pixels += free_px[k];
         }
         find_planes(p, ref, W, H, free_px, inlier, resid, sample, lab, res);
-        for (int i = 0; i < res->count; i++) {
+        if (res->count > 0) near = pg_malloc(n * (size_t)res->count, "plane neighbourhoods");
+        if (res->count > 0 && !near) st = PG_ERR_NOMEM;
+        for (int i = 0; i < res->count && near; i++) {
             for (size_t k = 0; k < n; k++) inlier[k] = lab[k] == i;
             depth_mask_dilate(inlier, W, H, NEAR_RADIUS, near + (size_t)i * n);
         }
-        res->snapped = snap_frames(p, res, depth, static_masks, F, W, H, near);
+        if (near) res->snapped = snap_frames(p, res, depth, static_masks, F, W, H, near);
     }
     free(ref);
     free(resid);
