@@ -1,13 +1,9 @@
 /* fuse.c - temporal median of static pixels (see fuse.h). */
 #include "depth/fuse.h"
 
-#include <stdlib.h>
+#include "core/mathx.h"
 
-static int by_value(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
+#include <stdlib.h>
 
 long depth_static_reference(const float *depth, const unsigned char *static_masks, int frames, size_t n,
                             int min_frames, float *ref)
@@ -32,7 +28,7 @@ long depth_static_reference(const float *depth, const unsigned char *static_mask
                 if (static_masks[(size_t)f * n + k] && d > 0) vals[m++] = d;
             }
             if (m < min_frames) continue;
-            qsort(vals, (size_t)m, sizeof(float), by_value);
+            qsort(vals, (size_t)m, sizeof(float), pg_cmp_float);
             ref[k] = m % 2 ? vals[m / 2] : 0.5f * (vals[m / 2 - 1] + vals[m / 2]);
             found++;
         }

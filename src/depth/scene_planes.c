@@ -1,6 +1,7 @@
 /* scene_planes.c - dominant planes of the static depth and snapping onto them (see scene_planes.h). */
 #include "depth/scene_planes.h"
 
+#include "core/mathx.h"
 #include "core/rng.h"
 #include "depth/fuse.h"
 #include "depth/plane.h"
@@ -147,12 +148,6 @@ static long ransac_plane(const depth_scene_planes_params *p, const float *ref, c
     return best_score;
 }
 
-static int by_value(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* Marks the free pixels within tolerance of pl in inlier[]; returns their count. */
 static long plane_inliers(const depth_scene_plane *pl, const float *ref, const unsigned char *free_px, float tol, int W,
                           int H, unsigned char *inlier, float *resid)
@@ -193,7 +188,7 @@ static void find_planes(const depth_scene_planes_params *p, const float *ref, in
         }
         pl.inliers = plane_inliers(&pl, ref, free_px, p->tolerance, W, H, inlier, resid);
         if (pl.inliers < p->min_support * (double)n) break;
-        qsort(resid, (size_t)pl.inliers, sizeof(float), by_value);
+        qsort(resid, (size_t)pl.inliers, sizeof(float), pg_cmp_float);
         pl.median_residual = resid[pl.inliers / 2];
         /* A curved surface crossing the plane fills the band evenly (median near tolerance / 2); a
          * plane seen through smooth depth error piles its residuals up near 0. */

@@ -159,12 +159,6 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
     return PG_OK;
 }
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* World point of pixel (x, y) at its depth, if valid and on the same surface as depth ref. */
 static int surface_point(const proxy_frame_model *m, const pg_camera *cam, int x, int y, float ref, float X[3])
 {
@@ -248,7 +242,7 @@ static int seed_block(proxy_frame_model *m, int bx, int by, int k, int interior,
             if (in_frame(m, x, y) == interior && m->depth[(size_t)y * W + x] > 0)
                 vals[cnt++] = m->depth[(size_t)y * W + x];
     if (cnt == 0) return 0;
-    qsort(vals, cnt, sizeof(float), cmp_float);
+    qsort(vals, cnt, sizeof(float), pg_cmp_float);
     float dm = vals[cnt / 2];
     float col[3] = { 0, 0, 0 }, su = 0, sv = 0, sd = 0;
     int used = 0;

@@ -10,12 +10,6 @@
 
 static int depth_valid(float d) { return isfinite(d) && d > 0; }
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 /* Median of the valid entries of depth (n values); 0 when none is valid. */
 static pg_status median_valid(const float *depth, size_t n, float *median)
 {
@@ -26,7 +20,7 @@ static pg_status median_valid(const float *depth, size_t n, float *median)
         if (depth_valid(depth[i])) tmp[k++] = depth[i];
     *median = 0;
     if (k > 0) {
-        qsort(tmp, k, sizeof(float), cmp_float);
+        qsort(tmp, k, sizeof(float), pg_cmp_float);
         *median = tmp[k / 2];
     }
     free(tmp);

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include "core/fileutil.h"
+#include "core/mathx.h"
 #include "core/parallel.h"
 #include "core/status.h"
 #include "io/dataset.h"
@@ -30,12 +31,6 @@ static pg_status source_frame(void *ctx, int camera, int frame, pg_image *out)
     return io_dataset_frame(s->ds, s->cams[camera], frame, out);
 }
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
 static float median_valid(const float *d, size_t n)
 {
     float *t = malloc(n * sizeof(float));
@@ -43,7 +38,7 @@ static float median_valid(const float *d, size_t n)
     size_t k = 0;
     for (size_t i = 0; i < n; i++)
         if (d[i] > 0) t[k++] = d[i];
-    qsort(t, k, sizeof(float), cmp_float);
+    qsort(t, k, sizeof(float), pg_cmp_float);
     float m = k ? t[k / 2] : 0;
     free(t);
     return m;
