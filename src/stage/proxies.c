@@ -1,5 +1,6 @@
 /* proxies.c - the proxies stage: every frame of the real view forward-warped (depth mesh, or the
- * paper's per-frame Gaussians) into virtual cameras into a training-set directory (paper 3.2, docs/proxy.md, docs/FORMATS.md). */
+ * paper's per-frame Gaussians) into virtual cameras, written as a training-set directory (paper
+ * 3.2, docs/proxy.md, docs/FORMATS.md). */
 #include "stage/stage_internal.h"
 
 #include <errno.h>
