@@ -279,6 +279,8 @@ int main(void)
     expect_error(a, "--poses");
     snprintf(a, sizeof a, "proxies @/ds %s --out @/x --threads -2", dep);
     expect_error(a, "--threads");
+    snprintf(a, sizeof a, "proxies @/ds %s --out @/x --render foo", dep);
+    expect_error(a, "--render must be mesh or splat, not 'foo'");
 
     /* train */
     expect_error("train", "usage");
@@ -326,6 +328,8 @@ int main(void)
     expect_error(a, "foo");
     snprintf(a, sizeof a, "eval @/ds %s --out @/v --max-angle 500", dep);
     expect_error(a, "--max-angle");
+    snprintf(a, sizeof a, "eval @/ds %s --out @/v --proxy-render foo", dep);
+    expect_error(a, "--proxy-render must be mesh or splat, not 'foo'");
     expect_error("eval @/ds --depth @/trunc.npy --out @/v --test-cams 1", "trunc.npy");
     expect_error("run @/ds --out @/u", "--depth");
     expect_error("run @/garbled.mp4 --depth @/good.npy --out @/u", "garbled.mp4");
@@ -357,6 +361,7 @@ int main(void)
     expect_error("bench raster --width 100000 --height 100000", "--width");
     expect_error("bench proxy --num -1", "--num");
     expect_error("bench proxy --frames -1", "--frames");
+    expect_error("bench proxy --render foo", "--render must be mesh or splat");
     expect_error("bench iteration --gaussians -5", "--gaussians");
     expect_error("bench loss --width -1", "--width");
     expect_error("bench deform --bogus", "--bogus");

@@ -73,6 +73,7 @@ int main(void)
     CHECK_OK(proxy_generate(&o, &job, dir, &res));
     CHECK(res.frames_done == F && res.frames_skipped == 0, "done %d skipped %d", res.frames_done, res.frames_skipped);
     CHECK(res.mean_valid_fraction > 0.5, "mean valid fraction %g", res.mean_valid_fraction);
+    CHECK(isnan(res.mean_source_psnr), "the mesh renderer fits nothing, yet reports source PSNR %g", res.mean_source_psnr);
 
     /* Layout and index. */
     for (int k = 0; k < M; k++)
@@ -144,6 +145,14 @@ int main(void)
     snprintf(path, sizeof path, "%s/proxy02/depth.npy", dir);
     snprintf(path2, sizeof path2, "%s/proxy02/depth.npy", dir2);
     CHECK(test_files_equal(path, path2), "%s and %s differ", path, path2);
+
+    /* The paper's splat renderer through the same stage: fitted, so it reports a source PSNR. */
+    proxy_options os = o;
+    os.fit.render = PROXY_RENDER_SPLAT;
+    snprintf(path, sizeof path, "%s_splat", dir2);
+    CHECK_OK(proxy_generate(&os, &job, path, &res));
+    CHECK(res.frames_done == F && res.mean_source_psnr > 20, "splat: %d frames, source PSNR %g", res.frames_done,
+          res.mean_source_psnr);
 
     /* Changed settings -> everything recomputed. */
     o.fit.steps = 4;

@@ -67,6 +67,8 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
         return pg_fail(PG_ERR_ARG, "--deform-head-width must be in 1..1024 (got %d)", c->deform_head_width);
     if (c->depth_scale < 0) return pg_fail(PG_ERR_ARG, "--depth-scale must be > 0 (got %g)", c->depth_scale);
     if (c->pose_scale < 0) return pg_fail(PG_ERR_ARG, "--pose-scale must be > 0 (got %g)", c->pose_scale);
+    if (c->proxy_render && strcmp(c->proxy_render, "mesh") != 0 && strcmp(c->proxy_render, "splat") != 0)
+        return pg_fail(PG_ERR_ARG, "--proxy-render must be mesh or splat, not '%s'", c->proxy_render);
     if (c->max_angle < 0 || c->max_angle >= 90)
         return pg_fail(PG_ERR_ARG, "--max-angle must be in (0, 90) degrees (got %g)", c->max_angle);
     if (c->fov < 0 || c->fov >= 180) return pg_fail(PG_ERR_ARG, "--fov must be in (0, 180) degrees (got %g)", c->fov);
