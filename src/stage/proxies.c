@@ -46,9 +46,9 @@ static float median_valid(const float *d, size_t n)
 }
 
 /* The dataset's cameras other than the real and the test ones, in index order: their poses,
- * names and indices. Returns the count. */
-static int other_cameras(pg_dataset *ds, int ncam, int train_cam, const int *tests, int ntest, pg_camera *cams,
-                         const char **names, int *idx)
+ * names and indices. */
+static void other_cameras(pg_dataset *ds, int ncam, int train_cam, const int *tests, int ntest, pg_camera *cams,
+                          const char **names, int *idx)
 {
     int m = 0;
     for (int c = 0; c < ncam; c++) {
@@ -59,7 +59,6 @@ static int other_cameras(pg_dataset *ds, int ncam, int train_cam, const int *tes
         names[m] = io_dataset_camera_name(ds, c);
         idx[m++] = c;
     }
-    return m;
 }
 
 /* Fits the depth-to-pose scale on frame 0 against the proxy (training) cameras. */
@@ -253,13 +252,15 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
 
     pg_camera real;
     io_dataset_camera(ds, train_cam, &real);
-    int M = use_dataset_poses ? ncam - 1 - ntest : (num < 0 ? 18 : num);
-    cams = calloc((size_t)M + 1, sizeof *cams);
-    names = calloc((size_t)M + MAX_CAMS, sizeof *names);
+    const int nother = ncam - 1 - ntest; /* dataset cameras neither real nor test */
+    int M = use_dataset_poses ? nother : (num < 0 ? 18 : num);
+    const int cap = M > nother ? M : nother; /* cams/names hold the other cameras, then the proxies */
+    cams = calloc((size_t)cap + 1, sizeof *cams);
+    names = calloc((size_t)cap + MAX_CAMS, sizeof *names);
     hnames = calloc((size_t)M + 1, sizeof *hnames);
-    idx = calloc((size_t)M + 1, sizeof *idx);
+    idx = calloc((size_t)cap + 1, sizeof *idx);
     pg_camera *tcams = calloc((size_t)ntest + 1, sizeof *tcams);
-    const char **tnames = names + M;
+    const char **tnames = names + cap;
     if (!cams || !names || !hnames || !idx || !tcams) {
         free(tcams);
         st = pg_fail(PG_ERR_NOMEM, "proxies: out of memory");
@@ -274,39 +275,26 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
     }
     proxy_scale_report rep = { 0 };
     int fitted = 0;
-    if (use_dataset_poses) {
-        other_cameras(ds, ncam, train_cam, tests, ntest, cams, names, idx);
-        if (pose_scale == 0) {
-            st = fit_scale(ds, train_cam, &real, depth.data, M, idx, cams, &pose_scale, &rep);
-            if (st) { free(tcams); goto done; }
-            fitted = 1;
-        }
-        if (num >= 0 && num < M) {
-            /* keep the num cameras closest in viewing direction to the real one (stable order) */
-            for (int a = 1; a < M; a++)
-                for (int b = a; b > 0 && proxy_camera_angle_deg(&real, &cams[b]) < proxy_camera_angle_deg(&real, &cams[b - 1]); b--) {
-                    pg_camera tc = cams[b]; cams[b] = cams[b - 1]; cams[b - 1] = tc;
-                    const char *tn = names[b]; names[b] = names[b - 1]; names[b - 1] = tn;
-                }
-            M = num;
-        }
-    } else if (pose_scale == 0 && ntest > 0 && ncam - 1 - ntest > 0) {
-        /* Hemisphere proxies scored at dataset test cameras: the depth must still be in pose units,
-         * or every test camera sees the scene at the wrong scale. Fitted as for dataset poses. */
-        int n = ncam - 1 - ntest;
-        pg_camera *ocams = calloc((size_t)n, sizeof *ocams);
-        const char **onames = calloc((size_t)n, sizeof *onames);
-        int *oidx = calloc((size_t)n, sizeof *oidx);
-        if (!ocams || !onames || !oidx) st = pg_fail(PG_ERR_NOMEM, "proxies: out of memory");
-        if (!st) other_cameras(ds, ncam, train_cam, tests, ntest, ocams, onames, oidx);
-        if (!st) st = fit_scale(ds, train_cam, &real, depth.data, n, oidx, ocams, &pose_scale, &rep);
-        free(ocams);
-        free(onames);
-        free(oidx);
+    /* Dataset poses train at the other cameras; test cameras need the depth in pose units whatever
+     * the proxies' poses (hemisphere proxies scored at test cameras would otherwise see the scene at
+     * the depth's scale). Either way the scale is fitted on the other cameras' frame 0. */
+    const int use_others = use_dataset_poses || ntest > 0;
+    if (use_others) other_cameras(ds, ncam, train_cam, tests, ntest, cams, names, idx);
+    if (pose_scale == 0 && use_others && nother > 0) {
+        st = fit_scale(ds, train_cam, &real, depth.data, nother, idx, cams, &pose_scale, &rep);
         if (st) { free(tcams); goto done; }
         fitted = 1;
     } else if (pose_scale == 0) {
         pose_scale = 1;
+    }
+    if (use_dataset_poses && num >= 0 && num < M) {
+        /* keep the num cameras closest in viewing direction to the real one (stable order) */
+        for (int a = 1; a < M; a++)
+            for (int b = a; b > 0 && proxy_camera_angle_deg(&real, &cams[b]) < proxy_camera_angle_deg(&real, &cams[b - 1]); b--) {
+                pg_camera tc = cams[b]; cams[b] = cams[b - 1]; cams[b - 1] = tc;
+                const char *tn = names[b]; names[b] = names[b - 1]; names[b - 1] = tn;
+            }
+        M = num;
     }
     proxy_job job = { 0 };
     st = proxy_scene_center(&real, depth.data, pose_scale, job.center, &job.radius);
