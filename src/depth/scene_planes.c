@@ -47,21 +47,27 @@ static inline double plane_residual(const depth_scene_plane *pl, float d, int u,
     return r > 0 ? fabs(log(r)) : HUGE_VAL;
 }
 
-/* Solves the 3x3 system m x = y by Cramer's rule; 0 when (nearly) singular. */
-static int solve3(const double m[3][3], const double y[3], double x[3])
+static double det3(const double m[3][3])
 {
-    double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
-                 m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-    double scale = fabs(m[0][0]) + fabs(m[1][1]) + fabs(m[2][2]);
+    return m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+}
+
+/* Solves the 3x3 system m x = y by Cramer's rule into the plane's (a, b, c); 0 when (nearly)
+ * singular (the plane is left as it was). */
+static int solve_plane(const double m[3][3], const double y[3], depth_scene_plane *pl)
+{
+    double det = det3(m), scale = fabs(m[0][0]) + fabs(m[1][1]) + fabs(m[2][2]), x[3];
     if (!(fabs(det) > 1e-12 * scale * scale * scale)) return 0;
     for (int c = 0; c < 3; c++) {
         double t[3][3];
         memcpy(t, m, sizeof t);
         for (int r = 0; r < 3; r++) t[r][c] = y[r];
-        x[c] = (t[0][0] * (t[1][1] * t[2][2] - t[1][2] * t[2][1]) - t[0][1] * (t[1][0] * t[2][2] - t[1][2] * t[2][0]) +
-                t[0][2] * (t[1][0] * t[2][1] - t[1][1] * t[2][0])) /
-               det;
+        x[c] = det3(t) / det;
     }
+    pl->a = x[0];
+    pl->b = x[1];
+    pl->c = x[2];
     return 1;
 }
 
@@ -80,12 +86,7 @@ static int plane_refit(depth_scene_plane *pl, const float *ref, const unsigned c
                 for (int j = 0; j < 3; j++) m[i][j] += row[i] * row[j];
             }
         }
-    double x[3];
-    if (!solve3(m, y, x)) return 0;
-    pl->a = x[0];
-    pl->b = x[1];
-    pl->c = x[2];
-    return 1;
+    return solve_plane(m, y, pl);
 }
 
 /* The plane through three pixels of the static depth; 0 when they are (nearly) collinear. */
@@ -100,12 +101,7 @@ static int plane_through(depth_scene_plane *pl, const float *ref, const int *px,
         y[i] = 1.0 / ref[px[i]];
     }
     double area = fabs((m[1][0] - m[0][0]) * (m[2][1] - m[0][1]) - (m[2][0] - m[0][0]) * (m[1][1] - m[0][1]));
-    double x[3];
-    if (area < 4.0 / ((double)W * H) || !solve3(m, y, x)) return 0; /* under ~2 square pixels, or singular */
-    pl->a = x[0];
-    pl->b = x[1];
-    pl->c = x[2];
-    return 1;
+    return area >= 4.0 / ((double)W * H) && solve_plane(m, y, pl); /* not under ~2 square pixels */
 }
 
 /* One RANSAC search on the free pixels: the first pixel anywhere, the other two within a window
@@ -170,7 +166,7 @@ static void find_planes(const depth_scene_planes_params *p, const float *ref, in
                         depth_scene_planes_result *res)
 {
     const size_t n = (size_t)W * H;
-    const int stride = (int)ceil(sqrt((double)n / SCORE_PIXELS)) > 1 ? (int)ceil(sqrt((double)n / SCORE_PIXELS)) : 1;
+    const int stride = n > SCORE_PIXELS ? (int)ceil(sqrt((double)n / SCORE_PIXELS)) : 1;
     long nsample = 0, ngrid = 0;
     for (int v = stride / 2; v < H; v += stride)
         for (int u = stride / 2; u < W; u += stride, ngrid++)
@@ -255,12 +251,9 @@ pg_status depth_scene_planes_snap(const depth_scene_planes_params *p, float *dep
         depth_static_reference(depth, static_masks, F, n, min_frames, ref) < 0)
         st = pg_fail(PG_ERR_NOMEM, "plane detection: out of memory for %d x %d", W, H);
     if (!st) {
-        signed char *lab = label ? label : own_label;
-        memset(lab, -1, n);
-        for (size_t k = 0; k < n; k++) {
-            free_px[k] = ref[k] > 0 && isfinite(ref[k]);
-            res->static_pixels += free_px[k];
-        }
+        signed char *lab = label ? label : own_label; /* label was cleared on entry */
+        if (own_label) memset(own_label, -1, n);
+        for (size_t k = 0; k < n; k++) free_px[k] = ref[k] > 0 && isfinite(ref[k]);
         find_planes(p, ref, W, H, free_px, inlier, resid, sample, lab, res);
         if (res->count > 0) near = pg_malloc(n * (size_t)res->count, "plane neighbourhoods");
         if (res->count > 0 && !near) st = PG_ERR_NOMEM;

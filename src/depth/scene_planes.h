@@ -53,7 +53,6 @@ typedef struct {
     int count;
     depth_scene_plane planes[DEPTH_SCENE_PLANES_MAX];
     long snapped;       /* (frame, pixel) values changed, over all frames */
-    long static_pixels; /* pixels with a static depth (candidates) */
 } depth_scene_planes_result;
 
 void depth_scene_planes_defaults(depth_scene_planes_params *p);
