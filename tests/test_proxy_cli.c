@@ -34,6 +34,24 @@ static int count_role(cJSON *root, const char *role)
     return n;
 }
 
+/* Runs `prodygs ARGS` (a proxies command writing out_dir), which must succeed, and returns
+ * out_dir/trainset.json parsed (NULL after a failed check). */
+static cJSON *run_proxies(const char *args, const char *out_dir)
+{
+    char err[2048], path[1400];
+    int rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 0, "prodygs %s failed (%d): %s", args, rc, err);
+    snprintf(path, sizeof path, "%s/trainset.json", out_dir);
+    cJSON *j = rc == 0 ? load_json(path) : NULL;
+    CHECK(rc != 0 || j != NULL, "%s missing or invalid", path);
+    return j;
+}
+
+static double pose_scale_of(cJSON *trainset)
+{
+    return cJSON_GetObjectItem(cJSON_GetObjectItem(trainset, "source"), "pose_scale")->valuedouble;
+}
+
 int main(void)
 {
     char dir[1024], data[1200], out[1200], out2[1200], args[4096], err[2048], path[1400];
@@ -52,16 +70,11 @@ int main(void)
 
     /* Dataset poses: cam00 real, cam05/06 test, the 5 others proxies; scale fitted on depth_gt = 1. */
     snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s' --fit-steps 3", data, data, out);
-    int rc = test_run_cli(args, err, sizeof err);
-    CHECK(rc == 0, "proxies failed (%d): %s", rc, err);
-    snprintf(path, sizeof path, "%s/trainset.json", out);
-    cJSON *j = load_json(path);
-    CHECK(j != NULL, "%s missing or invalid", path);
+    cJSON *j = run_proxies(args, out);
     if (j) {
         CHECK(count_role(j, "real") == 1 && count_role(j, "proxy") == 5 && count_role(j, "test") == 2,
               "roles real %d proxy %d test %d", count_role(j, "real"), count_role(j, "proxy"), count_role(j, "test"));
-        double s = cJSON_GetObjectItem(cJSON_GetObjectItem(j, "source"), "pose_scale")->valuedouble;
-        CHECK(fabs(s - 1.0) < 0.02, "fitted pose scale %g on ground-truth depth", s);
+        CHECK(fabs(pose_scale_of(j) - 1.0) < 0.02, "fitted pose scale %g on ground-truth depth", pose_scale_of(j));
         cJSON_Delete(j);
     }
     snprintf(path, sizeof path, "%s/cam03/mask/0001.png", out);
@@ -76,11 +89,7 @@ int main(void)
              "proxies '%s/cam00/images' --depth '%s/depth_gt/cam00.npy' --out '%s' --poses hemisphere --proxies 3 "
              "--max-angle 12 --fit-steps 2 --fit-block 2 --frames 1 --pose-scale 2",
              data, data, out2);
-    rc = test_run_cli(args, err, sizeof err);
-    CHECK(rc == 0, "hemisphere proxies failed (%d): %s", rc, err);
-    snprintf(path, sizeof path, "%s/trainset.json", out2);
-    j = load_json(path);
-    CHECK(j != NULL, "%s missing", path);
+    j = run_proxies(args, out2);
     if (j) {
         CHECK(count_role(j, "proxy") == 3 && count_role(j, "test") == 0, "hemisphere roles");
         CHECK(cJSON_GetObjectItem(j, "frames")->valueint == 1, "--frames ignored");
@@ -103,27 +112,22 @@ int main(void)
         CHECK_OK(io_npy_save(path, v, 3, a.shape));
     }
     pg_array_destroy(&a);
-    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_x2.npy' --out '%s/hemi_eval' --poses hemisphere --proxies 2 "
-             "--frames 1", data, dir, dir);
-    rc = test_run_cli(args, err, sizeof err);
-    CHECK(rc == 0, "hemisphere proxies on a dataset failed (%d): %s", rc, err);
-    snprintf(path, sizeof path, "%s/hemi_eval/trainset.json", dir);
-    j = load_json(path);
-    CHECK(j != NULL, "%s missing", path);
+    snprintf(path, sizeof path, "%s/hemi_eval", dir);
+    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_x2.npy' --out '%s' --poses hemisphere --proxies 2 "
+             "--frames 1", data, dir, path);
+    j = run_proxies(args, path);
     if (j) {
-        double s = cJSON_GetObjectItem(cJSON_GetObjectItem(j, "source"), "pose_scale")->valuedouble;
         CHECK(count_role(j, "proxy") == 2 && count_role(j, "test") == 2, "hemisphere + test roles");
-        CHECK(fabs(s - 0.5) < 0.01, "hemisphere poses with test cameras: pose scale %g, want 0.5 (depth x2)", s);
+        CHECK(fabs(pose_scale_of(j) - 0.5) < 0.01, "hemisphere poses with test cameras: pose scale %g, want 0.5 (depth x2)",
+              pose_scale_of(j));
         cJSON_Delete(j);
     }
 
     /* Dataset poses limited to the 2 cameras closest to the real one, real camera given by name. */
-    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s/two' --fit-steps 1 --proxies 2 "
-             "--train-cam cam00 --pose-scale 1", data, data, dir);
-    rc = test_run_cli(args, err, sizeof err);
-    CHECK(rc == 0, "--proxies 2 failed (%d): %s", rc, err);
-    snprintf(path, sizeof path, "%s/two/trainset.json", dir);
-    j = load_json(path);
+    snprintf(path, sizeof path, "%s/two", dir);
+    snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s' --fit-steps 1 --proxies 2 "
+             "--train-cam cam00 --pose-scale 1", data, data, path);
+    j = run_proxies(args, path);
     if (j) {
         CHECK(count_role(j, "proxy") == 2 && count_role(j, "test") == 2, "--proxies 2: %d proxies", count_role(j, "proxy"));
         cJSON_Delete(j);
@@ -131,7 +135,7 @@ int main(void)
 
     /* Errors: exit 2 with one line naming the problem. */
     snprintf(args, sizeof args, "proxies '%s' --depth '%s/nope.npy' --out '%s'", data, data, out);
-    rc = test_run_cli(args, err, sizeof err);
+    int rc = test_run_cli(args, err, sizeof err);
     CHECK(rc == 2 && strstr(err, "nope.npy"), "missing depth: rc %d, %s", rc, err);
     snprintf(args, sizeof args, "proxies '%s' --depth '%s/depth_gt/cam00.npy' --out '%s' --poses sideways", data,
              data, out);
