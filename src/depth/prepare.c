@@ -1,6 +1,7 @@
 /* prepare.c - depth preparation pipeline and its outputs (see prepare.h). */
 #include "depth/prepare.h"
 #include "depth/fuse.h"
+#include "depth/plane.h"
 
 #include "core/fileutil.h"
 #include "core/mathx.h"
@@ -428,9 +429,9 @@ pg_status depth_prepare_write(const char *dir, const depth_prepare_options *opt,
         if (!st && frames) {
             /* Mask over the frame: static pixels as they are, dynamic ones tinted red. */
             const unsigned char *m = res->static_masks + (size_t)i * n;
+            depth_plane_from_image(&frames[i], 1.0f, gray.data);
             for (size_t k = 0; k < n; k++) {
-                const float *src = frames[i].data + k * frames[i].channels;
-                float g = frames[i].channels >= 3 ? 0.299f * src[0] + 0.587f * src[1] + 0.114f * src[2] : src[0];
+                float g = gray.data[k];
                 img.data[3 * k] = m[k] ? g : 0.5f + 0.5f * g;
                 img.data[3 * k + 1] = m[k] ? g : 0.15f * g;
                 img.data[3 * k + 2] = m[k] ? g : 0.15f * g;
@@ -457,10 +458,9 @@ pg_status depth_prepare_write(const char *dir, const depth_prepare_options *opt,
         /* The reference frame in grey with each plane's pixels tinted in its own colour. */
         static const float tint[6][3] = { { 0.9f, 0.3f, 0.2f }, { 0.2f, 0.7f, 0.9f }, { 0.3f, 0.9f, 0.3f },
                                           { 0.9f, 0.8f, 0.2f }, { 0.7f, 0.3f, 0.9f }, { 0.9f, 0.5f, 0.7f } };
-        const pg_image *f0 = &frames[res->reference > 0 ? res->reference : 0];
+        depth_plane_from_image(&frames[res->reference > 0 ? res->reference : 0], 1.0f, gray.data);
         for (size_t k = 0; k < n; k++) {
-            const float *src = f0->data + k * f0->channels;
-            float g = f0->channels >= 3 ? 0.299f * src[0] + 0.587f * src[1] + 0.114f * src[2] : src[0];
+            float g = gray.data[k];
             int l = res->plane_label[k];
             for (int c = 0; c < 3; c++) img.data[3 * k + c] = l < 0 ? 0.5f * g : 0.4f * g + 0.6f * tint[l % 6][c];
         }
