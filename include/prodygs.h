@@ -148,6 +148,7 @@ typedef struct {
     float real_weight, moving_weight, lambda_depth, lambda_dssim; /* < 0: defaults */
     int deform_res, deform_width, static_check_every; /* 0: defaults / off */
     int deform_head_width;  /* hidden width of each deformation head (0: the trainer's default, 32) */
+    int deform_tres;        /* HexPlane time texels (0: the trainer's rule, train_time_texels) */
     int use_static, use_cull; /* static Gaussians skip the network; frustum culling (1, 1) */
     int eval_train;         /* also score the real views, moving and static pixels apart */
     int stop_at_iter;       /* tests: stop after this iteration as if killed (0: off) */

@@ -107,6 +107,12 @@ int pipeline_cli_run(pg_pipeline_config *c)
         add_score(line, sizeof line, "train_psnr_static", r.evaluation.train_psnr_static);
         size_t n = strlen(line);
         snprintf(line + n, sizeof line - n, ", \"frames\": %d, \"metrics\": \"%s/metrics.json\"", r.evaluation.frames, c->out);
+    } else {
+        add_score(line, sizeof line, "train_psnr", r.train.train_psnr);
+        add_score(line, sizeof line, "train_psnr_moving", r.train.train_psnr_moving);
+        add_score(line, sizeof line, "train_psnr_static", r.train.train_psnr_static);
+        size_t n = strlen(line);
+        snprintf(line + n, sizeof line - n, ", \"gaussians\": %d, \"report\": \"%s/report.md\"", r.train.gaussians, c->out);
     }
     printf("%s, \"peak_rss_mib\": %.1f}\n", line, r.peak_rss_kb / 1024.0);
     fflush(stdout);

@@ -13,6 +13,7 @@
 #include "core/parallel.h"
 #include "core/status.h"
 #include "io/dataset.h"
+#include "io/json.h"
 #include "stage/marker.h"
 
 /* depth is last in the report's arrays (it was added later) but runs first */
@@ -115,6 +116,13 @@ static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipelin
             size_t a = strlen(plan->test_cameras), b = strlen(r->test_cameras);
             snprintf(plan->test_cameras + a, sizeof plan->test_cameras - a, "%s%s", k ? "," : "", io_dataset_camera_name(ds, tests[k]));
             snprintf(r->test_cameras + b, sizeof r->test_cameras - b, "%s%s", k ? ", " : "", label);
+        }
+        io_dataset_kind kind = io_dataset_get_kind(ds);
+        if (kind == IO_DATASET_VIDEO || kind == IO_DATASET_FOLDER) {
+            /* proxies' baselines and the scene's shape follow from it: say which one was used */
+            if (c->fov > 0) fprintf(stderr, "prodygs: field of view %g degrees (--fov)\n", c->fov);
+            else fprintf(stderr, "prodygs: field of view 60 degrees (the default: %s records none; give --fov if you know it)\n",
+                         c->input);
         }
         plan->width = c->width;
         plan->height = c->height;
@@ -297,6 +305,24 @@ static pg_status run_proxies(pipeline_run *p, const pipeline_plan *plan, const c
 
 /* Training resumes its checkpoint only when OUT/train.started shows the same settings and
  * inputs (an interrupted run); a checkpoint of other settings or data is removed first. */
+/* A finished training's figures from its train.json, when the stage is already done. */
+static pg_status read_train_scores(const char *dir, pg_train_report *r)
+{
+    char path[4200];
+    cJSON *root = NULL;
+    PG_TRY(pg_path_join(path, sizeof path, dir, "train.json"));
+    PG_TRY(io_json_load(path, &root));
+    double v;
+    if (!io_json_get_number(root, "iterations", path, &v)) r->iterations = (int)v;
+    if (!io_json_get_number(root, "gaussians", path, &v)) r->gaussians = (int)v;
+    if (!io_json_get_number(root, "static_gaussians", path, &v)) r->static_gaussians = (int)v;
+    if (!io_json_get_number(root, "train_real_psnr", path, &v)) r->train_psnr = v;
+    if (!io_json_get_number(root, "train_real_psnr_moving", path, &v)) r->train_psnr_moving = v;
+    if (!io_json_get_number(root, "train_real_psnr_static", path, &v)) r->train_psnr_static = v;
+    cJSON_Delete(root);
+    return PG_OK;
+}
+
 static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const char *proxies_dir, const char *dir)
 {
     const pg_pipeline_config *c = p->c;
@@ -312,6 +338,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.deform_head_width = c->deform_head_width;
     tc.seed = c->seed;
     tc.threads = plan->threads;
+    tc.eval_train = 1; /* the training camera's moving/static PSNR: whether the motion was captured */
     /* the proxies' marker holds the hashes of the video and depth they were made from */
     cJSON *config = stage_train_config_json(&tc), *inputs;
     pg_status st = hash_inputs(&inputs, "trainset", set_file, "proxies", proxies_done);
@@ -328,6 +355,8 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
         if (!st && p->r->train.finished)
             st = stage_finished(p, ST_TRAIN, config, inputs, p->r->train.seconds, p->r->train.threads);
         if (!st && !p->r->train.finished) st = pg_fail(PG_ERR_INTERNAL, "train: stopped before the last iteration");
+    } else if (!st) {
+        st = read_train_scores(dir, &p->r->train);
     }
     cJSON_Delete(config);
     cJSON_Delete(inputs);
@@ -397,6 +426,10 @@ static pg_status write_run_report(const pg_pipeline_config *c, const cJSON *conf
     if (r->train.iterations)
         EMIT("\nTraining: %d iterations, %d Gaussians (%d static).\n", r->train.iterations, r->train.gaussians,
              r->train.static_gaussians);
+    if (isfinite(r->train.train_psnr))
+        EMIT("\nThe model at the training camera against the input frames: PSNR %.2f dB; moving pixels %.2f dB, "
+             "static pixels %.2f dB (moving: colour off the pixel's temporal median by > 0.12, dilated 2 px).\n",
+             r->train.train_psnr, r->train.train_psnr_moving, r->train.train_psnr_static);
     if (cfg) EMIT("\n## Configuration\n\n```json\n%s\n```\n", cfg);
 #undef EMIT
     free(cfg);

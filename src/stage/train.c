@@ -39,10 +39,10 @@ cJSON *stage_train_config_json(const pg_train_config *c)
     cJSON *j = cJSON_CreateObject();
     const int ints[] = { c->iters, c->coarse_iters, c->seed, c->max_gaussians, c->init_points, c->sh_degree,
                          c->proxies, c->frames, c->width, c->views_per_step, c->deform_res, c->deform_width,
-                         c->deform_head_width, c->static_check_every, c->use_static, c->use_cull };
+                         c->deform_head_width, c->static_check_every, c->use_static, c->use_cull, c->deform_tres };
     static const char *int_names[] = { "iters", "coarse_iters", "seed", "max_gaussians", "init_points", "sh_degree",
                                        "proxies", "frames", "width", "views_per_step", "deform_res", "deform_width",
-                                       "deform_head_width", "static_check_every", "use_static", "use_cull" };
+                                       "deform_head_width", "static_check_every", "use_static", "use_cull", "deform_tres" };
     for (size_t k = 0; k < sizeof ints / sizeof ints[0]; k++) cJSON_AddNumberToObject(j, int_names[k], ints[k]);
     const float floats[] = { c->real_weight, c->moving_weight, c->lambda_depth, c->lambda_dssim };
     static const char *float_names[] = { "real_weight", "moving_weight", "lambda_depth", "lambda_dssim" };
@@ -75,6 +75,8 @@ static pg_status check_config(const pg_train_config *c)
     if (c->sh_degree < 0 || c->sh_degree > 3) return pg_fail(PG_ERR_ARG, "train: --sh-degree must be 0..3");
     if (c->deform_res < 0 || c->deform_res > 1024 || c->deform_width < 0 || c->deform_width > 1024)
         return pg_fail(PG_ERR_ARG, "train: --deform-res/--deform-width out of range 0..1024");
+    if (c->deform_tres < 0 || c->deform_tres == 1 || c->deform_tres > 100000)
+        return pg_fail(PG_ERR_ARG, "train: --deform-time-res %d out of range 2..100000 (0 = the trainer's rule)", c->deform_tres);
     if (c->deform_head_width < 0 || c->deform_head_width > 1024)
         return pg_fail(PG_ERR_ARG, "train: --deform-head-width %d out of range 1..1024 (0 = --deform-width)",
                        c->deform_head_width);
@@ -134,6 +136,7 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
     cJSON_AddNumberToObject(root, "width", ts->width);
     cJSON_AddNumberToObject(root, "height", ts->height);
     cJSON_AddNumberToObject(root, "fps", ts->fps);
+    cJSON_AddNumberToObject(root, "unit", ts->unit); /* the user's length per trainer length */
     cJSON_AddNumberToObject(root, "iterations", r->iterations);
     cJSON_AddNumberToObject(root, "gaussians", r->gaussians);
     cJSON_AddNumberToObject(root, "static_gaussians", r->static_gaussians);
@@ -152,7 +155,8 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
     cJSON_AddNumberToObject(root, "seconds", r->seconds);
     cJSON *cams = cJSON_AddArrayToObject(root, "cameras");
     for (int i = 0; i < ts->num_views; i++) {
-        cJSON *c = io_json_from_camera(&ts->views[i].cam, ts->views[i].name);
+        pg_camera user = train_set_user_camera(ts, i);
+        cJSON *c = io_json_from_camera(&user, ts->views[i].name);
         if (c) cJSON_AddStringToObject(c, "role", io_view_role_name(ts->views[i].role));
         cJSON_AddItemToArray(cams, c);
     }
@@ -228,6 +232,7 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
     if (c->lambda_dssim >= 0) cfg.lambda_dssim = c->lambda_dssim;
     cfg.deform_res = c->deform_res;
     cfg.deform_width = c->deform_width;
+    cfg.deform_tres = c->deform_tres;
     if (c->deform_head_width > 0) cfg.deform_head_width = c->deform_head_width;
     cfg.use_static_flags = c->use_static;
     cfg.static_check_every = c->static_check_every;
@@ -241,6 +246,7 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
         (st = pg_path_join(summary, sizeof summary, c->out, "train.json")))
         goto done;
     if ((st = write_cameras(c->out, &ts))) goto done;
+    train_set_normalize_units(&ts);
     if ((st = train_session_create(&s, &ts, &cfg, ckpt, c->resume))) goto done;
     if ((st = train_session_run(s))) goto done;
     r->iterations = train_session_iteration(s);

@@ -5,7 +5,7 @@
  *   "PGDYCKP1"                              magic
  *   u32 version (4), u32 config text length, config text ("key=value\n" lines)
  *   i32 iter, fine, frames, width, height, num_views; u64 rng[4]
- *   f32 extent, center[3], max_disp, bg[3]
+ *   f32 extent, unit, center[3], max_disp, bg[3]    (unit: the user's length per trainer length)
  *   i32 N, sh_degree; Gaussians (means, log_scales, quats, opacity, sh for N rows)
  *   Adam of the Gaussians: i32 step[6], then per group f32 m[N x cols], v[N x cols]
  *       (groups means, log_scales, quats, opacity, sh_dc, sh_rest of 3, 3, 4, 1, 3, 45 cols)
@@ -18,7 +18,7 @@
  * an allocation, so a damaged or crafted file fails with one message. Adam sections are the optimiser's groups in order (src/optim/adam). Nothing time- or
  * machine-dependent is stored, so equal training gives equal bytes. Only the current version is
  * read (1: one step count for all Gaussian groups, moments stored like Gaussians; 3: no head
- * width in the network config).
+ * width in the network config; 4: no unit, trained in the depth's own units).
  */
 #include "train/train_internal.h"
 
@@ -33,7 +33,7 @@
 
 #define CKPT_MAGIC "PGDYCKP1"
 #define CKPT_END "PGEND\0\0\0"
-#define CKPT_VERSION 4u
+#define CKPT_VERSION 5u
 #define CKPT_MAX_STEP 100000000 /* iterations and Adam steps beyond this are corruption */
 #define SH_ROW (PG_SH_COEFFS * 3)
 #define GAUSS_FLOATS (3 + 3 + 4 + 1 + SH_ROW) /* per Gaussian, also the Adam columns per row */
@@ -161,6 +161,7 @@ pg_status train_checkpoint_write(train_session *s, const char *path)
     put_i32(&b, s->ts->num_views);
     for (int k = 0; k < 4; k++) put_u64(&b, s->rng.s[k]);
     put_f32(&b, s->extent);
+    put_f32(&b, s->ts->unit > 0 ? s->ts->unit : 1.0f);
     for (int k = 0; k < 3; k++) put_f32(&b, s->center[k]);
     put_f32(&b, s->max_disp);
     for (int k = 0; k < 3; k++) put_f32(&b, s->cfg.bg[k]);
@@ -269,7 +270,7 @@ typedef struct {
     train_config cfg;
     int iter, fine, frames, width, height, num_views;
     uint64_t rng[4];
-    float extent, center[3], max_disp, bg[3];
+    float extent, unit, center[3], max_disp, bg[3];
     int n, sh_degree;
 } ckpt_header;
 
@@ -312,6 +313,7 @@ static pg_status read_header(rd *r, const char *path, ckpt_header *h)
     h->num_views = get_i32(r);
     for (int k = 0; k < 4; k++) h->rng[k] = get_u64(r);
     h->extent = get_f32(r);
+    h->unit = get_f32(r);
     for (int k = 0; k < 3; k++) h->center[k] = get_f32(r);
     h->max_disp = get_f32(r);
     for (int k = 0; k < 3; k++) h->bg[k] = get_f32(r);
@@ -321,7 +323,8 @@ static pg_status read_header(rd *r, const char *path, ckpt_header *h)
     if (h->n < 1 || h->n > CKPT_MAX_GAUSSIANS || h->sh_degree < 0 || h->sh_degree > 3 || h->frames < 1 ||
         h->frames > 1000000 || h->width < 1 || h->width > PG_MAX_IMAGE_SIDE || h->height < 1 ||
         h->height > PG_MAX_IMAGE_SIDE || h->num_views < 1 || h->num_views > 100000 || (h->fine != 0 && h->fine != 1) ||
-        h->iter < 0 || h->iter > CKPT_MAX_STEP || !isfinite(h->extent) || !(h->extent > 0) || !isfinite(h->max_disp))
+        h->iter < 0 || h->iter > CKPT_MAX_STEP || !isfinite(h->extent) || !(h->extent > 0) || !isfinite(h->max_disp) ||
+        !isfinite(h->unit) || !(h->unit > 0))
         return pg_fail(PG_ERR_FORMAT, "%s: corrupt checkpoint header (N=%d, sh=%d, iteration %d)", path, h->n,
                        h->sh_degree, h->iter);
     const char *bad = train_config_invalid(&h->cfg);
@@ -396,6 +399,12 @@ pg_status train_checkpoint_read(train_session *s, const char *path)
                      path, h.num_views, h.frames, h.width, h.height);
         goto done;
     }
+    float unit = ts->unit > 0 ? ts->unit : 1.0f;
+    if (fabsf(h.unit - unit) > 1e-6f * unit) {
+        st = pg_fail(PG_ERR_ARG, "%s: checkpoint was made with the scene scaled by %g, this training set needs %g",
+                     path, (double)h.unit, (double)unit);
+        goto done;
+    }
     if ((st = train_checkpoint_check_config(&h.cfg, &s->cfg, path))) goto done;
     s->cfg = h.cfg;
     s->iter = h.iter;
@@ -426,6 +435,17 @@ done:
     return st;
 }
 
+/* Trainer lengths -> the user's: positions times unit, log-scales plus log(unit). */
+static void to_user_units(pg_gaussians *g, float unit)
+{
+    if (unit == 1.0f) return;
+    const float log_unit = logf(unit);
+    for (size_t i = 0; i < (size_t)g->count * 3; i++) {
+        g->means[i] *= unit;
+        g->log_scales[i] += log_unit;
+    }
+}
+
 pg_status train_model_load(const char *path, train_model *m)
 {
     memset(m, 0, sizeof *m);
@@ -437,10 +457,13 @@ pg_status train_model_load(const char *path, train_model *m)
     pg_status st = check_crc((const unsigned char *)data, size, path);
     if (!st) st = read_header(&r, path, &h);
     if (st) goto done;
-    if ((st = splat_gaussians_create(&m->g, h.n)) || (st = splat_gaussians_resize(&m->g, h.n))) goto done;
-    get_gaussians(&r, &m->g, h.n);
-    if ((st = check_finite(&m->g, h.n, path))) goto done;
-    m->g.sh_degree = h.sh_degree;
+    if ((st = splat_gaussians_create(&m->g_net, h.n)) || (st = splat_gaussians_resize(&m->g_net, h.n))) goto done;
+    get_gaussians(&r, &m->g_net, h.n);
+    if ((st = check_finite(&m->g_net, h.n, path))) goto done;
+    m->g_net.sh_degree = h.sh_degree;
+    m->unit = h.unit;
+    if ((st = splat_gaussians_copy(&m->g_net, &m->g))) goto done;
+    to_user_units(&m->g, m->unit);
     skip(&r, OPTIM_GAUSS_GROUPS * 4 + (size_t)h.n * GAUSS_FLOATS * 4 * 2); /* Adam state */
     m->is_static = pg_malloc((size_t)h.n, "model static flags");
     if (!m->is_static) {
@@ -466,6 +489,7 @@ void train_model_destroy(train_model *m)
 {
     if (!m) return;
     splat_gaussians_destroy(&m->g);
+    splat_gaussians_destroy(&m->g_net);
     free(m->is_static);
     train_net_destroy(m->net);
     memset(m, 0, sizeof *m);
@@ -473,17 +497,17 @@ void train_model_destroy(train_model *m)
 
 pg_status train_model_deform(train_model *m, float t, pg_gaussians *out)
 {
-    PG_TRY(splat_gaussians_copy(&m->g, out));
-    const int n = m->g.count;
-    const size_t N = (size_t)n;
-    if (!m->net) return PG_OK;
-    int *idx = pg_malloc(N * sizeof(int) + 1, "deform indices");
+    if (!m->net) return splat_gaussians_copy(&m->g, out);
+    PG_TRY(splat_gaussians_copy(&m->g_net, out));
+    const int n = m->g_net.count;
+    int *idx = pg_malloc((size_t)n * sizeof(int) + 1, "deform indices");
     if (!idx) return PG_ERR_NOMEM;
     int k = 0;
     for (int i = 0; i < n; i++)
         if (!m->is_static[i]) idx[k++] = i;
-    pg_status st = k ? train_net_forward(m->net, &m->g, idx, k, t, out) : PG_OK;
+    pg_status st = k ? train_net_forward(m->net, &m->g_net, idx, k, t, out) : PG_OK;
     free(idx);
+    if (!st) to_user_units(out, m->unit);
     return st;
 }
 

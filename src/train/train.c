@@ -157,6 +157,13 @@ static pg_status find_moving_pixels(train_session *s)
     return PG_OK;
 }
 
+int train_time_texels(int frames, int fine_iters)
+{
+    int by_budget = fine_iters / TRAIN_STEPS_PER_TIME_TEXEL;
+    int t = frames < by_budget ? frames : by_budget;
+    return t > 2 ? t : 2;
+}
+
 /* Creates the network (fine stage) over the box of the canonical means that go through it (the
  * movable ones; all when static flags are off or none is movable): the HexPlane's texels then
  * sit where the motion is instead of spreading over the whole room. Points outside the box
@@ -183,8 +190,8 @@ static pg_status start_fine(train_session *s)
     nc.width = s->cfg.deform_width;
     nc.head_width = s->cfg.deform_head_width;
     nc.res = s->cfg.deform_res;
-    /* one time texel per frame: motion that changes between frames needs its own texel */
-    nc.tres = s->cfg.deform_tres > 0 ? s->cfg.deform_tres : (s->ts->frames > 2 ? s->ts->frames : 2);
+    nc.tres = s->cfg.deform_tres > 0 ? s->cfg.deform_tres
+                                      : train_time_texels(s->ts->frames, s->cfg.iters - s->cfg.coarse_iters);
     nc.channels = s->cfg.deform_channels;
     nc.seed = s->cfg.seed * 7919u + 17u;
     s->net_cfg = nc;

@@ -59,6 +59,14 @@ typedef struct {
 
 train_config train_default_config(void);
 
+/* The HexPlane's time texels (unless deform_tres is set): one per frame, since motion that changes
+ * between frames needs its own texel, but at most one per TRAIN_STEPS_PER_TIME_TEXEL fine
+ * iterations: a time texel is fitted only by the steps whose frame lies next to it, and one
+ * visited a handful of times stays near its initial value, so a long clip on a short schedule
+ * froze its motion. Between texels the field interpolates linearly in time. */
+#define TRAIN_STEPS_PER_TIME_TEXEL 8
+int train_time_texels(int frames, int fine_iters);
+
 typedef struct train_session train_session;
 
 /* Creates a session; if resume and ckpt_path exists, continues from it (the training set and

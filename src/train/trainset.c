@@ -43,6 +43,57 @@ void train_set_frame_rgb(const train_set *ts, int v, int f, pg_image *img)
     for (size_t i = 0; i < px * 3; i++) img->data[i] = src[i] * (1.0f / 255.0f);
 }
 
+/* Median of the valid depth of the real views, from at most ~64k evenly strided samples. */
+static float real_depth_median(const train_set *ts)
+{
+    size_t px = (size_t)ts->width * ts->height * ts->frames, total = 0;
+    for (int v = 0; v < ts->num_views; v++)
+        if (ts->views[v].role == IO_ROLE_REAL && ts->views[v].depth) total += px;
+    if (total == 0) return 0;
+    size_t stride = total / 65536 + 1, n = 0, k = 0;
+    float *sample = pg_malloc((total / stride + 1) * sizeof(float), "depth median");
+    if (!sample) return 0;
+    for (int v = 0; v < ts->num_views; v++) {
+        if (ts->views[v].role != IO_ROLE_REAL || !ts->views[v].depth) continue;
+        for (size_t i = 0; i < px; i++, k++)
+            if (k % stride == 0 && ts->views[v].depth[i] > 0) sample[n++] = ts->views[v].depth[i];
+    }
+    float med = 0;
+    if (n > 0) {
+        qsort(sample, n, sizeof(float), pg_cmp_float);
+        med = sample[n / 2];
+    }
+    free(sample);
+    return med;
+}
+
+void train_set_normalize_units(train_set *ts)
+{
+    float scene = real_depth_median(ts);
+    if (!(scene > 0) && ts->has_scene) scene = ts->radius;
+    float unit = isfinite(scene) && scene > 0 ? scene / TRAIN_SET_UNIT_DEPTH : 1.0f;
+    float inv = 1.0f / unit;
+    size_t px = (size_t)ts->width * ts->height * ts->frames;
+    for (int v = 0; v < ts->num_views; v++) {
+        for (int k = 0; k < 3; k++) ts->views[v].cam.t[k] *= inv;
+        float *d = ts->views[v].depth;
+        for (size_t i = 0; d && i < px; i++) d[i] *= inv;
+    }
+    for (int k = 0; k < 3; k++) ts->center[k] *= inv;
+    ts->radius *= inv;
+    ts->near_z *= inv;
+    ts->far_z *= inv;
+    ts->unit = unit * (ts->unit > 0 ? ts->unit : 1.0f);
+}
+
+pg_camera train_set_user_camera(const train_set *ts, int v)
+{
+    pg_camera c = ts->views[v].cam;
+    float unit = ts->unit > 0 ? ts->unit : 1.0f;
+    for (int k = 0; k < 3; k++) c.t[k] *= unit;
+    return c;
+}
+
 pg_status train_set_add_view(train_set *ts, const char *name, io_view_role role, const pg_camera *cam,
                              int with_mask, int with_depth, int *index)
 {

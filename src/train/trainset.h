@@ -41,6 +41,7 @@ typedef struct {
     train_view *views; /* (num_views) */
     int has_scene;     /* scene box below is known */
     float center[3], radius, near_z, far_z;
+    float unit;        /* the user's length per set length (train_set_normalize_units; 0 or 1: as loaded) */
 } train_set;
 
 /* Reads a training-set directory (trainset.json + PNGs + depth.npy). Fails with a message
@@ -65,6 +66,18 @@ train_set_dynerf_options train_set_dynerf_defaults(void);
 pg_status train_set_from_dynerf(const char *dir, const train_set_dynerf_options *opt, train_set *ts);
 
 void train_set_destroy(train_set *ts);
+
+/* Median scene depth the trainer's length constants are meant for (learning rates, near plane,
+ * network bounds): tabletop_dev's and DyNeRF scenes' own scale, where the defaults were tuned. */
+#define TRAIN_SET_UNIT_DEPTH 4.0f
+
+/* Makes training independent of the depth's units: divides every length of the set (camera
+ * positions, depth, scene box) by unit = (median depth of the real views) / TRAIN_SET_UNIT_DEPTH
+ * and records unit in ts->unit, so the model can be brought back to the user's units. Falls
+ * back to the scene radius (proxies write the median depth on the optical axis), then to 1. */
+void train_set_normalize_units(train_set *ts);
+/* View v's camera in the user's units (translation times ts->unit). */
+pg_camera train_set_user_camera(const train_set *ts, int v);
 
 /* Counts views of a role. */
 int train_set_count_role(const train_set *ts, io_view_role role);
