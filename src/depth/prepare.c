@@ -1,6 +1,7 @@
 /* prepare.c - depth preparation pipeline and its outputs (see prepare.h). */
 #include "depth/prepare.h"
 #include "depth/fuse.h"
+#include "depth/moving_mask.h"
 #include "depth/plane.h"
 
 #include "core/fileutil.h"
@@ -62,6 +63,36 @@ static pg_status prepare_check(const pg_image *frames, int F, const float *depth
                            frames[i].width, frames[i].height, frames[0].width, frames[0].height);
     }
     return PG_OK;
+}
+
+/* Pixels whose colour is off their temporal median (the background wherever something passes
+ * less than half of the time) are dynamic too. The flow and colour tests compare each frame with
+ * the reference only, so where the moving object stands in the reference as well (a person
+ * dancing on the spot) they call it static, and its depth was fused into the background's. */
+#define PREPARE_MOVING_THRESH 0.1f
+#define PREPARE_MOVING_DILATE 2
+static pg_status mark_off_background(const pg_image *frames, int F, unsigned char *static_masks)
+{
+    const int W = frames[0].width, H = frames[0].height;
+    const size_t n = (size_t)W * H;
+    if (F < 3) return PG_OK;
+    uint8_t *rgb = pg_malloc((size_t)F * n * 3, "prepare moving masks");
+    uint8_t *moving = pg_malloc((size_t)F * n, "prepare moving masks");
+    pg_status st = rgb && moving ? PG_OK : PG_ERR_NOMEM;
+    for (int i = 0; i < F && !st; i++) {
+        const pg_image *im = &frames[i];
+        for (size_t k = 0; k < n; k++)
+            for (int c = 0; c < 3; c++) {
+                float v = im->data[k * im->channels + (im->channels >= 3 ? c : 0)];
+                rgb[((size_t)i * n + k) * 3 + c] = (uint8_t)(clampf(v, 0.0f, 1.0f) * 255.0f + 0.5f);
+            }
+    }
+    if (!st) st = depth_moving_masks(rgb, F, W, H, PREPARE_MOVING_THRESH, PREPARE_MOVING_DILATE, moving);
+    for (size_t k = 0; !st && k < (size_t)F * n; k++)
+        if (moving[k]) static_masks[k] = 0;
+    free(rgb);
+    free(moving);
+    return st;
 }
 
 /* Runs everything that may fail after allocation; the caller frees on failure. */
@@ -151,6 +182,7 @@ static pg_status prepare_frames(const depth_prepare_options *opt, const pg_image
     }
     free(fst);
     free(msg);
+    if (!st) st = mark_off_background(frames, F, res->static_masks);
     res->seconds_flow = pg_time_seconds() - tf;
 
     /* 3. Robust scale/shift of each frame against the reference on its static mask. */
