@@ -145,7 +145,9 @@ typedef struct {
     const char *real_cameras, *test_cameras, *depth; /* DyNeRF input only */
     int frames, width;      /* DyNeRF input: first N frames, resize to this width (0: all / keep) */
     int views_per_step;     /* real view + proxies of one time per deformation (4) */
+    int times_per_step;     /* times (deformations) per optimiser step (0: the trainer's default) */
     float real_weight, moving_weight, lambda_depth, lambda_dssim; /* < 0: defaults */
+    float proxy_moving_weight; /* loss weight of proxy pixels showing the real view's movers (< 0: default) */
     int deform_res, deform_width, static_check_every; /* 0: defaults / off */
     int deform_head_width;  /* hidden width of each deformation head (0: the trainer's default, 32) */
     int deform_tres;        /* HexPlane time texels (0: the trainer's rule, train_time_texels) */

@@ -187,6 +187,93 @@ int main(void)
     train_session_destroy(s);
     CHECK(test_files_equal(a, b), "resumed final checkpoint differs from the uninterrupted one");
 
+    /* two times per step (each its own deformation, one optimiser step): learns, and a resume
+     * still gives the same bytes */
+    {
+        char c1[1200], c3[1200];
+        snprintf(c1, sizeof c1, "%s/t2a.ckpt", dir);
+        snprintf(c3, sizeof c3, "%s/t2b.ckpt", dir);
+        train_config tc = small_config();
+        tc.times_per_step = 2;
+        tc.views_per_step = 2;
+        tc.checkpoint_every = 20;
+        double q0 = 0, q1 = 0;
+        s = NULL;
+        CHECK_OK(train_session_create(&s, &ts, &tc, c1, 0));
+        if (s) {
+            CHECK_OK(train_session_evaluate(s, IO_ROLE_REAL, &q0));
+            CHECK_OK(train_session_run(s));
+            CHECK_OK(train_session_evaluate(s, IO_ROLE_REAL, &q1));
+            CHECK(q1 > q0 + 3, "two times per step: real-view PSNR %.2f -> %.2f", q0, q1);
+        }
+        train_session_destroy(s);
+        tc.stop_at_iter = 33;
+        s = NULL;
+        CHECK_OK(train_session_create(&s, &ts, &tc, c3, 0));
+        if (s) CHECK_OK(train_session_run(s));
+        train_session_destroy(s);
+        tc.stop_at_iter = 0;
+        s = NULL;
+        CHECK_OK(train_session_create(&s, &ts, &tc, c3, 1));
+        if (s) CHECK_OK(train_session_run(s));
+        train_session_destroy(s);
+        CHECK(test_files_equal(c1, c3), "two times per step: resumed checkpoint differs");
+    }
+
+    /* units: the same set in millimetres normalises to the same lengths, and the model trained
+     * on it comes back in millimetres (it renders from the millimetre cameras as well as the
+     * metre model renders from the metre cameras) */
+    {
+        train_set mm;
+        CHECK_OK(train_set_load(data, &mm));
+        size_t px = (size_t)mm.width * mm.height * mm.frames;
+        for (int v = 0; v < mm.num_views; v++) {
+            for (int k = 0; k < 3; k++) mm.views[v].cam.t[k] *= 1000.0f;
+            for (size_t i = 0; mm.views[v].depth && i < px; i++) mm.views[v].depth[i] *= 1000.0f;
+        }
+        mm.radius *= 1000.0f;
+        for (int k = 0; k < 3; k++) mm.center[k] *= 1000.0f;
+        train_set m1;
+        CHECK_OK(train_set_load(data, &m1));
+        pg_camera user_cam = mm.views[0].cam;
+        train_set_normalize_units(&mm);
+        train_set_normalize_units(&m1);
+        CHECK(fabsf(mm.unit / m1.unit - 1000.0f) < 0.01f, "unit %g vs %g: not 1000x", mm.unit, m1.unit);
+        double worst = 0;
+        for (int v = 0; v < mm.num_views; v++)
+            for (int k = 0; k < 3; k++)
+                worst = fmax(worst, fabs(mm.views[v].cam.t[k] - m1.views[v].cam.t[k]) / (fabs(m1.views[v].cam.t[k]) + 1e-3));
+        for (size_t i = 0; i < px; i++)
+            worst = fmax(worst, fabs(mm.views[0].depth[i] - m1.views[0].depth[i]) / (m1.views[0].depth[i] + 1e-3));
+        CHECK(worst < 1e-5, "normalised millimetre set differs from the metre one by %g (relative)", worst);
+        pg_camera back = train_set_user_camera(&mm, 0);
+        CHECK(fabsf(back.t[0] - user_cam.t[0]) <= 1e-3f * (fabsf(user_cam.t[0]) + 1.0f), "user camera %g vs %g",
+              back.t[0], user_cam.t[0]);
+        char c4[1200];
+        snprintf(c4, sizeof c4, "%s/mm.ckpt", dir);
+        train_config uc = small_config();
+        s = NULL;
+        CHECK_OK(train_session_create(&s, &mm, &uc, c4, 0));
+        if (s) CHECK_OK(train_session_run(s));
+        train_session_destroy(s);
+        render_model *rmm = NULL;
+        CHECK_OK(render_model_open(c4, &rmm));
+        if (rmm) {
+            pg_image truth = {0};
+            pg_image_create(&truth, 64, 48, 3);
+            train_set_frame_rgb(&mm, 0, 2, &truth);
+            pg_render_output out;
+            CHECK_OK(render_model_frame(rmm, &user_cam, 2.0f / 3.0f, &out));
+            pg_image r = {64, 48, 3, out.rgb};
+            double p = pg_image_psnr(&r, &truth, NULL);
+            CHECK(p > psnr0 + 3, "millimetre model from millimetre cameras: PSNR %.2f (untrained %.2f)", p, psnr0);
+            pg_image_destroy(&truth);
+        }
+        render_model_close(rmm);
+        train_set_destroy(&mm);
+        train_set_destroy(&m1);
+    }
+
     /* corrupt checkpoints fail cleanly */
     char *blob = NULL;
     size_t n = 0;

@@ -30,7 +30,7 @@ void pg_train_defaults(pg_train_config *c)
     c->sh_degree = 3;
     c->proxies = -1;
     c->views_per_step = 4;
-    c->real_weight = c->moving_weight = c->lambda_depth = c->lambda_dssim = -1;
+    c->real_weight = c->moving_weight = c->lambda_depth = c->lambda_dssim = c->proxy_moving_weight = -1;
     c->use_static = c->use_cull = 1;
 }
 
@@ -39,13 +39,16 @@ cJSON *stage_train_config_json(const pg_train_config *c)
     cJSON *j = cJSON_CreateObject();
     const int ints[] = { c->iters, c->coarse_iters, c->seed, c->max_gaussians, c->init_points, c->sh_degree,
                          c->proxies, c->frames, c->width, c->views_per_step, c->deform_res, c->deform_width,
-                         c->deform_head_width, c->static_check_every, c->use_static, c->use_cull, c->deform_tres };
+                         c->deform_head_width, c->static_check_every, c->use_static, c->use_cull, c->deform_tres,
+                         c->times_per_step };
     static const char *int_names[] = { "iters", "coarse_iters", "seed", "max_gaussians", "init_points", "sh_degree",
                                        "proxies", "frames", "width", "views_per_step", "deform_res", "deform_width",
-                                       "deform_head_width", "static_check_every", "use_static", "use_cull", "deform_tres" };
+                                       "deform_head_width", "static_check_every", "use_static", "use_cull", "deform_tres",
+                                       "times_per_step" };
     for (size_t k = 0; k < sizeof ints / sizeof ints[0]; k++) cJSON_AddNumberToObject(j, int_names[k], ints[k]);
-    const float floats[] = { c->real_weight, c->moving_weight, c->lambda_depth, c->lambda_dssim };
-    static const char *float_names[] = { "real_weight", "moving_weight", "lambda_depth", "lambda_dssim" };
+    const float floats[] = { c->real_weight, c->moving_weight, c->lambda_depth, c->lambda_dssim, c->proxy_moving_weight };
+    static const char *float_names[] = { "real_weight", "moving_weight", "lambda_depth", "lambda_dssim",
+                                         "proxy_moving_weight" };
     for (size_t k = 0; k < sizeof floats / sizeof floats[0]; k++) cJSON_AddNumberToObject(j, float_names[k], floats[k]);
     cJSON_AddStringToObject(j, "real_cameras", c->real_cameras ? c->real_cameras : "");
     cJSON_AddStringToObject(j, "test_cameras", c->test_cameras ? c->test_cameras : "");
@@ -59,8 +62,12 @@ static pg_status check_config(const pg_train_config *c)
     if (c->coarse_iters < -1 || c->coarse_iters > c->iters)
         return pg_fail(PG_ERR_ARG, "train: --coarse-iters %d must be in 0..%d (--iters)", c->coarse_iters, c->iters);
     if (c->init_points < 1) return pg_fail(PG_ERR_ARG, "train: --init-points %d must be >= 1", c->init_points);
+    if (c->times_per_step < 0 || c->times_per_step > TRAIN_MAX_BATCH)
+        return pg_fail(PG_ERR_ARG, "train: --times-per-step %d must be in 1..%d", c->times_per_step, TRAIN_MAX_BATCH);
     if (c->views_per_step < 1 || c->views_per_step > TRAIN_MAX_BATCH)
         return pg_fail(PG_ERR_ARG, "train: --views-per-step %d must be in 1..%d", c->views_per_step, TRAIN_MAX_BATCH);
+    if (c->proxy_moving_weight != -1 && !(c->proxy_moving_weight >= 0 && c->proxy_moving_weight <= 1))
+        return pg_fail(PG_ERR_ARG, "train: --proxy-moving-weight %g must be in [0, 1]", c->proxy_moving_weight);
     if (c->real_weight != -1 && !(c->real_weight >= 0 && c->real_weight <= 1))
         return pg_fail(PG_ERR_ARG, "train: --real-weight %g must be in [0, 1]", c->real_weight);
     if (c->moving_weight != -1 && !(c->moving_weight >= 0 && c->moving_weight <= 100))
@@ -226,7 +233,9 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
     cfg.checkpoint_every = c->checkpoint_every;
     cfg.sh_max_degree = c->sh_degree;
     cfg.views_per_step = c->views_per_step;
+    if (c->times_per_step > 0) cfg.times_per_step = c->times_per_step;
     if (c->real_weight >= 0) cfg.real_weight = c->real_weight;
+    if (c->proxy_moving_weight >= 0) cfg.proxy_moving_weight = c->proxy_moving_weight;
     if (c->moving_weight >= 0) cfg.moving_weight = c->moving_weight;
     if (c->lambda_depth >= 0) cfg.lambda_depth = c->lambda_depth;
     if (c->lambda_dssim >= 0) cfg.lambda_dssim = c->lambda_dssim;

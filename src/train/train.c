@@ -1,7 +1,8 @@
 /* train.c - the training loop: sampling, deformation, rendering, loss, Adam, density control.
  *
  * One iteration (fine stage) trains several views of ONE time against one deformation, because
- * the network is the expensive part and every view of a time shares its output:
+ * the network is the expensive part and every view of a time shares its output (times_per_step
+ * repeats 1-4 for that many times before the one optimiser step):
  *   1. pick a frame (every frame once per epoch, in a shuffled order), t = frame / (F - 1), and the
  *      batch: the real view and views_per_step - 1 proxies of that frame
  *   2. d = canonical copy; rows of movable Gaussians that may be in any batch view go through the network
@@ -36,8 +37,10 @@ train_config train_default_config(void)
     c.init_points = 30000;
     c.checkpoint_every = 0;
     c.views_per_step = 4;
+    c.times_per_step = 1;
     c.real_weight = 0.5f;
     c.moving_weight = 9.0f;
+    c.proxy_moving_weight = 1.0f;
     c.sh_max_degree = 3;
     c.sh_ramp_every = 500;
     c.lambda_dssim = 0.2f;
@@ -191,7 +194,8 @@ static pg_status start_fine(train_session *s)
     nc.head_width = s->cfg.deform_head_width;
     nc.res = s->cfg.deform_res;
     nc.tres = s->cfg.deform_tres > 0 ? s->cfg.deform_tres
-                                      : train_time_texels(s->ts->frames, s->cfg.iters - s->cfg.coarse_iters);
+                                      : train_time_texels(s->ts->frames, (s->cfg.iters - s->cfg.coarse_iters) *
+                                                                             (s->cfg.times_per_step > 1 ? s->cfg.times_per_step : 1));
     nc.channels = s->cfg.deform_channels;
     nc.seed = s->cfg.seed * 7919u + 17u;
     s->net_cfg = nc;
@@ -364,9 +368,38 @@ static int build_subset(train_session *s, const pg_camera *const *cams, int ncam
     return n;
 }
 
+/* Scales the loss weight of proxy view vi's pixels at frame f that show something moving in the
+ * real view (the pixel's depth carried into the real camera lands on a moving pixel) by
+ * proxy_moving_weight: a moving object's monocular depth is the least reliable part of a proxy
+ * (smeared edges, a body stretched to the floor behind it), and at full weight those pixels
+ * out-voted the real view, which alone sees the motion as it was. */
+static void weigh_proxy_moving(train_session *s, const train_view *v, int f)
+{
+    const train_set *ts = s->ts;
+    int real = -1;
+    for (int k = 0; k < ts->num_views && real < 0; k++)
+        if (ts->views[k].role == IO_ROLE_REAL && s->moving && s->moving[k]) real = k;
+    if (real < 0 || !v->depth || s->cfg.proxy_moving_weight >= 1.0f) return;
+    const int W = ts->width, H = ts->height;
+    const size_t px = (size_t)W * H;
+    const uint8_t *mv = s->moving[real] + (size_t)f * px;
+    const pg_camera *rc = &ts->views[real].cam;
+    const float *d = v->depth + (size_t)f * px;
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            size_t i = (size_t)y * W + x;
+            if (!(d[i] > 0) || s->mask[i] <= 0) continue;
+            float X[3], uv[2];
+            pg_camera_unproject(&v->cam, x + 0.5f, y + 0.5f, d[i], X);
+            if (!(pg_camera_project(rc, X, uv) > 0)) continue;
+            int qx = (int)floorf(uv[0]), qy = (int)floorf(uv[1]);
+            if (qx >= 0 && qx < W && qy >= 0 && qy < H && mv[(size_t)qy * W + qx]) s->mask[i] *= s->cfg.proxy_moving_weight;
+        }
+}
+
 /* Loads the target image, loss weights and depth of (view, frame) into the session buffers;
  * returns whether the view has depth. Weights: the view's mask, times 1 + moving_weight on
- * moving pixels when moving (training) is set. */
+ * moving pixels when moving (training) is set; proxies' moving pixels at proxy_moving_weight. */
 static int load_target(train_session *s, int vi, int f, int moving)
 {
     const train_set *ts = s->ts;
@@ -378,6 +411,7 @@ static int load_target(train_session *s, int vi, int f, int moving)
     const uint8_t *mv = moving && s->moving ? s->moving[vi] : NULL;
     if (mv)
         for (size_t i = 0; i < px; i++) s->mask[i] *= 1.0f + s->cfg.moving_weight * mv[(size_t)f * px + i];
+    if (moving && v->role == IO_ROLE_PROXY) weigh_proxy_moving(s, v, f);
     if (v->depth) memcpy(s->depth_t, v->depth + (size_t)f * px, px * sizeof(float));
     return v->depth != NULL;
 }
@@ -487,7 +521,7 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, double
     const size_t px = (size_t)W * H;
     const pg_camera *cam = &ts->views[vi].cam;
     int real = ts->views[vi].role == IO_ROLE_REAL;
-    int has_depth = load_target(s, vi, f, real);
+    int has_depth = load_target(s, vi, f, 1);
     double t0 = pg_time_seconds(), t1;
     pg_render_settings rs = splat_default_settings();
     memcpy(rs.background, c->bg, sizeof rs.background);
@@ -499,7 +533,8 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, double
 
     memset(s->d_rgb, 0, px * 3 * sizeof(float));
     memset(s->d_depth, 0, px * sizeof(float));
-    int weighted = ts->views[vi].mask != NULL || (real && s->moving && s->moving[vi]);
+    int weighted = ts->views[vi].mask != NULL || (real && s->moving && s->moving[vi]) ||
+                   (ts->views[vi].role == IO_ROLE_PROXY && s->cfg.proxy_moving_weight < 1.0f);
     const float *mk = weighted ? s->mask : NULL;
     double loss = optim_l1_forward(out.rgb, s->target.data, mk, H, W, 3);
     optim_l1_backward(s->d_rgb, weight, out.rgb, s->target.data, mk, H, W, 3);
@@ -537,25 +572,41 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, double
     return PG_OK;
 }
 
-pg_status train_session_step(train_session *s)
+/* Adds src into dst (every parameter), split over the threads like copy_gaussians. */
+static void add_gaussians(pg_gaussians *dst, const pg_gaussians *src)
+{
+    const size_t n = (size_t)src->count, block = (size_t)1 << 14;
+    float *d[5] = { dst->means, dst->log_scales, dst->quats, dst->opacity, dst->sh };
+    const float *s[5] = { src->means, src->log_scales, src->quats, src->opacity, src->sh };
+    const size_t len[5] = { n * 3, n * 3, n * 4, n, n * PG_SH_COEFFS * 3 };
+    for (int a = 0; a < 5; a++) {
+        const long nb = (long)((len[a] + block - 1) / block);
+#pragma omp parallel for schedule(static)
+        for (long b = 0; b < nb; b++) {
+            size_t lo = (size_t)b * block, hi = len[a] - lo < block ? len[a] : lo + block;
+            for (size_t k = lo; k < hi; k++) d[a][k] += s[a][k];
+        }
+    }
+}
+
+/* One time of a step: picks frame `slot` of the epoch order and its batch of views, deforms once,
+ * renders and back-propagates every view, then sends the gradient through the network; the
+ * canonical gradient is summed into gg (first = 1: gg starts from it). Returns the loss. */
+static pg_status step_time(train_session *s, int slot, int first, double *loss_out)
 {
     const train_set *ts = s->ts;
-    const train_config *c = &s->cfg;
-    if (!s->fine && s->iter >= c->coarse_iters) PG_TRY(start_fine(s));
     double t0 = pg_time_seconds(), t1;
-    int f = pick_frame(s, s->iter);
+    int f = pick_frame(s, slot);
     int views[TRAIN_MAX_BATCH];
     float weights[TRAIN_MAX_BATCH];
-    if (s->cfg.views_per_step > TRAIN_MAX_BATCH) s->cfg.views_per_step = TRAIN_MAX_BATCH;
     int nb = pick_batch(s, views, weights);
     const pg_camera *cams[TRAIN_MAX_BATCH];
     for (int b = 0; b < nb; b++) cams[b] = &ts->views[views[b]].cam;
     float t = train_frame_time(f, ts->frames);
-    memset(&s->timing, 0, sizeof s->timing);
 
     int nd = 0;
     PG_TRY(deform_all(s, cams, nb, t, &nd));
-    s->timing.deformed = nd;
+    s->timing.deformed += nd;
     if (s->fine) {
         int movable = 0;
         for (int i = 0; i < s->g.count; i++) movable += !s->is_static[i];
@@ -575,7 +626,7 @@ pg_status train_session_step(train_session *s)
         s->max_disp = fminf(md, s->extent);
     }
     t1 = pg_time_seconds();
-    s->timing.deform_forward = (t1 - t0) * 1e3;
+    s->timing.deform_forward += (t1 - t0) * 1e3;
 
     /* every view's gradient sums into dg in batch order (deterministic) */
     splat_gaussians_zero(&s->dg);
@@ -588,18 +639,34 @@ pg_status train_session_step(train_session *s)
     t0 = pg_time_seconds();
 
     /* identity path, then the deformation path for the deformed rows */
-    copy_gaussians(&s->gg, &s->dg);
+    if (first) copy_gaussians(&s->gg, &s->dg);
+    else add_gaussians(&s->gg, &s->dg);
+    if (s->fine && nd > 0) PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, &s->dg, &s->gg));
+    s->timing.deform_backward += (pg_time_seconds() - t0) * 1e3;
+    *loss_out = loss;
+    return PG_OK;
+}
+
+pg_status train_session_step(train_session *s)
+{
+    const train_config *c = &s->cfg;
+    if (!s->fine && s->iter >= c->coarse_iters) PG_TRY(start_fine(s));
+    if (s->cfg.views_per_step > TRAIN_MAX_BATCH) s->cfg.views_per_step = TRAIN_MAX_BATCH;
+    memset(&s->timing, 0, sizeof s->timing);
+    const int times = c->times_per_step > 1 ? c->times_per_step : 1;
+    if (s->fine) train_net_zero_grad(s->net);
+    double loss = 0;
+    for (int k = 0; k < times; k++) {
+        double lk;
+        PG_TRY(step_time(s, s->iter * times + k, k == 0, &lk));
+        loss += lk / times;
+    }
     if (s->fine) {
-        train_net_zero_grad(s->net);
-        if (nd > 0) PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, &s->dg, &s->gg));
         double tr = pg_time_seconds();
         loss += train_net_regularize(s->net, c->reg_tv, c->reg_time, c->reg_l1);
         s->timing.regularize = (pg_time_seconds() - tr) * 1e3;
     }
-    t1 = pg_time_seconds();
-    s->timing.deform_backward = (t1 - t0) * 1e3 - s->timing.regularize;
-    t0 = t1;
-
+    double t0 = pg_time_seconds(), t1;
     PG_TRY(train_adam_step(s));
     t1 = pg_time_seconds();
     s->timing.optimizer = (t1 - t0) * 1e3;
