@@ -120,8 +120,9 @@ void train_session_destroy(train_session *s)
     free(s);
 }
 
-/* 24 MB per copy at 100k Gaussians, twice per iteration: split over the threads in blocks. */
-static void copy_gaussians(pg_gaussians *dst, const pg_gaussians *src)
+/* dst = src (add 0) or dst += src (add 1), every parameter: 24 MB per pass at 100k Gaussians,
+ * several times per iteration, so split over the threads in blocks. */
+static void blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, int add)
 {
     const size_t n = (size_t)src->count, block = (size_t)1 << 14;
     float *d[5] = { dst->means, dst->log_scales, dst->quats, dst->opacity, dst->sh };
@@ -131,12 +132,17 @@ static void copy_gaussians(pg_gaussians *dst, const pg_gaussians *src)
         const long nb = (long)((len[a] + block - 1) / block);
 #pragma omp parallel for schedule(static)
         for (long b = 0; b < nb; b++) {
-            size_t lo = (size_t)b * block;
-            memcpy(d[a] + lo, s[a] + lo, (len[a] - lo < block ? len[a] - lo : block) * sizeof(float));
+            size_t lo = (size_t)b * block, m = len[a] - lo < block ? len[a] - lo : block;
+            if (add)
+                for (size_t k = lo; k < lo + m; k++) d[a][k] += s[a][k];
+            else
+                memcpy(d[a] + lo, s[a] + lo, m * sizeof(float));
         }
     }
-    dst->sh_degree = src->sh_degree;
+    if (!add) dst->sh_degree = src->sh_degree;
 }
+
+static void copy_gaussians(pg_gaussians *dst, const pg_gaussians *src) { blend_gaussians(dst, src, 0); }
 
 /* Moving pixels of each real view (colour off the temporal median by > 0.1, dilated 2 px):
  * they get 1 + moving_weight times the loss weight, because they are a few percent of the frame
@@ -572,23 +578,6 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, double
     return PG_OK;
 }
 
-/* Adds src into dst (every parameter), split over the threads like copy_gaussians. */
-static void add_gaussians(pg_gaussians *dst, const pg_gaussians *src)
-{
-    const size_t n = (size_t)src->count, block = (size_t)1 << 14;
-    float *d[5] = { dst->means, dst->log_scales, dst->quats, dst->opacity, dst->sh };
-    const float *s[5] = { src->means, src->log_scales, src->quats, src->opacity, src->sh };
-    const size_t len[5] = { n * 3, n * 3, n * 4, n, n * PG_SH_COEFFS * 3 };
-    for (int a = 0; a < 5; a++) {
-        const long nb = (long)((len[a] + block - 1) / block);
-#pragma omp parallel for schedule(static)
-        for (long b = 0; b < nb; b++) {
-            size_t lo = (size_t)b * block, hi = len[a] - lo < block ? len[a] : lo + block;
-            for (size_t k = lo; k < hi; k++) d[a][k] += s[a][k];
-        }
-    }
-}
-
 /* One time of a step: picks frame `slot` of the epoch order and its batch of views, deforms once,
  * renders and back-propagates every view, then sends the gradient through the network; the
  * canonical gradient is summed into gg (first = 1: gg starts from it). Returns the loss. */
@@ -640,7 +629,7 @@ static pg_status step_time(train_session *s, int slot, int first, double *loss_o
 
     /* identity path, then the deformation path for the deformed rows */
     if (first) copy_gaussians(&s->gg, &s->dg);
-    else add_gaussians(&s->gg, &s->dg);
+    else blend_gaussians(&s->gg, &s->dg, 1);
     if (s->fine && nd > 0) PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, &s->dg, &s->gg));
     s->timing.deform_backward += (pg_time_seconds() - t0) * 1e3;
     *loss_out = loss;
