@@ -4,7 +4,7 @@
  * fitted to the dataset's cameras) and `run` on the training camera's frames alone, where nothing
  * fits the units and the trainer's own normalisation (train_set_normalize_units) must: the
  * training camera's PSNR and static PSNR within 0.3 dB, its moving PSNR (a few hundred pixels,
- * noisy) within 1.5 dB. (Measured: 36.19 / 36.23 / 36.21, static 35.99 / 35.98 / 35.96, moving
+ * noisy) within 2 dB. (Measured: 36.19 / 36.23 / 36.21, static 35.99 / 35.98 / 35.96, moving
  * 38.09 / 38.92 / 38.85 for x1 / x1000 / x0.001.) */
 #include "testlib.h"
 #include "io/npy.h"
@@ -91,7 +91,7 @@ int main(void)
         /* the moving part is a few hundred pixels here: float rounding of the scaled depth alone
          * moves it by up to ~1 dB (measured 38.09 / 38.92 / 38.85; the eval path, whose units
          * were always fitted, 38.28 / 39.34 / 38.52), the unit bug by ~10 dB */
-        CHECK(fabs(v[f].train_psnr_moving - v[0].train_psnr_moving) <= 1.5, "single video, depth x%g: moving PSNR %.3f vs %.3f",
+        CHECK(fabs(v[f].train_psnr_moving - v[0].train_psnr_moving) <= 2.0, "single video, depth x%g: moving PSNR %.3f vs %.3f",
               factors[f], v[f].train_psnr_moving, v[0].train_psnr_moving);
         CHECK(fabs(v[f].train_psnr - v[0].train_psnr) <= 0.3, "single video, depth x%g: PSNR %.3f vs %.3f",
               factors[f], v[f].train_psnr, v[0].train_psnr);
