@@ -107,3 +107,14 @@ void pg_color_ramp(const float (*stops)[3], int n, float s, float rgb[3])
     float f = x - i;
     for (int c = 0; c < 3; c++) rgb[c] = stops[i][c] * (1 - f) + stops[i + 1][c] * f;
 }
+
+void pg_image_to_rgb8(const pg_image *img, unsigned char *out)
+{
+    const size_t n = (size_t)img->width * img->height;
+    const int C = img->channels;
+    for (size_t k = 0; k < n; k++)
+        for (int c = 0; c < 3; c++) {
+            float v = img->data[k * C + (C >= 3 ? c : 0)] * 255.0f + 0.5f;
+            out[k * 3 + c] = (unsigned char)(v < 0 ? 0 : v > 255 ? 255 : v);
+        }
+}

@@ -79,14 +79,7 @@ static pg_status mark_off_background(const pg_image *frames, int F, unsigned cha
     uint8_t *rgb = pg_malloc((size_t)F * n * 3, "prepare moving masks");
     uint8_t *moving = pg_malloc((size_t)F * n, "prepare moving masks");
     pg_status st = rgb && moving ? PG_OK : PG_ERR_NOMEM;
-    for (int i = 0; i < F && !st; i++) {
-        const pg_image *im = &frames[i];
-        for (size_t k = 0; k < n; k++)
-            for (int c = 0; c < 3; c++) {
-                float v = im->data[k * im->channels + (im->channels >= 3 ? c : 0)];
-                rgb[((size_t)i * n + k) * 3 + c] = (uint8_t)(clampf(v, 0.0f, 1.0f) * 255.0f + 0.5f);
-            }
-    }
+    for (int i = 0; i < F && !st; i++) pg_image_to_rgb8(&frames[i], rgb + (size_t)i * n * 3);
     if (!st) st = depth_moving_masks(rgb, F, W, H, PREPARE_MOVING_THRESH, PREPARE_MOVING_DILATE, moving);
     for (size_t k = 0; !st && k < (size_t)F * n; k++)
         if (moving[k]) static_masks[k] = 0;

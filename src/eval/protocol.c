@@ -49,10 +49,7 @@ static pg_status camera_moving_masks(eval_ctx *c, int cam, int W, int H, uint8_t
         if (st == PG_OK && (img.width != W || img.height != H || img.channels != 3))
             st = pg_fail(PG_ERR_SIZE, "camera %s: frame %d is %dx%d, the model renders %dx%d",
                          io_dataset_camera_name(c->ds, cam), f, img.width, img.height, W, H);
-        for (size_t i = 0; st == PG_OK && i < px * 3; i++) {
-            float v = img.data[i] * 255.0f + 0.5f;
-            rgb[(size_t)f * px * 3 + i] = (uint8_t)(v < 0 ? 0 : v > 255 ? 255 : v);
-        }
+        if (st == PG_OK) pg_image_to_rgb8(&img, rgb + (size_t)f * px * 3);
         pg_image_destroy(&img);
     }
     if (st == PG_OK) st = depth_moving_masks(rgb, c->frames, W, H, EVAL_MOVING_THRESH, EVAL_MOVING_DILATE, *moving);
