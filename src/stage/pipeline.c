@@ -303,8 +303,6 @@ static pg_status run_proxies(pipeline_run *p, const pipeline_plan *plan, const c
     return st;
 }
 
-/* Training resumes its checkpoint only when OUT/train.started shows the same settings and
- * inputs (an interrupted run); a checkpoint of other settings or data is removed first. */
 /* A finished training's figures from its train.json, when the stage is already done. */
 static pg_status read_train_scores(const char *dir, pg_train_report *r)
 {
@@ -323,6 +321,8 @@ static pg_status read_train_scores(const char *dir, pg_train_report *r)
     return PG_OK;
 }
 
+/* Training resumes its checkpoint only when OUT/train.started shows the same settings and
+ * inputs (an interrupted run); a checkpoint of other settings or data is removed first. */
 static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const char *proxies_dir, const char *dir)
 {
     const pg_pipeline_config *c = p->c;

@@ -3,7 +3,7 @@
  *
  * Layout (little-endian, written in one go to a temporary file then renamed):
  *   "PGDYCKP1"                              magic
- *   u32 version (4), u32 config text length, config text ("key=value\n" lines)
+ *   u32 version (5), u32 config text length, config text ("key=value\n" lines)
  *   i32 iter, fine, frames, width, height, num_views; u64 rng[4]
  *   f32 extent, unit, center[3], max_disp, bg[3]    (unit: the user's length per trainer length)
  *   i32 N, sh_degree; Gaussians (means, log_scales, quats, opacity, sh for N rows)
@@ -161,7 +161,7 @@ pg_status train_checkpoint_write(train_session *s, const char *path)
     put_i32(&b, s->ts->num_views);
     for (int k = 0; k < 4; k++) put_u64(&b, s->rng.s[k]);
     put_f32(&b, s->extent);
-    put_f32(&b, s->ts->unit > 0 ? s->ts->unit : 1.0f);
+    put_f32(&b, train_set_unit(s->ts));
     for (int k = 0; k < 3; k++) put_f32(&b, s->center[k]);
     put_f32(&b, s->max_disp);
     for (int k = 0; k < 3; k++) put_f32(&b, s->cfg.bg[k]);
@@ -399,7 +399,7 @@ pg_status train_checkpoint_read(train_session *s, const char *path)
                      path, h.num_views, h.frames, h.width, h.height);
         goto done;
     }
-    float unit = ts->unit > 0 ? ts->unit : 1.0f;
+    float unit = train_set_unit(ts);
     if (fabsf(h.unit - unit) > 1e-6f * unit) {
         st = pg_fail(PG_ERR_ARG, "%s: checkpoint was made with the scene scaled by %g, this training set needs %g",
                      path, (double)h.unit, (double)unit);

@@ -83,13 +83,13 @@ void train_set_normalize_units(train_set *ts)
     ts->radius *= inv;
     ts->near_z *= inv;
     ts->far_z *= inv;
-    ts->unit = unit * (ts->unit > 0 ? ts->unit : 1.0f);
+    ts->unit = unit * train_set_unit(ts);
 }
 
 pg_camera train_set_user_camera(const train_set *ts, int v)
 {
     pg_camera c = ts->views[v].cam;
-    float unit = ts->unit > 0 ? ts->unit : 1.0f;
+    float unit = train_set_unit(ts);
     for (int k = 0; k < 3; k++) c.t[k] *= unit;
     return c;
 }

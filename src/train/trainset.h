@@ -76,6 +76,8 @@ void train_set_destroy(train_set *ts);
  * and records unit in ts->unit, so the model can be brought back to the user's units. Falls
  * back to the scene radius (proxies write the median depth on the optical axis), then to 1. */
 void train_set_normalize_units(train_set *ts);
+/* The user's length per set length: ts->unit, or 1 for a set never normalised (unit left 0). */
+static inline float train_set_unit(const train_set *ts) { return ts->unit > 0 ? ts->unit : 1.0f; }
 /* View v's camera in the user's units (translation times ts->unit). */
 pg_camera train_set_user_camera(const train_set *ts, int v);
 
