@@ -16,38 +16,24 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-/* The single-video path: the frames of cam00 alone, no cameras, no test views. */
-static pg_train_report run_video(const char *frames, const char *depth, const char *out)
+/* The whole pipeline at 300 iterations. With test cameras: `eval` on the dataset; without: the
+ * single-video path on a frame folder (no cameras to fit units to, no videos rendered). */
+static pg_pipeline_report run(const char *input, const char *depth, const char *out, const char *test_cameras)
 {
     pg_pipeline_config c;
     pg_pipeline_defaults(&c);
-    c.input = frames;
+    c.input = input;
     c.depth = depth;
     c.out = out;
     c.iters = 300;
     c.threads = 2;
-    c.render_videos = 0;
+    c.test_cameras = test_cameras;
+    c.evaluate = test_cameras != NULL;
+    if (!test_cameras) c.render_videos = 0;
     pg_pipeline_report r;
     pg_status st = pg_pipeline_run(&c, &r);
     CHECK(st == PG_OK, "pipeline in %s: %s", out, pg_last_error());
-    return r.train;
-}
-
-static pg_evaluate_report run(const char *data, const char *depth, const char *out)
-{
-    pg_pipeline_config c;
-    pg_pipeline_defaults(&c);
-    c.input = data;
-    c.depth = depth;
-    c.out = out;
-    c.test_cameras = "cam05,cam06";
-    c.iters = 300;
-    c.threads = 2;
-    c.evaluate = 1;
-    pg_pipeline_report r;
-    pg_status st = pg_pipeline_run(&c, &r);
-    CHECK(st == PG_OK, "pipeline in %s: %s", out, pg_last_error());
-    return r.evaluation;
+    return r;
 }
 
 int main(void)
@@ -77,11 +63,11 @@ int main(void)
         snprintf(depth, sizeof depth, "%s/depth_x%g.npy", dir, factors[f]);
         CHECK_OK(io_npy_save(depth, scaled, d.ndim, d.shape));
         snprintf(out, sizeof out, "%s/out_x%g", dir, factors[f]);
-        e[f] = run(data, depth, out);
+        e[f] = run(data, depth, out, "cam05,cam06").evaluation;
         printf("depth x%g: held-out PSNR %.3f (moving %.3f), training camera moving %.3f\n", factors[f], e[f].psnr,
                e[f].psnr_moving, e[f].train_psnr_moving);
         snprintf(out, sizeof out, "%s/video_x%g", dir, factors[f]);
-        v[f] = run_video(frames, depth, out);
+        v[f] = run(frames, depth, out, NULL).train;
         printf("depth x%g, single video: training camera PSNR %.3f, moving %.3f, static %.3f\n", factors[f],
                v[f].train_psnr, v[f].train_psnr_moving, v[f].train_psnr_static);
     }
