@@ -50,15 +50,20 @@ const char *pg_status_name(pg_status code);
 #define PG_CAMERA_LABELS 2048 /* a comma-separated list of labels */
 
 /* ---- depth: per-frame depth from a monocular depth network (TFLite or ONNX) ----
- * Writes OUT (an (F,H,W) float32 .npy at the video's size, DEPTH: larger = farther, the model's
- * relative units; a disparity model's output is inverted) and beside it OUT minus ".npy" plus
- * ".json" (model, kind, hashes). Finished frames are kept in OUT.cache/ until OUT is written, so
+ * Writes OUT (an (F,H,W) float32 .npy, DEPTH: larger = farther, the model's relative units; a
+ * disparity model's output is inverted) and beside it OUT minus ".npy" plus ".json" (model, kind,
+ * hashes). Frames are decoded straight to the smallest size that covers the network's input (a
+ * 1080p clip is never held at 1080p) and the output is written at out_width x out_height, by
+ * default the network's own resolution fitted to the video's aspect: a larger map would only
+ * interpolate what the network saw. Finished frames are kept in OUT.cache/ until OUT is written, so
  * an interrupted run resumes; a rerun with the same model, input and settings does nothing. */
 typedef struct {
     const char *input, *model, *out; /* video, frame folder or dataset; .tflite / .onnx; .npy (required) */
     const char *train_camera; /* dataset camera (NULL: the first) */
     const char *kind;         /* the model's raw output: "depth" or "disparity" (NULL: MODEL.json or the default) */
     int size;                 /* inference size, longer side (0: the model's; a fixed-size model must match) */
+    int out_width, out_height; /* output size (0, 0: the network's resolution at the video's aspect;
+                                  one side 0 keeps the aspect) */
     int frames;               /* first N frames (0: all) */
     int threads;              /* 0: all cores */
     int stop_after;           /* tests: stop after computing N frames as if killed (0: off) */
@@ -67,6 +72,7 @@ typedef struct {
 typedef struct {
     char train_camera[PG_CAMERA_LABEL], model_name[128], kind[16];
     int frames, computed, reused, width, height, model_width, model_height, threads;
+    int decode_width, decode_height; /* the size frames were decoded at for the network */
     int finished;             /* 0 after stop_after */
     int skipped;              /* 1: OUT was already current */
     double seconds, ms_per_frame;

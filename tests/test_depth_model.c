@@ -111,10 +111,14 @@ static void test_stage(const char *tmp, const char *clip, const char *model)
     CHECK_OK(pg_depth_run(&c, &r));
     CHECK(r.skipped, "a rerun with the same model and input does nothing");
 
+    /* the tiny model's input (and output) is 24 x 16: frames are decoded at that size, and the
+     * output stays at it (a 48 x 32 map would only interpolate what the network saw) */
+    CHECK(r.decode_width == VW / 2 && r.decode_height == VH / 2 && r.width == VW / 2 && r.height == VH / 2,
+          "decoded at %dx%d, written at %dx%d (24x16 both wanted)", r.decode_width, r.decode_height, r.width, r.height);
     pg_array a;
     CHECK_OK(io_npy_load(out, &a));
-    CHECK(a.ndim == 3 && a.shape[0] == VF && a.shape[1] == VH && a.shape[2] == VW, "shape (%zu, %zu, %zu)", a.shape[0], a.shape[1],
-          a.shape[2]);
+    CHECK(a.ndim == 3 && a.shape[0] == VF && a.shape[1] == VH / 2 && a.shape[2] == VW / 2, "shape (%zu, %zu, %zu)", a.shape[0],
+          a.shape[1], a.shape[2]);
     int ok = 1;
     for (size_t i = 0; i < a.count; i++) ok &= isfinite(a.data[i]) && a.data[i] >= 1.0f && a.data[i] < 4.0f;
     CHECK(ok, "depth finite in the model's range [1, 4)");
@@ -134,6 +138,18 @@ static void test_stage(const char *tmp, const char *clip, const char *model)
     CHECK(worst < 1e-5, "disparity inverted: |2 * raw * depth - 1| <= %g", worst);
     pg_array_destroy(&a);
     pg_array_destroy(&d);
+    /* an output size asked for (the working size a run trains at): written at it, a new key */
+    c.out_width = VW;
+    c.out_height = 0;
+    CHECK_OK(pg_depth_run(&c, &r));
+    CHECK(!r.skipped && r.width == VW && r.height == VH && r.decode_width == VW / 2, "out size %dx%d (48x32 wanted), decoded %dx%d",
+          r.width, r.height, r.decode_width, r.decode_height);
+    CHECK_OK(io_npy_load(out, &d));
+    CHECK(d.ndim == 3 && d.shape[1] == VH && d.shape[2] == VW, "shape (%zu, %zu, %zu)", d.shape[0], d.shape[1], d.shape[2]);
+    pg_array_destroy(&d);
+    c.out_width = -1;
+    CHECK(pg_depth_run(&c, &r) == PG_ERR_ARG && strstr(pg_last_error(), "--out-size"), "bad out size: %s", pg_last_error());
+    c.out_width = 0;
     /* a sidecar that contradicts the model */
     js = "{\"input_size\": [640, 448]}";
     write_bytes(side, (const uint8_t *)js, strlen(js));

@@ -12,6 +12,7 @@
 #include <zlib.h>
 
 #include <math.h>
+#include <sys/stat.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -521,11 +522,57 @@ static void test_bad(const char *dir)
     CHECK(io_depth_load(path, NULL, &d) == PG_ERR_IO, "missing");
 }
 
+static long file_size(const char *path)
+{
+    struct stat sb;
+    return stat(path, &sb) == 0 ? (long)sb.st_size : -1;
+}
+
+/* float16 storage: every half round-trips exactly, floats round to the nearest half (ties to
+ * even), and a map with values float16 cannot hold is kept as float32. */
+static void test_npy_compact(const char *dir)
+{
+    int bad = 0;
+    for (uint32_t h = 0; h < 0x10000u; h++) {
+        float f = io_half_to_float((uint16_t)h);
+        if (isnan(f)) continue;
+        bad += io_float_to_half(f) != h;
+    }
+    CHECK(bad == 0, "%d halves do not round-trip", bad);
+    CHECK(io_float_to_half(1.0f + 1.0f / 2048) == 0x3c00, "1 + 2^-11 ties to even (1.0)");
+    CHECK(io_float_to_half(1.0f + 3.0f / 2048) == 0x3c02, "1 + 3 * 2^-11 ties to even (1 + 2^-9)");
+    CHECK(io_float_to_half(70000.0f) == 0x7c00 && io_float_to_half(-1e-9f) == 0x8000, "overflow to inf, underflow to -0");
+    double worst = 0;
+    for (int i = 0; i < 100000; i++) {
+        float f = 1e-4f * powf(1.0002f, (float)i); /* 1e-4 .. 4.8e4 */
+        if (f > 65000.0f) break;
+        worst = fmax(worst, fabs(io_half_to_float(io_float_to_half(f)) / f - 1.0));
+    }
+    CHECK(worst <= 1.0 / 2048 + 1e-9, "relative error %.3g > 2^-11", worst);
+
+    char path[4096];
+    float d[6] = { 0.0f, 1.5f, 3.25f, 12.0f, 0.001f, 1000.0f };
+    size_t shape[2] = { 2, 3 };
+    pg_path_join(path, sizeof path, dir, "half.npy");
+    CHECK_OK(io_npy_save_compact(path, d, 2, shape));
+    pg_array a;
+    CHECK_OK(io_npy_load(path, &a));
+    CHECK(file_size(path) == 128 + 12 && a.count == 6, "float16 file: %ld bytes", file_size(path));
+    for (int i = 0; a.data && i < 6; i++) CHECK(fabsf(a.data[i] - d[i]) <= d[i] / 2048, "value %d: %g vs %g", i, a.data[i], d[i]);
+    pg_array_destroy(&a);
+    d[5] = 1e6f; /* millimetres of a far wall: no longer float16 */
+    CHECK_OK(io_npy_save_compact(path, d, 2, shape));
+    CHECK_OK(io_npy_load(path, &a));
+    CHECK(file_size(path) == 128 + 24 && a.data && a.data[5] == 1e6f, "kept as float32 (%ld bytes)", file_size(path));
+    pg_array_destroy(&a);
+}
+
 int main(void)
 {
     char dir[4096];
     test_tmpdir("test_io_depth", dir, sizeof dir);
     test_npy(dir);
+    test_npy_compact(dir);
     test_pfm(dir);
     test_png16(dir);
     test_exr(dir);

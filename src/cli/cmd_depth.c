@@ -8,9 +8,11 @@ int cmd_depth(int argc, char **argv)
 {
     pg_depth_config c;
     pg_depth_defaults(&c);
+    const char *out_size = NULL;
     const cli_option options[] = {
         { "--model", CLI_STR, &c.model, "depth network: .tflite or .onnx (required); MODEL.json beside it is read" },
-        { "--out", CLI_STR, &c.out, "output .npy (F,H,W) float32 depth at the video's size (required)" },
+        { "--out", CLI_STR, &c.out, "output .npy (F,H,W) float32 depth (required)" },
+        { "--out-size", CLI_STR, &out_size, "output WxH (default: the network's resolution at the video's aspect; 0 for one side keeps the aspect)" },
         { "--kind", CLI_STR, &c.kind, "the model's raw output: depth or disparity (default: MODEL.json, else by format)" },
         { "--size", CLI_INT, &c.size, "inference size, longer side: models with a dynamic input (a fixed one must match)" },
         { "--frames", CLI_INT, &c.frames, "only the first N frames (default: all)" },
@@ -19,7 +21,8 @@ int cmd_depth(int argc, char **argv)
     };
     const cli_spec spec = { "prodygs depth", "INPUT --model FILE --out depth.npy [options]",
                             "Runs a monocular depth network on every frame: each frame is resized to the model's\n"
-                            "input, the output back to the video's size. Writes depth (larger = farther; a disparity\n"
+                            "input (decoded straight to that size) and the output written at the network's resolution\n"
+                            "fitted to the video's aspect, or --out-size. Writes depth (larger = farther; a disparity\n"
                             "model's output is inverted) in the model's relative units, and beside it a .json of the same\n"
                             "name (model, content hashes, kind). Finished frames are cached in OUT.cache/, so an\n"
                             "interrupted run resumes.\n\n"
@@ -27,6 +30,7 @@ int cmd_depth(int argc, char **argv)
                             options, (int)(sizeof options / sizeof options[0]), 1, 1 };
     int rc = cli_parse(&spec, argc, argv, &c.input, NULL);
     if (rc) return rc < 0 ? 0 : rc;
+    if (out_size && (rc = cli_parse_size("--out-size", out_size, &c.out_width, &c.out_height))) return rc;
     if (!c.model || !c.out) return cli_usage_error("depth: --model FILE and --out FILE.npy are required");
     pg_depth_report r;
     pg_status st = pg_depth_run(&c, &r);

@@ -189,7 +189,7 @@ pg_status depth_net_open(const char *model_path, const char *kind, int size, int
     return PG_OK;
 }
 
-pg_status depth_net_infer(depth_net *net, const pg_image *frame, float *depth, int threads)
+pg_status depth_net_infer(depth_net *net, const pg_image *frame, float *depth, int width, int height, int threads)
 {
     const depth_net_info *in = &net->info;
     if (frame->channels != 3) return pg_fail(PG_ERR_ARG, "depth network: frame has %d channels (3 needed)", frame->channels);
@@ -205,8 +205,8 @@ pg_status depth_net_infer(depth_net *net, const pg_image *frame, float *depth, i
     pg_image_destroy(&small);
     PG_TRY(nn_model_run(net->model, net->in, net->out, threads));
     raw.width = in->out_width, raw.height = in->out_height, raw.channels = 1, raw.data = net->out;
-    PG_TRY(pg_image_resize(&full, &raw, frame->width, frame->height));
-    size_t n = (size_t)frame->width * frame->height;
+    PG_TRY(pg_image_resize(&full, &raw, width, height));
+    size_t n = (size_t)width * height;
     for (size_t i = 0; i < n; i++) {
         float v = full.data[i] * in->scale;
         if (in->disparity) v = isfinite(v) && v > 0 ? 1.0f / v : 0.0f;

@@ -1,10 +1,10 @@
 /* depth_net.h - per-frame depth from a monocular depth network (a TFLite or ONNX file run by the
- * nn runtime): frame -> model input size -> network -> depth at the frame's size.
+ * nn runtime): frame -> model input size -> network -> depth at the size asked for.
  *
  *   depth_net *net;
- *   PG_TRY(depth_net_open("pydnet++_matterport.tflite", NULL, &net));
- *   float *depth = ...;                       (frame.width * frame.height floats)
- *   PG_TRY(depth_net_infer(net, &frame, depth, 2));
+ *   PG_TRY(depth_net_open("pydnet++_matterport.tflite", NULL, 0, frame.width, frame.height, &net));
+ *   float *depth = ...;                       (width * height floats)
+ *   PG_TRY(depth_net_infer(net, &frame, depth, width, height, 2));
  *   depth_net_close(net);
  *
  * How the network's input and output are read comes, in this order, from the override `kind`,
@@ -60,7 +60,8 @@ pg_status depth_net_open(const char *model_path, const char *kind, int size, int
 void depth_net_close(depth_net *net); /* accepts NULL */
 const depth_net_info *depth_net_get_info(const depth_net *net);
 
-/* Depth (frame->height, frame->width) of one RGB frame (float, [0, 1]) on threads threads. */
-pg_status depth_net_infer(depth_net *net, const pg_image *frame, float *depth, int threads);
+/* Depth (height, width) of one RGB frame (float, [0, 1]) on threads threads: the network's output
+ * resampled once to the size asked for (box-filtered when shrinking). */
+pg_status depth_net_infer(depth_net *net, const pg_image *frame, float *depth, int width, int height, int threads);
 
 #endif

@@ -84,7 +84,8 @@ pg_status depth_prepare_run(const depth_prepare_options *opt, const pg_image *fr
 void depth_prepare_result_destroy(depth_prepare_result *res);
 
 /* Writes dir/depth_aligned.npy, dir/static_masks.npy, dir/dynamic_prob.npy, dir/prepare.json and dir/vis/ PNGs
- * (depth_NNNN, mask_NNNN, flow_NNNN when flow was kept, input_depth_NNNN when input is given).
+ * (depth_NNNN, mask_NNNN, flow_NNNN when flow was kept, input_depth_NNNN when input is given; at
+ * most 60 evenly spaced frames of each). Depth and probability maps are float16 when they fit.
  * source_json: a JSON object text merged into prepare.json as "source" (may be NULL).
  * input_depth: the raw (F,H,W) input for the before/after pictures (may be NULL). */
 pg_status depth_prepare_write(const char *dir, const depth_prepare_options *opt, const depth_prepare_result *res,

@@ -159,6 +159,17 @@ int io_dataset_num_frames(const pg_dataset *ds) { return ds->frames; }
 double io_dataset_fps(const pg_dataset *ds) { return ds->fps; }
 int io_dataset_width(const pg_dataset *ds) { return ds->width; }
 int io_dataset_height(const pg_dataset *ds) { return ds->height; }
+int io_dataset_source_width(const pg_dataset *ds) { return ds->src_width; }
+int io_dataset_source_height(const pg_dataset *ds) { return ds->src_height; }
+
+void io_dataset_set_frame_size(pg_dataset *ds, int width, int height)
+{
+    io_dataset_release(ds, -1);
+    ds->opt.width = width;
+    ds->opt.height = height;
+    ds->opt.max_side = 0;
+    ds_set_sizes(ds, ds->src_width, ds->src_height);
+}
 
 const char *io_dataset_camera_name(const pg_dataset *ds, int cam)
 {

@@ -79,6 +79,12 @@ double io_dataset_fps(const pg_dataset *ds);
 /* Output frame size (after resize). */
 int io_dataset_width(const pg_dataset *ds);
 int io_dataset_height(const pg_dataset *ds);
+/* Size of the source frames (before resize). */
+int io_dataset_source_width(const pg_dataset *ds);
+int io_dataset_source_height(const pg_dataset *ds);
+/* Changes the size frames are decoded at (decoded frames are dropped), e.g. once a consumer
+ * knows it needs less than the source: the decoder's scaler resizes, no full-size copy is kept. */
+void io_dataset_set_frame_size(pg_dataset *ds, int width, int height);
 /* Where camera cam's frames come from (video file, frame folder, or the Panoptic ims/ folder). */
 const char *io_dataset_camera_source(const pg_dataset *ds, int cam);
 /* Selected frame t of camera cam as a new float (H, W, 3) image. Decodes and caches the camera. */

@@ -4,6 +4,7 @@
 #include "core/fileutil.h"
 
 #include <stdint.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <errno.h>
@@ -87,6 +88,27 @@ float io_half_to_float(uint16_t h)
     float f;
     memcpy(&f, &bits, 4);
     return f;
+}
+
+uint16_t io_float_to_half(float f)
+{
+    uint32_t x;
+    memcpy(&x, &f, 4);
+    uint32_t sign = (x >> 16) & 0x8000u, e = (x >> 23) & 0xff, m = x & 0x7fffffu;
+    if (e == 0xff) return (uint16_t)(sign | 0x7c00u | (m ? 0x200u : 0)); /* inf, NaN */
+    int ex = (int)e - 127 + 15;
+    if (ex >= 31) return (uint16_t)(sign | 0x7c00u);                      /* overflow -> inf */
+    if (ex <= 0) {                                                        /* subnormal or zero */
+        if (ex < -10) return (uint16_t)sign;
+        m |= 0x800000u;
+        int shift = 14 - ex;
+        uint32_t h = m >> shift, rest = m & ((1u << shift) - 1), half = 1u << (shift - 1);
+        if (rest > half || (rest == half && (h & 1))) h++;
+        return (uint16_t)(sign | h);
+    }
+    uint32_t h = ((uint32_t)ex << 10) | (m >> 13), rest = m & 0x1fffu;
+    if (rest > 0x1000u || (rest == 0x1000u && (h & 1))) h++; /* round to nearest even; may carry into the exponent */
+    return (uint16_t)(sign | h);
 }
 
 static float convert_one(const uint8_t *src, const npy_dtype *dt)
@@ -206,6 +228,24 @@ static pg_status save_raw(const char *path, const void *data, const char *descr,
 pg_status io_npy_save(const char *path, const float *data, int ndim, const size_t *shape)
 {
     return save_raw(path, data, "<f4", sizeof(float), ndim, shape);
+}
+
+/* float16 keeps 11 significant bits between 2^-14 and 65504: enough for a depth map (a pixel of
+ * a 320-wide map is 1/300 of the field), half the bytes. Anything outside that range keeps f4. */
+pg_status io_npy_save_compact(const char *path, const float *data, int ndim, const size_t *shape)
+{
+    size_t count = 1;
+    for (int i = 0; i < ndim; i++) count *= shape[i];
+    for (size_t i = 0; i < count; i++) {
+        float a = fabsf(data[i]);
+        if (!(a == 0.0f || (a >= 6.103515625e-05f && a <= 65504.0f))) return io_npy_save(path, data, ndim, shape);
+    }
+    uint16_t *h = pg_malloc((count ? count : 1) * sizeof *h, path);
+    if (!h) return PG_ERR_NOMEM;
+    for (size_t i = 0; i < count; i++) h[i] = io_float_to_half(data[i]);
+    pg_status st = save_raw(path, h, "<f2", sizeof *h, ndim, shape);
+    free(h);
+    return st;
 }
 
 pg_status io_npy_save_u8(const char *path, const unsigned char *data, int ndim, const size_t *shape)

@@ -1,7 +1,8 @@
 /* npy.h - NumPy .npy arrays (format 1.0/2.0/3.0, C order).
  *
  * Loading converts any of float32/float64/uint8/uint16/int16/int32/int64 (either byte
- * order) to float32; saving writes little-endian float32 ('<f4') or uint8 ('|u1').
+ * order) and float16 to float32; saving writes little-endian float32 ('<f4'), float16 ('<f2') or
+ * uint8 ('|u1').
  */
 #ifndef PG_NPY_H
 #define PG_NPY_H
@@ -24,10 +25,15 @@ typedef struct {
 pg_status io_npy_load(const char *path, pg_array *arr);
 /* Saves float32 data of the given shape atomically. */
 pg_status io_npy_save(const char *path, const float *data, int ndim, const size_t *shape);
+/* Saves float data as float16 ('<f2') when every value is 0 or within float16's normal range
+ * (relative error <= 2^-11), else as float32; atomically. For depth and probability maps. */
+pg_status io_npy_save_compact(const char *path, const float *data, int ndim, const size_t *shape);
 /* Saves uint8 data of the given shape atomically (masks). */
 pg_status io_npy_save_u8(const char *path, const unsigned char *data, int ndim, const size_t *shape);
 void pg_array_destroy(pg_array *arr);
 /* IEEE half (binary16) to float, exactly (subnormals, inf and NaN included); also used by EXR. */
 float io_half_to_float(uint16_t h);
+/* float to IEEE half, rounding to nearest even (overflow gives inf). */
+uint16_t io_float_to_half(float f);
 
 #endif

@@ -187,7 +187,7 @@ static pg_status process_frame(const proxy_job *j, const char *dir, const char *
         PG_TRY(save_mask_png(path, w->mask, W, H, w->fmask));
         PG_TRY(cache_path(path, sizeof path, dir, "depth", j->proxy_names[k], f, "npy"));
         size_t shape[2] = { (size_t)H, (size_t)W };
-        PG_TRY(io_npy_save(path, w->depth, 2, shape));
+        PG_TRY(io_npy_save_compact(path, w->depth, 2, shape));
         w->write_s += pg_time_seconds() - t0;
     }
     PG_TRY(cache_path(path, sizeof path, dir, "done", NULL, f, "txt"));
@@ -247,7 +247,7 @@ static pg_status assemble_depth(const proxy_job *j, const char *dir, const char 
         int n = snprintf(path, sizeof path, "%s/%s/depth.npy", dir, cam);
         size_t shape[3] = { (size_t)j->frames, (size_t)j->height, (size_t)j->width };
         st = (n < 0 || (size_t)n >= sizeof path) ? pg_fail(PG_ERR_ARG, "%s: path too long", dir)
-                                                  : io_npy_save(path, all, 3, shape);
+                                                  : io_npy_save_compact(path, all, 3, shape);
     }
     free(all);
     return st;
@@ -401,7 +401,7 @@ pg_status proxy_generate(const proxy_options *opt_in, const proxy_job *j, const 
     int n = snprintf(path, sizeof path, "%s/%s/depth.npy", dir, j->real_name);
     size_t shape[3] = { (size_t)j->frames, (size_t)j->height, (size_t)j->width };
     pg_status st = (n < 0 || (size_t)n >= sizeof path) ? pg_fail(PG_ERR_ARG, "%s: path too long", dir)
-                                                        : io_npy_save(path, scaled, 3, shape);
+                                                        : io_npy_save_compact(path, scaled, 3, shape);
     free(scaled);
     PG_TRY(st);
 

@@ -1,8 +1,10 @@
 /* depth.c - the depth stage: a depth network over the frames of a video (pg_depth_run, see
  * prodygs.h), with a per-frame cache so an interrupted run resumes.
  *
- * Frames go in batches of one per thread, each thread with its own copy of the network running
- * single-threaded (a lone frame uses all threads in one network).
+ * Frames are decoded at the smallest size that covers the network's input (the decoder's scaler
+ * shrinks a 1080p frame as it decodes it), go in batches of one per thread, each thread with its
+ * own copy of the network running single-threaded (a lone frame uses all threads in one network),
+ * and the network's output is resampled once to the output size.
  * OUT.cache/ holds key.json (the content hashes of the model and the camera's source, and the
  * settings) and one NNNNN.npy (H, W) per finished frame. A cache whose key differs is emptied
  * first. Once every frame is there, OUT is written atomically, then the key beside it as
@@ -11,6 +13,7 @@
 #include "stage/stage_internal.h"
 
 #include <dirent.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -36,14 +39,16 @@ static pg_status check_config(const pg_depth_config *c)
         return pg_fail(PG_ERR_ARG, "--kind must be depth or disparity (got '%s')", c->kind);
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "--frames must be >= 1 (got %d)", c->frames);
     if (c->size < 0 || c->size > STAGE_MAX_SIDE) return pg_fail(PG_ERR_ARG, "--size must be in 1..%d (got %d)", STAGE_MAX_SIDE, c->size);
+    if (c->out_width < 0 || c->out_height < 0 || c->out_width > STAGE_MAX_SIDE || c->out_height > STAGE_MAX_SIDE)
+        return pg_fail(PG_ERR_ARG, "--out-size must be in 0..%d per side (got %dx%d)", STAGE_MAX_SIDE, c->out_width, c->out_height);
     size_t n = strlen(c->out);
     if (n < 5 || strcmp(c->out + n - 4, ".npy") != 0) return pg_fail(PG_ERR_ARG, "%s: --out must name a .npy file", c->out);
     return stage_check_threads("depth", c->threads);
 }
 
 /* Everything the result depends on: the model's and the source's content and the settings. */
-static pg_status make_key(const pg_depth_config *c, const char *source, const char *camera, const depth_net_info *info, int frames,
-                          cJSON **key)
+static pg_status make_key(const pg_depth_config *c, const char *source, const char *camera, const depth_net_info *info,
+                          const pg_depth_report *r, cJSON **key)
 {
     cJSON *k = cJSON_CreateObject();
     pg_status st = stage_hash_input(k, "model", c->model);
@@ -55,7 +60,11 @@ static pg_status make_key(const pg_depth_config *c, const char *source, const ch
     cJSON_AddNumberToObject(k, "input_height", info->height);
     cJSON_AddItemToObject(k, "mean", io_json_float_array(info->mean, 3));
     cJSON_AddItemToObject(k, "std", io_json_float_array(info->std, 3));
-    cJSON_AddNumberToObject(k, "frames", frames);
+    cJSON_AddNumberToObject(k, "frames", r->frames);
+    cJSON_AddNumberToObject(k, "decode_width", r->decode_width);
+    cJSON_AddNumberToObject(k, "decode_height", r->decode_height);
+    cJSON_AddNumberToObject(k, "width", r->width);
+    cJSON_AddNumberToObject(k, "height", r->height);
     if (st) {
         cJSON_Delete(k);
         return st;
@@ -104,6 +113,42 @@ static void remove_cache(const char *dir)
     rmdir(dir);
 }
 
+/* The smallest frame size at the source's aspect that covers the network's input in both axes
+ * (no axis is upsampled into the network), never above the source. */
+static void decode_size(const depth_net_info *info, int src_w, int src_h, int *w, int *h)
+{
+    double s = fmax((double)info->width / src_w, (double)info->height / src_h);
+    if (s >= 1.0) {
+        *w = src_w;
+        *h = src_h;
+        return;
+    }
+    *w = (int)ceil(src_w * s - 1e-6);
+    *h = (int)ceil(src_h * s - 1e-6);
+}
+
+/* The output size: out_width x out_height (one side 0 keeps the source's aspect), else the
+ * network's output resolution at the source's aspect (never above the decoded frames). */
+static void output_size(const pg_depth_config *c, const depth_net_info *info, int src_w, int src_h, int dec_w, int dec_h,
+                        int *w, int *h)
+{
+    if (c->out_width > 0 || c->out_height > 0) {
+        *w = c->out_width > 0 ? c->out_width : (int)lround((double)src_w * c->out_height / src_h);
+        *h = c->out_height > 0 ? c->out_height : (int)lround((double)src_h * c->out_width / src_w);
+        if (*w < 1) *w = 1;
+        if (*h < 1) *h = 1;
+        return;
+    }
+    depth_net_info o = *info;
+    o.width = info->out_width;
+    o.height = info->out_height;
+    decode_size(&o, src_w, src_h, w, h);
+    if (*w > dec_w || *h > dec_h) {
+        *w = dec_w;
+        *h = dec_h;
+    }
+}
+
 pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
 {
     memset(r, 0, sizeof *r);
@@ -128,6 +173,10 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
                          info->height, c->size);
     }
     if (!st) {
+        int sw = io_dataset_source_width(ds), sh = io_dataset_source_height(ds);
+        decode_size(info, sw, sh, &r->decode_width, &r->decode_height);
+        io_dataset_set_frame_size(ds, r->decode_width, r->decode_height);
+        output_size(c, info, sw, sh, r->decode_width, r->decode_height, &r->width, &r->height);
         snprintf(r->model_name, sizeof r->model_name, "%s", info->name);
         snprintf(r->kind, sizeof r->kind, "%s", info->disparity ? "disparity" : "depth");
         r->model_width = info->width;
@@ -141,9 +190,7 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
     if (!st) {
         io_dataset_camera_label(ds, cam, r->train_camera, sizeof r->train_camera);
         r->frames = io_dataset_num_frames(ds);
-        r->width = io_dataset_width(ds);
-        r->height = io_dataset_height(ds);
-        st = make_key(c, io_dataset_camera_source(ds, cam), io_dataset_camera_name(ds, cam), info, r->frames, &key);
+        st = make_key(c, io_dataset_camera_source(ds, cam), io_dataset_camera_name(ds, cam), info, r, &key);
     }
     if (!st && pg_path_exists(c->out) && key_matches(meta, key)) {
         r->skipped = r->finished = 1;
@@ -171,7 +218,9 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
     if (T > r->frames) T = r->frames > 0 ? r->frames : 1;
     depth_net *net_of[DEPTH_MAX_NETS] = { net };
     for (; !st && nets < T; nets++)
-        if (depth_net_open(c->model, c->kind, c->size, r->width, r->height, &net_of[nets]) != PG_OK) break; /* fewer copies */
+        if (depth_net_open(c->model, c->kind, c->size, io_dataset_source_width(ds), io_dataset_source_height(ds),
+                           &net_of[nets]) != PG_OK)
+            break; /* fewer copies */
     double infer_seconds = 0;
     int t = 0, stop = 0;
     while (!st && !stop && t < r->frames) {
@@ -208,7 +257,7 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
         int inner = nb > 1 ? 1 : r->threads;
         #pragma omp parallel for num_threads(nb > 1 ? nb : 1) schedule(static, 1)
         for (int b = 0; b < nb; b++) {
-            bst[b] = depth_net_infer(net_of[b], &img[b], all + plane * (size_t)batch[b], inner);
+            bst[b] = depth_net_infer(net_of[b], &img[b], all + plane * (size_t)batch[b], r->width, r->height, inner);
             if (bst[b]) snprintf(msg[b], sizeof msg[b], "%s", pg_last_error()); /* messages are per thread */
         }
         infer_seconds += pg_time_seconds() - ti;

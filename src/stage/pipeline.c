@@ -251,10 +251,14 @@ static pg_status run_depth(pipeline_run *p, pipeline_plan *plan, const char *dir
     dc.train_camera = plan->train_camera;
     dc.frames = c->frames;
     dc.threads = plan->threads;
+    dc.out_width = plan->width; /* prepare reads depth at its working size: nothing larger is kept */
+    dc.out_height = plan->height;
     cJSON *config = cJSON_CreateObject(), *inputs;
     cJSON_AddStringToObject(config, "model", c->depth_model);
     cJSON_AddStringToObject(config, "train_camera", plan->train_camera);
     cJSON_AddNumberToObject(config, "frames", c->frames);
+    cJSON_AddNumberToObject(config, "width", plan->width);
+    cJSON_AddNumberToObject(config, "height", plan->height);
     pg_status st = hash_inputs(&inputs, "input", c->input, "depth_model", c->depth_model);
     if (!st && !stage_is_current(p, ST_DEPTH, config, inputs)) {
         pg_depth_report dr;

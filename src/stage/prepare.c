@@ -98,6 +98,8 @@ static pg_status prepare_with_model(const pg_prepare_config *c, pg_prepare_repor
     dc.train_camera = c->train_camera;
     dc.frames = c->frames;
     dc.threads = c->threads;
+    dc.out_width = c->width; /* the size prepare works at (0, 0: the network's) */
+    dc.out_height = c->height;
     pg_depth_report dr;
     PG_TRY(pg_depth_run(&dc, &dr));
     pg_prepare_config cc = *c;
