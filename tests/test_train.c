@@ -4,6 +4,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <zlib.h>
 
 #include "core/fileutil.h"
@@ -14,6 +15,12 @@
 #include "train/train.h"
 #include "train/trainset.h"
 #include "train_toy.h"
+
+static long file_bytes(const char *path)
+{
+    struct stat sb;
+    return stat(path, &sb) == 0 ? (long)sb.st_size : -1;
+}
 
 static train_config small_config(void)
 {
@@ -178,6 +185,9 @@ int main(void)
     if (s) CHECK_OK(train_session_run(s));
     CHECK(s && train_session_iteration(s) == 47, "stopped at 47");
     train_session_destroy(s);
+    /* the periodic checkpoint carries the optimiser state, the final one only the model */
+    long mid = file_bytes(b), fin = file_bytes(a);
+    CHECK(mid > 0 && fin > 0 && fin * 2 < mid, "final checkpoint %ld bytes, periodic %ld (final should be < half)", fin, mid);
     c2.stop_at_iter = 0;
     s = NULL;
     CHECK_OK(train_session_create(&s, &ts, &c2, b, 1));
@@ -186,6 +196,14 @@ int main(void)
     if (s) CHECK_OK(train_session_run(s));
     train_session_destroy(s);
     CHECK(test_files_equal(a, b), "resumed final checkpoint differs from the uninterrupted one");
+    /* a finished model continued with more iterations: Adam starts afresh, training goes on */
+    c2.iters += 20;
+    s = NULL;
+    CHECK_OK(train_session_create(&s, &ts, &c2, b, 1));
+    CHECK(s && train_session_iteration(s) == c2.iters - 20, "continued from the finished model at %d", c2.iters - 20);
+    if (s) CHECK_OK(train_session_run(s));
+    CHECK(s && train_session_iteration(s) == c2.iters, "continued to %d", c2.iters);
+    train_session_destroy(s);
 
     /* two times per step (each its own deformation, one optimiser step): learns, and a resume
      * still gives the same bytes */
@@ -318,9 +336,9 @@ int main(void)
         if (crafted) {
             memcpy(crafted, blob, n);
             uint32_t tl;
-            memcpy(&tl, crafted + 12, 4);
+            memcpy(&tl, crafted + 16, 4); /* magic, version, flags, text length */
             int32_t iter = -1000000;
-            memcpy(crafted + 16 + tl, &iter, 4);
+            memcpy(crafted + 20 + tl, &iter, 4);
             uint32_t crc = (uint32_t)crc32(crc32(0L, Z_NULL, 0), (const unsigned char *)crafted, (uInt)(n - 4));
             memcpy(crafted + n - 4, &crc, 4);
             pg_write_file_atomic(c, crafted, n);

@@ -3,22 +3,26 @@
  *
  * Layout (little-endian, written in one go to a temporary file then renamed):
  *   "PGDYCKP1"                              magic
- *   u32 version (5), u32 config text length, config text ("key=value\n" lines)
+ *   u32 version (6), u32 flags (bit 0: optimiser state present), u32 config text length, config
+ *   text ("key=value\n" lines)
  *   i32 iter, fine, frames, width, height, num_views; u64 rng[4]
  *   f32 extent, unit, center[3], max_disp, bg[3]    (unit: the user's length per trainer length)
  *   i32 N, sh_degree; Gaussians (means, log_scales, quats, opacity, sh for N rows)
- *   Adam of the Gaussians: i32 step[6], then per group f32 m[N x cols], v[N x cols]
- *       (groups means, log_scales, quats, opacity, sh_dc, sh_rest of 3, 3, 4, 1, 3, 45 cols)
- *   u8 is_static[N]; f32 grad_accum[N], grad_denom[N]
+ *   with optimiser state: Adam of the Gaussians: i32 step[6], then per group f32 m[N x cols],
+ *       v[N x cols] (groups means, log_scales, quats, opacity, sh_dc, sh_rest of 3, 3, 4, 1, 3, 45 cols)
+ *   u8 is_static[N]; with optimiser state: f32 grad_accum[N], grad_denom[N]
  *   if fine: network config (f32 aabb[6], i32 width, res, tres, channels, head_width, u64 seed),
- *       u64 P, f32 params[P], Adam of the network: i32 step[2], then per group m, v
- *       (groups HexPlane grids [0, grid_end) and MLP [grid_end, P))
+ *       u64 P, f32 params[P], with optimiser state: Adam of the network: i32 step[2], then per
+ *       group m, v (groups HexPlane grids [0, grid_end) and MLP [grid_end, P))
  *   "PGEND\0\0\0", u32 CRC-32 (zlib) of every byte before it
  * The CRC is checked before anything is parsed, and every field is range-checked before it sizes
  * an allocation, so a damaged or crafted file fails with one message. Adam sections are the optimiser's groups in order (src/optim/adam). Nothing time- or
  * machine-dependent is stored, so equal training gives equal bytes. Only the current version is
  * read (1: one step count for all Gaussian groups, moments stored like Gaussians; 3: no head
- * width in the network config; 4: no unit, trained in the depth's own units).
+ * width in the network config; 4: no unit, trained in the depth's own units; 5: no flags, always
+ * optimiser state). The checkpoint written when training ends leaves the optimiser state out (it
+ * is two thirds of the bytes and only a continuation needs it): continuing a finished model
+ * starts Adam afresh, while an interrupted run resumes bit-exactly from a periodic checkpoint.
  */
 #include "train/train_internal.h"
 
@@ -33,7 +37,8 @@
 
 #define CKPT_MAGIC "PGDYCKP1"
 #define CKPT_END "PGEND\0\0\0"
-#define CKPT_VERSION 5u
+#define CKPT_VERSION 6u
+#define CKPT_HAS_OPTIMIZER 1u
 #define CKPT_MAX_STEP 100000000 /* iterations and Adam steps beyond this are corruption */
 #define SH_ROW (PG_SH_COEFFS * 3)
 #define GAUSS_FLOATS (3 + 3 + 4 + 1 + SH_ROW) /* per Gaussian, also the Adam columns per row */
@@ -144,13 +149,14 @@ static void config_parse(const char *text, train_config *c)
     if (cfg_get(text, "bg", v, sizeof v)) sscanf(v, "%f,%f,%f", &c->bg[0], &c->bg[1], &c->bg[2]);
 }
 
-pg_status train_checkpoint_write(train_session *s, const char *path)
+pg_status train_checkpoint_write(train_session *s, const char *path, int with_optimizer)
 {
     buf b = {0};
     char text[8192];
     config_text(&s->cfg, text, sizeof text);
     put(&b, CKPT_MAGIC, 8);
     put_i32(&b, (int32_t)CKPT_VERSION);
+    put_i32(&b, with_optimizer ? (int32_t)CKPT_HAS_OPTIMIZER : 0);
     put_i32(&b, (int32_t)strlen(text));
     put(&b, text, strlen(text));
     put_i32(&b, s->iter);
@@ -169,10 +175,12 @@ pg_status train_checkpoint_write(train_session *s, const char *path)
     put_i32(&b, n);
     put_i32(&b, s->g.sh_degree);
     put_gaussians(&b, &s->g, n);
-    put_adam(&b, s->gopt);
+    if (with_optimizer) put_adam(&b, s->gopt);
     put(&b, s->is_static, (size_t)n);
-    put(&b, s->grad_accum, (size_t)n * 4);
-    put(&b, s->grad_denom, (size_t)n * 4);
+    if (with_optimizer) {
+        put(&b, s->grad_accum, (size_t)n * 4);
+        put(&b, s->grad_denom, (size_t)n * 4);
+    }
     if (s->fine) {
         const train_net_config *nc = &s->net_cfg;
         for (int k = 0; k < 3; k++) put_f32(&b, nc->aabb_min[k]);
@@ -186,7 +194,7 @@ pg_status train_checkpoint_write(train_session *s, const char *path)
         uint64_t P = train_net_num_params(s->net);
         put_u64(&b, P);
         put(&b, train_net_params(s->net), (size_t)P * 4);
-        put_adam(&b, s->nopt);
+        if (with_optimizer) put_adam(&b, s->nopt);
     }
     put(&b, CKPT_END, 8);
     if (!b.failed) put_i32(&b, (int32_t)crc32_z(crc32(0L, Z_NULL, 0), b.data, b.size));
@@ -269,6 +277,7 @@ static void get_adam(rd *r, optim_adam *opt)
 typedef struct {
     train_config cfg;
     int iter, fine, frames, width, height, num_views;
+    int optimizer; /* the file holds the optimiser state */
     uint64_t rng[4];
     float extent, unit, center[3], max_disp, bg[3];
     int n, sh_degree;
@@ -296,6 +305,9 @@ static pg_status check_crc(const unsigned char *data, size_t size, const char *p
 static pg_status read_header(rd *r, const char *path, ckpt_header *h)
 {
     r->off = 12; /* magic and version: checked with the CRC */
+    uint32_t flags = (uint32_t)get_i32(r);
+    if (flags & ~CKPT_HAS_OPTIMIZER) return pg_fail(PG_ERR_FORMAT, "%s: unknown checkpoint flags %#x", path, flags);
+    h->optimizer = (int)(flags & CKPT_HAS_OPTIMIZER);
     int32_t tl = get_i32(r);
     if (tl < 0 || (size_t)tl > r->size - r->off) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint", path);
     char *text = pg_malloc((size_t)tl + 1, "checkpoint config");
@@ -330,14 +342,16 @@ static pg_status read_header(rd *r, const char *path, ckpt_header *h)
     const char *bad = train_config_invalid(&h->cfg);
     if (bad) return pg_fail(PG_ERR_FORMAT, "%s: corrupt checkpoint config (%s)", path, bad);
     /* the rest must fit: the Gaussians, their Adam state, flags and statistics */
-    size_t need = (size_t)h->n * (GAUSS_FLOATS * 4 * 3 + 1 + 8) + OPTIM_GAUSS_GROUPS * 4;
+    size_t need = h->optimizer ? (size_t)h->n * (GAUSS_FLOATS * 4 * 3 + 1 + 8) + OPTIM_GAUSS_GROUPS * 4
+                               : (size_t)h->n * (GAUSS_FLOATS * 4 + 1);
     if (r->size - r->off < need) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (Gaussians)", path);
     return PG_OK;
 }
 
-/* The network section; with s, the network and its optimiser go into the session, without
- * (model loading) the network into *net and the Adam state is skipped. */
-static pg_status read_net(rd *r, const char *path, train_net_config *nc, train_net **net, train_session *s)
+/* The network section; with s, the network and its optimiser go into the session (a fresh
+ * optimiser when the file has none), without (model loading) the network into *net and any Adam
+ * state is skipped. */
+static pg_status read_net(rd *r, const char *path, train_net_config *nc, train_net **net, train_session *s, int optimizer)
 {
     memset(nc, 0, sizeof *nc);
     for (int k = 0; k < 3; k++) nc->aabb_min[k] = get_f32(r);
@@ -360,12 +374,12 @@ static pg_status read_net(rd *r, const char *path, train_net_config *nc, train_n
         return pg_fail(PG_ERR_FORMAT, "%s: network config (width %d, head width %d, res %d x %d, %d channels) does not "
                        "match its %llu parameters", path, nc->width, nc->head_width, nc->res, nc->tres, nc->channels,
                        (unsigned long long)P);
-    size_t adam_bytes = TRAIN_NET_GROUPS * 4 + (size_t)P * 8;
-    if ((r->size - r->off) / 12 < P) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (network)", path);
+    size_t adam_bytes = optimizer ? TRAIN_NET_GROUPS * 4 + (size_t)P * 8 : 0;
+    if ((r->size - r->off) / (optimizer ? 12 : 4) < P) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (network)", path);
     PG_TRY(train_net_create(net, nc));
     get(r, train_net_params(*net), (size_t)P * 4);
-    if (s) {
-        PG_TRY(train_adam_create_net(s));
+    if (s) PG_TRY(train_adam_create_net(s)); /* zero moments, step 0 */
+    if (s && optimizer) {
         get_adam(r, s->nopt);
         if (r->bad) return pg_fail(PG_ERR_FORMAT, "%s: corrupt network Adam state in the checkpoint", path);
     } else {
@@ -416,17 +430,27 @@ pg_status train_checkpoint_read(train_session *s, const char *path)
     if ((st = train_resize_all(s, h.n))) goto done;
     get_gaussians(&r, &s->g, h.n);
     if ((st = check_finite(&s->g, h.n, path))) goto done;
-    get_adam(&r, s->gopt);
+    if (h.optimizer) get_adam(&r, s->gopt);
+    else /* a finished model continued: Adam starts afresh */
+        for (int gi = 0; gi < optim_adam_num_groups(s->gopt); gi++) {
+            optim_adam_reset_group(s->gopt, gi);
+            optim_adam_set_group_step(s->gopt, gi, 0);
+        }
     if (r.bad) {
         st = pg_fail(PG_ERR_FORMAT, "%s: corrupt Adam state of the Gaussians in the checkpoint", path);
         goto done;
     }
     s->g.sh_degree = h.sh_degree;
     get(&r, s->is_static, (size_t)h.n);
-    get(&r, s->grad_accum, (size_t)h.n * 4);
-    get(&r, s->grad_denom, (size_t)h.n * 4);
+    if (h.optimizer) {
+        get(&r, s->grad_accum, (size_t)h.n * 4);
+        get(&r, s->grad_denom, (size_t)h.n * 4);
+    } else {
+        memset(s->grad_accum, 0, (size_t)h.n * 4);
+        memset(s->grad_denom, 0, (size_t)h.n * 4);
+    }
     if (h.fine) {
-        if ((st = read_net(&r, path, &s->net_cfg, &s->net, s))) goto done;
+        if ((st = read_net(&r, path, &s->net_cfg, &s->net, s, h.optimizer))) goto done;
         s->fine = 1;
     }
     st = check_end(&r, path);
@@ -464,17 +488,17 @@ pg_status train_model_load(const char *path, train_model *m)
     m->unit = h.unit;
     if ((st = splat_gaussians_copy(&m->g_net, &m->g))) goto done;
     to_user_units(&m->g, m->unit);
-    skip(&r, OPTIM_GAUSS_GROUPS * 4 + (size_t)h.n * GAUSS_FLOATS * 4 * 2); /* Adam state */
+    if (h.optimizer) skip(&r, OPTIM_GAUSS_GROUPS * 4 + (size_t)h.n * GAUSS_FLOATS * 4 * 2); /* Adam state */
     m->is_static = pg_malloc((size_t)h.n, "model static flags");
     if (!m->is_static) {
         st = PG_ERR_NOMEM;
         goto done;
     }
     get(&r, m->is_static, (size_t)h.n);
-    skip(&r, (size_t)h.n * 8);
+    if (h.optimizer) skip(&r, (size_t)h.n * 8);
     if (h.fine) {
         train_net_config nc;
-        if ((st = read_net(&r, path, &nc, &m->net, NULL))) goto done;
+        if ((st = read_net(&r, path, &nc, &m->net, NULL, h.optimizer))) goto done;
     }
     st = check_end(&r, path);
     m->frames = h.frames;

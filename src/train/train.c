@@ -687,7 +687,7 @@ pg_status train_session_run(train_session *s)
         PG_TRY(train_session_step(s));
         int it = s->iter;
         if (s->ckpt_path[0] && c->checkpoint_every > 0 && it % c->checkpoint_every == 0 && it < c->iters)
-            PG_TRY(train_checkpoint_write(s, s->ckpt_path));
+            PG_TRY(train_checkpoint_write(s, s->ckpt_path, 1));
         if (it % 10 == 0 || it == c->iters) {
             double el = pg_time_seconds() - s->t_start;
             double ips = el > 0 ? (it - s->it_start) / el : 0;
@@ -696,7 +696,7 @@ pg_status train_session_run(train_session *s)
                                s->last_loss, s->last_psnr, s->g.count, ips, eta, s->fine ? "" : " (coarse)");
         }
     }
-    if (s->ckpt_path[0]) PG_TRY(train_checkpoint_write(s, s->ckpt_path));
+    if (s->ckpt_path[0]) PG_TRY(train_checkpoint_write(s, s->ckpt_path, 0));
     return PG_OK;
 }
 

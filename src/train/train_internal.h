@@ -70,7 +70,8 @@ pg_status train_resize_all(train_session *s, int n);
 pg_status train_densify_and_prune(train_session *s, int densify);
 void train_reset_opacity(train_session *s);
 /* checkpoint.c */
-pg_status train_checkpoint_write(train_session *s, const char *path);
+/* with_optimizer 0 (the end of training): the model alone, a third of the bytes. */
+pg_status train_checkpoint_write(train_session *s, const char *path, int with_optimizer);
 pg_status train_checkpoint_read(train_session *s, const char *path);
 /* NULL if every field of a (stored) config is in range, else the first bad field's name. */
 const char *train_config_invalid(const train_config *c);
