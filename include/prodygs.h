@@ -270,6 +270,7 @@ typedef struct pg_pipeline_report {
     pg_evaluate_report evaluation;
     double seconds_total;
     long peak_rss_kb;
+    double disk_mib;                  /* everything under OUT after the run */
 } pg_pipeline_report;
 
 typedef struct {

@@ -114,7 +114,7 @@ int pipeline_cli_run(pg_pipeline_config *c)
         size_t n = strlen(line);
         snprintf(line + n, sizeof line - n, ", \"gaussians\": %d, \"report\": \"%s/report.md\"", r.train.gaussians, c->out);
     }
-    printf("%s, \"peak_rss_mib\": %.1f}\n", line, r.peak_rss_kb / 1024.0);
+    printf("%s, \"peak_rss_mib\": %.1f, \"disk_mib\": %.1f}\n", line, r.peak_rss_kb / 1024.0, r.disk_mib);
     fflush(stdout);
     return 0;
 }

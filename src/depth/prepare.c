@@ -425,7 +425,7 @@ pg_status depth_prepare_write(const char *dir, const depth_prepare_options *opt,
     PG_TRY(pg_path_join(path, sizeof path, dir, "static_masks.npy"));
     PG_TRY(io_npy_save_u8(path, res->static_masks, 3, shape));
     PG_TRY(pg_path_join(path, sizeof path, dir, "dynamic_prob.npy"));
-    PG_TRY(io_npy_save_compact(path, res->dynamic_prob, 3, shape));
+    PG_TRY(io_npy_save_f16(path, res->dynamic_prob, 3, shape)); /* a probability: 3e-5 is plenty */
     PG_TRY(pg_path_join(path, sizeof path, dir, "prepare.json"));
     PG_TRY(write_json(path, opt, res, source_json));
 

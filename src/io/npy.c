@@ -240,6 +240,13 @@ pg_status io_npy_save_compact(const char *path, const float *data, int ndim, con
         float a = fabsf(data[i]);
         if (!(a == 0.0f || (a >= 6.103515625e-05f && a <= 65504.0f))) return io_npy_save(path, data, ndim, shape);
     }
+    return io_npy_save_f16(path, data, ndim, shape);
+}
+
+pg_status io_npy_save_f16(const char *path, const float *data, int ndim, const size_t *shape)
+{
+    size_t count = 1;
+    for (int i = 0; i < ndim; i++) count *= shape[i];
     uint16_t *h = pg_malloc((count ? count : 1) * sizeof *h, path);
     if (!h) return PG_ERR_NOMEM;
     for (size_t i = 0; i < count; i++) h[i] = io_float_to_half(data[i]);

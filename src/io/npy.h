@@ -28,6 +28,8 @@ pg_status io_npy_save(const char *path, const float *data, int ndim, const size_
 /* Saves float data as float16 ('<f2') when every value is 0 or within float16's normal range
  * (relative error <= 2^-11), else as float32; atomically. For depth and probability maps. */
 pg_status io_npy_save_compact(const char *path, const float *data, int ndim, const size_t *shape);
+/* Saves float data as float16 whatever it holds (values in [0, 1] keep 3e-5 absolute). */
+pg_status io_npy_save_f16(const char *path, const float *data, int ndim, const size_t *shape);
 /* Saves uint8 data of the given shape atomically (masks). */
 pg_status io_npy_save_u8(const char *path, const unsigned char *data, int ndim, const size_t *shape);
 void pg_array_destroy(pg_array *arr);

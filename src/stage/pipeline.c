@@ -7,18 +7,25 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/resource.h>
 
 #include "core/fileutil.h"
 #include "core/parallel.h"
 #include "core/status.h"
+#include "core/resources.h"
 #include "io/dataset.h"
 #include "io/json.h"
 #include "stage/marker.h"
 
+/* warn_if_too_big's model of a run (fitted to measured runs: docs/run.md) */
+#define RUN_MEM_BASE_MIB 300.0
+#define RUN_MEM_PER_PIXEL 10.0  /* bytes per frame-pixel of each view */
+#define RUN_DISK_PER_PIXEL 5.0
+
 /* depth is last in the report's arrays (it was added later) but runs first */
 enum { ST_PREPARE, ST_PROXIES, ST_TRAIN, ST_EVALUATE, ST_RENDER, ST_DEPTH, ST_COUNT };
 static const char *stage_names[ST_COUNT] = { "prepare", "proxies", "train", "evaluate", "render", "depth" };
+/* each stage's output folder under OUT, for its disk use */
+static const char *stage_dirs[ST_COUNT] = { "prepare", "proxies", "model", "metrics.json", "renders", "depth" };
 
 typedef struct {
     const char *name;
@@ -89,6 +96,27 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
     return pg_fail(PG_ERR_ARG, "unknown preset '%s' (fast, quality)", name);
 }
 
+/* Warns, before anything runs, when the run's estimated peak memory or disk exceeds what the
+ * machine has free. The estimate is linear in frames x pixels x views, fitted to measured runs
+ * (docs/run.md): the training set holds every view's frames, masks and depth in memory, and each
+ * stage writes about as much again. */
+static void warn_if_too_big(const char *out, int frames, int w, int h, int views)
+{
+    double pixels = (double)frames * w * h * views;
+    double mem = RUN_MEM_BASE_MIB * 1048576.0 + RUN_MEM_PER_PIXEL * pixels, disk = RUN_DISK_PER_PIXEL * pixels;
+    char dir[4200];
+    snprintf(dir, sizeof dir, "%s", out);
+    while (!pg_path_exists(dir) && strrchr(dir, '/')) *strrchr(dir, '/') = '\0'; /* the nearest existing parent */
+    if (!pg_path_exists(dir)) snprintf(dir, sizeof dir, ".");
+    double have_mem = (double)pg_mem_available_bytes(), have_disk = (double)pg_disk_free_bytes(dir);
+    if (have_mem > 0 && mem > have_mem)
+        pg_warn("this run needs about %.1f GiB of memory (%d frames of %dx%d, %d views) but %.1f GiB is available: "
+                "use --frames, --size or fewer --proxies", mem / 1073741824.0, frames, w, h, views, have_mem / 1073741824.0);
+    if (have_disk > 0 && disk > have_disk)
+        pg_warn("this run writes about %.1f GiB under %s but %.1f GiB is free there", disk / 1073741824.0, out,
+                have_disk / 1073741824.0);
+}
+
 /* Resolves the cameras once (a name wins over an index) and picks the training size: an even
  * WxH with the input's aspect and the longer side at most the preset's. */
 static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipeline_plan *plan, pg_pipeline_report *r)
@@ -132,6 +160,10 @@ static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipelin
             plan->height = (int)((double)h * p->max_side / side + 0.5) & ~1;
         }
     }
+    int frames = c->frames > 0 ? c->frames : io_dataset_num_frames(ds), cams = io_dataset_num_cameras(ds);
+    int fw = plan->width ? plan->width : io_dataset_width(ds), fh = plan->height ? plan->height : io_dataset_height(ds);
+    if (plan->width && !plan->height) fh = (int)lround((double)io_dataset_height(ds) * plan->width / io_dataset_width(ds));
+    if (plan->height && !plan->width) fw = (int)lround((double)io_dataset_width(ds) * plan->height / io_dataset_height(ds));
     io_dataset_close(ds);
     PG_TRY(st);
     plan->iters = c->iters > 0 ? c->iters : p->iters;
@@ -139,6 +171,8 @@ static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipelin
     plan->proxies = c->proxies >= 0 ? c->proxies : (nt > 0 ? -1 : p->proxies);
     plan->poses = c->poses ? c->poses : nt > 0 ? "dataset" : "hemisphere";
     plan->threads = stage_use_threads(c->threads);
+    int views = 1 + (plan->proxies >= 0 ? plan->proxies : cams);
+    warn_if_too_big(c->out, frames, fw, fh, views);
     r->width = plan->width;
     r->height = plan->height;
     r->iters = plan->iters;
@@ -151,9 +185,27 @@ static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipelin
 typedef struct {
     const pg_pipeline_config *c;
     pg_pipeline_report *r;
-    cJSON *stages; /* {stage: {seconds, threads, ran}} for metrics.json and report.md */
+    cJSON *stages; /* {stage: {seconds, threads, ran, peak_mib, disk_mib}} for metrics.json and report.md */
     int rerun_rest;
+    long peak_kb;  /* the largest stage peak so far (each stage resets the kernel's high-water mark) */
 } pipeline_run;
+
+/* Records a stage's peak memory (since its pg_peak_rss_reset) and its folder's disk use into me
+ * and extra (the marker, so a skipped stage still reports them). */
+static void record_resources(pipeline_run *p, int stage, cJSON *me, cJSON *extra)
+{
+    long kb = pg_peak_rss_kb();
+    if (kb > p->peak_kb) p->peak_kb = kb;
+    char dir[4300];
+    snprintf(dir, sizeof dir, "%s/%s", p->c->out, stage_dirs[stage]);
+    double peak = kb / 1024.0, disk = (double)pg_dir_bytes(dir) / (1024.0 * 1024.0);
+    cJSON_AddNumberToObject(me, "peak_mib", peak);
+    cJSON_AddNumberToObject(me, "disk_mib", disk);
+    if (extra) {
+        cJSON_AddNumberToObject(extra, "peak_mib", peak);
+        cJSON_AddNumberToObject(extra, "disk_mib", disk);
+    }
+}
 
 /* 1 when the stage can be skipped; otherwise logs why it runs, and from then on every later
  * stage runs too (its inputs are being rebuilt). */
@@ -168,6 +220,8 @@ static int stage_is_current(pipeline_run *p, int stage, const cJSON *config, con
         cJSON_AddNumberToObject(me, "seconds", p->r->seconds[stage]);
         cJSON_AddNumberToObject(me, "threads", stage_marker_number(p->c->out, name, "threads"));
         cJSON_AddBoolToObject(me, "ran", 0);
+        cJSON_AddNumberToObject(me, "peak_mib", stage_marker_number(p->c->out, name, "peak_mib"));
+        cJSON_AddNumberToObject(me, "disk_mib", stage_marker_number(p->c->out, name, "disk_mib"));
         return 1;
     }
     /* a first run says nothing; a rerun says why the earlier result does not count */
@@ -177,6 +231,7 @@ static int stage_is_current(pipeline_run *p, int stage, const cJSON *config, con
     if (pg_path_exists(path)) fprintf(stderr, "prodygs: %s: running again: %s\n", name, why);
     p->rerun_rest = 1;
     stage_marker_remove(p->c->out, name, "done");
+    pg_peak_rss_reset();
     return 0;
 }
 
@@ -193,6 +248,7 @@ static pg_status stage_finished(pipeline_run *p, int stage, const cJSON *config,
     cJSON_AddNumberToObject(me, "seconds", seconds);
     cJSON_AddNumberToObject(me, "threads", threads);
     cJSON_AddBoolToObject(me, "ran", 1);
+    record_resources(p, stage, me, extra);
     pg_status st = stage_marker_write(p->c->out, name, "done", config, inputs, extra);
     cJSON_Delete(extra);
     return st;
@@ -397,12 +453,6 @@ static cJSON *config_record(const pg_pipeline_config *c, const pipeline_plan *pl
     return j;
 }
 
-static long peak_rss_kb(void)
-{
-    struct rusage u;
-    return getrusage(RUSAGE_SELF, &u) == 0 ? u.ru_maxrss : 0;
-}
-
 /* OUT/run.md for a run without evaluation: the command, settings, stages and peak memory. */
 static pg_status write_run_report(const pg_pipeline_config *c, const cJSON *config, const cJSON *stages,
                                   const pg_pipeline_report *r)
@@ -419,14 +469,14 @@ static pg_status write_run_report(const pg_pipeline_config *c, const cJSON *conf
 #define EMIT(...) do { if (len < cap) len += (size_t)snprintf(buf + len, cap - len, __VA_ARGS__); } while (0)
     EMIT("# prodygs run\n\n");
     if (c->command) EMIT("```\n%s\n```\n\n", c->command);
-    EMIT("Training camera %s. Peak memory %.1f MiB. Total %.1f s.\n\n", r->train_camera, r->peak_rss_kb / 1024.0,
-         r->seconds_total);
-    EMIT("| stage | seconds | threads | |\n|---|---|---|---|\n");
+    EMIT("Training camera %s. Peak memory %.1f MiB. Disk %.1f MiB under %s. Total %.1f s.\n\n", r->train_camera,
+         r->peak_rss_kb / 1024.0, r->disk_mib, c->out, r->seconds_total);
+    EMIT("| stage | seconds | threads | peak memory MiB | disk MiB | |\n|---|---|---|---|---|---|\n");
     const cJSON *it;
     cJSON_ArrayForEach(it, stages)
-        EMIT("| %s | %.1f | %d | %s |\n", it->string, cJSON_GetObjectItem(it, "seconds")->valuedouble,
-             (int)cJSON_GetObjectItem(it, "threads")->valuedouble,
-             cJSON_IsTrue(cJSON_GetObjectItem(it, "ran")) ? "ran" : "already done");
+        EMIT("| %s | %.1f | %d | %.0f | %.1f | %s |\n", it->string, cJSON_GetObjectItem(it, "seconds")->valuedouble,
+             (int)cJSON_GetObjectItem(it, "threads")->valuedouble, io_json_number_or(it, "peak_mib", 0),
+             io_json_number_or(it, "disk_mib", 0), cJSON_IsTrue(cJSON_GetObjectItem(it, "ran")) ? "ran" : "already done");
     if (r->train.iterations)
         EMIT("\nTraining: %d iterations, %d Gaussians (%d static).\n", r->train.iterations, r->train.gaussians,
              r->train.static_gaussians);
@@ -461,7 +511,7 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
     PG_TRY(pg_path_join(prepare_dir, sizeof prepare_dir, c->out, "prepare"));
     PG_TRY(pg_path_join(proxies_dir, sizeof proxies_dir, c->out, "proxies"));
     PG_TRY(pg_path_join(model_dir, sizeof model_dir, c->out, "model"));
-    pipeline_run p = { c, r, cJSON_CreateObject(), 0 };
+    pipeline_run p = { c, r, cJSON_CreateObject(), 0, 0 };
     cJSON *config = config_record(c, &plan, r);
     pg_status st = PG_OK;
     if (c->depth_model) {
@@ -496,6 +546,7 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
         snprintf(reference, sizeof reference, "%s/%s/rgb", proxies_dir, plan.train_camera);
         int fallback = 0;
         double tr = pg_time_seconds();
+        pg_peak_rss_reset();
         for (int k = 0; k < 3 && !st; k++) {
             pg_render_config rc;
             pg_render_defaults(&rc);
@@ -515,9 +566,11 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
         cJSON_AddNumberToObject(me, "seconds", r->seconds[ST_RENDER]);
         cJSON_AddNumberToObject(me, "threads", plan.threads);
         cJSON_AddBoolToObject(me, "ran", 1);
+        record_resources(&p, ST_RENDER, me, NULL);
     }
     r->seconds_total = pg_time_seconds() - t0;
-    r->peak_rss_kb = peak_rss_kb();
+    r->peak_rss_kb = pg_peak_rss_kb() > p.peak_kb ? pg_peak_rss_kb() : p.peak_kb;
+    r->disk_mib = (double)pg_dir_bytes(c->out) / (1024.0 * 1024.0);
     if (!st && !c->evaluate) st = write_run_report(c, config, p.stages, r);
     cJSON_Delete(config);
     cJSON_Delete(p.stages);
