@@ -74,6 +74,8 @@ int main(void)
     CHECK(res.frames_done == F && res.frames_skipped == 0, "done %d skipped %d", res.frames_done, res.frames_skipped);
     CHECK(res.mean_valid_fraction > 0.5, "mean valid fraction %g", res.mean_valid_fraction);
     CHECK(isnan(res.mean_source_psnr), "the mesh renderer fits nothing, yet reports source PSNR %g", res.mean_source_psnr);
+    snprintf(path, sizeof path, "%s/.cache/depth/proxy00/0000.npy", dir);
+    CHECK(!pg_path_exists(path), "per-frame depth kept after the volume was written (%s)", path);
 
     /* Layout and index. */
     for (int k = 0; k < M; k++)

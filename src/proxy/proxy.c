@@ -226,29 +226,40 @@ static pg_status worker_init(worker *w, const proxy_options *o, const proxy_job 
     return PG_OK;
 }
 
-/* Joins the per-frame proxy depth maps of one camera into DIR/<cam>/depth.npy (F,H,W). */
+/* Joins the per-frame proxy depth maps of one camera into DIR/<cam>/depth.npy (F,H,W) and then
+ * deletes them: the volume holds the same values, and keeping both doubled the stage's disk. A
+ * frame whose done marker survived but whose map was deleted (a rerun after an earlier
+ * assembly) is taken from the earlier volume. */
 static pg_status assemble_depth(const proxy_job *j, const char *dir, const char *cam)
 {
     size_t npix = (size_t)j->width * j->height, total;
     if (pg_size_mul(npix, (size_t)j->frames, &total)) return pg_fail(PG_ERR_SIZE, "%s: depth too large", cam);
     float *all = pg_malloc(total * sizeof(float), "proxy depth volume");
     if (!all) return PG_ERR_NOMEM;
-    char path[4096];
-    pg_status st = PG_OK;
+    char path[4096], volume[4096];
+    int n = snprintf(volume, sizeof volume, "%s/%s/depth.npy", dir, cam);
+    pg_status st = (n < 0 || (size_t)n >= sizeof volume) ? pg_fail(PG_ERR_ARG, "%s: path too long", dir) : PG_OK;
+    pg_array old = { 0 };
     for (int f = 0; f < j->frames && !st; f++) {
         pg_array a = { 0 };
         st = cache_path(path, sizeof path, dir, "depth", cam, f, "npy");
+        if (!st && !pg_path_exists(path)) {
+            if (!old.data) st = io_npy_load(volume, &old);
+            if (!st && old.count != total)
+                st = pg_fail(PG_ERR_FORMAT, "%s: expected %zu values, found %zu", volume, total, old.count);
+            if (!st) memcpy(all + (size_t)f * npix, old.data + (size_t)f * npix, npix * sizeof(float));
+            continue;
+        }
         if (!st) st = io_npy_load(path, &a);
         if (!st && a.count != npix) st = pg_fail(PG_ERR_FORMAT, "%s: expected %zu values, found %zu", path, npix, a.count);
         if (!st) memcpy(all + (size_t)f * npix, a.data, npix * sizeof(float));
         pg_array_destroy(&a);
     }
-    if (!st) {
-        int n = snprintf(path, sizeof path, "%s/%s/depth.npy", dir, cam);
-        size_t shape[3] = { (size_t)j->frames, (size_t)j->height, (size_t)j->width };
-        st = (n < 0 || (size_t)n >= sizeof path) ? pg_fail(PG_ERR_ARG, "%s: path too long", dir)
-                                                  : io_npy_save_compact(path, all, 3, shape);
-    }
+    pg_array_destroy(&old);
+    size_t shape[3] = { (size_t)j->frames, (size_t)j->height, (size_t)j->width };
+    if (!st) st = io_npy_save_compact(volume, all, 3, shape);
+    for (int f = 0; f < j->frames && !st; f++)
+        if (cache_path(path, sizeof path, dir, "depth", cam, f, "npy") == PG_OK) remove(path);
     free(all);
     return st;
 }
