@@ -80,7 +80,7 @@ int main(void)
     /* Layout and index. */
     for (int k = 0; k < M; k++)
         for (int f = 0; f < F; f++) {
-            snprintf(path, sizeof path, "%s/%s/rgb/%04d.png", dir, pnames[k], f);
+            snprintf(path, sizeof path, "%s/%s/rgb/%04d.jpg", dir, pnames[k], f);
             CHECK(pg_path_exists(path), "%s missing", path);
             snprintf(path, sizeof path, "%s/%s/mask/%04d.png", dir, pnames[k], f);
             CHECK(pg_path_exists(path), "%s missing", path);
@@ -141,8 +141,8 @@ int main(void)
 
     /* Determinism: a fresh directory gives the same bytes. */
     CHECK_OK(proxy_generate(&o, &job, dir2, &res));
-    snprintf(path, sizeof path, "%s/proxy02/rgb/0001.png", dir);
-    snprintf(path2, sizeof path2, "%s/proxy02/rgb/0001.png", dir2);
+    snprintf(path, sizeof path, "%s/proxy02/rgb/0001.jpg", dir);
+    snprintf(path2, sizeof path2, "%s/proxy02/rgb/0001.jpg", dir2);
     CHECK(test_files_equal(path, path2), "%s and %s differ", path, path2);
     snprintf(path, sizeof path, "%s/proxy02/depth.npy", dir);
     snprintf(path2, sizeof path2, "%s/proxy02/depth.npy", dir2);

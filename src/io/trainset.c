@@ -30,7 +30,13 @@ int io_view_role_parse(const char *name)
 pg_status io_trainset_frame_path(char *out, size_t size, const char *dir, const char *camera, const char *kind,
                            int frame)
 {
-    int n = snprintf(out, size, "%s/%s/%s/%04d.png", dir, camera, kind, frame);
+    return io_trainset_frame_path_ext(out, size, dir, camera, kind, frame, "png");
+}
+
+pg_status io_trainset_frame_path_ext(char *out, size_t size, const char *dir, const char *camera, const char *kind,
+                                     int frame, const char *ext)
+{
+    int n = snprintf(out, size, "%s/%s/%s/%04d.%s", dir, camera, kind, frame, ext);
     if (n < 0 || (size_t)n >= size) return pg_fail(PG_ERR_ARG, "%s: path too long", dir);
     return PG_OK;
 }

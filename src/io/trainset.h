@@ -3,6 +3,7 @@
  *
  *   DIR/trainset.json
  *   DIR/<camera>/rgb/0000.png      DIR/<camera>/mask/0000.png      DIR/<camera>/depth.npy
+ *   (a proxy's rgb frames are 0000.jpg)
  *
  * Depth stored here is in the pose units of the cameras (aligned depth times pose_scale).
  */
@@ -40,6 +41,10 @@ int io_view_role_parse(const char *name);
 /* out = DIR/<camera>/<kind>/NNNN.png (kind "rgb" or "mask"). */
 pg_status io_trainset_frame_path(char *out, size_t size, const char *dir, const char *camera, const char *kind,
                            int frame);
+/* The same with another extension: proxies' rgb frames are "jpg" (rendered approximations, where
+ * JPEG's error is far below the proxy's own and the files are 4x smaller). */
+pg_status io_trainset_frame_path_ext(char *out, size_t size, const char *dir, const char *camera, const char *kind,
+                                     int frame, const char *ext);
 
 /* Creates DIR/<camera>/rgb and DIR/<camera>/mask. */
 pg_status io_trainset_make_dirs(const char *dir, const char *camera, int with_mask);

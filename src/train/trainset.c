@@ -176,6 +176,10 @@ static pg_status load_view_files(train_set *ts, int vi, const char *dir, const c
     for (int f = 0; f < ts->frames && !st; f++) {
         snprintf(name, sizeof name, "%04d.png", f);
         if ((st = pg_path_join(path, sizeof path, sub, name))) break;
+        if (!pg_path_exists(path)) { /* a proxy's frames are JPEG */
+            snprintf(name, sizeof name, "%04d.jpg", f);
+            if ((st = pg_path_join(path, sizeof path, sub, name))) break;
+        }
         if ((st = io_image_load(path, &img))) break;
         if (img.width != ts->width || img.height != ts->height)
             st = pg_fail(PG_ERR_SIZE, "%s: image is %dx%d, trainset.json says %dx%d", path, img.width, img.height,
