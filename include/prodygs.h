@@ -50,7 +50,7 @@ const char *pg_status_name(pg_status code);
 #define PG_CAMERA_LABELS 2048 /* a comma-separated list of labels */
 
 /* ---- depth: per-frame depth from a monocular depth network (TFLite or ONNX) ----
- * Writes OUT (an (F,H,W) float32 .npy, DEPTH: larger = farther, the model's relative units; a
+ * Writes OUT (an (F,H,W) .npy, float16 when every value fits it, else float32; DEPTH: larger = farther, the model's relative units; a
  * disparity model's output is inverted) and beside it OUT minus ".npy" plus ".json" (model, kind,
  * hashes). Frames are decoded straight to the smallest size that covers the network's input (a
  * 1080p clip is never held at 1080p) and the output is written at out_width x out_height, by

@@ -135,7 +135,7 @@ static void test_stage(const char *tmp, const char *clip, const char *model)
     CHECK_OK(io_npy_load(out, &d));
     double worst = 0;
     for (size_t i = 0; a.data && d.data && i < a.count; i++) worst = fmax(worst, fabs(d.data[i] * a.data[i] * 2 - 1));
-    CHECK(worst < 1e-5, "disparity inverted: |2 * raw * depth - 1| <= %g", worst);
+    CHECK(worst < 2.0 / 2048, "disparity inverted: |2 * raw * depth - 1| <= %g (both stored float16)", worst);
     pg_array_destroy(&a);
     pg_array_destroy(&d);
     /* an output size asked for (the working size a run trains at): written at it, a new key */

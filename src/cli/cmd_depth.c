@@ -11,7 +11,7 @@ int cmd_depth(int argc, char **argv)
     const char *out_size = NULL;
     const cli_option options[] = {
         { "--model", CLI_STR, &c.model, "depth network: .tflite or .onnx (required); MODEL.json beside it is read" },
-        { "--out", CLI_STR, &c.out, "output .npy (F,H,W) float32 depth (required)" },
+        { "--out", CLI_STR, &c.out, "output .npy (F,H,W) depth, float16 when it fits, else float32 (required)" },
         { "--out-size", CLI_STR, &out_size, "output WxH (default: the network's resolution at the video's aspect; 0 for one side keeps the aspect)" },
         { "--kind", CLI_STR, &c.kind, "the model's raw output: depth or disparity (default: MODEL.json, else by format)" },
         { "--size", CLI_INT, &c.size, "inference size, longer side: models with a dynamic input (a fixed one must match)" },

@@ -280,7 +280,7 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
     r->finished = !st && r->computed + r->reused == r->frames;
     if (r->finished) {
         size_t shape[3] = { (size_t)r->frames, (size_t)r->height, (size_t)r->width };
-        st = io_npy_save(c->out, all, 3, shape);
+        st = io_npy_save_compact(c->out, all, 3, shape); /* float16 when it fits (the cache stays float32) */
         if (!st) st = write_key(meta, key, c, info);
         if (!st) remove_cache(cache);
     }
