@@ -4,10 +4,12 @@
 #include "core/fileutil.h"
 #include "core/image.h"
 #include "core/mathx.h"
+#include "core/resources.h"
 #include "core/rng.h"
 #include "io/image_io.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -112,8 +114,45 @@ static void test_cli_basics(void)
     CHECK(rc == 0, "help rc=%d", rc);
 }
 
+/* A stage's memory window sees a 64 MiB buffer touched inside it, a later window that allocates
+ * nothing does not, and the process's peak is never lowered; a folder's bytes count its files. */
+static void test_resources(void)
+{
+    pg_peak_window w;
+    memset(&w, 0, sizeof w);
+    pg_peak_window_begin(&w);
+    long before = pg_peak_rss_kb();
+    size_t n = (size_t)64 << 20;
+    char *big = malloc(n);
+    if (big) memset(big, 1, n);
+    long in = pg_peak_window_end(&w);
+    CHECK(big && in >= 60 * 1024, "window peak %ld KiB after touching 64 MiB", in);
+    free(big);
+    pg_peak_window_begin(&w);
+    long quiet = pg_peak_window_end(&w);
+    pg_peak_window_end(&w); /* twice: harmless */
+    CHECK(pg_peak_rss_kb() >= 60 * 1024 && pg_peak_rss_kb() >= before, "process peak %ld KiB lowered", pg_peak_rss_kb());
+    CHECK(quiet < in - 32 * 1024, "a window without the buffer still sees %ld KiB", quiet);
+    printf("memory windows: %ld KiB with the buffer, %ld KiB after\n", in, quiet);
+    char dir[4096], path[4200];
+    test_tmpdir("test_core_resources", dir, sizeof dir);
+    snprintf(path, sizeof path, "%s/sub", dir);
+    pg_mkdir_p(path);
+    snprintf(path, sizeof path, "%s/sub/file.bin", dir);
+    char *data = calloc(1, 1 << 20);
+    if (data) memset(data, 7, 1 << 20);
+    CHECK_OK(pg_write_file_atomic(path, data, 1 << 20));
+    free(data);
+    uint64_t bytes = pg_dir_bytes(dir);
+    CHECK(bytes >= (1u << 20) && bytes < (3u << 20), "folder holds %llu bytes (1 MiB written)", (unsigned long long)bytes);
+    CHECK(pg_dir_bytes("/nonexistent/prodygs") == 0, "a missing folder holds nothing");
+    CHECK(pg_mem_available_bytes() > ((uint64_t)16 << 20), "available memory %llu", (unsigned long long)pg_mem_available_bytes());
+    CHECK(pg_disk_free_bytes(dir) > 0, "free disk unknown");
+}
+
 int main(void)
 {
+    test_resources();
     test_quat_roundtrip();
     test_camera();
     test_rng();

@@ -8,14 +8,7 @@
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/statvfs.h>
-
-void pg_peak_rss_reset(void)
-{
-    FILE *f = fopen("/proc/self/clear_refs", "w");
-    if (!f) return;
-    fputs("5", f);
-    fclose(f);
-}
+#include <time.h>
 
 /* The value in KiB of a "Key:   123 kB" line of a /proc file; -1 if absent. */
 static long proc_kb(const char *file, const char *key)
@@ -40,6 +33,38 @@ long pg_peak_rss_kb(void)
     if (kb >= 0) return kb;
     struct rusage u;
     return getrusage(RUSAGE_SELF, &u) == 0 ? u.ru_maxrss : 0;
+}
+
+static void *sample_rss(void *arg)
+{
+    pg_peak_window *w = arg;
+    while (!atomic_load(&w->stop)) {
+        long kb = proc_kb("/proc/self/status", "VmRSS");
+        if (kb > atomic_load(&w->max_kb)) atomic_store(&w->max_kb, kb);
+        struct timespec ts = { 0, 20 * 1000 * 1000 };
+        nanosleep(&ts, NULL);
+    }
+    return NULL;
+}
+
+void pg_peak_window_begin(pg_peak_window *w)
+{
+    atomic_store(&w->stop, 0);
+    w->hwm_at_begin = pg_peak_rss_kb();
+    atomic_store(&w->max_kb, proc_kb("/proc/self/status", "VmRSS"));
+    w->running = atomic_load(&w->max_kb) >= 0 && pthread_create(&w->thread, NULL, sample_rss, w) == 0;
+}
+
+long pg_peak_window_end(pg_peak_window *w)
+{
+    if (w->running) {
+        atomic_store(&w->stop, 1);
+        pthread_join(w->thread, NULL);
+        w->running = 0;
+    }
+    long hwm = pg_peak_rss_kb(), sampled = atomic_load(&w->max_kb);
+    if (hwm > w->hwm_at_begin && hwm > sampled) return hwm; /* the stage set the process's peak */
+    return sampled > 0 ? sampled : hwm;
 }
 
 uint64_t pg_dir_bytes(const char *path)

@@ -187,15 +187,14 @@ typedef struct {
     pg_pipeline_report *r;
     cJSON *stages; /* {stage: {seconds, threads, ran, peak_mib, disk_mib}} for metrics.json and report.md */
     int rerun_rest;
-    long peak_kb;  /* the largest stage peak so far (each stage resets the kernel's high-water mark) */
+    pg_peak_window window; /* the running stage's memory */
 } pipeline_run;
 
-/* Records a stage's peak memory (since its pg_peak_rss_reset) and its folder's disk use into me
- * and extra (the marker, so a skipped stage still reports them). */
+/* Records a stage's peak memory (its window's) and its folder's disk use into me and extra (the
+ * marker, so a skipped stage still reports them). */
 static void record_resources(pipeline_run *p, int stage, cJSON *me, cJSON *extra)
 {
-    long kb = pg_peak_rss_kb();
-    if (kb > p->peak_kb) p->peak_kb = kb;
+    long kb = pg_peak_window_end(&p->window);
     char dir[4300];
     snprintf(dir, sizeof dir, "%s/%s", p->c->out, stage_dirs[stage]);
     double peak = kb / 1024.0, disk = (double)pg_dir_bytes(dir) / (1024.0 * 1024.0);
@@ -231,7 +230,8 @@ static int stage_is_current(pipeline_run *p, int stage, const cJSON *config, con
     if (pg_path_exists(path)) fprintf(stderr, "prodygs: %s: running again: %s\n", name, why);
     p->rerun_rest = 1;
     stage_marker_remove(p->c->out, name, "done");
-    pg_peak_rss_reset();
+    pg_peak_window_end(&p->window);
+    pg_peak_window_begin(&p->window);
     return 0;
 }
 
@@ -511,7 +511,11 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
     PG_TRY(pg_path_join(prepare_dir, sizeof prepare_dir, c->out, "prepare"));
     PG_TRY(pg_path_join(proxies_dir, sizeof proxies_dir, c->out, "proxies"));
     PG_TRY(pg_path_join(model_dir, sizeof model_dir, c->out, "model"));
-    pipeline_run p = { c, r, cJSON_CreateObject(), 0, 0 };
+    pipeline_run p;
+    memset(&p, 0, sizeof p);
+    p.c = c;
+    p.r = r;
+    p.stages = cJSON_CreateObject();
     cJSON *config = config_record(c, &plan, r);
     pg_status st = PG_OK;
     if (c->depth_model) {
@@ -546,7 +550,7 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
         snprintf(reference, sizeof reference, "%s/%s/rgb", proxies_dir, plan.train_camera);
         int fallback = 0;
         double tr = pg_time_seconds();
-        pg_peak_rss_reset();
+        pg_peak_window_begin(&p.window);
         for (int k = 0; k < 3 && !st; k++) {
             pg_render_config rc;
             pg_render_defaults(&rc);
@@ -569,7 +573,8 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
         record_resources(&p, ST_RENDER, me, NULL);
     }
     r->seconds_total = pg_time_seconds() - t0;
-    r->peak_rss_kb = pg_peak_rss_kb() > p.peak_kb ? pg_peak_rss_kb() : p.peak_kb;
+    pg_peak_window_end(&p.window); /* a stage that failed */
+    r->peak_rss_kb = pg_peak_rss_kb();
     r->disk_mib = (double)pg_dir_bytes(c->out) / (1024.0 * 1024.0);
     if (!st && !c->evaluate) st = write_run_report(c, config, p.stages, r);
     cJSON_Delete(config);
