@@ -22,6 +22,32 @@ static long file_bytes(const char *path)
     return stat(path, &sb) == 0 ? (long)sb.st_size : -1;
 }
 
+/* The training set's float16 depth: 11 significant bits at any unit (relative to the view's
+ * median), invalid values stay invalid, and far outliers keep a valid (clamped) depth. */
+static void test_depth_storage(void)
+{
+    enum { N = 1000 };
+    float d[N];
+    uint16_t h[N];
+    train_view v;
+    memset(&v, 0, sizeof v);
+    v.depth = h;
+    for (int unit = 0; unit < 3; unit++) {
+        float u = unit == 0 ? 1e-4f : unit == 1 ? 1.0f : 1e5f; /* 0.1 mm .. 100 km per depth unit */
+        for (int i = 0; i < N; i++) d[i] = u * (0.5f + 0.01f * i);
+        d[3] = NAN;
+        d[4] = -1.0f;
+        d[5] = 0.0f;
+        d[6] = u * 1e9f;
+        size_t valid = train_view_set_depth(&v, d, N);
+        double worst = 0;
+        for (int i = 7; i < N; i++) worst = fmax(worst, fabs(train_view_depth(&v, i) / d[i] - 1.0));
+        CHECK(valid == N - 3 && worst <= 1.0 / 2048, "unit %g: %zu valid, relative error %.3g", u, valid, worst);
+        CHECK(h[3] == 0 && h[4] == 0 && h[5] == 0 && train_view_depth(&v, 6) > 1000 * train_view_depth(&v, 500),
+              "unit %g: invalid kept invalid, the outlier far (%g)", u, train_view_depth(&v, 6));
+    }
+}
+
 static train_config small_config(void)
 {
     train_config c = train_default_config();
@@ -56,12 +82,15 @@ static void test_margin_past_frame(const char *dir)
     toy_camera(&v->cam, W, H, 0, 0);
     pg_camera_look_at(&v->cam, (const float[3]){ 0, 0, 0 }, (const float[3]){ 0, 0, 1 }, (const float[3]){ 0, -1, 0 });
     v->rgb = malloc((size_t)F * W * H * 3);
-    v->depth = malloc((size_t)F * W * H * sizeof(float));
-    for (int i = 0; v->rgb && v->depth && i < F * W * H; i++) {
+    v->depth = malloc((size_t)F * W * H * sizeof *v->depth);
+    float *five = malloc((size_t)F * W * H * sizeof(float));
+    for (int i = 0; v->rgb && v->depth && five && i < F * W * H; i++) {
         int x = i % W, y = i / W % H;
         for (int k = 0; k < 3; k++) v->rgb[3 * i + k] = (uint8_t)(60 + 40 * k + ((x / 8 + y / 8) & 1) * 60);
-        v->depth[i] = 5.0f;
+        five[i] = 5.0f;
     }
+    if (v->depth && five) train_view_set_depth(v, five, (size_t)F * W * H);
+    free(five);
     train_config c = small_config();
     c.iters = 4;
     c.coarse_iters = 4;
@@ -97,6 +126,7 @@ static void test_margin_past_frame(const char *dir)
 
 int main(void)
 {
+    test_depth_storage();
     char dir[1024], data[1100], a[1200], b[1200], cmd[8192], err[4096];
     test_tmpdir("test_train", dir, sizeof dir);
     snprintf(data, sizeof data, "%s/set", dir);
@@ -109,7 +139,7 @@ int main(void)
     CHECK(ts.num_views == 5 && ts.frames == 4 && ts.width == 64, "loaded %d views %d frames", ts.num_views, ts.frames);
     CHECK(train_set_count_role(&ts, IO_ROLE_PROXY) == 3, "proxies");
     CHECK(ts.views[1].mask && ts.views[1].mask[0] == 0 && ts.views[1].mask[63] == TRAIN_MASK_FULL, "proxy mask loaded");
-    CHECK(ts.views[0].depth && ts.views[0].depth[64 * 24 + 32] > 3, "depth loaded");
+    CHECK(ts.views[0].depth && train_view_depth(&ts.views[0], 64 * 24 + 32) > 3, "depth loaded");
 
     {
         train_set t2;
@@ -127,8 +157,12 @@ int main(void)
         train_set tf;
         CHECK_OK(train_set_load(data, &tf));
         size_t px = (size_t)tf.width * tf.height;
-        for (int f = 0; f < tf.frames; f++)
-            for (size_t i = 0; i < px; i++) tf.views[0].depth[(size_t)f * px + i] *= (f % 2) ? 1.2f : 0.8f;
+        float *d = malloc(px * (size_t)tf.frames * sizeof(float));
+        for (int f = 0; d && f < tf.frames; f++)
+            for (size_t i = 0; i < px; i++)
+                d[(size_t)f * px + i] = train_view_depth(&tf.views[0], (size_t)f * px + i) * ((f % 2) ? 1.2f : 0.8f);
+        if (d) train_view_set_depth(&tf.views[0], d, px * (size_t)tf.frames);
+        free(d);
         train_config fc = small_config();
         train_session *sf = NULL;
         CHECK_OK(train_session_create(&sf, &tf, &fc, NULL, 0));
@@ -247,7 +281,7 @@ int main(void)
         size_t px = (size_t)mm.width * mm.height * mm.frames;
         for (int v = 0; v < mm.num_views; v++) {
             for (int k = 0; k < 3; k++) mm.views[v].cam.t[k] *= 1000.0f;
-            for (size_t i = 0; mm.views[v].depth && i < px; i++) mm.views[v].depth[i] *= 1000.0f;
+            mm.views[v].depth_scale *= 1000.0f; /* the same float16 values, in millimetres */
         }
         mm.radius *= 1000.0f;
         for (int k = 0; k < 3; k++) mm.center[k] *= 1000.0f;
@@ -262,7 +296,8 @@ int main(void)
             for (int k = 0; k < 3; k++)
                 worst = fmax(worst, fabs(mm.views[v].cam.t[k] - m1.views[v].cam.t[k]) / (fabs(m1.views[v].cam.t[k]) + 1e-3));
         for (size_t i = 0; i < px; i++)
-            worst = fmax(worst, fabs(mm.views[0].depth[i] - m1.views[0].depth[i]) / (m1.views[0].depth[i] + 1e-3));
+            worst = fmax(worst, fabs(train_view_depth(&mm.views[0], i) - train_view_depth(&m1.views[0], i)) /
+                                    (train_view_depth(&m1.views[0], i) + 1e-3));
         CHECK(worst < 1e-5, "normalised millimetre set differs from the metre one by %g (relative)", worst);
         pg_camera back = train_set_user_camera(&mm, 0);
         CHECK(fabsf(back.t[0] - user_cam.t[0]) <= 1e-3f * (fabsf(user_cam.t[0]) + 1.0f), "user camera %g vs %g",

@@ -65,7 +65,7 @@ static void background_image(const train_view *v, int F, size_t px, const uint8_
         for (int k = 0; k < 3; k++) bg_rgb[3 * p + k] = 0;
         for (int f = 0; f < F; f++) {
             size_t q = (size_t)f * px + p;
-            float d = v->depth[q];
+            float d = train_view_depth(v, q);
             if (moving[q] || !(d > 0) || (v->mask && !v->mask[q])) continue;
             for (int k = 0; k < 3; k++) bg_rgb[3 * p + k] = v->rgb[q * 3 + k] / 255.0f;
             bg_depth[p] = d;
@@ -98,7 +98,7 @@ static pg_status points_from_depth(const train_set *ts, int vi, int stride, poin
                 size_t q = (size_t)f * px + p;
                 int dyn = moving[q];
                 if ((!dyn && background_done) || (dyn && !real)) continue;
-                float d = v->depth[q];
+                float d = train_view_depth(v, q);
                 if (!(d > 0) || (v->mask && !v->mask[q])) continue;
                 float X[3], c[3];
                 pg_camera_unproject(&v->cam, x + 0.5f, y + 0.5f, d, X);

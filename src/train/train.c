@@ -390,7 +390,8 @@ static void weigh_proxy_moving(train_session *s, const train_view *v, int f)
     const size_t px = (size_t)W * H;
     const uint8_t *mv = s->moving[real] + (size_t)f * px;
     const pg_camera *rc = &ts->views[real].cam;
-    const float *d = v->depth + (size_t)f * px;
+    train_view_depth_frame(v, f, px, s->depth_t); /* load_target fills depth_t after this */
+    const float *d = s->depth_t;
     for (int y = 0; y < H; y++)
         for (int x = 0; x < W; x++) {
             size_t i = (size_t)y * W + x;
@@ -418,7 +419,7 @@ static int load_target(train_session *s, int vi, int f, int moving)
     if (mv)
         for (size_t i = 0; i < px; i++) s->mask[i] *= 1.0f + s->cfg.moving_weight * mv[(size_t)f * px + i];
     if (moving && v->role == IO_ROLE_PROXY) weigh_proxy_moving(s, v, f);
-    if (v->depth) memcpy(s->depth_t, v->depth + (size_t)f * px, px * sizeof(float));
+    if (v->depth) train_view_depth_frame(v, f, px, s->depth_t);
     return v->depth != NULL;
 }
 

@@ -43,6 +43,39 @@ void train_set_frame_rgb(const train_set *ts, int v, int f, pg_image *img)
     for (size_t i = 0; i < px * 3; i++) img->data[i] = src[i] * (1.0f / 255.0f);
 }
 
+float train_view_depth(const train_view *v, size_t i) { return io_half_to_float(v->depth[i]) * v->depth_scale; }
+
+void train_view_depth_frame(const train_view *v, int f, size_t px, float *out)
+{
+    const uint16_t *h = v->depth + (size_t)f * px;
+    for (size_t i = 0; i < px; i++) out[i] = io_half_to_float(h[i]) * v->depth_scale;
+}
+
+size_t train_view_set_depth(train_view *v, const float *d, size_t n)
+{
+    /* the scale: the median of up to 4k strided valid values */
+    size_t stride = n / 4096 + 1, m = 0, valid = 0;
+    float sample[4200];
+    for (size_t i = 0; i < n; i += stride)
+        if (isfinite(d[i]) && d[i] > 0 && m < 4200) sample[m++] = d[i];
+    float scale = 1.0f;
+    if (m > 0) {
+        qsort(sample, m, sizeof(float), pg_cmp_float);
+        scale = sample[m / 2];
+    }
+    v->depth_scale = scale;
+    float inv = 1.0f / scale;
+    for (size_t i = 0; i < n; i++) {
+        int ok = isfinite(d[i]) && d[i] > 0;
+        uint16_t h = ok ? io_float_to_half(d[i] * inv) : 0;
+        if (ok && (h & 0x7fff) >= 0x7c00) h = 0x7bff; /* beyond 65504 medians: the largest half */
+        if (ok && h == 0) h = 1;                      /* below the smallest: still valid */
+        v->depth[i] = h;
+        valid += (size_t)ok;
+    }
+    return valid;
+}
+
 /* Median of the valid depth of the real views, from at most ~64k evenly strided samples. */
 static float real_depth_median(const train_set *ts)
 {
@@ -56,7 +89,7 @@ static float real_depth_median(const train_set *ts)
     for (int v = 0; v < ts->num_views; v++) {
         if (ts->views[v].role != IO_ROLE_REAL || !ts->views[v].depth) continue;
         for (size_t i = 0; i < px; i++, k++)
-            if (k % stride == 0 && ts->views[v].depth[i] > 0) sample[n++] = ts->views[v].depth[i];
+            if (k % stride == 0 && ts->views[v].depth[i]) sample[n++] = train_view_depth(&ts->views[v], i);
     }
     float med = 0;
     if (n > 0) {
@@ -73,11 +106,9 @@ void train_set_normalize_units(train_set *ts)
     if (!(scene > 0) && ts->has_scene) scene = ts->radius;
     float unit = isfinite(scene) && scene > 0 ? scene / TRAIN_SET_UNIT_DEPTH : 1.0f;
     float inv = 1.0f / unit;
-    size_t px = (size_t)ts->width * ts->height * ts->frames;
     for (int v = 0; v < ts->num_views; v++) {
         for (int k = 0; k < 3; k++) ts->views[v].cam.t[k] *= inv;
-        float *d = ts->views[v].depth;
-        for (size_t i = 0; d && i < px; i++) d[i] *= inv;
+        ts->views[v].depth_scale *= inv;
     }
     for (int k = 0; k < 3; k++) ts->center[k] *= inv;
     ts->radius *= inv;
@@ -118,7 +149,8 @@ pg_status train_set_add_view(train_set *ts, const char *name, io_view_role role,
         memset(v->mask, TRAIN_MASK_FULL, n);
     }
     if (with_depth) {
-        v->depth = pg_calloc(n, sizeof(float), "training-set depth");
+        v->depth = pg_calloc(n, sizeof *v->depth, "training-set depth");
+        v->depth_scale = 1.0f;
         if (!v->depth) return PG_ERR_NOMEM;
     }
     if (index) *index = ts->num_views - 1;
@@ -212,10 +244,7 @@ static pg_status load_view_files(train_set *ts, int vi, const char *dir, const c
             st = pg_fail(PG_ERR_SIZE, "%s: depth has %zu values, expected (%d, %d, %d)", path, arr.count, ts->frames,
                          ts->height, ts->width);
         else
-            for (size_t i = 0; i < arr.count; i++) {
-                float d = arr.data[i];
-                ts->views[vi].depth[i] = (isfinite(d) && d > 0) ? d : 0.0f;
-            }
+            train_view_set_depth(&ts->views[vi], arr.data, arr.count);
         pg_array_destroy(&arr);
     }
     return st;
@@ -335,16 +364,17 @@ static pg_status store_depth(train_set *ts, int vi, const char *path)
     } else {
         int dh = (int)dep.shape[1], dw = (int)dep.shape[2];
         size_t px = (size_t)ts->width * ts->height, valid = 0;
-        for (int f = 0; f < ts->frames; f++)
+        float *d = pg_malloc(px * (size_t)ts->frames * sizeof(float), path);
+        if (!d) st = PG_ERR_NOMEM;
+        for (int f = 0; d && f < ts->frames; f++)
             for (int y = 0; y < ts->height; y++)
                 for (int x = 0; x < ts->width; x++) {
                     int sx = (int)((x + 0.5f) * dw / ts->width), sy = (int)((y + 0.5f) * dh / ts->height);
-                    float d = dep.data[((size_t)f * dh + sy) * dw + sx];
-                    int ok = isfinite(d) && d > 0;
-                    valid += (size_t)ok;
-                    ts->views[vi].depth[(size_t)f * px + (size_t)y * ts->width + x] = ok ? d : 0;
+                    d[(size_t)f * px + (size_t)y * ts->width + x] = dep.data[((size_t)f * dh + sy) * dw + sx];
                 }
-        if (!valid) st = pg_fail(PG_ERR_FORMAT, "%s: no valid depth (every value is NaN, inf or <= 0)", path);
+        if (d) valid = train_view_set_depth(&ts->views[vi], d, px * (size_t)ts->frames);
+        free(d);
+        if (!st && !valid) st = pg_fail(PG_ERR_FORMAT, "%s: no valid depth (every value is NaN, inf or <= 0)", path);
     }
     pg_array_destroy(&dep);
     return st;
