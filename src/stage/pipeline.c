@@ -18,8 +18,9 @@
 
 /* warn_if_too_big's model of a run (fitted to measured runs: docs/run.md) */
 #define RUN_MEM_BASE_MIB 300.0
-#define RUN_MEM_PER_PIXEL 10.0  /* bytes per frame-pixel of each view */
-#define RUN_DISK_PER_PIXEL 5.0
+#define RUN_MEM_PER_PIXEL 8.0   /* bytes per frame-pixel of each view */
+#define RUN_DISK_PER_PIXEL 4.0
+#define RUN_DISK_PER_FRAME 8192.0 /* per frame of each view: an image and a mask file, a block each at least */
 
 /* depth is last in the report's arrays (it was added later) but runs first */
 enum { ST_PREPARE, ST_PROXIES, ST_TRAIN, ST_EVALUATE, ST_RENDER, ST_DEPTH, ST_COUNT };
@@ -103,7 +104,8 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
 static void warn_if_too_big(const char *out, int frames, int w, int h, int views)
 {
     double pixels = (double)frames * w * h * views;
-    double mem = RUN_MEM_BASE_MIB * 1048576.0 + RUN_MEM_PER_PIXEL * pixels, disk = RUN_DISK_PER_PIXEL * pixels;
+    double mem = RUN_MEM_BASE_MIB * 1048576.0 + RUN_MEM_PER_PIXEL * pixels;
+    double disk = RUN_DISK_PER_PIXEL * pixels + RUN_DISK_PER_FRAME * frames * views;
     char dir[4200];
     snprintf(dir, sizeof dir, "%s", out);
     while (!pg_path_exists(dir) && strrchr(dir, '/')) *strrchr(dir, '/') = '\0'; /* the nearest existing parent */
