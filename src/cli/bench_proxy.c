@@ -64,7 +64,7 @@ int bench_proxy(int argc, char **argv)
     size_t npix = (size_t)width * height;
     float *depth = malloc((size_t)frames * npix * sizeof(float));
     pg_camera *cams = malloc((size_t)num * sizeof(pg_camera));
-    char(*names)[16] = malloc((size_t)num * sizeof *names);
+    char(*names)[24] = malloc((size_t)num * sizeof *names);
     const char **pnames = malloc((size_t)num * sizeof(char *));
     if (!depth || !cams || !names || !pnames) {
         free(depth); free(cams); free(names); free(pnames);

@@ -191,7 +191,7 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
     io_depth depth = { 0 };
     pg_camera *cams = NULL;
     const char **names = NULL;
-    char(*hnames)[16] = NULL;
+    char(*hnames)[24] = NULL; /* "proxy" and any int */
     int *idx = NULL;
     frame_source src = { 0 };
     pg_dataset *ds = NULL;
