@@ -319,6 +319,9 @@ int main(void)
     expect_error("export @/m_empty --out @/e", "model.ckpt");
     expect_error("export @/m_garb --out @/e", "model.ckpt");
     expect_error("export @/m_garb --out @/e --times abc", "--times");
+    /* issue 27: two times that name one file were silently written over each other */
+    expect_error("export @/m_garb --out @/e --times 0,0.0004", "time_0.000.ply");
+    expect_error("export @/m_garb --out @/e --frame-list 3,3", "frame 3 twice");
 
     /* eval and run: options are checked before any stage runs */
     expect_error("eval @/ds --out @/v", "--depth");

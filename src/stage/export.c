@@ -92,6 +92,20 @@ pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
     for (int i = 0; i < c->num_times; i++)
         if (!(c->times[i] >= 0.0f && c->times[i] <= 1.0f))
             return pg_fail(PG_ERR_ARG, "export: --times: %g is not in [0, 1]", c->times[i]);
+    /* one file per request: two requests that name the same file would overwrite each other */
+    char a[64], b[64];
+    for (int i = 0; i < c->num_times; i++)
+        for (int k = 0; k < i; k++) {
+            snprintf(a, sizeof a, "time_%.3f.%s", c->times[k], format);
+            snprintf(b, sizeof b, "time_%.3f.%s", c->times[i], format);
+            if (!strcmp(a, b))
+                return pg_fail(PG_ERR_ARG, "export: --times %g and %g would both be written to %s (files are named to "
+                               "3 decimals): give distinct times", c->times[k], c->times[i], a);
+        }
+    for (int i = 0; i < c->num_frames; i++)
+        for (int k = 0; k < i; k++)
+            if (c->frames[i] == c->frames[k])
+                return pg_fail(PG_ERR_ARG, "export: --frame-list names frame %d twice", c->frames[i]);
     render_model *rm = NULL;
     PG_TRY(render_model_open(c->model, &rm));
     int frames = render_model_frames(rm);
