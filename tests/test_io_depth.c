@@ -4,6 +4,7 @@
 #include "core/image.h"
 #include "core/fileutil.h"
 #include "io/depth_io.h"
+#include "io/image_io.h"
 #include "io/npy.h"
 
 #include <libavcodec/avcodec.h>
@@ -195,22 +196,23 @@ static void test_pfm(const char *dir)
     io_depth_destroy(&d);
 }
 
-static void write_png16_il(const char *path, int w, int h, const uint16_t *v, int interlace)
+/* A 16-bit PNG of ch (1: grey, 3: RGB) interleaved samples per pixel. */
+static void write_png16_ch(const char *path, int w, int h, int ch, const uint16_t *v, int interlace)
 {
     FILE *fp = fopen(path, "wb");
     png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, NULL, NULL);
     png_infop info = png_create_info_struct(png);
     png_init_io(png, fp);
-    png_set_IHDR(png, info, (png_uint_32)w, (png_uint_32)h, 16, PNG_COLOR_TYPE_GRAY,
+    png_set_IHDR(png, info, (png_uint_32)w, (png_uint_32)h, 16, ch == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_GRAY,
                  interlace ? PNG_INTERLACE_ADAM7 : PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
     png_write_info(png, info);
     int passes = png_set_interlace_handling(png);
-    uint8_t *row = malloc((size_t)w * 2);
+    uint8_t *row = malloc((size_t)w * ch * 2);
     for (int pass = 0; pass < passes; pass++)
         for (int y = 0; y < h; y++) {
-            for (int x = 0; x < w; x++) {
-                row[2 * x] = (uint8_t)(v[y * w + x] >> 8);
-                row[2 * x + 1] = (uint8_t)(v[y * w + x] & 0xff);
+            for (int i = 0; i < w * ch; i++) {
+                row[2 * i] = (uint8_t)(v[y * w * ch + i] >> 8);
+                row[2 * i + 1] = (uint8_t)(v[y * w * ch + i] & 0xff);
             }
             png_write_row(png, row);
         }
@@ -220,7 +222,54 @@ static void write_png16_il(const char *path, int w, int h, const uint16_t *v, in
     fclose(fp);
 }
 
+static void write_png16_il(const char *path, int w, int h, const uint16_t *v, int interlace)
+{
+    write_png16_ch(path, w, h, 1, v, interlace);
+}
 static void write_png16(const char *path, int w, int h, const uint16_t *v) { write_png16_il(path, w, h, v, 0); }
+
+/* A video frame saved as 16-bit PNG (ffmpeg -pix_fmt rgb48be) loads as the same colours as its
+ * 8-bit version: issue 27 found 189 read as 222 (libpng's simplified API took 16 bits for linear
+ * light). Grey 16-bit frames repeat their one channel. */
+static void test_png16_frames(const char *dir)
+{
+    enum { W = 16, H = 16 };
+    uint16_t rgb16[W * H * 3], grey16[W * H];
+    pg_image ref;
+    CHECK_OK(pg_image_create(&ref, W, H, 3));
+    for (int i = 0; i < W * H; i++) {
+        for (int c = 0; c < 3; c++) {
+            int v8 = (i * 7 + c * 60) % 256;
+            if (i == 0 && c == 0) v8 = 189;
+            rgb16[i * 3 + c] = (uint16_t)(v8 * 257);
+            ref.data[i * 3 + c] = v8 / 255.0f;
+        }
+        grey16[i] = rgb16[i * 3];
+    }
+    char p8[4200], p16[4200], pg[4200];
+    pg_path_join(p8, sizeof p8, dir, "frame8.png");
+    pg_path_join(p16, sizeof p16, dir, "frame16.png");
+    pg_path_join(pg, sizeof pg, dir, "frame16_grey.png");
+    CHECK_OK(io_image_save_png(p8, &ref));
+    write_png16_ch(p16, W, H, 3, rgb16, 0);
+    write_png16_ch(pg, W, H, 1, grey16, 1);
+    pg_image a = { 0 }, b = { 0 }, g = { 0 };
+    CHECK_OK(io_image_load(p8, &a));
+    CHECK_OK(io_image_load(p16, &b));
+    CHECK_OK(io_image_load(pg, &g));
+    double worst = 0, worst_grey = 0;
+    for (int i = 0; a.data && b.data && g.data && i < W * H * 3; i++) {
+        worst = fmax(worst, fabs(a.data[i] - b.data[i]));
+        worst_grey = fmax(worst_grey, fabs(g.data[i] - a.data[(i / 3) * 3]));
+    }
+    CHECK(b.data && worst <= 1.0 / 255 / 2, "16-bit frame off its 8-bit version by %.1f/255 (189 read as %.1f)", worst * 255,
+          b.data ? b.data[0] * 255 : -1);
+    CHECK(g.data && worst_grey <= 1.0 / 255 / 2, "grey 16-bit frame off by %.1f/255", worst_grey * 255);
+    pg_image_destroy(&a);
+    pg_image_destroy(&b);
+    pg_image_destroy(&g);
+    pg_image_destroy(&ref);
+}
 
 static void test_png16(const char *dir)
 {
@@ -575,6 +624,7 @@ int main(void)
     test_npy_compact(dir);
     test_pfm(dir);
     test_png16(dir);
+    test_png16_frames(dir);
     test_exr(dir);
     test_exr_hostile(dir);
     test_npy_hostile(dir);

@@ -1,6 +1,7 @@
 /* depth_io.c - depth inputs: .npy stacks, per-frame .npy/.pfm/.png/.exr folders, PFM output,
  * and a small OpenEXR scanline reader (no external EXR library). */
 #include "io/depth_io.h"
+#include "io/image_io.h"
 #include "io/npy.h"
 #include "io/video.h"
 #include "core/fileutil.h"
@@ -158,77 +159,16 @@ pg_status io_pfm_save(const char *path, const float *data, int width, int height
 
 /* ---------------- 16-bit PNG ---------------- */
 
-typedef struct {
-    jmp_buf jump;
-    char message[200];
-} png_err_ctx;
-
-static void png_error_jump(png_structp png, png_const_charp msg)
-{
-    png_err_ctx *ctx = png_get_error_ptr(png);
-    snprintf(ctx->message, sizeof ctx->message, "%s", msg);
-    longjmp(ctx->jump, 1);
-}
-
-static void png_warning_quiet(png_structp png, png_const_charp msg)
-{
-    (void)png;
-    (void)msg;
-}
-
 pg_status io_png16_load(const char *path, pg_array *arr)
 {
     memset(arr, 0, sizeof *arr);
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
-    png_err_ctx ctx;
-    ctx.message[0] = '\0';
-    png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &ctx, png_error_jump, png_warning_quiet);
-    png_infop info = png ? png_create_info_struct(png) : NULL;
-    uint8_t *volatile rowbuf = NULL;
-    if (!png || !info) {
-        png_destroy_read_struct(&png, &info, NULL);
-        fclose(fp);
-        return pg_fail(PG_ERR_NOMEM, "%s: cannot allocate PNG reader", path);
-    }
-    if (setjmp(ctx.jump)) {
-        png_destroy_read_struct(&png, &info, NULL);
-        fclose(fp);
-        free(rowbuf);
-        pg_array_destroy(arr);
-        return pg_fail(PG_ERR_FORMAT, "%s: corrupt PNG: %s", path, ctx.message);
-    }
-    png_set_user_limits(png, PG_MAX_IMAGE_SIDE, PG_MAX_IMAGE_SIDE);
-    png_init_io(png, fp);
-    png_read_info(png, info);
-    int w = (int)png_get_image_width(png, info), h = (int)png_get_image_height(png, info);
-    int depth = png_get_bit_depth(png, info), ct = png_get_color_type(png, info);
-    if (ct == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
-    if (depth < 8) png_set_expand_gray_1_2_4_to_8(png);
-    int passes = png_set_interlace_handling(png);
-    png_read_update_info(png, info);
-    int ch = png_get_channels(png, info);
-    int bytes = png_get_bit_depth(png, info) == 16 ? 2 : 1;
-    if (alloc_array(arr, path, w, h)) {
-        snprintf(ctx.message, sizeof ctx.message, "%s", pg_last_error());
-        longjmp(ctx.jump, 2);
-    }
-    /* The whole image is buffered so interlaced files (several passes over the rows) work too. */
-    size_t rb = png_get_rowbytes(png, info);
-    rowbuf = malloc(rb * (size_t)h);
-    if (!rowbuf) { snprintf(ctx.message, sizeof ctx.message, "out of memory"); longjmp(ctx.jump, 3); }
-    for (int pass = 0; pass < passes; pass++)
-        for (int y = 0; y < h; y++) png_read_row(png, rowbuf + rb * (size_t)y, NULL);
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-            const uint8_t *p = rowbuf + rb * (size_t)y + (size_t)x * ch * bytes;
-            arr->data[(size_t)y * w + x] = bytes == 2 ? (float)((p[0] << 8) | p[1]) : (float)p[0];
-        }
-    png_read_end(png, NULL);
-    png_destroy_read_struct(&png, &info, NULL);
-    free(rowbuf);
-    fclose(fp);
-    return PG_OK;
+    io_png_samples px;
+    PG_TRY(io_png_read_samples(path, &px));
+    pg_status st = alloc_array(arr, path, px.width, px.height);
+    for (size_t i = 0; st == PG_OK && i < (size_t)px.width * px.height; i++)
+        arr->data[i] = (float)px.samples[i * px.channels]; /* the first channel */
+    free(px.samples);
+    return st;
 }
 
 /* ---------------- OpenEXR ---------------- */

@@ -4,11 +4,102 @@
 
 #include <png.h>
 #include <jpeglib.h>
+#include <errno.h>
 #include <setjmp.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+typedef struct {
+    jmp_buf jump;
+    char message[200];
+} png_err_ctx;
+
+static void png_error_jump(png_structp png, png_const_charp msg)
+{
+    png_err_ctx *ctx = png_get_error_ptr(png);
+    snprintf(ctx->message, sizeof ctx->message, "%s", msg);
+    longjmp(ctx->jump, 1);
+}
+
+static void png_warning_quiet(png_structp png, png_const_charp msg)
+{
+    (void)png;
+    (void)msg;
+}
+
+pg_status io_png_read_samples(const char *path, io_png_samples *out)
+{
+    memset(out, 0, sizeof *out);
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    png_err_ctx ctx;
+    ctx.message[0] = '\0';
+    png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &ctx, png_error_jump, png_warning_quiet);
+    png_infop info = png ? png_create_info_struct(png) : NULL;
+    uint8_t *volatile rowbuf = NULL;
+    if (!png || !info) {
+        png_destroy_read_struct(&png, &info, NULL);
+        fclose(fp);
+        return pg_fail(PG_ERR_NOMEM, "%s: cannot allocate PNG reader", path);
+    }
+    if (setjmp(ctx.jump)) {
+        png_destroy_read_struct(&png, &info, NULL);
+        fclose(fp);
+        free(rowbuf);
+        free(out->samples);
+        memset(out, 0, sizeof *out);
+        return pg_fail(PG_ERR_FORMAT, "%s: corrupt PNG: %s", path, ctx.message);
+    }
+    png_set_user_limits(png, PG_MAX_IMAGE_SIDE, PG_MAX_IMAGE_SIDE);
+    png_init_io(png, fp);
+    png_read_info(png, info);
+    int w = (int)png_get_image_width(png, info), h = (int)png_get_image_height(png, info);
+    int depth = png_get_bit_depth(png, info), ct = png_get_color_type(png, info);
+    if (ct == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png);
+    if (depth < 8) png_set_expand_gray_1_2_4_to_8(png);
+    int passes = png_set_interlace_handling(png);
+    png_read_update_info(png, info);
+    int ch = png_get_channels(png, info);
+    int bytes = png_get_bit_depth(png, info) == 16 ? 2 : 1;
+    /* The whole image is buffered so interlaced files (several passes over the rows) work too. */
+    size_t rb = png_get_rowbytes(png, info);
+    rowbuf = malloc(rb * (size_t)h);
+    out->samples = malloc((size_t)w * h * ch * sizeof *out->samples);
+    if (!rowbuf || !out->samples) { snprintf(ctx.message, sizeof ctx.message, "out of memory"); longjmp(ctx.jump, 3); }
+    for (int pass = 0; pass < passes; pass++)
+        for (int y = 0; y < h; y++) png_read_row(png, rowbuf + rb * (size_t)y, NULL);
+    for (int y = 0; y < h; y++)
+        for (int i = 0; i < w * ch; i++) {
+            const uint8_t *p = rowbuf + rb * (size_t)y + (size_t)i * bytes;
+            out->samples[(size_t)y * w * ch + i] = bytes == 2 ? (uint16_t)((p[0] << 8) | p[1]) : p[0];
+        }
+    png_read_end(png, NULL);
+    png_destroy_read_struct(&png, &info, NULL);
+    free(rowbuf);
+    fclose(fp);
+    out->width = w;
+    out->height = h;
+    out->channels = ch;
+    out->maxval = bytes == 2 ? 65535 : 255;
+    return PG_OK;
+}
+
+/* A 16-bit PNG through the sample reader: libpng's simplified API would take 16-bit data for
+ * linear light and brighten it on the way to 8 bits (189 became 222). */
+static pg_status load_png16(const char *path, pg_image *img)
+{
+    io_png_samples px;
+    PG_TRY(io_png_read_samples(path, &px));
+    pg_status st = pg_image_create(img, px.width, px.height, 3);
+    float inv = 1.0f / (float)px.maxval;
+    int colour = px.channels >= 3;
+    for (size_t i = 0; st == PG_OK && i < (size_t)px.width * px.height; i++)
+        for (int c = 0; c < 3; c++) img->data[i * 3 + c] = px.samples[i * px.channels + (colour ? c : 0)] * inv;
+    free(px.samples);
+    return st;
+}
 
 static pg_status load_png(const char *path, pg_image *img)
 {
@@ -20,6 +111,10 @@ static pg_status load_png(const char *path, pg_image *img)
     if (pi.width == 0 || pi.height == 0 || pi.width > PG_MAX_IMAGE_SIDE || pi.height > PG_MAX_IMAGE_SIDE) {
         png_image_free(&pi);
         return pg_fail(PG_ERR_SIZE, "%s: PNG size %u x %u is out of range", path, pi.width, pi.height);
+    }
+    if (pi.format & PNG_FORMAT_FLAG_LINEAR) { /* 16 bits per sample */
+        png_image_free(&pi);
+        return load_png16(path, img);
     }
     pi.format = PNG_FORMAT_RGB;
     size_t n = (size_t)pi.width * pi.height * 3;
