@@ -326,6 +326,51 @@ static void test_pipeline(const char *tmp, const char *model)
           r.ran[0], r.ran[1], r.ran[2]);
 }
 
+/* Issue 27: sidecar numbers checked as double but used as float (1e39 became inf, 1e-300 zero,
+ * and the run exited 0 with constant or invalid depth), sidecars that are not objects or carry
+ * trailing data, and a network whose output is all invalid: each one line, exit 2, no output. */
+static void test_hostile_sidecars(const char *tmp, const char *clip)
+{
+    char model[4200], side[4300], out[4200];
+    snprintf(model, sizeof model, "%s/hostile.tflite", tmp);
+    snprintf(side, sizeof side, "%s.json", model);
+    snprintf(out, sizeof out, "%s/hostile/depth.npy", tmp);
+    size_t n;
+    uint8_t *bytes = tiny_model(&n, 0);
+    write_bytes(model, bytes, n);
+    free(bytes);
+    static const char *const bad[][2] = {
+        { "{\"mean\": [1e39, 0, 0]}", "mean" },        { "{\"scale\": 1e39}", "scale" },
+        { "{\"scale\": 1e-300}", "scale" },             { "{\"std\": [1e-30, 1, 1]}", "std" },
+        { "null", "object" },                             { "[1, 2]", "object" },
+        { "{\"scale\": 2} {\"scale\": 3}", "trailing" },
+    };
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
+        write_bytes(side, (const uint8_t *)bad[k][0], strlen(bad[k][0]));
+        char args[16384], err[4096];
+        snprintf(args, sizeof args, "depth '%s' --model '%s' --out '%s' --threads 1", clip, model, out);
+        int rc = test_run_cli(args, err, sizeof err);
+        CHECK(rc == 2 && strstr(err, bad[k][1]) && strstr(err, "hostile.tflite.json") && !pg_path_exists(out),
+              "sidecar %s: exit %d, %s", bad[k][0], rc, err);
+    }
+    remove(side);
+    /* every output value negative: an error at the depth stage, not an empty map later */
+    tiny_b[0] = -50.0f;
+    bytes = tiny_model(&n, 0);
+    write_bytes(model, bytes, n);
+    free(bytes);
+    tiny_b[0] = 1.0f;
+    pg_depth_config c;
+    pg_depth_defaults(&c);
+    c.input = clip;
+    c.model = model;
+    c.out = out;
+    c.threads = 1;
+    pg_depth_report r;
+    CHECK(pg_depth_run(&c, &r) == PG_ERR_FORMAT && strstr(pg_last_error(), "no valid depth") && !pg_path_exists(out),
+          "all-invalid network output: %s", pg_last_error());
+}
+
 int main(void)
 {
     char tmp[4096], clip[4200], model[4200];
@@ -341,5 +386,6 @@ int main(void)
     test_cli(tmp, clip, model);
     test_dynamic_onnx(tmp, clip);
     test_pipeline(tmp, model);
+    test_hostile_sidecars(tmp, clip);
     return test_summary("test_depth_model");
 }

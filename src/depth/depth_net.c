@@ -46,7 +46,7 @@ static pg_status read_sidecar(depth_net *net)
     cJSON *j;
     PG_TRY(io_json_load(side, &j));
     depth_net_info *in = &net->info;
-    pg_status st = PG_OK;
+    pg_status st = cJSON_IsObject(j) ? PG_OK : pg_fail(PG_ERR_FORMAT, "%s: must be a JSON object", side);
     in->sidecar = 1;
     const cJSON *it;
     if ((it = cJSON_GetObjectItemCaseSensitive(j, "name")) && cJSON_IsString(it)) snprintf(in->name, sizeof in->name, "%s", it->valuestring);
@@ -60,8 +60,11 @@ static pg_status read_sidecar(depth_net *net)
     }
     if (!st && cJSON_GetObjectItemCaseSensitive(j, "mean")) st = io_json_get_floats(j, "mean", side, in->mean, 3);
     if (!st && cJSON_GetObjectItemCaseSensitive(j, "std")) st = io_json_get_floats(j, "std", side, in->std, 3);
+    /* normalisation of [0, 1] pixels: anything far outside these bounds is a broken file */
     for (int k = 0; !st && k < 3; k++)
-        if (!(in->std[k] > 0)) st = pg_fail(PG_ERR_FORMAT, "%s: std must be > 0", side);
+        if (!(in->std[k] >= 1e-6f && in->std[k] <= 1e3f) || !(fabsf(in->mean[k]) <= 1e3f))
+            st = pg_fail(PG_ERR_FORMAT, "%s: mean must be within +-1000 and std in [1e-6, 1000] (got mean %g, std %g)", side,
+                         in->mean[k], in->std[k]);
     if (!st && (it = cJSON_GetObjectItemCaseSensitive(j, "output"))) {
         if (!cJSON_IsString(it)) st = pg_fail(PG_ERR_FORMAT, "%s: \"output\" must be \"depth\" or \"disparity\"", side);
         else st = parse_kind(it->valuestring, side, &in->disparity);
@@ -70,7 +73,7 @@ static pg_status read_sidecar(depth_net *net)
     if (!st && cJSON_GetObjectItemCaseSensitive(j, "scale")) {
         double s;
         st = io_json_get_number(j, "scale", side, &s);
-        if (!st && !(s > 0)) st = pg_fail(PG_ERR_FORMAT, "%s: scale must be > 0", side);
+        if (!st && !(s >= 1e-12 && s <= 1e12)) st = pg_fail(PG_ERR_FORMAT, "%s: scale must be in [1e-12, 1e12] (got %g)", side, s);
         if (!st) in->scale = (float)s;
     }
     cJSON_Delete(j);

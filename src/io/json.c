@@ -4,6 +4,7 @@
 #include "core/image.h"
 #include "core/mathx.h"
 
+#include <float.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,6 +23,14 @@ pg_status io_json_load(const char *path, cJSON **root)
         if (e && e >= text && e <= text + size) off = (long)(e - text);
         free(text);
         return pg_fail(PG_ERR_FORMAT, "%s: invalid JSON near byte %ld", path, off);
+    }
+    const char *p = end ? end : text + size;
+    while (p < text + size && (*p == ' ' || *p == '\t' || *p == '\n' || *p == '\r' || *p == '\0')) p++;
+    if (p < text + size) {
+        long off = (long)(p - text);
+        free(text);
+        cJSON_Delete(j);
+        return pg_fail(PG_ERR_FORMAT, "%s: trailing data after the JSON value at byte %ld", path, off);
     }
     free(text);
     *root = j;
@@ -85,8 +94,8 @@ pg_status io_json_get_floats(const cJSON *obj, const char *key, const char *what
             stack[depth++] = it->child;
             continue;
         }
-        if (!cJSON_IsNumber(it) || !isfinite(it->valuedouble))
-            return pg_fail(PG_ERR_FORMAT, "%s: '%s' must hold finite numbers", what, k);
+        if (!cJSON_IsNumber(it) || !isfinite(it->valuedouble) || fabs(it->valuedouble) > FLT_MAX)
+            return pg_fail(PG_ERR_FORMAT, "%s: '%s' must hold finite numbers within float range", what, k);
         if (count >= n) return pg_fail(PG_ERR_FORMAT, "%s: '%s' has more than %d numbers", what, k, n);
         out[count++] = (float)it->valuedouble;
         stack[depth - 1] = it->next;

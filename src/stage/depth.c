@@ -268,6 +268,13 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
                 st = pg_fail(bst[b], "%s: frame %d: %s", c->input, batch[b], msg[b]);
                 continue;
             }
+            size_t valid = 0;
+            for (size_t i = 0; i < plane; i++) valid += all[plane * (size_t)batch[b] + i] > 0;
+            if (!valid) {
+                st = pg_fail(PG_ERR_FORMAT, "%s: frame %d: the network's output has no valid depth (all NaN, inf or <= 0): %s",
+                             c->input, batch[b], c->model);
+                continue;
+            }
             snprintf(frame_path, sizeof frame_path, "%s/%05d.npy", cache, batch[b]);
             size_t shape[2] = { (size_t)r->height, (size_t)r->width };
             st = io_npy_save(frame_path, all + plane * (size_t)batch[b], 2, shape);
