@@ -29,11 +29,13 @@ extern "C" {
 typedef enum {
     PG_OK = 0,
     PG_ERR_ARG,      /* bad argument or option value (user error) */
-    PG_ERR_IO,       /* file missing, unreadable or unwritable */
+    PG_ERR_IO,       /* file missing or unreadable */
     PG_ERR_FORMAT,   /* file content corrupt, truncated or unsupported */
     PG_ERR_SIZE,     /* dimensions disagree or exceed limits */
     PG_ERR_NOMEM,    /* allocation failed */
     PG_ERR_INTERNAL, /* a bug or an unexpected library failure */
+    PG_ERR_ENV,      /* the machine, not the input: a write failed (disk full, read-only, permissions),
+                        the output folder is in use, a port is taken */
     PG_STATUS_COUNT
 } pg_status;
 
@@ -271,6 +273,7 @@ typedef struct pg_pipeline_report {
     double seconds_total;
     long peak_rss_kb;
     double disk_mib;                  /* everything under OUT after the run */
+    int started;                      /* the stages began (OUT created and locked) */
 } pg_pipeline_report;
 
 typedef struct {

@@ -101,7 +101,7 @@ static void test_roundtrip(const char *dir)
     /* Unwritable destination: an error, not a silent fallback. */
     pg_path_join(path, sizeof path, dir, "no/such/dir/x.mp4");
     io_video_writer *vw = NULL;
-    CHECK(io_video_writer_open(&vw, path, W, H, NULL) == PG_ERR_IO && !vw, "unwritable: %s", pg_last_error());
+    CHECK(io_video_writer_open(&vw, path, W, H, NULL) == PG_ERR_ENV && !vw, "unwritable: %s", pg_last_error());
     /* Forced PNG fallback. */
     pg_path_join(path, sizeof path, dir, "fb.mp4");
     wo.force_png = 1;

@@ -43,7 +43,7 @@ int main(void)
     /* synth: killed when its first large file reaches 20 kB */
     snprintf(args, sizeof args, "synth '%s/ds' --cams 2 --frames 4 --size 64x48 --spp 1 --threads 1", dir);
     int rc = run_capped(args, 20000, 0, err, sizeof err);
-    CHECK(rc == 2 && strstr(err, "File too large"), "synth on a 'full disk': exit %d, %s", rc, err);
+    CHECK(rc == 3 && strstr(err, "File too large"), "synth on a 'full disk': exit %d, %s", rc, err);
     CHECK(!exists_in("ds") && !exists_in("ds.partial"), "a failed synth left ds/ or ds.partial/");
     rc = run_capped(args, 20000, 1, err, sizeof err);
     CHECK(rc != 0, "synth killed at a 20 kB file cap should fail, exit %d", rc);
@@ -66,17 +66,30 @@ int main(void)
           "prepare rerun: outputs missing");
     CHECK(!exists_in("prep.partial"), "prepare rerun left prep.partial behind");
     rc = run_capped(args, 20000, 0, err, sizeof err);
-    CHECK(rc == 2 && exists_in("prep/depth_aligned.npy"), "a failed rerun must keep the finished result (exit %d)", rc);
+    CHECK(rc == 3 && exists_in("prep/depth_aligned.npy"), "a failed rerun must keep the finished result (exit %d)", rc);
 
-    /* an output below a regular file cannot be created: refused at once, one line, exit 2 */
+    /* an output below a regular file cannot be created: refused at once, one line, exit 3 */
     snprintf(args, sizeof args, "prepare '%s/ds' --depth '%s/ds/depth_mono/cam00.npy' --out '%s/ds/poses_bounds.npy/x'",
              dir, dir, dir);
     rc = test_run_cli(args, err, sizeof err);
-    CHECK(rc == 2 && strstr(err, "not writable") && strchr(err, '\n') == strrchr(err, '\n'),
+    CHECK(rc == 3 && strstr(err, "not writable") && strchr(err, '\n') == strrchr(err, '\n'),
           "unwritable prepare output: exit %d, %s", rc, err);
     snprintf(args, sizeof args, "proxies '%s/ds' --depth '%s/prep/depth_aligned.npy' --out '%s/ds/poses_bounds.npy/x'",
              dir, dir, dir);
     rc = test_run_cli(args, err, sizeof err);
-    CHECK(rc == 2 && strstr(err, "not writable"), "unwritable proxies output: exit %d, %s", rc, err);
+    CHECK(rc == 3 && strstr(err, "not writable"), "unwritable proxies output: exit %d, %s", rc, err);
+
+    /* issue 27: two runs on one output folder raced (one failed renaming prepare.partial/vis/...);
+     * now the second stops at once, naming the first's PID, exit 3, and leaves the folder alone */
+    char locked[4200], pid[32];
+    snprintf(locked, sizeof locked, "%s/busy", dir);
+    CHECK_OK(pg_mkdir_p(locked));
+    CHECK_OK(pg_dir_lock(locked));
+    snprintf(pid, sizeof pid, "PID %ld", (long)getpid());
+    snprintf(args, sizeof args, "run '%s/ds' --depth '%s/ds/depth_mono/cam00.npy' --out '%s' --iters 2", dir, dir, locked);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 3 && strstr(err, "in use") && strstr(err, pid) && strchr(err, '\n') == strrchr(err, '\n'),
+          "run on a busy folder: exit %d, %s (want %s)", rc, err, pid);
+    CHECK(!exists_in("busy/prepare") && !exists_in("busy/prepare.partial"), "run on a busy folder wrote into it");
     return test_summary("test_stage_outputs");
 }

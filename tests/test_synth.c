@@ -494,7 +494,7 @@ int main(void)
     CHECK(test_run_cli("synth /tmp/x --size 10by10", err, sizeof err) == 2 && strstr(err, "--size"), "size: %s", err);
     CHECK(test_run_cli("synth /tmp/x --layout llff", err, sizeof err) == 2 && strstr(err, "layout"), "layout: %s", err);
     CHECK(test_run_cli("synth", err, sizeof err) == 2, "no OUT: %s", err);
-    CHECK(test_run_cli("synth /proc/nope/x --frames 1 --cams 1", err, sizeof err) == 2 && strstr(err, "/proc/nope"),
+    CHECK(test_run_cli("synth /proc/nope/x --frames 1 --cams 1", err, sizeof err) == 3 && strstr(err, "/proc/nope"),
           "unwritable dir: %s", err);
     return test_summary("test_synth");
 }

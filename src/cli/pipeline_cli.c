@@ -89,7 +89,7 @@ int pipeline_cli_run(pg_pipeline_config *c)
     c->on_plan = print_plan;
     pg_status st = pg_pipeline_run(c, &r);
     if (st) {
-        if (pg_status_exit_code(st) != 2)
+        if (pg_status_exit_code(st) != 2 && r.started) /* work began: the next run continues it */
             fprintf(stderr, "prodygs: %s\nprodygs: rerun the same command to continue from the last finished stage\n",
                     pg_last_error());
         else

@@ -5,6 +5,8 @@
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -15,7 +17,7 @@ pg_status pg_atomic_open(pg_atomic_file *f, const char *path)
     strcpy(f->path, path);
     snprintf(f->tmp_path, sizeof f->tmp_path, "%s.tmp.%ld", path, (long)getpid());
     f->fp = fopen(f->tmp_path, "wb");
-    if (!f->fp) return pg_fail(PG_ERR_IO, "%s: cannot write: %s", path, strerror(errno));
+    if (!f->fp) return pg_fail(PG_ERR_ENV, "%s: cannot write: %s", path, strerror(errno));
     return PG_OK;
 }
 
@@ -27,12 +29,12 @@ pg_status pg_atomic_commit(pg_atomic_file *f)
     f->fp = NULL;
     if (bad) {
         remove(f->tmp_path);
-        return pg_fail(PG_ERR_IO, "%s: write failed: %s", f->path, strerror(errno));
+        return pg_fail(PG_ERR_ENV, "%s: write failed: %s", f->path, strerror(errno));
     }
     if (rename(f->tmp_path, f->path) != 0) {
         int e = errno;
         remove(f->tmp_path);
-        return pg_fail(PG_ERR_IO, "%s: cannot rename into place: %s", f->path, strerror(e));
+        return pg_fail(PG_ERR_ENV, "%s: cannot rename into place: %s", f->path, strerror(e));
     }
     return PG_OK;
 }
@@ -57,7 +59,7 @@ pg_status pg_mkdir_p(const char *path)
             char c = buf[i];
             buf[i] = '\0';
             if (mkdir(buf, 0777) != 0 && errno != EEXIST)
-                return pg_fail(PG_ERR_IO, "%s: cannot create directory: %s", buf, strerror(errno));
+                return pg_fail(PG_ERR_ENV, "%s: cannot create directory: %s", buf, strerror(errno));
             buf[i] = c;
         }
     }
@@ -127,7 +129,7 @@ pg_status pg_write_file_atomic(const char *path, const void *data, size_t size)
     PG_TRY(pg_atomic_open(&f, path));
     if (size && fwrite(data, 1, size, f.fp) != size) {
         pg_atomic_abort(&f);
-        return pg_fail(PG_ERR_IO, "%s: write failed: %s", path, strerror(errno));
+        return pg_fail(PG_ERR_ENV, "%s: write failed: %s", path, strerror(errno));
     }
     return pg_atomic_commit(&f);
 }
@@ -150,10 +152,10 @@ pg_status pg_remove_tree(const char *path)
         }
         closedir(dir);
         if (rc) return rc;
-        if (rmdir(path) != 0) return pg_fail(PG_ERR_IO, "%s: cannot remove: %s", path, strerror(errno));
+        if (rmdir(path) != 0) return pg_fail(PG_ERR_ENV, "%s: cannot remove: %s", path, strerror(errno));
         return PG_OK;
     }
-    if (unlink(path) != 0) return pg_fail(PG_ERR_IO, "%s: cannot remove: %s", path, strerror(errno));
+    if (unlink(path) != 0) return pg_fail(PG_ERR_ENV, "%s: cannot remove: %s", path, strerror(errno));
     return PG_OK;
 }
 
@@ -186,11 +188,11 @@ pg_status pg_staged_dir_commit(pg_staged_dir *d)
         /* a folder of an earlier result (vis/, frames/) is replaced whole, not merged */
         if (rc == PG_OK && pg_path_is_dir(to)) rc = pg_remove_tree(to);
         if (rc == PG_OK && rename(from, to) != 0)
-            rc = pg_fail(PG_ERR_IO, "%s: cannot move into place: %s", to, strerror(errno));
+            rc = pg_fail(PG_ERR_ENV, "%s: cannot move into place: %s", to, strerror(errno));
     }
     closedir(dir);
     if (rc) return rc;
-    if (rmdir(d->work) != 0) return pg_fail(PG_ERR_IO, "%s: cannot remove: %s", d->work, strerror(errno));
+    if (rmdir(d->work) != 0) return pg_fail(PG_ERR_ENV, "%s: cannot remove: %s", d->work, strerror(errno));
     return PG_OK;
 }
 
@@ -200,4 +202,34 @@ void pg_staged_dir_abort(pg_staged_dir *d)
     snprintf(saved, sizeof saved, "%s", pg_last_error()); /* keep the stage's own error message */
     pg_remove_tree(d->work);
     pg_fail(PG_ERR_IO, "%s", saved);
+}
+
+pg_status pg_dir_lock(const char *dir)
+{
+    static char held[4096];
+    static int held_fd = -1;
+    if (held_fd >= 0 && strcmp(held, dir) == 0) return PG_OK;
+    char path[4200];
+    PG_TRY(pg_path_join(path, sizeof path, dir, ".lock"));
+    int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd < 0) return pg_fail(PG_ERR_ENV, "%s: cannot create the lock file: %s", path, strerror(errno));
+    if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+        char pid[32] = "";
+        ssize_t n = read(fd, pid, sizeof pid - 1);
+        pid[n > 0 ? n : 0] = '\0';
+        pid[strcspn(pid, "\n")] = '\0';
+        close(fd);
+        return pg_fail(PG_ERR_ENV, "%s: in use by another prodygs (PID %s); wait for it or choose another --out", dir,
+                       pid[0] ? pid : "unknown");
+    }
+    char pid[32];
+    int len = snprintf(pid, sizeof pid, "%ld\n", (long)getpid());
+    if (ftruncate(fd, 0) != 0 || write(fd, pid, (size_t)len) != len) {
+        close(fd);
+        return pg_fail(PG_ERR_ENV, "%s: cannot write the lock file: %s", path, strerror(errno));
+    }
+    if (held_fd >= 0) close(held_fd); /* one folder at a time: a library caller moving on releases the last */
+    held_fd = fd; /* stays open: the lock lives until the process ends or locks another folder */
+    snprintf(held, sizeof held, "%s", dir);
+    return PG_OK;
 }

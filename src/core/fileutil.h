@@ -50,6 +50,11 @@ pg_status pg_staged_dir_commit(pg_staged_dir *d);
 void pg_staged_dir_abort(pg_staged_dir *d);
 /* Removes a file or a directory tree (like rm -rf); a missing path is not an error. */
 pg_status pg_remove_tree(const char *path);
+/* Takes DIR/.lock (an exclusive flock, the holder's PID inside), so a second process on the same
+ * output folder stops at once instead of racing it; fails with PG_ERR_ENV naming the holder's
+ * PID. Held until the process ends (the kernel drops it however the process ends) or locks
+ * another folder; taking the same folder again is a no-op. */
+pg_status pg_dir_lock(const char *dir);
 
 /* Creates a directory and its parents (like mkdir -p). */
 pg_status pg_mkdir_p(const char *path);

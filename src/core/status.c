@@ -85,8 +85,9 @@ const char *pg_status_name(pg_status code)
 {
     static const char *names[PG_STATUS_COUNT] = {
         "ok", "bad argument", "i/o error", "bad format", "bad size", "out of memory", "internal error",
+        "environment failure",
     };
-    _Static_assert(PG_STATUS_COUNT == 7, "update names[] when adding a status");
+    _Static_assert(PG_STATUS_COUNT == 8, "update names[] when adding a status");
     return (code >= 0 && code < PG_STATUS_COUNT) ? names[code] : "unknown status";
 }
 
@@ -96,6 +97,7 @@ int pg_status_exit_code(pg_status code)
     case PG_OK: return 0;
     case PG_ERR_NOMEM:
     case PG_ERR_INTERNAL: return 1;
+    case PG_ERR_ENV: return 3;
     default: return 2;
     }
 }

@@ -152,7 +152,7 @@ pg_status io_pfm_save(const char *path, const float *data, int width, int height
         if (fwrite(data + (size_t)y * width * channels, sizeof(float), (size_t)width * channels, f.fp) !=
             (size_t)width * channels) {
             pg_atomic_abort(&f);
-            return pg_fail(PG_ERR_IO, "%s: write failed: %s", path, strerror(errno));
+            return pg_fail(PG_ERR_ENV, "%s: write failed: %s", path, strerror(errno));
         }
     return pg_atomic_commit(&f);
 }

@@ -227,7 +227,7 @@ pg_status io_image_save_png(const char *path, const pg_image *img)
     if (st == PG_OK) {
         if (!png_image_write_to_stdio(&pi, f.fp, 0, buf, 0, NULL)) {
             pg_atomic_abort(&f);
-            st = pg_fail(PG_ERR_IO, "%s: PNG write failed: %s", path, pi.message);
+            st = pg_fail(PG_ERR_ENV, "%s: PNG write failed: %s", path, pi.message);
         } else {
             st = pg_atomic_commit(&f);
         }

@@ -220,7 +220,7 @@ static pg_status save_raw(const char *path, const void *data, const char *descr,
     fputc('\n', f.fp);
     if (count && fwrite(data, elem, count, f.fp) != count) {
         pg_atomic_abort(&f);
-        return pg_fail(PG_ERR_IO, "%s: write failed: %s", path, strerror(errno));
+        return pg_fail(PG_ERR_ENV, "%s: write failed: %s", path, strerror(errno));
     }
     return pg_atomic_commit(&f);
 }

@@ -126,7 +126,7 @@ pg_status io_ply_save(const char *path, const pg_gaussians *g)
         for (int k = 0; k < 4; k++) row[n++] = g->quats[(size_t)i * 4 + k];
         if (fwrite(row, sizeof(float), ROW, f.fp) != ROW) {
             pg_atomic_abort(&f);
-            return pg_fail(PG_ERR_IO, "%s: write failed: %s", path, strerror(errno));
+            return pg_fail(PG_ERR_ENV, "%s: write failed: %s", path, strerror(errno));
         }
     }
     return pg_atomic_commit(&f);

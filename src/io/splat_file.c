@@ -35,7 +35,7 @@ pg_status io_splat_save(const char *path, const pg_gaussians *g)
         for (int k = 0; k < 4; k++) row[28 + k] = to_u8((n > 0 ? q[k] / n : (float)(k == 0)) * 128.0f + 128.0f);
         if (fwrite(row, 1, sizeof row, f.fp) != sizeof row) {
             pg_atomic_abort(&f);
-            return pg_fail(PG_ERR_IO, "%s: write failed: %s", path, strerror(errno));
+            return pg_fail(PG_ERR_ENV, "%s: write failed: %s", path, strerror(errno));
         }
     }
     return pg_atomic_commit(&f);

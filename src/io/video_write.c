@@ -153,7 +153,7 @@ pg_status io_video_writer_open(io_video_writer **out, const char *path, int widt
     /* An unwritable destination is an error, not a reason to fall back to PNGs. */
     FILE *probe = fopen(w->tmp, "wb");
     if (!probe) {
-        pg_status st = pg_fail(PG_ERR_IO, "%s: cannot write: %s", path, strerror(errno));
+        pg_status st = pg_fail(PG_ERR_ENV, "%s: cannot write: %s", path, strerror(errno));
         free(w);
         return st;
     }
@@ -194,7 +194,7 @@ static pg_status write_packets(io_video_writer *w, const AVFrame *frame)
         av_packet_rescale_ts(w->pkt, w->enc->time_base, w->st->time_base);
         w->pkt->stream_index = w->st->index;
         r = av_interleaved_write_frame(w->oc, w->pkt);
-        if (r < 0) return pg_fail(PG_ERR_IO, "%s: write failed", w->path);
+        if (r < 0) return pg_fail(PG_ERR_ENV, "%s: write failed", w->path);
     }
 }
 
@@ -253,14 +253,14 @@ pg_status io_video_writer_close(io_video_writer *w)
         if (st == PG_OK) {
             remove_png_folder(w->path);
             if (rename(w->tmp, w->path) != 0)
-                st = pg_fail(PG_ERR_IO, "%s: cannot rename into place: %s", w->path, strerror(errno));
+                st = pg_fail(PG_ERR_ENV, "%s: cannot rename into place: %s", w->path, strerror(errno));
         }
     } else {
         if (st == PG_OK) st = write_packets(w, NULL);
-        if (st == PG_OK && av_write_trailer(w->oc) < 0) st = pg_fail(PG_ERR_IO, "%s: cannot finish the file", w->path);
-        if (st == PG_OK && avio_closep(&w->oc->pb) < 0) st = pg_fail(PG_ERR_IO, "%s: close failed", w->path);
+        if (st == PG_OK && av_write_trailer(w->oc) < 0) st = pg_fail(PG_ERR_ENV, "%s: cannot finish the file", w->path);
+        if (st == PG_OK && avio_closep(&w->oc->pb) < 0) st = pg_fail(PG_ERR_ENV, "%s: close failed", w->path);
         if (st == PG_OK && rename(w->tmp, w->path) != 0)
-            st = pg_fail(PG_ERR_IO, "%s: cannot rename into place: %s", w->path, strerror(errno));
+            st = pg_fail(PG_ERR_ENV, "%s: cannot rename into place: %s", w->path, strerror(errno));
     }
     if (st != PG_OK) {
         io_video_writer_abort(w);

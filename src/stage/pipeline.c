@@ -510,6 +510,8 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
     double t0 = pg_time_seconds();
     char prepare_dir[4200], proxies_dir[4200], model_dir[4200];
     PG_TRY(pg_mkdir_p(c->out));
+    PG_TRY(pg_dir_lock(c->out));
+    r->started = 1;
     PG_TRY(pg_path_join(prepare_dir, sizeof prepare_dir, c->out, "prepare"));
     PG_TRY(pg_path_join(proxies_dir, sizeof proxies_dir, c->out, "proxies"));
     PG_TRY(pg_path_join(model_dir, sizeof model_dir, c->out, "model"));

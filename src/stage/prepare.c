@@ -134,9 +134,10 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
     }
     io_dataset_camera_label(ds, cam, r->train_camera, sizeof r->train_camera);
     pg_staged_dir out;
-    if (pg_staged_dir_begin(&out, c->out, 0) != PG_OK) {
+    pg_status begun = pg_staged_dir_begin(&out, c->out, 0);
+    if (begun != PG_OK) {
         io_dataset_close(ds);
-        return PG_ERR_IO;
+        return begun;
     }
     const int F = io_dataset_num_frames(ds), W = io_dataset_width(ds), H = io_dataset_height(ds);
     pg_image *frames = calloc((size_t)(F > 0 ? F : 1), sizeof(pg_image));

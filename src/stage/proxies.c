@@ -170,7 +170,7 @@ static pg_status begin_output(const char *out, pg_staged_dir *staged)
     snprintf(done_file, sizeof done_file, "%s/trainset.json", staged->final);
     int fresh = !pg_path_exists(staged->work) || rmdir(staged->work) == 0; /* nothing to resume */
     if (fresh && pg_path_exists(done_file) && rename(staged->final, staged->work) != 0)
-        return pg_fail(PG_ERR_IO, "%s: cannot move to %s: %s", staged->final, staged->work, strerror(errno));
+        return pg_fail(PG_ERR_ENV, "%s: cannot move to %s: %s", staged->final, staged->work, strerror(errno));
     return pg_mkdir_p(staged->work);
 }
 

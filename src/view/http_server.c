@@ -43,7 +43,7 @@ pg_status view_http_open(int port, view_http_server **out)
     *out = NULL;
     if (port < 0 || port > 65535) return pg_fail(PG_ERR_ARG, "view: --port %d is not in 0..65535", port);
     int fd = socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
-    if (fd < 0) return pg_fail(PG_ERR_IO, "view: socket: %s", strerror(errno));
+    if (fd < 0) return pg_fail(PG_ERR_ENV, "view: socket: %s", strerror(errno));
     int one = 1;
     setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
     struct sockaddr_in a;
@@ -56,7 +56,7 @@ pg_status view_http_open(int port, view_http_server **out)
         getsockname(fd, (struct sockaddr *)&a, &len) < 0) {
         int e = errno;
         close(fd);
-        return pg_fail(PG_ERR_IO, "view: 127.0.0.1:%d: %s", port, strerror(e));
+        return pg_fail(PG_ERR_ENV, "view: 127.0.0.1:%d: %s", port, strerror(e));
     }
     view_http_server *s = pg_calloc(1, sizeof *s, "http server");
     if (!s) {

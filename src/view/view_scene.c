@@ -151,7 +151,7 @@ static void put_f32(uint8_t *p, float v) { memcpy(p, &v, 4); }
 static pg_status write_bytes(pg_atomic_file *f, const void *data, size_t n)
 {
     if (n && fwrite(data, 1, n, f->fp) != n)
-        return pg_fail(PG_ERR_IO, "%s: write failed: %s", f->path, strerror(errno));
+        return pg_fail(PG_ERR_ENV, "%s: write failed: %s", f->path, strerror(errno));
     return PG_OK;
 }
 
