@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <string.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 
 static char dir[4096];
 
@@ -26,6 +27,12 @@ static int run_capped(const char *args, rlim_t limit, int crash, char *err, size
     setrlimit(RLIMIT_FSIZE, &old);
     signal(SIGXFSZ, SIG_IGN);
     return rc;
+}
+
+static long file_bytes(const char *path)
+{
+    struct stat sb;
+    return stat(path, &sb) == 0 ? (long)sb.st_size : -1;
 }
 
 static int exists_in(const char *name)
@@ -91,5 +98,25 @@ int main(void)
     CHECK(rc == 3 && strstr(err, "in use") && strstr(err, pid) && strchr(err, '\n') == strrchr(err, '\n'),
           "run on a busy folder: exit %d, %s (want %s)", rc, err, pid);
     CHECK(!exists_in("busy/prepare") && !exists_in("busy/prepare.partial"), "run on a busy folder wrote into it");
+
+    /* issue 27: a full disk or a kill while the orbit renders left renders/ holding fixed*.mp4
+     * alone; the videos are now one set: renders/ appears whole or not at all */
+    snprintf(args, sizeof args, "run '%s/ds' --depth '%s/ds/depth_mono/cam00.npy' --out '%s/vid' --iters 2", dir, dir, dir);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 0 && exists_in("vid/renders/fixed.mp4") && exists_in("vid/renders/orbit.mp4"), "run for videos: exit %d, %s", rc,
+          err);
+    char path[4300];
+    snprintf(path, sizeof path, "%s/vid/renders/fixed_compare.mp4", dir);
+    long fixed = file_bytes(path);
+    snprintf(path, sizeof path, "%s/vid/renders/orbit.mp4", dir);
+    long orbit = file_bytes(path);
+    CHECK(orbit > 2 * fixed && fixed > 0, "the orbit (%ld bytes) should be far larger than the fixed video (%ld)", orbit, fixed);
+    for (int crash = 0; crash < 2; crash++) {
+        snprintf(path, sizeof path, "%s/vid/renders", dir);
+        pg_remove_tree(path);
+        rc = run_capped(args, (rlim_t)((fixed + orbit) / 2), crash, err, sizeof err); /* stages skipped: videos only */
+        CHECK(rc != 0 && !exists_in("vid/renders"), "%s mid-orbit: exit %d, renders/ %s", crash ? "killed" : "disk full", rc,
+              exists_in("vid/renders") ? "left half-filled" : "absent");
+    }
     return test_summary("test_stage_outputs");
 }

@@ -555,11 +555,15 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
         int fallback = 0;
         double tr = pg_time_seconds();
         pg_peak_window_begin(&p.window);
+        /* the videos are one set: all of them go into renders.partial and move into renders/
+         * together, so a kill or a full disk mid-orbit never leaves renders/ with fixed*.mp4 alone */
+        pg_staged_dir set;
+        st = pg_staged_dir_begin(&set, renders, 0);
         for (int k = 0; k < 3 && !st; k++) {
             pg_render_config rc;
             pg_render_defaults(&rc);
             rc.model = model_dir;
-            rc.out = renders;
+            rc.out = set.work;
             rc.path = paths[k];
             rc.threads = plan.threads;
             rc.reference_frames = k == 0 && pg_path_is_dir(reference) ? reference : NULL;
@@ -567,6 +571,8 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
             st = pg_render_run(&rc, &rr);
             fallback |= rr.fallback_png;
         }
+        if (st) pg_staged_dir_abort(&set);
+        else st = pg_staged_dir_commit(&set);
         if (fallback) pg_warn("no H.264/MPEG-4 encoder; wrote PNG sequences instead of MP4");
         r->ran[ST_RENDER] = st == PG_OK;
         r->seconds[ST_RENDER] = pg_time_seconds() - tr;
