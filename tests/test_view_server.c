@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/time.h>
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
@@ -86,6 +87,25 @@ static int get_status(int port, const char *request)
 {
     static char resp[200000];
     return exchange(port, request, strlen(request), resp, sizeof resp) >= 0 ? status_of(resp) : -1;
+}
+
+/* Sends req and waits up to 3 s for the reply without closing the sending side (a client that
+ * waits for an answer); the status, or 0 when none came in time. */
+static int status_while_open(int port, const char *req)
+{
+    int fd = connect_to(port);
+    if (fd < 0) return -1;
+    struct timeval tv = { 3, 0 };
+    setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+    if (send(fd, req, strlen(req), MSG_NOSIGNAL) < 0) {
+        close(fd);
+        return -1;
+    }
+    char resp[4096];
+    ssize_t r = recv(fd, resp, sizeof resp - 1, 0);
+    resp[r > 0 ? r : 0] = '\0';
+    close(fd);
+    return r > 0 ? status_of(resp) : 0;
 }
 
 /* A first non-loopback IPv4 address of this machine ("" if none). */
@@ -185,6 +205,16 @@ int main(void)
         CHECK(code == 400 || code == 404, "%.40s -> %d", refused[k], code);
     }
     CHECK(get_status(port, "GET /../etc/passwd HTTP/1.1\r\n\r\n") == 400, "'..' is a bad request");
+    /* issue 27: heads that can never complete waited for the 10 s idle timeout */
+    CHECK(status_while_open(port, "GET /\r\n") == 400, "an HTTP/0.9 request gets its 400 at once");
+    CHECK(status_while_open(port, "GET / HTTP/1.1\nHost: localhost\n\n") == 400, "bare LF line ends get their 400 at once");
+    CHECK(status_while_open(port, "GET / HTTP/1.1\r\nHost: localhost\r\n\r\n") == 200, "a complete request is answered");
+    {
+        static char resp[200000];
+        const char *req = "GET / HTTP/1.1\r\nHost: localhost\r\n\r\n";
+        exchange(port, req, strlen(req), resp, sizeof resp);
+        CHECK(strstr(resp, "\r\nContent-Security-Policy: default-src 'self';") != NULL, "no Content-Security-Policy header");
+    }
     CHECK(get_status(port, "GET / HTTP/1.1\r\nHost: attacker.example\r\n\r\n") == 403, "foreign Host refused");
     CHECK(get_status(port, "POST / HTTP/1.1\r\n\r\n") == 405, "POST refused");
     int len = snprintf(req, sizeof req, "GET /index.html");

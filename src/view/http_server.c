@@ -32,7 +32,7 @@ typedef struct {
     char in[HTTP_MAX_HEAD + 1];
     size_t in_len;
     int state;                /* reading the head, writing the response, or draining the input */
-    char head[512];           /* response status line and headers */
+    char head[768];           /* response status line and headers */
     size_t head_len, head_sent;
     const char *body;
     size_t body_len, body_sent;
@@ -96,7 +96,9 @@ static void respond(http_conn *c, int code, const char *type, const char *body, 
     }
     int n = snprintf(c->head, sizeof c->head,
                      "HTTP/1.1 %d %s\r\nContent-Type: %s\r\nContent-Length: %zu\r\nCache-Control: no-store\r\n"
-                     "X-Content-Type-Options: nosniff\r\nConnection: close\r\n\r\n",
+                     "X-Content-Type-Options: nosniff\r\nContent-Security-Policy: default-src 'self'; "
+                     "script-src 'self' 'unsafe-inline' blob:; worker-src 'self' blob:; style-src 'self' 'unsafe-inline'; "
+                     "img-src 'self' data: blob:\r\nConnection: close\r\n\r\n",
                      code, reason, type, body_len);
     c->head_len = n > 0 && (size_t)n < sizeof c->head ? (size_t)n : 0;
     c->head_sent = 0;
@@ -190,6 +192,15 @@ static int conn_read(http_conn *c, const view_http_file *files, int n_files)
         }
         if (strstr(c->in, "\r\n\r\n")) {
             handle_request(c, files, n_files);
+            return 1;
+        }
+        /* a head that can never complete gets its 400 now, not after the idle timeout: a bare LF
+         * line end, or a finished request line without an HTTP/1.x version (HTTP/0.9) */
+        const char *lf = memchr(c->in, '\n', c->in_len), *eol = strstr(c->in, "\r\n");
+        int bare_lf = lf && (lf == c->in || lf[-1] != '\r');
+        int old_line = eol && (eol - c->in < 9 || strncmp(eol - 9, " HTTP/1.", 8) != 0);
+        if (bare_lf || old_line) {
+            respond(c, 400, NULL, NULL, 0, 0);
             return 1;
         }
         if (c->in_len == HTTP_MAX_HEAD) {
