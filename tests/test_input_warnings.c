@@ -3,6 +3,7 @@
  * (The variable-frame-rate warning is tested in test_io_video.c, where the test makes such a
  * video.) */
 #include "testlib.h"
+#include "core/fileutil.h"
 #include "depth/depth_check.h"
 #include "io/npy.h"
 
@@ -71,5 +72,25 @@ int main(void)
              dir, dir, dir);
     rc = test_run_cli(args, err, sizeof err);
     CHECK(rc == 0 && !strstr(err, "warning:"), "--size 32x0: exit %d, %s", rc, err);
+
+    /* issue 27: a frame folder with a number missing (0000, 0001, 0003) was read as consecutive
+     * frames without a word; a complete folder says nothing */
+    snprintf(args, sizeof args, "info '%s/ds/cam00/images'", dir);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 0 && !strstr(err, "warning:"), "complete frame folder: exit %d, %s", rc, err);
+    snprintf(path, sizeof path, "%s/gap", dir);
+    pg_mkdir_p(path);
+    for (int k = 0; k < 4; k++) {
+        if (k == 2) continue;
+        char src[4300], dst[4300], cmd[9000];
+        snprintf(src, sizeof src, "%s/ds/cam00/images/%04d.png", dir, k);
+        snprintf(dst, sizeof dst, "%s/gap/%04d.png", dir, k);
+        snprintf(cmd, sizeof cmd, "cp '%s' '%s'", src, dst);
+        CHECK(system(cmd) == 0, "%s", cmd);
+    }
+    snprintf(args, sizeof args, "info '%s/gap'", dir);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 0 && count_lines(err, "warning:") == 1 && strstr(err, "jump from 1 to 3") && strstr(err, "0003.png"),
+          "folder with a missing frame: exit %d, %s", rc, err);
     return test_summary("test_input_warnings");
 }

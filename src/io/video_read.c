@@ -152,6 +152,37 @@ pg_status io_list_images(const char *dir, char ***names, int *count)
     return PG_OK;
 }
 
+/* The number at the end of a file's base name (before the extension); -1 if none. */
+static long frame_number(const char *path)
+{
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    const char *dot = strrchr(base, '.'), *end = dot ? dot : base + strlen(base), *d = end;
+    while (d > base && isdigit((unsigned char)d[-1])) d--;
+    if (d == end || end - d > 9) return -1;
+    return strtol(d, NULL, 10);
+}
+
+/* Frames of a folder are used in name order as consecutive frames; a gap in their numbers (0001,
+ * 0003: a frame lost in an export) shifts the timing of every later frame, so say so (once per
+ * folder: every stage reopens the input). */
+static void warn_number_gaps(const char *path, char **names, int n)
+{
+    static char warned[512];
+    if (n < 2 || strncmp(warned, path, sizeof warned - 1) == 0) return;
+    for (int i = 1; i < n; i++) {
+        long a = frame_number(names[i - 1]), b = frame_number(names[i]);
+        if (a < 0 || b < 0) return; /* not numbered frames */
+        if (b != a + 1) {
+            snprintf(warned, sizeof warned, "%s", path);
+            pg_warn("%s: frame numbers jump from %ld to %ld (%s, %s): the frames are used in order as if consecutive",
+                    path, a, b, strrchr(names[i - 1], '/') ? strrchr(names[i - 1], '/') + 1 : names[i - 1],
+                    strrchr(names[i], '/') ? strrchr(names[i], '/') + 1 : names[i]);
+            return;
+        }
+    }
+}
+
 /* Only the header of each image is needed for probing, but loading one full frame is cheap
  * enough and validates it; the rest are counted. */
 static pg_status probe_folder(const char *path, io_video_info *info)
@@ -159,6 +190,7 @@ static pg_status probe_folder(const char *path, io_video_info *info)
     char **names;
     int n;
     PG_TRY(io_list_images(path, &names, &n));
+    warn_number_gaps(path, names, n);
     pg_image img;
     pg_status st = io_image_load(names[0], &img);
     if (st == PG_OK) {
