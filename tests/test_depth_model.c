@@ -67,6 +67,18 @@ static void write_clip(const char *path)
     for (int t = 0; t < VF; t++) pg_image_destroy(&frames[t]);
 }
 
+/* A depth-stage config for clip through model into out. */
+static pg_depth_config depth_config(const char *clip, const char *model, const char *out, int threads)
+{
+    pg_depth_config c;
+    pg_depth_defaults(&c);
+    c.input = clip;
+    c.model = model;
+    c.out = out;
+    c.threads = threads;
+    return c;
+}
+
 static int count_files(const char *dir, const char *suffix)
 {
     char cmd[4400], out[64] = "";
@@ -90,12 +102,7 @@ static void test_stage(const char *tmp, const char *clip, const char *model)
     snprintf(dir, sizeof dir, "%s/b", tmp);
     pg_mkdir_p(dir);
 
-    pg_depth_config c;
-    pg_depth_defaults(&c);
-    c.input = clip;
-    c.model = model;
-    c.out = out;
-    c.threads = 2;
+    pg_depth_config c = depth_config(clip, model, out, 2);
     c.stop_after = 3;
     pg_depth_report r;
     CHECK_OK(pg_depth_run(&c, &r));
@@ -248,12 +255,7 @@ static void test_dynamic_onnx(const char *tmp, const char *clip)
         return;
     }
     snprintf(out, sizeof out, "%s/dyn.npy", tmp);
-    pg_depth_config c;
-    pg_depth_defaults(&c);
-    c.input = clip;
-    c.model = model;
-    c.out = out;
-    c.threads = 2;
+    pg_depth_config c = depth_config(clip, model, out, 2);
     pg_depth_report r;
     CHECK(pg_depth_run(&c, &r) == PG_ERR_ARG && strstr(pg_last_error(), "--size"), "no size: %s", pg_last_error());
     c.size = 100;
@@ -360,12 +362,7 @@ static void test_hostile_sidecars(const char *tmp, const char *clip)
     write_bytes(model, bytes, n);
     free(bytes);
     tiny_b[0] = 1.0f;
-    pg_depth_config c;
-    pg_depth_defaults(&c);
-    c.input = clip;
-    c.model = model;
-    c.out = out;
-    c.threads = 1;
+    pg_depth_config c = depth_config(clip, model, out, 1);
     pg_depth_report r;
     CHECK(pg_depth_run(&c, &r) == PG_ERR_FORMAT && strstr(pg_last_error(), "no valid depth") && !pg_path_exists(out),
           "all-invalid network output: %s", pg_last_error());

@@ -174,62 +174,41 @@ void depth_plane_median3(const float *src, int w, int h, float *dst)
 
 /* Disc-shaped min/max filter (|d|^2 <= r^2 + r); out-of-image pixels are ignored. Each row of the
  * disc is a horizontal run, so with per-row prefix counts of set pixels a pixel costs 2r + 1
- * look-ups instead of a scan of the whole disc. */
+ * look-ups instead of a scan of the whole disc (without memory for the counts, each run is
+ * counted directly). */
 static void mask_morph(const unsigned char *src, int w, int h, int r, unsigned char *dst, int dilate)
 {
     if (r < 0) r = 0;
-    int *pre = malloc((size_t)h * (w + 1) * sizeof *pre), *half = malloc((size_t)(2 * r + 1) * sizeof *half);
-    if (!half) { /* a radius too large to hold one int per row */
-        free(pre);
-        memcpy(dst, src, (size_t)w * h);
-        return;
-    }
-    for (int dy = -r; dy <= r; dy++) {
-        int k = 0;
-        while ((k + 1) * (k + 1) + dy * dy <= r * r + r) k++;
-        half[dy + r] = k;
-    }
-    if (!pre) { /* no memory for the counts: the direct scan */
-        for (int y = 0; y < h; y++)
-            for (int x = 0; x < w; x++) {
-                int v = dilate ? 0 : 1;
-                for (int dy = -r; dy <= r; dy++)
-                    for (int dx = -half[dy + r]; dx <= half[dy + r]; dx++) {
-                        int xx = x + dx, yy = y + dy;
-                        if (xx < 0 || xx >= w || yy < 0 || yy >= h) continue;
-                        int s = src[(size_t)yy * w + xx] != 0;
-                        v = dilate ? (v | s) : (v & s);
-                    }
-                dst[(size_t)y * w + x] = (unsigned char)v;
-            }
-        free(half);
-        return;
-    }
-    #pragma omp parallel for schedule(static) if (PAR_OK)
-    for (int y = 0; y < h; y++) {
-        int *p = pre + (size_t)y * (w + 1);
-        p[0] = 0;
-        for (int x = 0; x < w; x++) p[x + 1] = p[x] + (src[(size_t)y * w + x] != 0);
-    }
-    #pragma omp parallel for schedule(static) if (PAR_OK)
-    for (int y = 0; y < h; y++)
-        for (int x = 0; x < w; x++) {
-            int v = dilate ? 0 : 1;
-            for (int dy = -r; dy <= r && v == (dilate ? 0 : 1); dy++) {
-                int yy = y + dy;
-                if (yy < 0 || yy >= h) continue;
-                int a = x - half[dy + r], b = x + half[dy + r] + 1;
-                if (a < 0) a = 0;
-                if (b > w) b = w;
-                const int *p = pre + (size_t)yy * (w + 1);
-                int set = p[b] - p[a];
-                if (dilate) v = set > 0;
-                else v = set == b - a;
-            }
-            dst[(size_t)y * w + x] = (unsigned char)v;
+    int *pre = malloc((size_t)h * (w + 1) * sizeof *pre);
+    if (pre) {
+        #pragma omp parallel for schedule(static) if (PAR_OK)
+        for (int y = 0; y < h; y++) {
+            int *p = pre + (size_t)y * (w + 1);
+            p[0] = 0;
+            for (int x = 0; x < w; x++) p[x + 1] = p[x] + (src[(size_t)y * w + x] != 0);
         }
+    }
+    memset(dst, dilate ? 0 : 1, (size_t)w * h);
+    for (int dy = -r; dy <= r; dy++) {
+        int half = 0; /* the disc's half-width on row dy */
+        while ((half + 1) * (half + 1) + dy * dy <= r * r + r) half++;
+        #pragma omp parallel for schedule(static) if (PAR_OK)
+        for (int y = 0; y < h; y++) {
+            int yy = y + dy;
+            if (yy < 0 || yy >= h) continue;
+            const unsigned char *row = src + (size_t)yy * w;
+            for (int x = 0; x < w; x++) {
+                int a = x - half > 0 ? x - half : 0, b = x + half + 1 < w ? x + half + 1 : w, set = 0;
+                if (pre) set = pre[(size_t)yy * (w + 1) + b] - pre[(size_t)yy * (w + 1) + a];
+                else
+                    for (int i = a; i < b; i++) set += row[i] != 0;
+                unsigned char *d = dst + (size_t)y * w + x;
+                if (dilate) *d |= set > 0;
+                else *d &= set == b - a;
+            }
+        }
+    }
     free(pre);
-    free(half);
 }
 
 void depth_mask_erode(const unsigned char *src, int w, int h, int r, unsigned char *dst) { mask_morph(src, w, h, r, dst, 0); }

@@ -7,14 +7,12 @@
 #include "core/fileutil.h"
 #include "core/image.h"
 
-#include <png.h>
 #include <zlib.h>
 
 #include <ctype.h>
 #include <dirent.h>
 #include <float.h>
 #include <math.h>
-#include <setjmp.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>

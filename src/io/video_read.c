@@ -152,11 +152,16 @@ pg_status io_list_images(const char *dir, char ***names, int *count)
     return PG_OK;
 }
 
+static const char *file_name(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    return slash ? slash + 1 : path;
+}
+
 /* The number at the end of a file's base name (before the extension); -1 if none. */
 static long frame_number(const char *path)
 {
-    const char *base = strrchr(path, '/');
-    base = base ? base + 1 : path;
+    const char *base = file_name(path);
     const char *dot = strrchr(base, '.'), *end = dot ? dot : base + strlen(base), *d = end;
     while (d > base && isdigit((unsigned char)d[-1])) d--;
     if (d == end || end - d > 9) return -1;
@@ -176,8 +181,7 @@ static void warn_number_gaps(const char *path, char **names, int n)
         if (b != a + 1) {
             snprintf(warned, sizeof warned, "%s", path);
             pg_warn("%s: frame numbers jump from %ld to %ld (%s, %s): the frames are used in order as if consecutive",
-                    path, a, b, strrchr(names[i - 1], '/') ? strrchr(names[i - 1], '/') + 1 : names[i - 1],
-                    strrchr(names[i], '/') ? strrchr(names[i], '/') + 1 : names[i]);
+                    path, a, b, file_name(names[i - 1]), file_name(names[i]));
             return;
         }
     }

@@ -26,6 +26,7 @@
 #include "io/dataset.h"
 #include "io/json.h"
 #include "io/npy.h"
+#include "io/video.h"
 #include "stage/marker.h"
 
 #define DEPTH_MAX_NETS 16 /* networks run side by side (one per thread, one frame each) */
@@ -113,11 +114,11 @@ static void remove_cache(const char *dir)
     rmdir(dir);
 }
 
-/* The smallest frame size at the source's aspect that covers the network's input in both axes
- * (no axis is upsampled into the network), never above the source. */
-static void decode_size(const depth_net_info *info, int src_w, int src_h, int *w, int *h)
+/* The smallest size at the source's aspect that covers need_w x need_h in both axes (no axis is
+ * upsampled into the network), never above the source. */
+static void cover_size(int need_w, int need_h, int src_w, int src_h, int *w, int *h)
 {
-    double s = fmax((double)info->width / src_w, (double)info->height / src_h);
+    double s = fmax((double)need_w / src_w, (double)need_h / src_h);
     if (s >= 1.0) {
         *w = src_w;
         *h = src_h;
@@ -133,16 +134,13 @@ static void output_size(const pg_depth_config *c, const depth_net_info *info, in
                         int *w, int *h)
 {
     if (c->out_width > 0 || c->out_height > 0) {
-        *w = c->out_width > 0 ? c->out_width : (int)lround((double)src_w * c->out_height / src_h);
-        *h = c->out_height > 0 ? c->out_height : (int)lround((double)src_h * c->out_width / src_w);
-        if (*w < 1) *w = 1;
-        if (*h < 1) *h = 1;
+        io_video_options vo = io_video_defaults();
+        vo.width = c->out_width;
+        vo.height = c->out_height;
+        io_video_target_size(&vo, src_w, src_h, w, h);
         return;
     }
-    depth_net_info o = *info;
-    o.width = info->out_width;
-    o.height = info->out_height;
-    decode_size(&o, src_w, src_h, w, h);
+    cover_size(info->out_width, info->out_height, src_w, src_h, w, h);
     if (*w > dec_w || *h > dec_h) {
         *w = dec_w;
         *h = dec_h;
@@ -174,7 +172,7 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
     }
     if (!st) {
         int sw = io_dataset_source_width(ds), sh = io_dataset_source_height(ds);
-        decode_size(info, sw, sh, &r->decode_width, &r->decode_height);
+        cover_size(info->width, info->height, sw, sh, &r->decode_width, &r->decode_height);
         io_dataset_set_frame_size(ds, r->decode_width, r->decode_height);
         output_size(c, info, sw, sh, r->decode_width, r->decode_height, &r->width, &r->height);
         snprintf(r->model_name, sizeof r->model_name, "%s", info->name);

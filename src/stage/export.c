@@ -79,6 +79,12 @@ static pg_status copy_cameras(const char *model, const char *out, pg_export_repo
     return st;
 }
 
+/* The file of a time request: to 3 decimals, so nearer times share a name (refused up front). */
+static void time_file_name(char *out, size_t size, float t, const char *format)
+{
+    snprintf(out, size, "time_%.3f.%s", t, format);
+}
+
 pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
 {
     memset(r, 0, sizeof *r);
@@ -96,8 +102,8 @@ pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
     char a[64], b[64];
     for (int i = 0; i < c->num_times; i++)
         for (int k = 0; k < i; k++) {
-            snprintf(a, sizeof a, "time_%.3f.%s", c->times[k], format);
-            snprintf(b, sizeof b, "time_%.3f.%s", c->times[i], format);
+            time_file_name(a, sizeof a, c->times[k], format);
+            time_file_name(b, sizeof b, c->times[i], format);
             if (!strcmp(a, b))
                 return pg_fail(PG_ERR_ARG, "export: --times %g and %g would both be written to %s (files are named to "
                                "3 decimals): give distinct times", c->times[k], c->times[i], a);
@@ -130,7 +136,7 @@ pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
         int n = c->num_times > 0 ? c->num_times : 1;
         for (int i = 0; st == PG_OK && i < n; i++) {
             float t = c->num_times > 0 ? c->times[i] : 0.0f;
-            snprintf(file, sizeof file, "time_%.3f.%s", t, format);
+            time_file_name(file, sizeof file, t, format);
             st = export_one(rm, out.work, file, splat, t, &clean, r);
         }
     }

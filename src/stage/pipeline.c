@@ -14,6 +14,7 @@
 #include "core/resources.h"
 #include "io/dataset.h"
 #include "io/json.h"
+#include "io/video.h"
 #include "stage/marker.h"
 
 /* warn_if_too_big's model of a run (fitted to measured runs: docs/run.md) */
@@ -163,9 +164,11 @@ static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipelin
         }
     }
     int frames = c->frames > 0 ? c->frames : io_dataset_num_frames(ds), cams = io_dataset_num_cameras(ds);
-    int fw = plan->width ? plan->width : io_dataset_width(ds), fh = plan->height ? plan->height : io_dataset_height(ds);
-    if (plan->width && !plan->height) fh = (int)lround((double)io_dataset_height(ds) * plan->width / io_dataset_width(ds));
-    if (plan->height && !plan->width) fw = (int)lround((double)io_dataset_width(ds) * plan->height / io_dataset_height(ds));
+    io_video_options vo = io_video_defaults(); /* the working size, as the stages will resize */
+    vo.width = plan->width;
+    vo.height = plan->height;
+    int fw, fh;
+    io_video_target_size(&vo, io_dataset_width(ds), io_dataset_height(ds), &fw, &fh);
     io_dataset_close(ds);
     PG_TRY(st);
     plan->iters = c->iters > 0 ? c->iters : p->iters;

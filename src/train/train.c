@@ -375,7 +375,8 @@ static int build_subset(train_session *s, const pg_camera *const *cams, int ncam
 }
 
 /* Scales the loss weight of proxy view vi's pixels at frame f that show something moving in the
- * real view (the pixel's depth carried into the real camera lands on a moving pixel) by
+ * real view (the pixel's depth, already in s->depth_t, carried into the real camera lands on a
+ * moving pixel) by
  * proxy_moving_weight: a moving object's monocular depth is the least reliable part of a proxy
  * (smeared edges, a body stretched to the floor behind it), and at full weight those pixels
  * out-voted the real view, which alone sees the motion as it was. */
@@ -390,7 +391,6 @@ static void weigh_proxy_moving(train_session *s, const train_view *v, int f)
     const size_t px = (size_t)W * H;
     const uint8_t *mv = s->moving[real] + (size_t)f * px;
     const pg_camera *rc = &ts->views[real].cam;
-    train_view_depth_frame(v, f, px, s->depth_t); /* load_target fills depth_t after this */
     const float *d = s->depth_t;
     for (int y = 0; y < H; y++)
         for (int x = 0; x < W; x++) {
@@ -418,8 +418,8 @@ static int load_target(train_session *s, int vi, int f, int moving)
     const uint8_t *mv = moving && s->moving ? s->moving[vi] : NULL;
     if (mv)
         for (size_t i = 0; i < px; i++) s->mask[i] *= 1.0f + s->cfg.moving_weight * mv[(size_t)f * px + i];
-    if (moving && v->role == IO_ROLE_PROXY) weigh_proxy_moving(s, v, f);
     if (v->depth) train_view_depth_frame(v, f, px, s->depth_t);
+    if (moving && v->role == IO_ROLE_PROXY) weigh_proxy_moving(s, v, f);
     return v->depth != NULL;
 }
 
