@@ -154,6 +154,7 @@ typedef struct {
     int frames, width;      /* DyNeRF input: first N frames, resize to this width (0: all / keep) */
     int views_per_step;     /* real view + proxies of one time per deformation (4) */
     int times_per_step;     /* times (deformations) per optimiser step (0: the trainer's default) */
+    int motion_crops;       /* motion crops per fine step (-1: the trainer's default) */
     float real_weight, moving_weight, lambda_depth, lambda_dssim; /* < 0: defaults */
     float proxy_moving_weight; /* loss weight of proxy pixels showing the real view's movers (< 0: default) */
     int deform_res, deform_width, static_check_every; /* 0: defaults / off */

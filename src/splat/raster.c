@@ -60,6 +60,7 @@ pg_render_settings splat_default_settings(void)
     s.background[0] = s.background[1] = s.background[2] = 0.0f;
     s.near_clip = 0.01f;
     s.sh_degree = -1;
+    s.whole = NULL;
     return s;
 }
 
@@ -327,7 +328,7 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     PG_TRY(ensure_tiles(r, tx * ty));
     r->n = n; r->width = W; r->height = H; r->tiles_x = tx; r->tiles_y = ty; r->sh_degree = deg;
     for (int c = 0; c < 3; c++) r->bg[c] = s->background[c];
-    splat_project_limits(cam, r->lim);
+    splat_project_limits(s->whole ? s->whole : cam, r->lim);
     pg_camera_center(cam, r->cam_center);
 
     /* Preprocess, then gradient slot offsets (Gaussian-major) and the visible list in index
@@ -468,9 +469,10 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
     /* Per-Gaussian fixed-order reduction of the slots, then the chain through SH and projection. */
     float C[3], lim[4];
     pg_camera_center(cam, C);
-    splat_project_limits(cam, lim);
+    splat_project_limits(s->whole ? s->whole : cam, lim);
     int deg = r->sh_degree, n = g->count;
-    float half_w = 0.5f * cam->width, half_h = 0.5f * cam->height;
+    const pg_camera *frame = s->whole ? s->whole : cam;
+    float half_w = 0.5f * frame->width, half_h = 0.5f * frame->height;
     /* Blocks of 16 Gaussians: slot sums, opacity and SH per Gaussian, then the projection
      * backward 16 at a time (same blocks for any thread count, so results stay identical). */
     int nblk = (n + 15) / 16;

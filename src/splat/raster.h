@@ -22,6 +22,10 @@ typedef struct {
     float background[3]; /* colour behind everything */
     float near_clip;     /* cull Gaussians with camera z below this (0.01) */
     int sh_degree;       /* -1: use the Gaussians' own sh_degree */
+    /* NULL, or the whole camera when cam is a crop of it (its size, the principal point shifted
+     * by the crop's corner): projection clamps and view-space gradient units follow the whole
+     * image, so a crop renders exactly the whole image's pixels */
+    const pg_camera *whole;
 } pg_render_settings;
 
 typedef struct {

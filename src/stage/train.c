@@ -32,6 +32,7 @@ void pg_train_defaults(pg_train_config *c)
     c->views_per_step = 4;
     c->real_weight = c->moving_weight = c->lambda_depth = c->lambda_dssim = c->proxy_moving_weight = -1;
     c->use_static = c->use_cull = 1;
+    c->motion_crops = -1;
 }
 
 cJSON *stage_train_config_json(const pg_train_config *c)
@@ -40,11 +41,11 @@ cJSON *stage_train_config_json(const pg_train_config *c)
     const int ints[] = { c->iters, c->coarse_iters, c->seed, c->max_gaussians, c->init_points, c->sh_degree,
                          c->proxies, c->frames, c->width, c->views_per_step, c->deform_res, c->deform_width,
                          c->deform_head_width, c->static_check_every, c->use_static, c->use_cull, c->deform_tres,
-                         c->times_per_step };
+                         c->times_per_step, c->motion_crops };
     static const char *int_names[] = { "iters", "coarse_iters", "seed", "max_gaussians", "init_points", "sh_degree",
                                        "proxies", "frames", "width", "views_per_step", "deform_res", "deform_width",
                                        "deform_head_width", "static_check_every", "use_static", "use_cull", "deform_tres",
-                                       "times_per_step" };
+                                       "times_per_step", "motion_crops" };
     for (size_t k = 0; k < sizeof ints / sizeof ints[0]; k++) cJSON_AddNumberToObject(j, int_names[k], ints[k]);
     const float floats[] = { c->real_weight, c->moving_weight, c->lambda_depth, c->lambda_dssim, c->proxy_moving_weight };
     static const char *float_names[] = { "real_weight", "moving_weight", "lambda_depth", "lambda_dssim",
@@ -64,6 +65,8 @@ static pg_status check_config(const pg_train_config *c)
     if (c->init_points < 1) return pg_fail(PG_ERR_ARG, "train: --init-points %d must be >= 1", c->init_points);
     if (c->times_per_step < 0 || c->times_per_step > TRAIN_MAX_BATCH)
         return pg_fail(PG_ERR_ARG, "train: --times-per-step %d must be in 1..%d", c->times_per_step, TRAIN_MAX_BATCH);
+    if (c->motion_crops < -1 || c->motion_crops > TRAIN_MAX_BATCH)
+        return pg_fail(PG_ERR_ARG, "train: --motion-crops %d must be in 0..%d", c->motion_crops, TRAIN_MAX_BATCH);
     if (c->views_per_step < 1 || c->views_per_step > TRAIN_MAX_BATCH)
         return pg_fail(PG_ERR_ARG, "train: --views-per-step %d must be in 1..%d", c->views_per_step, TRAIN_MAX_BATCH);
     if (c->proxy_moving_weight != -1 && !(c->proxy_moving_weight >= 0 && c->proxy_moving_weight <= 1))
@@ -234,6 +237,7 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
     cfg.sh_max_degree = c->sh_degree;
     cfg.views_per_step = c->views_per_step;
     if (c->times_per_step > 0) cfg.times_per_step = c->times_per_step;
+    if (c->motion_crops >= 0) cfg.motion_crops = c->motion_crops;
     if (c->real_weight >= 0) cfg.real_weight = c->real_weight;
     if (c->proxy_moving_weight >= 0) cfg.proxy_moving_weight = c->proxy_moving_weight;
     if (c->moving_weight >= 0) cfg.moving_weight = c->moving_weight;

@@ -38,6 +38,7 @@ train_config train_default_config(void)
     c.checkpoint_every = 0;
     c.views_per_step = 4;
     c.times_per_step = 1;
+    c.motion_crops = 0;
     c.real_weight = 0.5f;
     c.moving_weight = 9.0f;
     c.proxy_moving_weight = 1.0f;
@@ -106,6 +107,7 @@ void train_session_destroy(train_session *s)
     if (s->moving)
         for (int v = 0; v < s->ts->num_views; v++) free(s->moving[v]);
     free(s->moving);
+    free(s->crops);
     optim_adam_destroy(s->gopt);
     train_net_destroy(s->net);
     optim_adam_destroy(s->nopt);
@@ -115,6 +117,7 @@ void train_session_destroy(train_session *s)
     free(s->depth_t);
     free(s->depth_mask);
     optim_ssim_destroy(s->ssim);
+    optim_ssim_destroy(s->ssim_crop);
     free(s->d_rgb);
     free(s->d_depth);
     free(s);
@@ -166,6 +169,57 @@ static pg_status find_moving_pixels(train_session *s)
     return PG_OK;
 }
 
+/* The moving region of each frame of the (first) real view for motion crops: the box of the
+ * TRAIN_CROP_TILE tiles holding at least TRAIN_CROP_TILE_MIN moving pixels, one tile wider on
+ * every side. Counting per tile keeps a stray flickering pixel from stretching the box over the
+ * frame; the margin gives the SSIM window and the body's edges their context. */
+#define TRAIN_CROP_TILE 16
+#define TRAIN_CROP_TILE_MIN 24
+static pg_status find_moving_regions(train_session *s)
+{
+    const train_set *ts = s->ts;
+    s->crop_view = -1;
+    if (!s->moving || s->cfg.motion_crops <= 0) return PG_OK;
+    for (int v = 0; v < ts->num_views && s->crop_view < 0; v++)
+        if (s->moving[v]) s->crop_view = v;
+    if (s->crop_view < 0) return PG_OK;
+    const int W = ts->width, H = ts->height, T = TRAIN_CROP_TILE;
+    const int tw = (W + T - 1) / T, th = (H + T - 1) / T;
+    s->crops = pg_calloc((size_t)ts->frames * 4, sizeof *s->crops, "moving regions");
+    int *count = pg_malloc((size_t)tw * th * sizeof *count, "moving regions");
+    if (!s->crops || !count) {
+        free(count);
+        return PG_ERR_NOMEM;
+    }
+    for (int f = 0; f < ts->frames; f++) {
+        const uint8_t *mv = s->moving[s->crop_view] + (size_t)f * W * H;
+        memset(count, 0, (size_t)tw * th * sizeof *count);
+        for (int y = 0; y < H; y++)
+            for (int x = 0; x < W; x++) count[(y / T) * tw + x / T] += mv[(size_t)y * W + x] != 0;
+        int x0 = tw, y0 = th, x1 = -1, y1 = -1;
+        for (int ty = 0; ty < th; ty++)
+            for (int tx = 0; tx < tw; tx++)
+                if (count[ty * tw + tx] >= TRAIN_CROP_TILE_MIN) {
+                    x0 = tx < x0 ? tx : x0, x1 = tx > x1 ? tx : x1;
+                    y0 = ty < y0 ? ty : y0, y1 = ty > y1 ? ty : y1;
+                }
+        if (x1 < 0) continue;
+        x0 = x0 > 0 ? x0 - 1 : 0, y0 = y0 > 0 ? y0 - 1 : 0;
+        x1 = x1 < tw - 1 ? x1 + 1 : x1, y1 = y1 < th - 1 ? y1 + 1 : y1;
+        int *r = s->crops + 4 * f;
+        r[0] = x0 * T, r[1] = y0 * T;
+        r[2] = ((x1 + 1) * T < W ? (x1 + 1) * T : W) - r[0];
+        r[3] = ((y1 + 1) * T < H ? (y1 + 1) * T : H) - r[1];
+        s->crop_frames++;
+    }
+    free(count);
+    return PG_OK;
+}
+
+static int times_per_step(const train_config *c) { return c->times_per_step > 1 ? c->times_per_step : 1; }
+/* motion crops each step will make (none without a moving region) */
+static int motion_crops(const train_session *s) { return s->crop_frames > 0 ? s->cfg.motion_crops : 0; }
+
 int train_time_texels(int frames, int fine_iters)
 {
     int by_budget = fine_iters / TRAIN_STEPS_PER_TIME_TEXEL;
@@ -201,7 +255,7 @@ static pg_status start_fine(train_session *s)
     nc.res = s->cfg.deform_res;
     nc.tres = s->cfg.deform_tres > 0 ? s->cfg.deform_tres
                                       : train_time_texels(s->ts->frames, (s->cfg.iters - s->cfg.coarse_iters) *
-                                                                             (s->cfg.times_per_step > 1 ? s->cfg.times_per_step : 1));
+                                                                             (times_per_step(&s->cfg) + motion_crops(s)));
     nc.channels = s->cfg.deform_channels;
     nc.seed = s->cfg.seed * 7919u + 17u;
     s->net_cfg = nc;
@@ -260,6 +314,7 @@ pg_status train_session_create(train_session **out, const train_set *ts, const t
         goto fail;
     }
     if ((st = find_moving_pixels(s))) goto fail;
+    if ((st = find_moving_regions(s))) goto fail;
     if (ckpt_path) train_checkpoint_clean_temps(ckpt_path);
     if (resume && ckpt_path && pg_path_exists(ckpt_path)) {
         if ((st = train_checkpoint_read(s, ckpt_path))) goto fail;
@@ -517,23 +572,60 @@ static pg_status check_static(train_session *s)
     return st;
 }
 
-/* Renders view vi at frame f from the deformed set d, adds its weighted loss gradient into dg
- * and its view-space gradients into the density statistics (measured at unit weight, so the
- * 3DGS threshold keeps its meaning); returns the weighted loss. */
-static pg_status step_view(train_session *s, int vi, int f, float weight, double *loss_out)
+/* Keeps the rect (x0, y0, w, h) of the (W, c)-channel image in buf, packed at its start: rows
+ * move to lower addresses only, so in place is safe. */
+static void crop_in_place(float *buf, int W, int c, const int *rect)
+{
+    for (int y = 0; y < rect[3]; y++)
+        memmove(buf + (size_t)y * rect[2] * c, buf + ((size_t)(rect[1] + y) * W + rect[0]) * c,
+                (size_t)rect[2] * c * sizeof *buf);
+}
+
+/* The SSIM workspace for a w x h image: the full-size one, or one kept for the last crop size. */
+static pg_status ssim_workspace(train_session *s, int w, int h, optim_ssim_ws **ws)
+{
+    if (w == s->ts->width && h == s->ts->height) {
+        *ws = s->ssim;
+        return PG_OK;
+    }
+    if (!s->ssim_crop || s->ssim_crop_w != w || s->ssim_crop_h != h) {
+        optim_ssim_destroy(s->ssim_crop);
+        s->ssim_crop = NULL;
+        PG_TRY(optim_ssim_create(&s->ssim_crop, h, w, 3));
+        s->ssim_crop_w = w, s->ssim_crop_h = h;
+    }
+    *ws = s->ssim_crop;
+    return PG_OK;
+}
+
+/* Renders view vi at frame f from the deformed set d (only the pixels of rect - x0, y0, w, h -
+ * when rect is set), adds its weighted loss gradient into dg and its view-space gradients into
+ * the density statistics (measured at unit weight, so the 3DGS threshold keeps its meaning);
+ * returns the weighted loss. */
+static pg_status step_view(train_session *s, int vi, int f, float weight, const int *rect, double *loss_out)
 {
     const train_set *ts = s->ts;
     const train_config *c = &s->cfg;
-    const int W = ts->width, H = ts->height;
-    const size_t px = (size_t)W * H;
-    const pg_camera *cam = &ts->views[vi].cam;
+    pg_camera cam = ts->views[vi].cam;
     int real = ts->views[vi].role == IO_ROLE_REAL;
     int has_depth = load_target(s, vi, f, 1);
+    if (rect) {
+        crop_in_place(s->target.data, ts->width, 3, rect);
+        crop_in_place(s->mask, ts->width, 1, rect);
+        if (has_depth) crop_in_place(s->depth_t, ts->width, 1, rect);
+        cam.width = rect[2], cam.height = rect[3];
+        cam.cx -= (float)rect[0], cam.cy -= (float)rect[1];
+    }
+    const int W = cam.width, H = cam.height;
+    const size_t px = (size_t)W * H;
+    optim_ssim_ws *ssim;
+    PG_TRY(ssim_workspace(s, W, H, &ssim));
     double t0 = pg_time_seconds(), t1;
     pg_render_settings rs = splat_default_settings();
     memcpy(rs.background, c->bg, sizeof rs.background);
+    if (rect) rs.whole = &ts->views[vi].cam;
     pg_render_output out;
-    PG_TRY(splat_render_forward(s->raster, &s->d, cam, &rs, &out));
+    PG_TRY(splat_render_forward(s->raster, &s->d, &cam, &rs, &out));
     t1 = pg_time_seconds();
     s->timing.raster_forward += (t1 - t0) * 1e3;
     t0 = t1;
@@ -546,13 +638,13 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, double
     double loss = optim_l1_forward(out.rgb, s->target.data, mk, H, W, 3);
     optim_l1_backward(s->d_rgb, weight, out.rgb, s->target.data, mk, H, W, 3);
     if (c->lambda_dssim > 0) {
-        float ssim = optim_ssim_forward(s->ssim, out.rgb, s->target.data, mk, H, W, 3);
-        optim_ssim_backward(s->ssim, s->d_rgb, -c->lambda_dssim * weight, out.rgb, s->target.data, mk, H, W, 3);
-        loss += c->lambda_dssim * (1.0 - ssim);
+        float ssim_v = optim_ssim_forward(ssim, out.rgb, s->target.data, mk, H, W, 3);
+        optim_ssim_backward(ssim, s->d_rgb, -c->lambda_dssim * weight, out.rgb, s->target.data, mk, H, W, 3);
+        loss += c->lambda_dssim * (1.0 - ssim_v);
     }
     loss *= weight;
     if (has_depth && c->lambda_depth > 0) loss += depth_loss(s, out.depth, W, H, weight); /* weighted inside */
-    if (real) {
+    if (real && !rect) {
         pg_image rendered = {W, H, 3, out.rgb};
         s->last_psnr = pg_image_psnr(&rendered, &s->target, ts->views[vi].mask ? s->mask : NULL);
     }
@@ -561,7 +653,7 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, double
     t0 = t1;
 
     memset(s->vs_grad, 0, (size_t)s->g.count * sizeof(float));
-    PG_TRY(splat_render_backward(s->raster, &s->d, cam, &rs, s->d_rgb, has_depth ? s->d_depth : NULL, NULL, &s->dg,
+    PG_TRY(splat_render_backward(s->raster, &s->d, &cam, &rs, s->d_rgb, has_depth ? s->d_depth : NULL, NULL, &s->dg,
                                  s->vs_grad));
     t1 = pg_time_seconds();
     s->timing.raster_backward += (t1 - t0) * 1e3;
@@ -569,7 +661,7 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, double
     const float unit = weight > 0 ? 1.0f / weight : 0.0f;
     for (int i = 0; i < s->d.count; i++) {
         float uv[2];
-        float z = pg_camera_project(cam, s->d.means + 3 * i, uv);
+        float z = pg_camera_project(&cam, s->d.means + 3 * i, uv);
         if (z > 0.01f && uv[0] >= 0 && uv[0] < W && uv[1] >= 0 && uv[1] < H) {
             s->grad_accum[i] += s->vs_grad[i] * unit;
             s->grad_denom[i] += 1;
@@ -579,19 +671,23 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, double
     return PG_OK;
 }
 
-/* One time of a step: picks frame `slot` of the epoch order and its batch of views, deforms once,
- * renders and back-propagates every view, then sends the gradient through the network; the
- * canonical gradient is summed into gg (first = 1: gg starts from it). Returns the loss. */
-static pg_status step_time(train_session *s, int slot, int first, double *loss_out)
+/* Deforms once to frame f's time, renders and back-propagates each of the nb views (cropped to
+ * rect when set), then sends the gradient through the network; the canonical gradient is summed
+ * into gg (first = 1: gg starts from it). Returns the loss. */
+static pg_status step_views(train_session *s, int f, const int *views, const float *weights, int nb,
+                            const int *rect, int first, double *loss_out)
 {
     const train_set *ts = s->ts;
     double t0 = pg_time_seconds(), t1;
-    int f = pick_frame(s, slot);
-    int views[TRAIN_MAX_BATCH];
-    float weights[TRAIN_MAX_BATCH];
-    int nb = pick_batch(s, views, weights);
+    pg_camera crop_cam;
     const pg_camera *cams[TRAIN_MAX_BATCH];
     for (int b = 0; b < nb; b++) cams[b] = &ts->views[views[b]].cam;
+    if (rect) { /* cull to the crop's frustum */
+        crop_cam = *cams[0];
+        crop_cam.width = rect[2], crop_cam.height = rect[3];
+        crop_cam.cx -= (float)rect[0], crop_cam.cy -= (float)rect[1];
+        cams[0] = &crop_cam;
+    }
     float t = train_frame_time(f, ts->frames);
 
     int nd = 0;
@@ -623,7 +719,7 @@ static pg_status step_time(train_session *s, int slot, int first, double *loss_o
     double loss = 0;
     for (int b = 0; b < nb; b++) {
         double lv;
-        PG_TRY(step_view(s, views[b], f, weights[b], &lv));
+        PG_TRY(step_view(s, views[b], f, weights[b], rect, &lv));
         loss += lv;
     }
     t0 = pg_time_seconds();
@@ -637,19 +733,49 @@ static pg_status step_time(train_session *s, int slot, int first, double *loss_o
     return PG_OK;
 }
 
+/* One time of a step: frame `slot` of the epoch order with its batch of views. */
+static pg_status step_time(train_session *s, int slot, int first, double *loss_out)
+{
+    int f = pick_frame(s, slot);
+    int views[TRAIN_MAX_BATCH];
+    float weights[TRAIN_MAX_BATCH];
+    int nb = pick_batch(s, views, weights);
+    return step_views(s, f, views, weights, nb, NULL, first, loss_out);
+}
+
+/* A motion crop: the real view at a random frame with a moving region, rendered over that region
+ * alone at the real view's weight. The moving part is a few percent of the frame and changes
+ * with every frame, while the still scene is learnt from any frame; a crop costs a fraction of a
+ * full time (fewer pixels, fewer Gaussians through the network), so a long clip's frames get
+ * their motion fitted more often for the same CPU time. */
+static pg_status step_motion_crop(train_session *s, double *loss_out)
+{
+    *loss_out = 0;
+    if (s->crop_frames == 0) return PG_OK;
+    int k = (int)pg_rng_below(&s->rng, (uint32_t)s->crop_frames), f = 0;
+    for (; f < s->ts->frames; f++)
+        if (s->crops[4 * f + 2] > 0 && k-- == 0) break;
+    float w = s->cfg.real_weight;
+    return step_views(s, f, &s->crop_view, &w, 1, s->crops + 4 * f, 0, loss_out);
+}
+
 pg_status train_session_step(train_session *s)
 {
     const train_config *c = &s->cfg;
     if (!s->fine && s->iter >= c->coarse_iters) PG_TRY(start_fine(s));
     if (s->cfg.views_per_step > TRAIN_MAX_BATCH) s->cfg.views_per_step = TRAIN_MAX_BATCH;
     memset(&s->timing, 0, sizeof s->timing);
-    const int times = c->times_per_step > 1 ? c->times_per_step : 1;
+    const int times = times_per_step(c);
     if (s->fine) train_net_zero_grad(s->net);
     double loss = 0;
     for (int k = 0; k < times; k++) {
         double lk;
         PG_TRY(step_time(s, s->iter * times + k, k == 0, &lk));
         loss += lk / times;
+    }
+    for (int k = 0; s->fine && k < motion_crops(s); k++) {
+        double lk;
+        PG_TRY(step_motion_crop(s, &lk));
     }
     if (s->fine) {
         double tr = pg_time_seconds();

@@ -33,6 +33,7 @@ typedef struct {
     int stop_at_iter;     /* testing: return PG_OK after saving at this iteration (0 = off) */
     int views_per_step;   /* views trained per deformation: the real view + (this - 1) proxies of one time */
     int times_per_step;   /* times (deformations) per optimiser step, each with its own views (1) */
+    int motion_crops;     /* fine stage: extra times per step, each the real view cropped to its moving region */
     float real_weight;    /* share of the step's loss on the real view when proxies are in the batch */
     float moving_weight;  /* extra loss weight on the real view's moving pixels (1 + this) */
     float proxy_moving_weight; /* loss weight of proxy pixels that show the real view's moving pixels */
@@ -67,7 +68,7 @@ train_config train_default_config(void);
  * visited a handful of times stays near its initial value, so a long clip on a short schedule
  * froze its motion. Between texels the field interpolates linearly in time. */
 #define TRAIN_STEPS_PER_TIME_TEXEL 8
-int train_time_texels(int frames, int fine_times); /* fine_times: fine iterations x times_per_step */
+int train_time_texels(int frames, int fine_times); /* fine_times: fine iterations x (times_per_step + motion crops) */
 
 typedef struct train_session train_session;
 

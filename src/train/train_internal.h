@@ -35,6 +35,9 @@ struct train_session {
     float *vs_grad;      /* (side_cap) this iteration's view-space gradient norm */
     int *idx;            /* (side_cap) Gaussians sent through the network */
     uint8_t **moving;    /* (num_views) per real view (F, H, W) moving pixels, else NULL; may be NULL */
+    int crop_view;       /* the real view whose moving region motion crops render (-1: none) */
+    int *crops;          /* (F, 4) its moving region per frame: x0, y0, width, height (width 0: none) */
+    int crop_frames;     /* frames with a moving region */
     train_net *net;
     optim_adam *nopt;    /* Adam of the network parameters: TRAIN_NET_* groups, one row */
 
@@ -44,6 +47,8 @@ struct train_session {
     float *depth_t;      /* (H, W) */
     float *depth_mask;   /* (H, W) valid target depth */
     optim_ssim_ws *ssim;
+    optim_ssim_ws *ssim_crop; /* for the last crop size */
+    int ssim_crop_w, ssim_crop_h;
     float *d_rgb;        /* (H, W, 3) */
     float *d_depth;      /* (H, W) */
 
