@@ -84,6 +84,13 @@ int train_session_static_count(const train_session *s)
     for (int i = 0; i < s->g.count; i++) n += s->is_static[i] != 0;
     return n;
 }
+void train_session_motion_regions(const train_session *s, int *frames, double *mean_area)
+{
+    double area = 0;
+    for (int f = 0; s->crops && f < s->ts->frames; f++) area += (double)s->crops[4 * f + 2] * s->crops[4 * f + 3];
+    *frames = s->crop_frames;
+    *mean_area = s->crop_frames ? area / s->crop_frames / ((double)s->ts->width * s->ts->height) : 0;
+}
 void train_session_deform_stats(const train_session *s, double *mean_deformed, double *mean_movable)
 {
     *mean_deformed = s->fine_steps ? s->sum_deformed / (double)s->fine_steps : 0;
