@@ -293,6 +293,7 @@ typedef struct {
     int frames, width, height, iters; /* 0: all / the preset's */
     int deform_width;                 /* 0: the trainer's default */
     int deform_head_width;            /* 0: the trainer's default (32) */
+    int motion_crops;                 /* motion crops per fine step (-1: the trainer's default) */
     int threads;                      /* 0: all cores; every stage uses this count */
     int seed;                         /* (1) */
     int evaluate;                     /* score the test cameras into OUT/metrics.json, report.md */

@@ -13,6 +13,7 @@
 #include "core/status.h"
 #include "core/resources.h"
 #include "io/dataset.h"
+#include "train/train.h"
 #include "io/json.h"
 #include "io/video.h"
 #include "stage/marker.h"
@@ -52,6 +53,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
     c->pad = -1;
     c->refine = c->align = c->fuse = c->planes = 1;
     c->seed = 1;
+    c->motion_crops = -1;
 }
 
 /* What a pipeline run settles before its first stage: the cameras by name, the size and the
@@ -73,6 +75,8 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "--seed must be >= 0 (got %d)", c->seed);
     if (c->deform_width < 0 || c->deform_width > 1024)
         return pg_fail(PG_ERR_ARG, "--deform-width must be in 1..1024 (got %d)", c->deform_width);
+    if (c->motion_crops < -1 || c->motion_crops > TRAIN_MAX_BATCH)
+        return pg_fail(PG_ERR_ARG, "--motion-crops must be in 0..%d (got %d)", TRAIN_MAX_BATCH, c->motion_crops);
     if (c->deform_head_width < 0 || c->deform_head_width > 1024)
         return pg_fail(PG_ERR_ARG, "--deform-head-width must be in 1..1024 (got %d)", c->deform_head_width);
     if (c->depth_scale < 0) return pg_fail(PG_ERR_ARG, "--depth-scale must be > 0 (got %g)", c->depth_scale);
@@ -401,6 +405,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.iters = plan->iters;
     tc.deform_width = c->deform_width;
     tc.deform_head_width = c->deform_head_width;
+    tc.motion_crops = c->motion_crops;
     tc.seed = c->seed;
     tc.threads = plan->threads;
     tc.eval_train = 1; /* the training camera's moving/static PSNR: whether the motion was captured */
