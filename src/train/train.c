@@ -86,10 +86,8 @@ int train_session_static_count(const train_session *s)
 }
 void train_session_motion_regions(const train_session *s, int *frames, double *mean_area)
 {
-    double area = 0;
-    for (int f = 0; s->crops && f < s->ts->frames; f++) area += (double)s->crops[4 * f + 2] * s->crops[4 * f + 3];
-    *frames = s->crop_frames;
-    *mean_area = s->crop_frames ? area / s->crop_frames / ((double)s->ts->width * s->ts->height) : 0;
+    *frames = s->regions.frames_with_motion;
+    *mean_area = train_motion_regions_mean_area(&s->regions);
 }
 void train_session_deform_stats(const train_session *s, double *mean_deformed, double *mean_movable)
 {
@@ -114,7 +112,7 @@ void train_session_destroy(train_session *s)
     if (s->moving)
         for (int v = 0; v < s->ts->num_views; v++) free(s->moving[v]);
     free(s->moving);
-    free(s->crops);
+    train_motion_regions_destroy(&s->regions);
     optim_adam_destroy(s->gopt);
     train_net_destroy(s->net);
     optim_adam_destroy(s->nopt);
@@ -176,12 +174,7 @@ static pg_status find_moving_pixels(train_session *s)
     return PG_OK;
 }
 
-/* The moving region of each frame of the (first) real view for motion crops: the box of the
- * TRAIN_CROP_TILE tiles holding at least TRAIN_CROP_TILE_MIN moving pixels, one tile wider on
- * every side. Counting per tile keeps a stray flickering pixel from stretching the box over the
- * frame; the margin gives the SSIM window and the body's edges their context. */
-#define TRAIN_CROP_TILE 16
-#define TRAIN_CROP_TILE_MIN 24
+/* The movers of the (first) real view, boxed per frame, for motion crops. */
 static pg_status find_moving_regions(train_session *s)
 {
     const train_set *ts = s->ts;
@@ -190,42 +183,12 @@ static pg_status find_moving_regions(train_session *s)
     for (int v = 0; v < ts->num_views && s->crop_view < 0; v++)
         if (s->moving[v]) s->crop_view = v;
     if (s->crop_view < 0) return PG_OK;
-    const int W = ts->width, H = ts->height, T = TRAIN_CROP_TILE;
-    const int tw = (W + T - 1) / T, th = (H + T - 1) / T;
-    s->crops = pg_calloc((size_t)ts->frames * 4, sizeof *s->crops, "moving regions");
-    int *count = pg_malloc((size_t)tw * th * sizeof *count, "moving regions");
-    if (!s->crops || !count) {
-        free(count);
-        return PG_ERR_NOMEM;
-    }
-    for (int f = 0; f < ts->frames; f++) {
-        const uint8_t *mv = s->moving[s->crop_view] + (size_t)f * W * H;
-        memset(count, 0, (size_t)tw * th * sizeof *count);
-        for (int y = 0; y < H; y++)
-            for (int x = 0; x < W; x++) count[(y / T) * tw + x / T] += mv[(size_t)y * W + x] != 0;
-        int x0 = tw, y0 = th, x1 = -1, y1 = -1;
-        for (int ty = 0; ty < th; ty++)
-            for (int tx = 0; tx < tw; tx++)
-                if (count[ty * tw + tx] >= TRAIN_CROP_TILE_MIN) {
-                    x0 = tx < x0 ? tx : x0, x1 = tx > x1 ? tx : x1;
-                    y0 = ty < y0 ? ty : y0, y1 = ty > y1 ? ty : y1;
-                }
-        if (x1 < 0) continue;
-        x0 = x0 > 0 ? x0 - 1 : 0, y0 = y0 > 0 ? y0 - 1 : 0;
-        x1 = x1 < tw - 1 ? x1 + 1 : x1, y1 = y1 < th - 1 ? y1 + 1 : y1;
-        int *r = s->crops + 4 * f;
-        r[0] = x0 * T, r[1] = y0 * T;
-        r[2] = ((x1 + 1) * T < W ? (x1 + 1) * T : W) - r[0];
-        r[3] = ((y1 + 1) * T < H ? (y1 + 1) * T : H) - r[1];
-        s->crop_frames++;
-    }
-    free(count);
-    return PG_OK;
+    return train_motion_regions_find(s->moving[s->crop_view], ts->frames, ts->width, ts->height, &s->regions);
 }
 
 static int times_per_step(const train_config *c) { return c->times_per_step > 1 ? c->times_per_step : 1; }
 /* motion crops each step will make (none without a moving region) */
-static int motion_crops(const train_session *s) { return s->crop_frames > 0 ? s->cfg.motion_crops : 0; }
+static int motion_crops(const train_session *s) { return s->regions.frames_with_motion > 0 ? s->cfg.motion_crops : 0; }
 
 int train_time_texels(int frames, int fine_iters)
 {
@@ -750,7 +713,7 @@ static pg_status step_time(train_session *s, int slot, int first, double *loss_o
     return step_views(s, f, views, weights, nb, NULL, first, loss_out);
 }
 
-/* A motion crop: the real view at a random frame with a moving region, rendered over that region
+/* A motion crop: the real view at a random frame with motion, rendered over one mover's box
  * alone at the real view's weight. The moving part is a few percent of the frame and changes
  * with every frame, while the still scene is learnt from any frame; a crop costs a fraction of a
  * full time (fewer pixels, fewer Gaussians through the network), so a long clip's frames get
@@ -758,12 +721,12 @@ static pg_status step_time(train_session *s, int slot, int first, double *loss_o
 static pg_status step_motion_crop(train_session *s, double *loss_out)
 {
     *loss_out = 0;
-    if (s->crop_frames == 0) return PG_OK;
-    int k = (int)pg_rng_below(&s->rng, (uint32_t)s->crop_frames), f = 0;
-    for (; f < s->ts->frames; f++)
-        if (s->crops[4 * f + 2] > 0 && k-- == 0) break;
+    int f;
+    const train_region *b = train_motion_regions_draw(&s->regions, &s->rng, &f);
+    if (!b) return PG_OK;
+    const int rect[4] = { b->x, b->y, b->w, b->h };
     float w = s->cfg.real_weight;
-    return step_views(s, f, &s->crop_view, &w, 1, s->crops + 4 * f, 0, loss_out);
+    return step_views(s, f, &s->crop_view, &w, 1, rect, 0, loss_out);
 }
 
 pg_status train_session_step(train_session *s)

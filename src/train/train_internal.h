@@ -8,6 +8,7 @@
 #include "optim/loss_image.h"
 #include "splat/raster.h"
 #include "train/model.h"
+#include "train/motion_regions.h"
 #include "train/train.h"
 
 struct train_session {
@@ -36,8 +37,7 @@ struct train_session {
     int *idx;            /* (side_cap) Gaussians sent through the network */
     uint8_t **moving;    /* (num_views) per real view (F, H, W) moving pixels, else NULL; may be NULL */
     int crop_view;       /* the real view whose moving region motion crops render (-1: none) */
-    int *crops;          /* (F, 4) its moving region per frame: x0, y0, width, height (width 0: none) */
-    int crop_frames;     /* frames with a moving region */
+    train_motion_regions regions; /* its movers' boxes per frame */
     train_net *net;
     optim_adam *nopt;    /* Adam of the network parameters: TRAIN_NET_* groups, one row */
 
