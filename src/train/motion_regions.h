@@ -16,9 +16,9 @@
 #include "core/status.h"
 
 /* Tiles of this many pixels a side are counted; a tile with at least TRAIN_REGION_TILE_MIN
- * moving pixels is part of a mover (a lone flickering pixel, dilated, stays below it). */
+ * moving pixels is part of a mover (a lone flickering pixel, dilated to 5 x 5, or two stay below it). */
 #define TRAIN_REGION_TILE 16
-#define TRAIN_REGION_TILE_MIN 24
+#define TRAIN_REGION_TILE_MIN 40
 
 typedef struct {
     int x, y, w, h; /* pixels */
