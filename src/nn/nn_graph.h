@@ -113,6 +113,11 @@ typedef enum {
     NN_OP_ABS,            /* (x) unary */
     NN_OP_ATTENTION,      /* (q[..., M, D], k[..., N, D], v[..., N, E]) softmax(q k^T) v per batch, in row blocks
                            * (made by the fusion pass from MatMul(q, k^T) -> Softmax -> MatMul(., v)) */
+    NN_OP_REQUANTIZE,     /* (x, fixed[C,2] i64|-1) attr: q_multiplier q_zero_point q_min q_max q_out_scale:
+                           * y = (clamp(r + zp, q_min, q_max) - zp) * q_out_scale where r = x * m rounded: with
+                           * `fixed` (per channel of the last axis: Q31 mantissa, power-of-two shift) x is an
+                           * int32 value and r is TFLite's fixed-point product with its two roundings; without
+                           * it r = round(x * q_multiplier) half away from zero (see tflite_import.c) */
     NN_OP_COUNT
 } nn_op;
 
@@ -152,6 +157,9 @@ typedef struct {
     float scale_h, scale_w;   /* RESIZE scales used by the coordinate transform (0: out / in) */
     float cubic_a;            /* RESIZE cubic coefficient (-0.75, as ONNX and torch) */
     int exclude_outside;      /* RESIZE cubic: taps outside the input get weight 0, the rest renormalised */
+
+    float q_multiplier, q_out_scale; /* REQUANTIZE (q_out_scale 1: keep the integer, zero point removed) */
+    int q_zero_point, q_min, q_max;
 } nn_attrs;
 
 typedef struct {

@@ -127,7 +127,7 @@ void nn_sgemm1(int trans_a, int trans_b, int M, int N, int K, const float *A, in
 #define NN_DECLARE_OP(x) pg_status nn_infer_##x(nn_graph *g, nn_node *n); void nn_run_##x(const nn_ctx *c, const nn_node *n);
 NN_DECLARE_OP(conv) NN_DECLARE_OP(conv_transpose)           /* ops_conv.c */
 NN_DECLARE_OP(matmul) NN_DECLARE_OP(gemm)                   /* ops_matmul.c */
-NN_DECLARE_OP(binary) NN_DECLARE_OP(unary)                  /* ops_elementwise.c */
+NN_DECLARE_OP(binary) NN_DECLARE_OP(unary) NN_DECLARE_OP(requantize) /* ops_elementwise.c */
 NN_DECLARE_OP(layer_norm) NN_DECLARE_OP(softmax) NN_DECLARE_OP(reduce_mean) /* ops_norm.c */
 NN_DECLARE_OP(reshape) NN_DECLARE_OP(transpose) NN_DECLARE_OP(slice) NN_DECLARE_OP(concat)
 NN_DECLARE_OP(gather) NN_DECLARE_OP(expand) NN_DECLARE_OP(pad)  /* ops_shape.c */
