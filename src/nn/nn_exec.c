@@ -56,7 +56,7 @@ const nn_op_info nn_ops[NN_OP_COUNT] = {
     [NN_OP_IDENTITY] = { "Identity", 1, 1, nn_infer_unary, nn_run_reshape, NULL },
     [NN_OP_ABS] = { "Abs", 1, 1, nn_infer_unary, nn_run_unary, NULL },
     [NN_OP_ATTENTION] = { "Attention", 3, 3, nn_infer_attention, nn_run_attention, nn_scratch_attention },
-    [NN_OP_REQUANTIZE] = { "Requantize", 1, 2, nn_infer_requantize, nn_run_requantize, NULL },
+    [NN_OP_REQUANTIZE] = { "Requantize", 1, 2, nn_infer_requantize, nn_run_requantize, nn_scratch_requantize },
 };
 static_assert(sizeof nn_ops / sizeof nn_ops[0] == NN_OP_COUNT, "one nn_ops entry per nn_op");
 

@@ -188,24 +188,55 @@ static int32_t fixed_point_multiply(int32_t x, int32_t q, int shift)
     return (high >> right) + (rem > threshold);
 }
 
-/* One row of C channels: r as in nn_graph.h, then the clamp, shifted by the zero point so the
- * result stays centred on it. The float-multiplier loop rounds with truncf (vectorisable). */
-static void requantize_row(float *restrict y, const float *restrict x, const int64_t *fixed, float m0, int64_t C, float lo, float hi,
-                           float out_scale)
+/* Per-channel fixed-point multipliers as doubles (arrays of C, in the thread's scratch): mult =
+ * q * 2^(left - 31) (exact: q has 31 bits, the rest is a power of two), post = 2^-right, and
+ * exact_below = 2^22 / 2^left, the |x| under which x * mult is exact in a double. */
+typedef struct {
+    double *mult, *post;
+    float *exact_below;
+} fixed_multipliers;
+
+/* The fixed-point rescale of one row of C channels in doubles, exactly TFLite's: high = x * q /
+ * 2^31 rounded half up (floor(v + 0.5): the rounding of its doubling high multiply, ties toward
+ * +inf for both signs), then high / 2^right rounded half away from zero. Every step is exact
+ * while |x| stays below exact_below; a row with a larger value takes fixed_point_multiply. */
+static void requantize_fixed_row(float *restrict y, const float *restrict x, const double *restrict mult, const double *restrict post,
+                                 const float *restrict exact_below, const int64_t *fixed, int64_t C, float lo, float hi, float out_scale)
+{
+    int exact = 1;
+    for (int64_t c = 0; c < C; c++) exact &= fabsf(x[c]) < exact_below[c];
+    if (!exact) {
+        for (int64_t c = 0; c < C; c++) {
+            float v = x[c] < -2147483520.0f ? -2147483520.0f : x[c] > 2147483520.0f ? 2147483520.0f : x[c];
+            float r = (float)fixed_point_multiply(v == v ? (int32_t)v : 0, (int32_t)fixed[2 * c], (int)fixed[2 * c + 1]);
+            r = r < lo ? lo : r;
+            y[c] = (r > hi ? hi : r) * out_scale;
+        }
+        return;
+    }
+    for (int64_t c = 0; c < C; c++) {
+        double v = floor((double)x[c] * mult[c] + 0.5) * post[c];
+        float f = (float)trunc(v + (v < 0 ? -0.5 : 0.5));
+        f = f < lo ? lo : f;
+        y[c] = (f > hi ? hi : f) * out_scale;
+    }
+}
+
+/* The float-multiplier form: round(x * m0) half away from zero (truncf keeps it vectorisable). */
+static void requantize_float_row(float *restrict y, const float *restrict x, float m0, int64_t C, float lo, float hi, float out_scale)
 {
     for (int64_t c = 0; c < C; c++) {
-        float r;
-        if (fixed) {
-            float v = x[c] < -2147483520.0f ? -2147483520.0f : x[c] > 2147483520.0f ? 2147483520.0f : x[c];
-            r = (float)fixed_point_multiply(v == v ? (int32_t)v : 0, (int32_t)fixed[2 * c], (int)fixed[2 * c + 1]);
-        } else {
-            float v = x[c] * m0, t = truncf(v);
-            r = t + (fabsf(v - t) >= 0.5f ? (v < 0 ? -1.0f : 1.0f) : 0.0f);
-        }
+        float v = x[c] * m0, t = truncf(v);
+        float r = t + (fabsf(v - t) >= 0.5f ? (v < 0 ? -1.0f : 1.0f) : 0.0f);
         r = r < lo ? lo : r;
-        r = r > hi ? hi : r;
-        y[c] = r * out_scale;
+        y[c] = (r > hi ? hi : r) * out_scale;
     }
+}
+
+size_t nn_scratch_requantize(const nn_graph *g, const nn_node *n)
+{
+    const nn_tensor *x = nn_in((nn_graph *)g, n, 0);
+    return n->num_inputs > 1 && n->inputs[1] >= 0 && x->ndim >= 1 ? (size_t)x->dims[x->ndim - 1] * 5 : 0; /* 2 doubles + 1 float */
 }
 
 void nn_run_requantize(const nn_ctx *c, const nn_node *n)
@@ -218,7 +249,19 @@ void nn_run_requantize(const nn_ctx *c, const nn_node *n)
     if (C < 1) return;
     const nn_attrs *a = &n->attr;
     float lo = (float)(a->q_min - a->q_zero_point), hi = (float)(a->q_max - a->q_zero_point);
-    #pragma omp parallel for schedule(static) if (count >= NN_PAR_MEMORY)
-    for (int64_t s = 0; s < count; s += C)
-        requantize_row(y + s, x + s, fixed, a->q_multiplier, count - s < C ? count - s : C, lo, hi, a->q_out_scale);
+    /* the per-channel doubles, once, in the first thread's scratch (64-byte aligned) */
+    double *mult = (double *)c->scratch, *post = mult + C;
+    float *exact_below = (float *)(post + C);
+    for (int64_t ch = 0; fixed && ch < C; ch++) {
+        int shift = (int)fixed[2 * ch + 1], left = shift > 0 ? shift : 0;
+        mult[ch] = ldexp((double)fixed[2 * ch], left - 31);
+        post[ch] = ldexp(1.0, shift > 0 ? 0 : shift);
+        exact_below[ch] = (float)ldexp(1.0, 22 - left);
+    }
+    #pragma omp parallel for schedule(static) if (count >= NN_PAR_COMPUTE)
+    for (int64_t s = 0; s < count; s += C) {
+        int64_t len = count - s < C ? count - s : C;
+        if (fixed) requantize_fixed_row(y + s, x + s, mult, post, exact_below, fixed, len, lo, hi, a->q_out_scale);
+        else requantize_float_row(y + s, x + s, a->q_multiplier, len, lo, hi, a->q_out_scale);
+    }
 }
