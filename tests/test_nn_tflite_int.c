@@ -331,6 +331,11 @@ static void test_fastdepth(void)
     CHECK_OK(io_frames_image(&fr, 0, &img));
     CHECK_OK(pg_image_resize(&in, &img, 224, 224));
     size_t P = 224 * 224;
+    for (size_t p = 0; p < P; p++) { /* the network reads BGR (models/README.md) */
+        float r = in.data[3 * p];
+        in.data[3 * p] = in.data[3 * p + 2];
+        in.data[3 * p + 2] = r;
+    }
     float *ref = malloc(P * sizeof(float)), *run = malloc(P * sizeof(float));
     double t0 = pg_time_seconds();
     CHECK_OK(nn_tfl_ref_run(&m, in.data, &ref, 1));
@@ -355,7 +360,7 @@ static void test_fastdepth(void)
     if (gt.data && full.data) {
         double rho = spearman(full.data, gt.data, img.width * img.height);
         printf("FastDepth on tabletop_dev cam00 frame 0: Spearman %.4f vs depth_gt\n", rho);
-        CHECK(rho > 0, "Spearman %.4f", rho);
+        CHECK(rho >= 0.6, "Spearman %.4f", rho);
     }
     pg_array_destroy(&gt);
     pg_image_destroy(&full);
