@@ -2,8 +2,10 @@
  * every integer op (written by tests/tflite_writer.h) run by the runtime and by the reference's
  * integer kernels (tflite_ref_int.c, TFLite's fixed-point arithmetic), hostile quantisation
  * parameters, and the real FastDepth when ../shared/models has it (runtime vs reference on
- * tabletop_dev frame 0, Spearman vs the ground truth). The acceptance line: the runtime's output
- * is within one quantisation step of the reference on >= 99.9 % of the values. */
+ * tabletop_dev frame 0, Spearman vs the ground truth). Both models are also evaluated by a second,
+ * independent oracle in NumPy (tests/nn/tflite_int_ref.py: its own flatbuffer reader) when
+ * /usr/bin/python3 has NumPy. The acceptance line: the runtime's output is within one quantisation
+ * step of each oracle on >= 99.9 % of the values. */
 #include "testlib.h"
 #include "tflite_writer.h"
 
@@ -151,7 +153,41 @@ static pg_status run_model(const uint8_t *bytes, size_t n, const float *x, float
     return st;
 }
 
-static void test_synthetic(void)
+/* The second oracle: tests/nn/tflite_int_ref.py (its own flatbuffer reader and TFLite's integer
+ * arithmetic in NumPy) on model_path with input x of `shape`; compares the runtime's output run
+ * (count values, step `scale`). Skipped (with a line) when /usr/bin/python3 has no NumPy. */
+static void check_numpy(const char *tmp, const char *model_path, const float *x, int ndim, const size_t *shape, const float *run,
+                        size_t count, float scale, const char *what)
+{
+    if (system("/usr/bin/python3 -c 'import numpy' >/dev/null 2>&1") != 0) {
+        printf("SKIP %s vs NumPy: /usr/bin/python3 with numpy not available\n", what);
+        return;
+    }
+    char in[4200], out[4200], cmd[16384];
+    snprintf(in, sizeof in, "%s/numpy_in.npy", tmp);
+    snprintf(out, sizeof out, "%s/numpy_out.npy", tmp);
+    remove(out);
+    CHECK_OK(io_npy_save(in, x, ndim, shape));
+    snprintf(cmd, sizeof cmd, "/usr/bin/python3 '%s/tests/nn/tflite_int_ref.py' '%s' '%s' '%s'", PG_SOURCE_DIR, model_path, in, out);
+    CHECK(system(cmd) == 0, "%s: tflite_int_ref.py failed", what);
+    pg_array y;
+    if (io_npy_load(out, &y) != PG_OK) {
+        CHECK(0, "%s: no NumPy output: %s", what, pg_last_error());
+        return;
+    }
+    size_t n = 1;
+    for (int d = 0; d < y.ndim; d++) n *= y.shape[d];
+    CHECK(n == count, "%s: NumPy output has %zu values, the runtime's %zu", what, n, count);
+    if (n == count) {
+        char label[256];
+        snprintf(label, sizeof label, "%s, runtime vs NumPy", what);
+        double share = agreement(run, y.data, n, scale, label);
+        CHECK(share >= 0.999, "%s: within one step of NumPy on %.4f %% of the values", what, share * 100);
+    }
+    pg_array_destroy(&y);
+}
+
+static void test_synthetic(const char *tmp)
 {
     size_t n;
     uint8_t *bytes = int_bytes(&n);
@@ -174,6 +210,10 @@ static void test_synthetic(void)
         double share = agreement(run, ref, 12 * 14 * 4, s_out, threads == 1 ? "synthetic int8 model, 1 thread" : "synthetic int8 model, 2 threads");
         CHECK(share >= 0.999, "within one step on %.4f %% of the values", share * 100);
     }
+    char path[4200];
+    snprintf(path, sizeof path, "%s/int8_model.tflite", tmp);
+    CHECK_OK(pg_write_file_atomic(path, bytes, n));
+    check_numpy(tmp, path, x, 4, (size_t[]){ 1, 12, 14, 3 }, run, 12 * 14 * 4, s_out, "synthetic int8 model");
     nn_tfl_destroy(&m);
     free(bytes);
 }
@@ -303,7 +343,7 @@ static double spearman(const float *a, const float *b, int n)
 }
 
 /* The real FastDepth (skipped when ../shared/models does not have it). */
-static void test_fastdepth(void)
+static void test_fastdepth(const char *tmp)
 {
     char path[4096], data_dir[4096], video[4200], gt_path[4300];
     snprintf(path, sizeof path, "%s/models/fastdepth_224_int8.tflite", PG_SHARED_DIR);
@@ -353,6 +393,7 @@ static void test_fastdepth(void)
     double share = agreement(run, ref, P, step, "FastDepth 224x224, tabletop_dev frame 0");
     printf("FastDepth: reference %.2f s, runtime %.0f ms on 2 threads (best of 3)\n", t_ref, best * 1e3);
     CHECK(share >= 0.999, "FastDepth within one step on %.4f %% of the pixels", share * 100);
+    check_numpy(tmp, path, in.data, 4, (size_t[]){ 1, 224, 224, 3 }, run, P, step, "FastDepth 224x224, tabletop_dev frame 0");
     pg_image depth = { 224, 224, 1, run }, full = { 0 };
     CHECK_OK(pg_image_resize(&full, &depth, img.width, img.height));
     pg_array gt;
@@ -391,9 +432,9 @@ int main(void)
     test_tmpdir("nn_tflite_int", tmp, sizeof tmp);
     fill_weights();
     test_reference_by_hand();
-    test_synthetic();
+    test_synthetic(tmp);
     test_hostile_quantization();
-    test_fastdepth();
+    test_fastdepth(tmp);
     write_corpus(tmp);
     return test_summary("test_nn_tflite_int");
 }
