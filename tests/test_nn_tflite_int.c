@@ -303,6 +303,63 @@ static void test_hostile_quantization(void)
     free(m);
 }
 
+/* Every truncation of the integer model is refused; 2,000 random byte flips are refused or run
+ * (parser, integer reference, loader, runtime) without a crash (the ASan + UBSan build checks
+ * the rest), every refusal in one line. */
+static void test_corruption(void)
+{
+    size_t n;
+    uint8_t *good = int_bytes(&n), *mut = malloc(n);
+    int truncations_ok = 1;
+    for (size_t len = 0; len < n; len++) {
+        nn_tfl_model t;
+        pg_status st = nn_tfl_parse(good, len, "cut.tflite", &t);
+        truncations_ok &= st == PG_ERR_FORMAT || st == PG_ERR_SIZE;
+        nn_tfl_destroy(&t);
+    }
+    CHECK(truncations_ok, "every truncation of the %zu-byte integer model is refused", n);
+    pg_rng r;
+    pg_rng_seed(&r, 9);
+    int refused = 0, ran = 0, one_line = 1;
+    for (int trial = 0; trial < 2000; trial++) {
+        memcpy(mut, good, n);
+        for (int f = 0; f <= trial % 3; f++) mut[(size_t)(pg_rng_uniform(&r) * n) % n] ^= (uint8_t)(1 + pg_rng_uniform(&r) * 255);
+        nn_tfl_model t;
+        pg_status st = nn_tfl_parse(mut, n, "flipped.tflite", &t);
+        if (st) {
+            refused++;
+            one_line &= strchr(pg_last_error(), '\n') == NULL;
+            continue;
+        }
+        int64_t total = 0;
+        for (int i = 0; i < t.num_tensors; i++) total += t.tensors[i].count;
+        if (total <= ((int64_t)1 << 18) && t.num_inputs == 1) {
+            float *x = calloc((size_t)t.tensors[t.inputs[0]].count, sizeof(float));
+            float *y = calloc((size_t)t.tensors[t.outputs[0]].count, sizeof(float));
+            for (int64_t i = 0; i < t.tensors[t.inputs[0]].count; i++) x[i] = (float)((i * 29) % 256) / 255.0f;
+            nn_tfl_ref_run(&t, x, &y, 1);
+            nn_model *model;
+            if (nn_model_load_memory(mut, n, "flipped.tflite", &model) == PG_OK) {
+                int64_t din[NN_MAX_DIMS], dout[NN_MAX_DIMS];
+                int ni = nn_model_input_shape(model, din), no = nn_model_output_shape(model, dout);
+                float *xi = calloc((size_t)nn_shape_count(ni, din), sizeof(float)), *yo = calloc((size_t)nn_shape_count(no, dout) + 1, sizeof(float));
+                nn_model_run(model, xi, yo, 1);
+                ran++;
+                free(xi);
+                free(yo);
+                nn_model_destroy(model);
+            }
+            free(x);
+            free(y);
+        }
+        nn_tfl_destroy(&t);
+    }
+    printf("integer model, random corruption: %d of 2000 refused by the parser, %d run by the runtime\n", refused, ran);
+    CHECK(one_line && refused > 0 && ran > 0, "corruption: every refusal one line (%d), some refused (%d) and some run (%d)", one_line, refused, ran);
+    free(mut);
+    free(good);
+}
+
 /* Spearman rank correlation (average ranks for ties). */
 static const float *rank_key;
 static int rank_cmp(const void *a, const void *b)
@@ -434,6 +491,7 @@ int main(void)
     test_reference_by_hand();
     test_synthetic(tmp);
     test_hostile_quantization();
+    test_corruption();
     test_fastdepth(tmp);
     write_corpus(tmp);
     return test_summary("test_nn_tflite_int");

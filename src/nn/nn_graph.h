@@ -7,7 +7,9 @@
  *
  * Conventions every front end follows, so one kernel family serves both:
  *   - compute is float32; int8 / fp16 weights are dequantised to float32 at import; int64
- *     tensors exist only as constants (Gather indices, shape values folded at import).
+ *     tensors exist only as constants (Gather indices, shape values folded at import, REQUANTIZE's
+ *     fixed-point multipliers). Integer TFLite models keep integer values in float tensors
+ *     (q - zero_point, exact) and round with REQUANTIZE (tflite_import.c).
  *   - shapes are static: every dim is known after import (front ends fold Shape/Gather/Concat
  *     chains and turn constant "shape-like" inputs into attributes: Reshape's target shape,
  *     Slice's starts/ends/axes/steps, Resize's output size, Pad's pads, Expand's shape, the axes
