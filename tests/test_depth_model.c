@@ -245,6 +245,13 @@ static void test_cli(const char *tmp, const char *clip, const char *model)
     CHECK(pg_path_exists(path), "prepare ran the depth stage into DIR/depth.npy");
     snprintf(path, sizeof path, "%s/prep/depth_aligned.npy", tmp);
     CHECK(pg_path_exists(path), "prepare finished");
+
+    /* prepare without --depth / --depth-model: the built-in FastDepth first */
+    snprintf(args, sizeof args, "prepare '%s' --out '%s/prep_default' --threads 2 --no-flow-vis", clip, tmp);
+    rc = test_run_cli(args, err, sizeof err);
+    snprintf(path, sizeof path, "%s/prep_default/depth_aligned.npy", tmp);
+    CHECK(rc == 0 && strstr(err, "depth: no --depth/--depth-model given, using the embedded FastDepth (MIT") && pg_path_exists(path),
+          "prepare with the built-in model: rc %d: %s", rc, err);
 }
 
 /* A dynamic-input ONNX model (exported here with torch when /usr/bin/python3 has it, else

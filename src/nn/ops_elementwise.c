@@ -190,7 +190,7 @@ static int32_t fixed_point_multiply(int32_t x, int32_t q, int shift)
 
 /* Per-channel fixed-point multipliers as doubles (arrays of C, in the thread's scratch): mult =
  * q * 2^(left - 31) (exact: q has 31 bits, the rest is a power of two), post = 2^-right, and
- * exact_below = 2^22 / 2^left, the |x| under which x * mult is exact in a double. */
+ * exact_below = 2^21 / 2^left: below it x * mult (< 2^21, 31 fraction bits) and x * mult + 0.5 fit a double's 53 bits. */
 typedef struct {
     double *mult, *post;
     float *exact_below;
@@ -214,11 +214,12 @@ static void requantize_fixed_row(float *restrict y, const float *restrict x, con
         }
         return;
     }
+    double dlo = lo, dhi = hi, dscale = out_scale;
     for (int64_t c = 0; c < C; c++) {
         double v = floor((double)x[c] * mult[c] + 0.5) * post[c];
-        float f = (float)trunc(v + (v < 0 ? -0.5 : 0.5));
-        f = f < lo ? lo : f;
-        y[c] = (f > hi ? hi : f) * out_scale;
+        double r = trunc(v + (v < 0 ? -0.5 : 0.5));
+        r = r < dlo ? dlo : r;
+        y[c] = (float)((r > dhi ? dhi : r) * dscale);
     }
 }
 
@@ -256,7 +257,7 @@ void nn_run_requantize(const nn_ctx *c, const nn_node *n)
         int shift = (int)fixed[2 * ch + 1], left = shift > 0 ? shift : 0;
         mult[ch] = ldexp((double)fixed[2 * ch], left - 31);
         post[ch] = ldexp(1.0, shift > 0 ? 0 : shift);
-        exact_below[ch] = (float)ldexp(1.0, 22 - left);
+        exact_below[ch] = (float)ldexp(1.0, 21 - left);
     }
     #pragma omp parallel for schedule(static) if (count >= NN_PAR_COMPUTE)
     for (int64_t s = 0; s < count; s += C) {
