@@ -188,14 +188,6 @@ static int32_t fixed_point_multiply(int32_t x, int32_t q, int shift)
     return (high >> right) + (rem > threshold);
 }
 
-/* Per-channel fixed-point multipliers as doubles (arrays of C, in the thread's scratch): mult =
- * q * 2^(left - 31) (exact: q has 31 bits, the rest is a power of two), post = 2^-right, and
- * exact_below = 2^21 / 2^left: below it x * mult (< 2^21, 31 fraction bits) and x * mult + 0.5 fit a double's 53 bits. */
-typedef struct {
-    double *mult, *post;
-    float *exact_below;
-} fixed_multipliers;
-
 /* The fixed-point rescale of one row of C channels in doubles, exactly TFLite's: high = x * q /
  * 2^31 rounded half up (floor(v + 0.5): the rounding of its doubling high multiply, ties toward
  * +inf for both signs), then high / 2^right rounded half away from zero. Every step is exact
@@ -250,7 +242,9 @@ void nn_run_requantize(const nn_ctx *c, const nn_node *n)
     if (C < 1) return;
     const nn_attrs *a = &n->attr;
     float lo = (float)(a->q_min - a->q_zero_point), hi = (float)(a->q_max - a->q_zero_point);
-    /* the per-channel doubles, once, in the first thread's scratch (64-byte aligned) */
+    /* per-channel doubles, once, in the first thread's scratch (64-byte aligned): mult = q *
+     * 2^(left - 31) (exact: q has 31 bits), post = 2^-right, exact_below = 2^21 / 2^left (below
+     * it x * mult, 21 integer + 31 fraction bits, and x * mult + 0.5 fit a double's 53 bits) */
     double *mult = (double *)c->scratch, *post = mult + C;
     float *exact_below = (float *)(post + C);
     for (int64_t ch = 0; fixed && ch < C; ch++) {
