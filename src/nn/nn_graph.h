@@ -115,8 +115,8 @@ typedef enum {
     NN_OP_ABS,            /* (x) unary */
     NN_OP_ATTENTION,      /* (q[..., M, D], k[..., N, D], v[..., N, E]) softmax(q k^T) v per batch, in row blocks
                            * (made by the fusion pass from MatMul(q, k^T) -> Softmax -> MatMul(., v)) */
-    NN_OP_REQUANTIZE,     /* (x, fixed[C,2] i64|-1) attr: q_multiplier q_zero_point q_min q_max q_out_scale:
-                           * y = (clamp(r + zp, q_min, q_max) - zp) * q_out_scale where r = x * m rounded: with
+    NN_OP_REQUANTIZE,     /* (x, fixed[C,2] i64|-1) attr: q_multiplier q_zero_point q_min q_max:
+                           * y = clamp(r + zp, q_min, q_max) - zp where r = x * m rounded: with
                            * `fixed` (per channel of the last axis: Q31 mantissa, power-of-two shift) x is an
                            * int32 value and r is TFLite's fixed-point product with its two roundings; without
                            * it r = round(x * q_multiplier) half away from zero (see tflite_import.c) */
@@ -160,7 +160,7 @@ typedef struct {
     float cubic_a;            /* RESIZE cubic coefficient (-0.75, as ONNX and torch) */
     int exclude_outside;      /* RESIZE cubic: taps outside the input get weight 0, the rest renormalised */
 
-    float q_multiplier, q_out_scale; /* REQUANTIZE (q_out_scale 1: keep the integer, zero point removed) */
+    float q_multiplier;       /* REQUANTIZE: float multiplier, zero point and integer range of the result */
     int q_zero_point, q_min, q_max;
 } nn_attrs;
 

@@ -193,7 +193,7 @@ static int32_t fixed_point_multiply(int32_t x, int32_t q, int shift)
  * +inf for both signs), then high / 2^right rounded half away from zero. Every step is exact
  * while |x| stays below exact_below; a row with a larger value takes fixed_point_multiply. */
 static void requantize_fixed_row(float *restrict y, const float *restrict x, const double *restrict mult, const double *restrict post,
-                                 const float *restrict exact_below, const int64_t *fixed, int64_t C, float lo, float hi, float out_scale)
+                                 const float *restrict exact_below, const int64_t *fixed, int64_t C, float lo, float hi)
 {
     int exact = 1;
     for (int64_t c = 0; c < C; c++) exact &= fabsf(x[c]) < exact_below[c];
@@ -202,27 +202,27 @@ static void requantize_fixed_row(float *restrict y, const float *restrict x, con
             float v = x[c] < -2147483520.0f ? -2147483520.0f : x[c] > 2147483520.0f ? 2147483520.0f : x[c];
             float r = (float)fixed_point_multiply(v == v ? (int32_t)v : 0, (int32_t)fixed[2 * c], (int)fixed[2 * c + 1]);
             r = r < lo ? lo : r;
-            y[c] = (r > hi ? hi : r) * out_scale;
+            y[c] = r > hi ? hi : r;
         }
         return;
     }
-    double dlo = lo, dhi = hi, dscale = out_scale;
+    double dlo = lo, dhi = hi;
     for (int64_t c = 0; c < C; c++) {
         double v = floor((double)x[c] * mult[c] + 0.5) * post[c];
         double r = trunc(v + (v < 0 ? -0.5 : 0.5));
         r = r < dlo ? dlo : r;
-        y[c] = (float)((r > dhi ? dhi : r) * dscale);
+        y[c] = (float)(r > dhi ? dhi : r);
     }
 }
 
 /* The float-multiplier form: round(x * m0) half away from zero (truncf keeps it vectorisable). */
-static void requantize_float_row(float *restrict y, const float *restrict x, float m0, int64_t C, float lo, float hi, float out_scale)
+static void requantize_float_row(float *restrict y, const float *restrict x, float m0, int64_t C, float lo, float hi)
 {
     for (int64_t c = 0; c < C; c++) {
         float v = x[c] * m0, t = truncf(v);
         float r = t + (fabsf(v - t) >= 0.5f ? (v < 0 ? -1.0f : 1.0f) : 0.0f);
         r = r < lo ? lo : r;
-        y[c] = (r > hi ? hi : r) * out_scale;
+        y[c] = r > hi ? hi : r;
     }
 }
 
@@ -256,7 +256,7 @@ void nn_run_requantize(const nn_ctx *c, const nn_node *n)
     #pragma omp parallel for schedule(static) if (count >= NN_PAR_COMPUTE)
     for (int64_t s = 0; s < count; s += C) {
         int64_t len = count - s < C ? count - s : C;
-        if (fixed) requantize_fixed_row(y + s, x + s, mult, post, exact_below, fixed, len, lo, hi, a->q_out_scale);
-        else requantize_float_row(y + s, x + s, a->q_multiplier, len, lo, hi, a->q_out_scale);
+        if (fixed) requantize_fixed_row(y + s, x + s, mult, post, exact_below, fixed, len, lo, hi);
+        else requantize_float_row(y + s, x + s, a->q_multiplier, len, lo, hi);
     }
 }

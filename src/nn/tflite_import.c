@@ -21,9 +21,11 @@
  * input_scale * weight_scale / output_scale, rounded half away from zero, plus the zero point,
  * clamped to the type and the fused activation's range. ADD scales each input by its scale over
  * the output's before the sum; QUANTIZE is one REQUANTIZE; DEQUANTIZE and graph outputs multiply
- * by the scale; a graph input is quantised from the real values the caller feeds. The result can
- * differ from TFLite's fixed-point multiplier only where a value lies within float rounding of a
- * rounding boundary (test_nn_tflite counts it on FastDepth). */
+ * by the scale; a graph input is quantised from the real values the caller feeds. Convs and
+ * integer QUANTIZE reproduce TFLite's fixed-point rescale bit for bit; ADD (a float sum instead of
+ * TFLite's 2^20 fixed-point pre-scaling) and the float input's quantisation can differ only where
+ * a value lies within float rounding of a rounding boundary (test_nn_tflite_int compares both
+ * with two references on FastDepth). */
 #include "nn/nn_graph.h"
 #include "nn/tflite.h"
 
@@ -314,17 +316,32 @@ static void fixed_multiplier(double m, int64_t *q, int64_t *shift)
     *shift = e;
 }
 
+/* A (C, 2) int64 constant of per-channel fixed-point multipliers input_scale * weight_scale[c] /
+ * output_scale (wt NULL: input_scale / output_scale for every channel), the form REQUANTIZE takes. */
+static pg_status fixed_multipliers(import_ctx *c, const char *base, int C, const nn_tfl_tensor *xt, const nn_tfl_tensor *wt,
+                                   const nn_tfl_tensor *yt, int *id)
+{
+    int64_t *fixed = pg_malloc((size_t)C * 2 * sizeof(int64_t), "tflite requantize multipliers");
+    if (!fixed) return PG_ERR_NOMEM;
+    for (int ch = 0; ch < C; ch++) {
+        double w = wt ? wt->scales[wt->num_scales > 1 ? ch : 0] : 1.0;
+        fixed_multiplier((double)xt->scales[0] * w / yt->scales[0], &fixed[2 * ch], &fixed[2 * ch + 1]);
+    }
+    int64_t d[2] = { C, 2 };
+    char name[300];
+    snprintf(name, sizeof name, "%s/multipliers", base);
+    return nn_graph_add_const(c->g, name, NN_I64, 2, d, fixed, id); /* takes fixed over */
+}
+
 /* y = the integer tensor t's centred value (q - zero point) from x times a multiplier (mult: an
- * int64 constant of per-channel fixed-point multipliers, or -1 for the float m0), clamped to t's range narrowed by the fused activation
- * act (TFLite's CalculateActivationRangeQuantized: the activation's bounds quantised with
- * round-half-away). out_scale 1 keeps the integer; t's scale gives its real value. */
-static pg_status requantize(import_ctx *c, const char *base, int x, int mult, float m0, const nn_tfl_tensor *t, int act, float out_scale,
-                            int y)
+ * int64 constant of per-channel fixed-point multipliers, or -1 for the float m0), clamped to t's
+ * range narrowed by the fused activation act (TFLite's CalculateActivationRangeQuantized: the
+ * activation's bounds quantised with round-half-away). */
+static pg_status requantize(import_ctx *c, const char *base, int x, int mult, float m0, const nn_tfl_tensor *t, int act, int y)
 {
     nn_attrs a;
     nn_attrs_default(&a);
     a.q_multiplier = m0;
-    a.q_out_scale = out_scale;
     a.q_zero_point = t->zero_point;
     a.q_min = nn_tfl_qmin(t);
     a.q_max = nn_tfl_qmax(t);
@@ -357,9 +374,13 @@ static pg_status emit_integer_op(import_ctx *c, const nn_tfl_op *op, const char 
     const nn_tfl_tensor *xt = &m->tensors[op->inputs[0]], *yt = &m->tensors[op->output];
     int x, acc;
     PG_TRY(ir_tensor(c, op->inputs[0], &x));
-    if (op->code == NN_TFL_QUANTIZE) /* real -> integer, or integer -> integer */
-        return requantize(c, base, x, -1, nn_tfl_is_quantized(xt) ? (float)((double)xt->scales[0] / yt->scales[0]) : 1.0f / yt->scales[0],
-                          yt, NN_TFL_ACT_NONE, 1.0f, y);
+    if (op->code == NN_TFL_QUANTIZE && !nn_tfl_is_quantized(xt)) /* real -> integer: round(x / s) */
+        return requantize(c, base, x, -1, 1.0f / yt->scales[0], yt, NN_TFL_ACT_NONE, y);
+    if (op->code == NN_TFL_QUANTIZE) { /* integer -> integer: TFLite's fixed-point input_scale / output_scale */
+        int mult, channels = yt->ndim ? yt->dims[yt->ndim - 1] : 1; /* REQUANTIZE refuses a 0-d tensor */
+        PG_TRY(fixed_multipliers(c, base, channels, xt, NULL, yt, &mult));
+        return requantize(c, base, x, mult, 0.0f, yt, NN_TFL_ACT_NONE, y);
+    }
     if (op->code == NN_TFL_DEQUANTIZE) return scale_by(c, base, "/scale", x, xt->scales[0], y);
     PG_TRY(new_tensor(c, base, "/acc", &acc));
     nn_attrs a;
@@ -374,7 +395,7 @@ static pg_status emit_integer_op(import_ctx *c, const nn_tfl_op *op, const char 
         PG_TRY(scale_by(c, base, "/a_scale", x, (float)((double)xt->scales[0] / yt->scales[0]), sa));
         PG_TRY(scale_by(c, base, "/b_scale", b, (float)((double)bt->scales[0] / yt->scales[0]), sb));
         PG_TRY(nn_graph_add_node(c->g, NN_OP_ADD, base, (int[]){ sa, sb }, 2, &acc, 1, &a, NULL));
-        return requantize(c, base, acc, -1, 1.0f, yt, op->act, 1.0f, y);
+        return requantize(c, base, acc, -1, 1.0f, yt, op->act, y);
     }
     /* CONV_2D / DEPTHWISE_CONV_2D: integer weights and bias, exact sums in float (products of
      * 8-bit values and their sums stay integers below 2^24), then the per-channel rescale */
@@ -384,27 +405,16 @@ static pg_status emit_integer_op(import_ctx *c, const nn_tfl_op *op, const char 
     in[0] = x;
     PG_TRY(conv_weights(c, op, 1, &in[1]));
     in[2] = -1;
-    float *bias = bt ? pg_malloc((size_t)cout * sizeof(float), "tflite integer bias") : NULL;
-    int64_t *fixed = pg_malloc((size_t)cout * 2 * sizeof(int64_t), "tflite requantize multipliers");
-    if ((bt && !bias) || !fixed) {
-        free(bias);
-        free(fixed);
-        return PG_ERR_NOMEM;
+    if (bt) {
+        float *bias = pg_malloc((size_t)cout * sizeof(float), "tflite integer bias");
+        if (!bias) return PG_ERR_NOMEM;
+        for (int o = 0; o < cout; o++) bias[o] = (float)bt->qvalues[o];
+        int64_t d = cout;
+        char name[300];
+        snprintf(name, sizeof name, "%s/bias_int", base);
+        PG_TRY(nn_graph_add_const(c->g, name, NN_F32, 1, &d, bias, &in[2]));
     }
-    for (int o = 0; o < cout; o++) {
-        if (bias) bias[o] = (float)bt->qvalues[o];
-        fixed_multiplier((double)xt->scales[0] * wt->scales[wt->num_scales > 1 ? o : 0] / yt->scales[0], &fixed[2 * o], &fixed[2 * o + 1]);
-    }
-    int64_t d = cout, dm[2] = { cout, 2 };
-    char name[300];
-    snprintf(name, sizeof name, "%s/bias_int", base);
-    pg_status st = bias ? nn_graph_add_const(c->g, name, NN_F32, 1, &d, bias, &in[2]) : PG_OK; /* takes bias over */
-    if (st) {
-        free(fixed);
-        return st;
-    }
-    snprintf(name, sizeof name, "%s/multipliers", base);
-    PG_TRY(nn_graph_add_const(c->g, name, NN_I64, 2, dm, fixed, &mult));
+    PG_TRY(fixed_multipliers(c, base, cout, xt, wt, yt, &mult));
     a.layout = NN_LAYOUT_NHWC;
     a.kernel[0] = wt->dims[1], a.kernel[1] = wt->dims[2];
     a.stride[0] = op->stride_h, a.stride[1] = op->stride_w;
@@ -412,7 +422,7 @@ static pg_status emit_integer_op(import_ctx *c, const nn_tfl_op *op, const char 
     for (int i = 0; i < 4; i++) a.pads[i] = op->pad[i];
     a.group = op->code == NN_TFL_DEPTHWISE_CONV_2D ? xt->dims[3] : xt->dims[3] / wt->dims[3];
     PG_TRY(nn_graph_add_node(c->g, NN_OP_CONV, base, in, 3, &acc, 1, &a, NULL));
-    return requantize(c, base, acc, mult, 0.0f, yt, op->act, 1.0f, y);
+    return requantize(c, base, acc, mult, 0.0f, yt, op->act, y);
 }
 
 static pg_status emit_op(import_ctx *c, int k, const plan_op *p)
@@ -589,7 +599,7 @@ static pg_status import_input(import_ctx *c, int t, int *id)
     char name[300];
     snprintf(name, sizeof name, "%s/real", tt->name);
     PG_TRY(nn_graph_add_tensor(c->g, name, NN_F32, tt->ndim, d, id));
-    return requantize(c, tt->name, *id, -1, 1.0f / tt->scales[0], tt, NN_TFL_ACT_NONE, 1.0f, q);
+    return requantize(c, tt->name, *id, -1, 1.0f / tt->scales[0], tt, NN_TFL_ACT_NONE, q);
 }
 
 /* The IR graph output for TFLite output t: an integer output is given as its real value. */
