@@ -300,6 +300,33 @@ static void test_hostile_quantization(void)
         nn_model_destroy(model);
         free(b);
     }
+    /* extreme but valid scales (1e-30, 1e30, the biases made consistent): accepted, and both
+     * interpreters run without an overflow (UBSan) and give finite values */
+    int_model(m);
+    m->tensors[0].scales[0] = 1e-30f; /* x */
+    m->tensors[6].scales[0] = 1e-30f; /* ya */
+    m->tensors[9].scales[0] = 1e30f;  /* yd */
+    set_bias(m, 8, 8, 1e-30f, 7);
+    set_bias(m, 11, 4, 1e30f, 10);
+    set_bias(m, 14, 1, 1e30f, 13);
+    size_t n;
+    uint8_t *b = tw_build(m, &n);
+    nn_tfl_model t;
+    CHECK_OK(nn_tfl_parse(b, n, "extreme_scales.tflite", &t));
+    float x[12 * 14 * 3], ref[12 * 14 * 4] = { 0 }, run[12 * 14 * 4] = { 0 }, *pr = ref;
+    if (!t.num_outputs) {
+        free(b);
+        free(m);
+        return;
+    }
+    for (int i = 0; i < 12 * 14 * 3; i++) x[i] = (float)i / 500.0f;
+    CHECK_OK(nn_tfl_ref_run(&t, x, &pr, 1));
+    CHECK_OK(run_model(b, n, x, run, 1));
+    int finite = 1;
+    for (int i = 0; i < 12 * 14 * 4; i++) finite &= isfinite(ref[i]) && isfinite(run[i]);
+    CHECK(finite, "extreme scales: finite outputs");
+    nn_tfl_destroy(&t);
+    free(b);
     free(m);
 }
 

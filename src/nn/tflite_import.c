@@ -306,6 +306,10 @@ static int quantize_bound(float v, const nn_tfl_tensor *t)
 /* The multiplier m > 0 as q * 2^(shift - 31), q in [2^30, 2^31) (TFLite's QuantizeMultiplier). */
 static void fixed_multiplier(double m, int64_t *q, int64_t *shift)
 {
+    if (!(m > 0 && isfinite(m))) { /* only from scales at the ends of the float range: the product is 0 */
+        *q = *shift = 0;
+        return;
+    }
     int e;
     double f = frexp(m, &e);
     int64_t fixed = llround(f * 2147483648.0);

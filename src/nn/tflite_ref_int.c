@@ -18,6 +18,10 @@
 /* The multiplier m > 0 as q * 2^(shift - 31) with q in [2^30, 2^31) (TFLite's QuantizeMultiplier). */
 static void quantize_multiplier(double m, int32_t *q, int *shift)
 {
+    if (!(m > 0 && isfinite(m))) { /* scales at the ends of the float range (a hostile file) */
+        *q = 0, *shift = 0;
+        return;
+    }
     double f = frexp(m, shift); /* m = f * 2^shift, f in [0.5, 1) */
     int64_t fixed = llround(f * 2147483648.0);
     if (fixed == (int64_t)1 << 31) {
