@@ -16,8 +16,8 @@
  * Integer models (int8 / uint8 activations) run on the same float kernels with integer values:
  * an integer tensor holds its stored integers minus its zero point (q - zp, exact in a float),
  * integer convs read their weights as (q_w - zp_w) and their int32 biases as they are, so a
- * conv's sums are TFLite's int32 accumulators exactly (every partial sum of 8-bit products stays
- * below 2^24), and a REQUANTIZE node then does TFLite's rescale: times the per-channel
+ * conv's sums are TFLite's int32 accumulators exactly while partial sums stay below 2^24 (always
+ * for up to 518 products of 8-bit values, in practice far beyond), and a REQUANTIZE node then does TFLite's rescale: times the per-channel
  * input_scale * weight_scale / output_scale, rounded half away from zero, plus the zero point,
  * clamped to the type and the fused activation's range. ADD scales each input by its scale over
  * the output's before the sum; QUANTIZE is one REQUANTIZE; DEQUANTIZE and graph outputs multiply
@@ -401,8 +401,8 @@ static pg_status emit_integer_op(import_ctx *c, const nn_tfl_op *op, const char 
         PG_TRY(nn_graph_add_node(c->g, NN_OP_ADD, base, (int[]){ sa, sb }, 2, &acc, 1, &a, NULL));
         return requantize(c, base, acc, -1, 1.0f, yt, op->act, y);
     }
-    /* CONV_2D / DEPTHWISE_CONV_2D: integer weights and bias, exact sums in float (products of
-     * 8-bit values and their sums stay integers below 2^24), then the per-channel rescale */
+    /* CONV_2D / DEPTHWISE_CONV_2D: integer weights and bias, exact sums in float (see the file
+     * comment), then the per-channel rescale */
     const nn_tfl_tensor *wt = &m->tensors[op->inputs[1]];
     const nn_tfl_tensor *bt = op->num_inputs > 2 && op->inputs[2] >= 0 ? &m->tensors[op->inputs[2]] : NULL;
     int cout = yt->dims[3], in[3], mult;
