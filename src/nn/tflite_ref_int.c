@@ -59,7 +59,9 @@ static int32_t multiply_by_quantized_multiplier(int32_t x, int32_t q, int shift)
     return rounding_divide_by_pot(rounding_doubling_high_mul((int32_t)shifted, q), right);
 }
 
-static int32_t clamp32(int32_t v, int32_t lo, int32_t hi) { return v < lo ? lo : v > hi ? hi : v; }
+/* Sums are taken in 64 bits before the clamp: with a hostile file's extreme scales a rescaled
+ * value near the int32 limits plus the zero point would overflow (TFLite's int32 would too). */
+static int32_t clamp32(int64_t v, int32_t lo, int32_t hi) { return (int32_t)(v < lo ? lo : v > hi ? hi : v); }
 
 /* zero point + round(v / scale) (TFLite's TfLiteRound: half away from zero), kept inside
  * +-2^30 so a hostile tiny scale cannot overflow the conversion. */
@@ -121,7 +123,7 @@ static void int_conv(const nn_tfl_model *m, const nn_tfl_op *op, const float *x,
                     }
                     if (bt) acc += bt->qvalues[o];
                     acc = acc < INT32_MIN ? INT32_MIN : acc > INT32_MAX ? INT32_MAX : acc;
-                    int32_t v = multiply_by_quantized_multiplier((int32_t)acc, q, shift) + yt->zero_point;
+                    int64_t v = (int64_t)multiply_by_quantized_multiplier((int32_t)acc, q, shift) + yt->zero_point;
                     y[(((size_t)n * OH + oy) * OW + ox) * O + o] = (float)clamp32(v, lo, hi);
                 }
     }
@@ -155,8 +157,9 @@ static void int_add(const nn_tfl_model *m, const nn_tfl_op *op, const float *a, 
         for (int d = 0; d < nd; d++) ia += (size_t)coord[d] * stride_a[d], ib += (size_t)coord[d] * stride_b[d];
         int32_t va = ((int32_t)a[ia] - at->zero_point) * (1 << left_shift);
         int32_t vb = ((int32_t)b[ib] - bt->zero_point) * (1 << left_shift);
-        int32_t sum = multiply_by_quantized_multiplier(va, qa, sa) + multiply_by_quantized_multiplier(vb, qb, sb);
-        int32_t out = multiply_by_quantized_multiplier(sum, qy, sy) + yt->zero_point;
+        int64_t sum = (int64_t)multiply_by_quantized_multiplier(va, qa, sa) + multiply_by_quantized_multiplier(vb, qb, sb);
+        sum = sum < INT32_MIN ? INT32_MIN : sum > INT32_MAX ? INT32_MAX : sum;
+        int64_t out = (int64_t)multiply_by_quantized_multiplier((int32_t)sum, qy, sy) + yt->zero_point;
         y[i] = (float)clamp32(out, lo, hi);
         for (int d = nd - 1; d >= 0; d--) {
             if (++coord[d] < yt->dims[d]) break;
@@ -175,7 +178,7 @@ static void int_quantize(const nn_tfl_model *m, const nn_tfl_op *op, const float
         for (size_t i = 0; i < (size_t)yt->count; i++) {
             float r = roundf(x[i] / yt->scales[0]);
             r = r < -1e9f ? -1e9f : r > 1e9f ? 1e9f : r; /* NaN stays NaN below: clamp by comparisons */
-            int32_t v = r == r ? (int32_t)r + yt->zero_point : yt->zero_point;
+            int64_t v = r == r ? (int64_t)r + yt->zero_point : yt->zero_point;
             y[i] = (float)clamp32(v, lo, hi);
         }
         return;
@@ -184,7 +187,7 @@ static void int_quantize(const nn_tfl_model *m, const nn_tfl_op *op, const float
     int shift;
     quantize_multiplier((double)xt->scales[0] / (double)yt->scales[0], &q, &shift);
     for (size_t i = 0; i < (size_t)yt->count; i++) {
-        int32_t v = multiply_by_quantized_multiplier((int32_t)x[i] - xt->zero_point, q, shift) + yt->zero_point;
+        int64_t v = (int64_t)multiply_by_quantized_multiplier((int32_t)x[i] - xt->zero_point, q, shift) + yt->zero_point;
         y[i] = (float)clamp32(v, lo, hi);
     }
 }
