@@ -37,15 +37,15 @@ int cmd_prepare(int argc, char **argv)
     int rc = cli_parse(&spec, argc, argv, &c.input, NULL);
     if (rc) return rc < 0 ? 0 : rc;
     if (!c.out) return cli_usage_error("prepare: --out DIR is required");
+    if (c.depth && c.depth_model) return cli_usage_error("prepare: give --depth or --depth-model, not both");
+    if (!c.depth && (kind || !isnan(scale)))
+        return cli_usage_error("prepare: --depth-kind and --depth-scale apply to --depth; a model's output kind comes from "
+                               "MODEL.json (\"output\": \"depth\" or \"disparity\")");
     char default_model[4096];
     if (!c.depth && !c.depth_model) {
         if ((rc = pipeline_cli_default_depth("--depth/--depth-model", default_model, sizeof default_model))) return rc;
         c.depth_model = default_model;
     }
-    if (c.depth && c.depth_model) return cli_usage_error("prepare: give --depth or --depth-model, not both");
-    if (c.depth_model && (kind || !isnan(scale)))
-        return cli_usage_error("prepare: --depth-kind and --depth-scale apply to --depth; a model's output kind comes from "
-                               "MODEL.json (\"output\": \"depth\" or \"disparity\")");
     if (kind) c.depth_kind = kind;
     if (!isnan(scale)) c.depth_scale = scale;
     if ((rc = cli_parse_size("--size", size, &c.width, &c.height))) return rc;

@@ -60,14 +60,14 @@ int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pg_pipeline_
     if (rc) return rc;
     const char *verb = strchr(spec->command, ' ') ? strchr(spec->command, ' ') + 1 : spec->command;
     if (!c->out) return cli_usage_error("%s: --out is required", verb);
+    if (c->depth && c->depth_model) return cli_usage_error("%s: give --depth or --depth-model, not both", verb);
+    if (!c->depth && (c->depth_kind || c->depth_scale))
+        return cli_usage_error("%s: --depth-kind and --depth-scale apply to --depth; a model's output kind comes from "
+                               "MODEL.json (\"output\": \"depth\" or \"disparity\")", verb);
     if (!c->depth && !c->depth_model) {
         if ((rc = pipeline_cli_default_depth("--depth/--depth-model", t->depth_model, sizeof t->depth_model))) return rc;
         c->depth_model = t->depth_model;
     }
-    if (c->depth && c->depth_model) return cli_usage_error("%s: give --depth or --depth-model, not both", verb);
-    if (c->depth_model && (c->depth_kind || c->depth_scale))
-        return cli_usage_error("%s: --depth-kind and --depth-scale apply to --depth; a model's output kind comes from "
-                               "MODEL.json (\"output\": \"depth\" or \"disparity\")", verb);
     if ((rc = cli_parse_size("--size", t->size, &c->width, &c->height))) return rc;
     if ((rc = cli_parse_count_or_all("--proxies", t->proxies, &c->proxies))) return rc;
     c->refine = !t->no_refine;
