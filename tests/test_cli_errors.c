@@ -252,7 +252,7 @@ int main(void)
     expect_exit("synth /proc/nope/x --frames 1 --cams 1 --size 8x8", "/proc/nope", 3);
 
     /* prepare */
-    expect_error("prepare @/ds --out @/p", "--depth");
+    expect_error("prepare @/ds", "--out"); /* without --depth / --depth-model the built-in model runs */
     expect_error("prepare @/ds --depth @/missing.npy --out @/p", "missing.npy");
     expect_error("prepare @/missing_ds --depth @/good.npy --out @/p", "missing_ds");
     expect_error("prepare @/ds --depth @/trunc.npy --out @/p", "trunc.npy");
@@ -328,7 +328,7 @@ int main(void)
     expect_error("export @/m_garb --out @/e --frame-list 3,3", "frame 3 twice");
 
     /* eval and run: options are checked before any stage runs */
-    expect_error("eval @/ds --out @/v", "--depth");
+    expect_error("eval @/ds", "--out");
     snprintf(a, sizeof a, "eval @/ds %s --out @/v --iters -5", dep);
     expect_error(a, "--iters");
     snprintf(a, sizeof a, "eval @/ds %s --out @/v --preset foo", dep);
@@ -338,7 +338,7 @@ int main(void)
     snprintf(a, sizeof a, "eval @/ds %s --out @/v --proxy-render foo", dep);
     expect_error(a, "--proxy-render must be mesh or splat, not 'foo'");
     expect_error("eval @/ds --depth @/trunc.npy --out @/v --test-cams 1", "trunc.npy");
-    expect_error("run @/ds --out @/u", "--depth");
+    expect_error("run @/ds", "--out");
     expect_error("run @/garbled.mp4 --depth @/good.npy --out @/u", "garbled.mp4");
     expect_error("run @/ds --depth @/wrongframes.npy --out @/u", "wrongframes.npy");
     snprintf(a, sizeof a, "run @/ds %s --out @/u --size 100000x100000", dep);

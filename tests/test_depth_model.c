@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "core/fileutil.h"
+#include "depth/depth_net.h"
 #include "io/npy.h"
 #include "io/video.h"
 #include "synth/synth.h"
@@ -214,9 +215,24 @@ static void test_cli(const char *tmp, const char *clip, const char *model)
         rc = test_run_cli(args, err, sizeof err);
         CHECK(rc == 2 && one_line(err) && strstr(err, hostile[k]), "%s model: rc %d: %s", hostile[k], rc, err);
     }
-    snprintf(args, sizeof args, "depth '%s' --out '%s/x.npy'", clip, tmp);
+    /* no --model: the built-in FastDepth, written to the cache folder and said so on stderr */
+    char cache[4200], built_in[4300], shipped[4300];
+    snprintf(cache, sizeof cache, "%s/xdg_cache", tmp);
+    setenv("XDG_CACHE_HOME", cache, 1);
+    snprintf(args, sizeof args, "depth '%s' --out '%s/default.npy' --threads 2", clip, tmp);
     rc = test_run_cli(args, err, sizeof err);
-    CHECK(rc == 2 && one_line(err), "no --model: rc %d: %s", rc, err);
+    snprintf(path, sizeof path, "%s/default.npy", tmp);
+    CHECK(rc == 0 && strstr(err, "depth: no --model given, using the embedded FastDepth (MIT") && pg_path_exists(path),
+          "no --model: rc %d: %s", rc, err);
+    snprintf(built_in, sizeof built_in, "%s/prodygs/fastdepth_224_int8.tflite", cache);
+    snprintf(shipped, sizeof shipped, "%s/models/fastdepth_224_int8.tflite", PG_SOURCE_DIR);
+    char *a = NULL, *b = NULL;
+    size_t na = 0, nb = 0;
+    CHECK(pg_read_file(built_in, (size_t)8 << 20, &a, &na) == PG_OK && pg_read_file(shipped, (size_t)8 << 20, &b, &nb) == PG_OK &&
+              na == nb && memcmp(a, b, na) == 0,
+          "the embedded model is models/fastdepth_224_int8.tflite byte for byte (%zu, %zu bytes)", na, nb);
+    free(a);
+    free(b);
     snprintf(args, sizeof args, "prepare '%s' --depth-model '%s' --depth '%s/cli/depth.npy' --out '%s/p'", clip, model, tmp, tmp);
     rc = test_run_cli(args, err, sizeof err);
     CHECK(rc == 2 && one_line(err) && strstr(err, "not both"), "both --depth and --depth-model: rc %d: %s", rc, err);
@@ -229,6 +245,13 @@ static void test_cli(const char *tmp, const char *clip, const char *model)
     CHECK(pg_path_exists(path), "prepare ran the depth stage into DIR/depth.npy");
     snprintf(path, sizeof path, "%s/prep/depth_aligned.npy", tmp);
     CHECK(pg_path_exists(path), "prepare finished");
+
+    /* prepare without --depth / --depth-model: the built-in FastDepth first */
+    snprintf(args, sizeof args, "prepare '%s' --out '%s/prep_default' --threads 2 --no-flow-vis", clip, tmp);
+    rc = test_run_cli(args, err, sizeof err);
+    snprintf(path, sizeof path, "%s/prep_default/depth_aligned.npy", tmp);
+    CHECK(rc == 0 && strstr(err, "depth: no --depth/--depth-model given, using the embedded FastDepth (MIT") && pg_path_exists(path),
+          "prepare with the built-in model: rc %d: %s", rc, err);
 }
 
 /* A dynamic-input ONNX model (exported here with torch when /usr/bin/python3 has it, else
@@ -345,7 +368,7 @@ static void test_hostile_sidecars(const char *tmp, const char *clip)
         { "{\"mean\": [1e39, 0, 0]}", "mean" },        { "{\"scale\": 1e39}", "scale" },
         { "{\"scale\": 1e-300}", "scale" },             { "{\"std\": [1e-30, 1, 1]}", "std" },
         { "null", "object" },                             { "[1, 2]", "object" },
-        { "{\"scale\": 2} {\"scale\": 3}", "trailing" },
+        { "{\"scale\": 2} {\"scale\": 3}", "trailing" }, { "{\"channel_order\": \"grb\"}", "channel_order" },
     };
     for (size_t k = 0; k < sizeof bad / sizeof bad[0]; k++) {
         write_bytes(side, (const uint8_t *)bad[k][0], strlen(bad[k][0]));
@@ -368,6 +391,44 @@ static void test_hostile_sidecars(const char *tmp, const char *clip)
           "all-invalid network output: %s", pg_last_error());
 }
 
+/* MODEL.json "channel_order": a 1x1 conv reading the network's channel 0 sees the frame's red,
+ * or its blue with "bgr". */
+static void test_channel_order(const char *tmp)
+{
+    static float w[3] = { 1, 0, 0 }, bias[1] = { 0.5f };
+    tw_model *m = calloc(1, sizeof *m);
+    int x = tw_tensor(m, "x", 4, (int[]){ 1, 4, 4, 3 }, TW_F32, NULL, 0);
+    int tw = tw_tensor(m, "w", 4, (int[]){ 1, 1, 1, 3 }, TW_F32, w, sizeof w);
+    int tb = tw_tensor(m, "b", 1, (int[]){ 1 }, TW_F32, bias, sizeof bias);
+    int y = tw_tensor(m, "y", 4, (int[]){ 1, 4, 4, 1 }, TW_F32, NULL, 0);
+    tw_op(m, 3, (int[]){ x, tw, tb }, 3, y, 1, 4, (int32_t[]){ 0, 1, 1, 0 }, "biib");
+    m->inputs[m->num_inputs++] = x;
+    m->outputs[m->num_outputs++] = y;
+    size_t n;
+    uint8_t *bytes = tw_build(m, &n);
+    free(m);
+    char model[4200], side[4300];
+    snprintf(model, sizeof model, "%s/red.tflite", tmp);
+    snprintf(side, sizeof side, "%s.json", model);
+    write_bytes(model, bytes, n);
+    free(bytes);
+    float px[4 * 4 * 3], depth[16];
+    for (int i = 0; i < 16; i++) px[3 * i] = 0.25f, px[3 * i + 1] = 0.5f, px[3 * i + 2] = 0.75f;
+    pg_image frame = { 4, 4, 3, px };
+    for (int bgr = 0; bgr < 2; bgr++) {
+        const char *json = bgr ? "{\"channel_order\": \"bgr\"}" : "{\"channel_order\": \"rgb\"}";
+        write_bytes(side, (const uint8_t *)json, strlen(json));
+        depth_net *net = NULL;
+        CHECK_OK(depth_net_open(model, NULL, 0, 4, 4, &net));
+        if (!net) continue;
+        CHECK_OK(depth_net_infer(net, &frame, depth, 4, 4, 1));
+        float want = (bgr ? 0.75f : 0.25f) + 0.5f;
+        CHECK(fabsf(depth[5] - want) < 1e-6f && depth_net_get_info(net)->bgr == bgr, "channel_order %s: %g, want %g", bgr ? "bgr" : "rgb",
+              depth[5], want);
+        depth_net_close(net);
+    }
+}
+
 int main(void)
 {
     char tmp[4096], clip[4200], model[4200];
@@ -384,5 +445,6 @@ int main(void)
     test_dynamic_onnx(tmp, clip);
     test_pipeline(tmp, model);
     test_hostile_sidecars(tmp, clip);
+    test_channel_order(tmp);
     return test_summary("test_depth_model");
 }

@@ -224,6 +224,7 @@ int main(void)
     test_conv(2, 8, 15, 18, 12, 3, 2, 2, 2, 4, 1);
     test_conv(1, 3, 56, 42, 16, 14, 14, 0, 1, 1, 0);
     test_conv(1, 6, 9, 11, 6, 5, 1, 2, 1, 6, 0);
+    test_conv(2, 24, 13, 11, 24, 3, 2, 1, 2, 24, 1); /* depthwise, strided, dilated, relu (ops_conv_depthwise.c in NHWC) */
     test_conv(1, 16, 7, 9, 8, 1, 1, 0, 1, 1, 1);
     test_conv(1, 64, 40, 36, 32, 3, 1, 1, 1, 1, 1);
     test_nhwc_twins();

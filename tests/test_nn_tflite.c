@@ -352,7 +352,7 @@ static void test_hostile(void)
     CHECK(parse_model_desc(m, msg, sizeof msg) == PG_ERR_SIZE, "huge tensor: %s", msg);
     /* a lying shape: the weights' buffer is smaller than their shape */
     all_ops_model(m);
-    m->tensors[1].dims[0] = 5;
+    m->tensors[1].dims[1] = 5; /* not the quantized dimension, whose scale count is checked first */
     CHECK(parse_model_desc(m, msg, sizeof msg) == PG_ERR_FORMAT && strstr(msg, "buffer holds"), "lying weights: %s", msg);
     /* a lying output shape */
     all_ops_model(m);

@@ -11,8 +11,8 @@
  *
  * Layout written: the root offset and "TFL3", then every table's vtable just before the table,
  * children after their parents (uoffsets point forward, as flatbuffers require). Every scalar
- * field takes 4 bytes (bytes are stored in the first); int8 weights get a per-tensor or
- * per-channel scale. */
+ * field takes 4 bytes (bytes are stored in the first); quantised tensors get a per-tensor or
+ * per-channel scale and one zero point. */
 #ifndef PG_TFLITE_WRITER_H
 #define PG_TFLITE_WRITER_H
 
@@ -20,7 +20,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-enum { TW_F32 = 0, TW_F16 = 1, TW_I32 = 2, TW_I8 = 9 };
+enum { TW_F32 = 0, TW_F16 = 1, TW_I32 = 2, TW_U8 = 3, TW_I8 = 9 };
 
 #define TW_MAX 256
 
@@ -30,8 +30,10 @@ typedef struct {
     int type;
     const void *data;   /* constant bytes (count * element size) or NULL */
     size_t bytes;
-    int num_scales;     /* int8: 1 (per tensor) or dims[0] scales */
-    float scales[256];
+    int num_scales;     /* quantised tensors: 1 (per tensor) or dims[quant_dim] scales */
+    float scales[512];
+    int64_t zero_point; /* written for every channel */
+    int quant_dim;
     int shape_absent;   /* leave the shape vector out */
     int buffer_override; /* >= 0: write this buffer index instead (for lying files) */
 } tw_tensor_desc;
@@ -224,11 +226,12 @@ static inline uint8_t *tw_build(const tw_model *m, size_t *size)
         if (t->num_scales) {
             /* QuantizationParameters: min, max, scale, zero_point, details_type, details, quantized_dimension */
             size_t qf[7];
-            int32_t qv[7] = { 0 };
+            int32_t qv[7] = { 0, 0, 0, 0, 0, 0, t->quant_dim };
             size_t q = tw_table(&b, 7, "\0\0rr\0\0i", qv, qf);
             tw_patch(&b, tf[4], q);
             tw_patch(&b, qf[2], tw_vec(&b, (uint32_t)t->num_scales, t->scales, 4));
-            int64_t zp[256] = { 0 };
+            int64_t zp[512];
+            for (int k = 0; k < t->num_scales; k++) zp[k] = t->zero_point;
             tw_patch(&b, qf[3], tw_vec(&b, (uint32_t)t->num_scales, zp, 8));
         }
     }

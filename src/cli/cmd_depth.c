@@ -1,6 +1,7 @@
 /* cmd_depth.c - `prodygs depth INPUT --model FILE --out depth.npy`: a depth network (TFLite or
  * ONNX) on every frame, through pg_depth_run; prints one line. */
 #include "cli/cli.h"
+#include "cli/pipeline_cli.h"
 
 #include <stdio.h>
 
@@ -10,7 +11,7 @@ int cmd_depth(int argc, char **argv)
     pg_depth_defaults(&c);
     const char *out_size = NULL;
     const cli_option options[] = {
-        { "--model", CLI_STR, &c.model, "depth network: .tflite or .onnx (required); MODEL.json beside it is read" },
+        { "--model", CLI_STR, &c.model, "depth network: .tflite or .onnx (default: the built-in FastDepth); MODEL.json beside it is read" },
         { "--out", CLI_STR, &c.out, "output .npy (F,H,W) depth, float16 when it fits, else float32 (required)" },
         { "--out-size", CLI_STR, &out_size, "output WxH (default: the network's resolution at the video's aspect; 0 for one side keeps the aspect)" },
         { "--kind", CLI_STR, &c.kind, "the model's raw output: depth or disparity (default: MODEL.json, else by format)" },
@@ -19,7 +20,7 @@ int cmd_depth(int argc, char **argv)
         { "--train-cam", CLI_STR, &c.train_camera, "dataset camera, name or index (default: the first)" },
         { "--threads", CLI_INT, &c.threads, "worker threads (default: all cores)" },
     };
-    const cli_spec spec = { "prodygs depth", "INPUT --model FILE --out depth.npy [options]",
+    const cli_spec spec = { "prodygs depth", "INPUT [--model FILE] --out depth.npy [options]",
                             "Runs a monocular depth network on every frame: each frame is resized to the model's\n"
                             "input (decoded straight to that size) and the output written at the network's resolution\n"
                             "fitted to the video's aspect, or --out-size. Writes depth (larger = farther; a disparity\n"
@@ -31,7 +32,12 @@ int cmd_depth(int argc, char **argv)
     int rc = cli_parse(&spec, argc, argv, &c.input, NULL);
     if (rc) return rc < 0 ? 0 : rc;
     if (out_size && (rc = cli_parse_size("--out-size", out_size, &c.out_width, &c.out_height))) return rc;
-    if (!c.model || !c.out) return cli_usage_error("depth: --model FILE and --out FILE.npy are required");
+    if (!c.out) return cli_usage_error("depth: --out FILE.npy is required");
+    char default_model[4096];
+    if (!c.model) {
+        if ((rc = pipeline_cli_default_depth("--model", default_model, sizeof default_model))) return rc;
+        c.model = default_model;
+    }
     pg_depth_report r;
     pg_status st = pg_depth_run(&c, &r);
     if (st) return cli_fail(st);

@@ -1,5 +1,6 @@
 /* cmd_prepare.c - `prodygs prepare`: options -> pg_prepare_config -> pg_prepare_run -> one line. */
 #include "cli/cli.h"
+#include "cli/pipeline_cli.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -13,7 +14,7 @@ int cmd_prepare(int argc, char **argv)
     int no_refine = 0, no_align = 0, no_fuse = 0, no_planes = 0, no_flow_vis = 0;
     const cli_option options[] = {
         { "--depth", CLI_STR, &c.depth, "per-frame depth: (F,H,W) .npy or a folder of .npy/.pfm/.png/.exr (or --depth-model)" },
-        { "--depth-model", CLI_STR, &c.depth_model, "instead of --depth: a depth network (.tflite/.onnx) run first into DIR/depth.npy" },
+        { "--depth-model", CLI_STR, &c.depth_model, "instead of --depth: a depth network (.tflite/.onnx) run first into DIR/depth.npy (default: the built-in FastDepth)" },
         { "--out", CLI_STR, &c.out, "output directory (required)" },
         { "--depth-kind", CLI_STR, &kind, "depth (z along the optical axis, default) or disparity (1/depth)" },
         { "--depth-scale", CLI_FLOAT, &scale, "multiply raw depth values by S first (default 1)" },
@@ -28,18 +29,23 @@ int cmd_prepare(int argc, char **argv)
         { "--threads", CLI_INT, &c.threads, "worker threads (default: all cores)" },
         { "--no-flow-vis", CLI_FLAG, &no_flow_vis, "do not keep flow fields for vis/flow_*.png (automatic above 1 GiB)" },
     };
-    const cli_spec spec = { "prodygs prepare", "INPUT (--depth PATH | --depth-model FILE) --out DIR [options]",
+    const cli_spec spec = { "prodygs prepare", "INPUT [--depth PATH | --depth-model FILE] --out DIR [options]",
                             "Refines per-frame depth at colour edges, finds static pixels and aligns the depth\n"
                             "scale over time. Writes DIR/depth_aligned.npy, static_masks.npy, prepare.json, vis/.\n\n"
                             "example: prodygs prepare clip.mp4 --depth depth.npy --out out/prepare",
                             options, (int)(sizeof options / sizeof options[0]), 1, 1 };
     int rc = cli_parse(&spec, argc, argv, &c.input, NULL);
     if (rc) return rc < 0 ? 0 : rc;
-    if ((!c.depth && !c.depth_model) || !c.out) return cli_usage_error("prepare: --depth PATH (or --depth-model FILE) and --out DIR are required");
+    if (!c.out) return cli_usage_error("prepare: --out DIR is required");
     if (c.depth && c.depth_model) return cli_usage_error("prepare: give --depth or --depth-model, not both");
-    if (c.depth_model && (kind || !isnan(scale)))
+    if (!c.depth && (kind || !isnan(scale)))
         return cli_usage_error("prepare: --depth-kind and --depth-scale apply to --depth; a model's output kind comes from "
                                "MODEL.json (\"output\": \"depth\" or \"disparity\")");
+    char default_model[4096];
+    if (!c.depth && !c.depth_model) {
+        if ((rc = pipeline_cli_default_depth("--depth/--depth-model", default_model, sizeof default_model))) return rc;
+        c.depth_model = default_model;
+    }
     if (kind) c.depth_kind = kind;
     if (!isnan(scale)) c.depth_scale = scale;
     if ((rc = cli_parse_size("--size", size, &c.width, &c.height))) return rc;

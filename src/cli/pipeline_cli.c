@@ -1,6 +1,8 @@
 /* pipeline_cli.c - options and output shared by `run`, `eval` and `demo` (see pipeline_cli.h). */
 #include "cli/pipeline_cli.h"
 
+#include "depth/depth_default.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -11,7 +13,7 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
     memset(t, 0, sizeof *t);
     const cli_option shared[] = {
         { "--depth", CLI_STR, &c->depth, "per-frame depth of the training camera: .npy (F,H,W) or a folder (or --depth-model)" },
-        { "--depth-model", CLI_STR, &c->depth_model, "instead of --depth: a depth network (.tflite/.onnx) run first into DIR/depth/" },
+        { "--depth-model", CLI_STR, &c->depth_model, "instead of --depth: a depth network (.tflite/.onnx) run first into DIR/depth/ (default: the built-in FastDepth)" },
         { "--out", CLI_STR, &c->out, "output directory (required)" },
         { "--preset", CLI_STR, &c->preset, "fast (default) or quality" },
         { "--train-cam", CLI_STR, &c->train_camera, "dataset camera that is the real view: name or index (default: the first)" },
@@ -44,16 +46,28 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
     return n;
 }
 
+int pipeline_cli_default_depth(const char *missing, char *path, size_t size)
+{
+    pg_status st = depth_default_model(path, size);
+    if (st) return cli_fail(st);
+    fprintf(stderr, "depth: no %s given, %s: %s\n", missing, DEPTH_DEFAULT_NOTICE, path);
+    return 0;
+}
+
 int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pg_pipeline_config *c, pipeline_cli_text *t)
 {
     int rc = cli_parse(spec, argc, argv, &c->input, NULL);
     if (rc) return rc;
     const char *verb = strchr(spec->command, ' ') ? strchr(spec->command, ' ') + 1 : spec->command;
-    if ((!c->depth && !c->depth_model) || !c->out) return cli_usage_error("%s: --depth (or --depth-model) and --out are required", verb);
+    if (!c->out) return cli_usage_error("%s: --out is required", verb);
     if (c->depth && c->depth_model) return cli_usage_error("%s: give --depth or --depth-model, not both", verb);
-    if (c->depth_model && (c->depth_kind || c->depth_scale))
+    if (!c->depth && (c->depth_kind || c->depth_scale))
         return cli_usage_error("%s: --depth-kind and --depth-scale apply to --depth; a model's output kind comes from "
                                "MODEL.json (\"output\": \"depth\" or \"disparity\")", verb);
+    if (!c->depth && !c->depth_model) {
+        if ((rc = pipeline_cli_default_depth("--depth/--depth-model", t->depth_model, sizeof t->depth_model))) return rc;
+        c->depth_model = t->depth_model;
+    }
     if ((rc = cli_parse_size("--size", t->size, &c->width, &c->height))) return rc;
     if ((rc = cli_parse_count_or_all("--proxies", t->proxies, &c->proxies))) return rc;
     c->refine = !t->no_refine;

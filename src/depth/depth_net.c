@@ -65,6 +65,11 @@ static pg_status read_sidecar(depth_net *net)
         if (!(in->std[k] >= 1e-6f && in->std[k] <= 1e3f) || !(fabsf(in->mean[k]) <= 1e3f))
             st = pg_fail(PG_ERR_FORMAT, "%s: mean must be within +-1000 and std in [1e-6, 1000] (got mean %g, std %g)", side,
                          in->mean[k], in->std[k]);
+    if (!st && (it = cJSON_GetObjectItemCaseSensitive(j, "channel_order"))) {
+        if (!cJSON_IsString(it) || (strcmp(it->valuestring, "rgb") && strcmp(it->valuestring, "bgr")))
+            st = pg_fail(PG_ERR_FORMAT, "%s: \"channel_order\" must be \"rgb\" or \"bgr\"", side);
+        else in->bgr = !strcmp(it->valuestring, "bgr");
+    }
     if (!st && (it = cJSON_GetObjectItemCaseSensitive(j, "output"))) {
         if (!cJSON_IsString(it)) st = pg_fail(PG_ERR_FORMAT, "%s: \"output\" must be \"depth\" or \"disparity\"", side);
         else st = parse_kind(it->valuestring, side, &in->disparity);
@@ -201,7 +206,7 @@ pg_status depth_net_infer(depth_net *net, const pg_image *frame, float *depth, i
     size_t P = (size_t)in->width * in->height;
     for (size_t p = 0; p < P; p++)
         for (int k = 0; k < 3; k++) {
-            float v = (small.data[p * 3 + k] - in->mean[k]) / in->std[k];
+            float v = (small.data[p * 3 + (in->bgr ? 2 - k : k)] - in->mean[k]) / in->std[k];
             if (in->nchw) net->in[(size_t)k * P + p] = v;
             else net->in[p * 3 + k] = v;
         }

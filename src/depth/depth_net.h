@@ -14,6 +14,8 @@
  *   {"name": "PyDNet++ (Matterport)", "license": "research only",
  *    "input_size": [640, 448],            width, height: must equal a fixed-size model's input
  *    "mean": [0, 0, 0], "std": [1, 1, 1],  input = (rgb - mean) / std, rgb in [0, 1]
+ *    "channel_order": "rgb",              or "bgr": the network's channel k is the frame's 2 - k
+ *                                         (mean / std are in the network's order)
  *    "output": "depth",                   or "disparity" (larger = nearer)
  *    "scale": 1,                          raw output multiplied by this
  *    "multiple_of": 14}                   dynamic-input models: input sides are multiples of this
@@ -46,6 +48,7 @@ typedef struct {
     int out_width, out_height;
     int nchw;             /* input layout */
     float mean[3], std[3];
+    int bgr;              /* the network takes blue, green, red */
     int disparity;        /* raw output is disparity */
     float scale;
     int sidecar;          /* 1 when MODEL.json was read */

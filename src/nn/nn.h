@@ -46,7 +46,8 @@ int nn_model_input_shape(const nn_model *model, int64_t dims[NN_MAX_DIMS]);
 int nn_model_output_shape(const nn_model *model, int64_t dims[NN_MAX_DIMS]);
 
 /* Runs the model on input (the first graph input, its shape's element count) into output (the
- * first graph output) with threads threads (<= 0: all cores). One run at a time per model (the
+ * first graph output; an integer TFLite model's input and output are their real values, see
+ * tflite.h) with threads threads (<= 0: all cores). One run at a time per model (the
  * activations live in the model); load the model once per concurrent user. */
 pg_status nn_model_run(nn_model *model, const float *input, float *output, int threads);
 

@@ -56,6 +56,7 @@ const nn_op_info nn_ops[NN_OP_COUNT] = {
     [NN_OP_IDENTITY] = { "Identity", 1, 1, nn_infer_unary, nn_run_reshape, NULL },
     [NN_OP_ABS] = { "Abs", 1, 1, nn_infer_unary, nn_run_unary, NULL },
     [NN_OP_ATTENTION] = { "Attention", 3, 3, nn_infer_attention, nn_run_attention, nn_scratch_attention },
+    [NN_OP_REQUANTIZE] = { "Requantize", 1, 2, nn_infer_requantize, nn_run_requantize, nn_scratch_requantize },
 };
 static_assert(sizeof nn_ops / sizeof nn_ops[0] == NN_OP_COUNT, "one nn_ops entry per nn_op");
 
@@ -362,7 +363,7 @@ pg_status nn_node_infer(nn_graph *g, int id)
         nn_tensor *t = nn_in(g, n, i);
         if (!t && (i < info->min_inputs || n->op == NN_OP_CONCAT)) return nn_node_fail(n, "input %d missing", i);
         if (t && t->ndim < 0) return nn_node_fail(n, "input '%s' has no shape", t->name);
-        if (t && t->dtype != NN_F32 && !(n->op == NN_OP_GATHER && i == 1))
+        if (t && t->dtype != NN_F32 && !((n->op == NN_OP_GATHER || n->op == NN_OP_REQUANTIZE) && i == 1))
             return nn_node_fail(n, "input '%s' is int64 (only float32 is computed)", t->name);
     }
     return info->infer(g, n);

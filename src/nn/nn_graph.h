@@ -7,7 +7,9 @@
  *
  * Conventions every front end follows, so one kernel family serves both:
  *   - compute is float32; int8 / fp16 weights are dequantised to float32 at import; int64
- *     tensors exist only as constants (Gather indices, shape values folded at import).
+ *     tensors exist only as constants (Gather indices, shape values folded at import, REQUANTIZE's
+ *     fixed-point multipliers). Integer TFLite models keep integer values in float tensors
+ *     (q - zero_point, exact) and round with REQUANTIZE (tflite_import.c).
  *   - shapes are static: every dim is known after import (front ends fold Shape/Gather/Concat
  *     chains and turn constant "shape-like" inputs into attributes: Reshape's target shape,
  *     Slice's starts/ends/axes/steps, Resize's output size, Pad's pads, Expand's shape, the axes
@@ -113,6 +115,11 @@ typedef enum {
     NN_OP_ABS,            /* (x) unary */
     NN_OP_ATTENTION,      /* (q[..., M, D], k[..., N, D], v[..., N, E]) softmax(q k^T) v per batch, in row blocks
                            * (made by the fusion pass from MatMul(q, k^T) -> Softmax -> MatMul(., v)) */
+    NN_OP_REQUANTIZE,     /* (x, fixed[C,2] i64|-1) attr: q_multiplier q_zero_point q_min q_max:
+                           * y = clamp(r + zp, q_min, q_max) - zp where r = x * m rounded: with
+                           * `fixed` (per channel of the last axis: Q31 mantissa, power-of-two shift) x is an
+                           * int32 value and r is TFLite's fixed-point product with its two roundings; without
+                           * it r = round(x * q_multiplier) half away from zero (see tflite_import.c) */
     NN_OP_COUNT
 } nn_op;
 
@@ -152,6 +159,9 @@ typedef struct {
     float scale_h, scale_w;   /* RESIZE scales used by the coordinate transform (0: out / in) */
     float cubic_a;            /* RESIZE cubic coefficient (-0.75, as ONNX and torch) */
     int exclude_outside;      /* RESIZE cubic: taps outside the input get weight 0, the rest renormalised */
+
+    float q_multiplier;       /* REQUANTIZE: float multiplier, zero point and integer range of the result */
+    int q_zero_point, q_min, q_max;
 } nn_attrs;
 
 typedef struct {

@@ -127,7 +127,7 @@ void nn_sgemm1(int trans_a, int trans_b, int M, int N, int K, const float *A, in
 #define NN_DECLARE_OP(x) pg_status nn_infer_##x(nn_graph *g, nn_node *n); void nn_run_##x(const nn_ctx *c, const nn_node *n);
 NN_DECLARE_OP(conv) NN_DECLARE_OP(conv_transpose)           /* ops_conv.c */
 NN_DECLARE_OP(matmul) NN_DECLARE_OP(gemm)                   /* ops_matmul.c */
-NN_DECLARE_OP(binary) NN_DECLARE_OP(unary)                  /* ops_elementwise.c */
+NN_DECLARE_OP(binary) NN_DECLARE_OP(unary) NN_DECLARE_OP(requantize) /* ops_elementwise.c */
 NN_DECLARE_OP(layer_norm) NN_DECLARE_OP(softmax) NN_DECLARE_OP(reduce_mean) /* ops_norm.c */
 NN_DECLARE_OP(reshape) NN_DECLARE_OP(transpose) NN_DECLARE_OP(slice) NN_DECLARE_OP(concat)
 NN_DECLARE_OP(gather) NN_DECLARE_OP(expand) NN_DECLARE_OP(pad)  /* ops_shape.c */
@@ -138,11 +138,18 @@ size_t nn_scratch_conv(const nn_graph *g, const nn_node *n);
 size_t nn_scratch_conv_transpose(const nn_graph *g, const nn_node *n);
 size_t nn_scratch_matmul(const nn_graph *g, const nn_node *n);
 size_t nn_scratch_resize(const nn_graph *g, const nn_node *n);
+size_t nn_scratch_requantize(const nn_graph *g, const nn_node *n);
 /* NHWC group-1 Conv with (ky, kx, c)-ordered patches (ops_conv_nhwc.c, from nn-tflite); nn_run_conv
  * and nn_scratch_conv dispatch to it when nn_conv_nhwc_applies. */
 int nn_conv_nhwc_applies(const nn_graph *g, const nn_node *n);
 size_t nn_scratch_conv_nhwc(const nn_graph *g, const nn_node *n);
 void nn_run_conv_nhwc(const nn_ctx *c, const nn_node *n);
+
+/* NHWC depthwise Conv (group = C = O) over pixels (ops_conv_depthwise.c); nn_run_conv and
+ * nn_scratch_conv dispatch to it when nn_conv_depthwise_applies. */
+int nn_conv_depthwise_applies(const nn_graph *g, const nn_node *n);
+size_t nn_scratch_conv_depthwise(const nn_graph *g, const nn_node *n);
+void nn_run_conv_depthwise(const nn_ctx *c, const nn_node *n);
 
 /* Scalar reference kernels, test oracles for the fast ones (NCHW, group, dilation). */
 void nn_conv_reference(float *y, const float *x, const float *w, const float *b, int N, int C, int H, int W,

@@ -115,6 +115,7 @@ static int conv_tile(const conv_geom *q)
 size_t nn_scratch_conv(const nn_graph *g, const nn_node *n)
 {
     if (nn_conv_nhwc_applies(g, n)) return nn_scratch_conv_nhwc(g, n); /* ops_conv_nhwc.c (nn-tflite) */
+    if (nn_conv_depthwise_applies(g, n)) return nn_scratch_conv_depthwise(g, n);
     conv_geom q;
     get_geom(g, n, &q, 0);
     return (size_t)q.Cg * q.kh * q.kw * (size_t)conv_tile(&q);
@@ -182,6 +183,7 @@ static void im2col_nhwc(float *col, const float *x, const conv_geom *q, int n, i
 void nn_run_conv(const nn_ctx *c, const nn_node *n)
 {
     if (nn_conv_nhwc_applies(c->g, n)) { nn_run_conv_nhwc(c, n); return; } /* ops_conv_nhwc.c (nn-tflite) */
+    if (nn_conv_depthwise_applies(c->g, n)) { nn_run_conv_depthwise(c, n); return; }
     conv_geom q;
     get_geom(c->g, n, &q, 0);
     const float *x = nn_in_data(c, n, 0), *w = nn_in_data(c, n, 1), *b = nn_in_data(c, n, 2);

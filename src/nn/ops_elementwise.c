@@ -2,6 +2,8 @@
  * and activations (Sqrt Erf Exp Tanh Neg Relu LeakyRelu Sigmoid Gelu), fused activations. */
 #include "nn/nn_ops.h"
 
+#include <stdint.h>
+
 #include <math.h>
 #include <string.h>
 
@@ -124,8 +126,9 @@ pg_status nn_infer_unary(nn_graph *g, nn_node *n)
 
 /* One chunk of a unary op; separate from the parallel loop so the pointers are plain locals and
  * the loops vectorise (nn_exp / nn_erf are arithmetic only). */
-static void unary_chunk(nn_op op, float *restrict y, const float *restrict x, int64_t n, float alpha, int gelu_tanh)
+static void unary_chunk(nn_op op, float *restrict y, const float *restrict x, int64_t n, const nn_attrs *a)
 {
+    float alpha = a->alpha;
     switch (op) {
     case NN_OP_SQRT: for (int64_t i = 0; i < n; i++) y[i] = sqrtf(x[i]); break;
     case NN_OP_ERF: for (int64_t i = 0; i < n; i++) y[i] = nn_erf(x[i]); break;
@@ -137,7 +140,7 @@ static void unary_chunk(nn_op op, float *restrict y, const float *restrict x, in
     case NN_OP_LEAKY_RELU: for (int64_t i = 0; i < n; i++) y[i] = x[i] >= 0 ? x[i] : alpha * x[i]; break;
     case NN_OP_SIGMOID: for (int64_t i = 0; i < n; i++) y[i] = 1.0f / (1.0f + nn_exp(-x[i])); break;
     case NN_OP_GELU:
-        if (gelu_tanh)
+        if (a->gelu_tanh)
             for (int64_t i = 0; i < n; i++)
                 y[i] = 0.5f * x[i] * (1.0f + tanhf(0.7978845608f * (x[i] + 0.044715f * x[i] * x[i] * x[i])));
         else
@@ -153,11 +156,107 @@ void nn_run_unary(const nn_ctx *c, const nn_node *n)
     const float *x = nn_in_data(c, n, 0);
     float *y = nn_out_data(c, n, 0);
     int64_t count = nn_shape_count(tx->ndim, tx->dims);
-    float alpha = n->attr.alpha;
     nn_op op = n->op;
-    int gelu_tanh = n->attr.gelu_tanh;
     int heavy = op == NN_OP_ERF || op == NN_OP_EXP || op == NN_OP_TANH || op == NN_OP_SIGMOID || op == NN_OP_GELU || op == NN_OP_SQRT;
     #pragma omp parallel for schedule(static) if (count >= (heavy ? NN_PAR_COMPUTE : NN_PAR_MEMORY))
     for (int64_t s = 0; s < count; s += 4096)
-        unary_chunk(op, y + s, x + s, count - s < 4096 ? count - s : 4096, alpha, gelu_tanh);
+        unary_chunk(op, y + s, x + s, count - s < 4096 ? count - s : 4096, &n->attr);
+}
+
+pg_status nn_infer_requantize(nn_graph *g, nn_node *n)
+{
+    nn_tensor *x = nn_in(g, n, 0), *m = nn_in(g, n, 1);
+    if (m && (!m->data || m->dtype != NN_I64 || x->ndim < 1 || nn_shape_count(m->ndim, m->dims) != 2 * x->dims[x->ndim - 1]))
+        return nn_node_fail(n, "the multipliers must be an int64 constant of (mantissa, shift) per channel of the last axis");
+    if (!(n->attr.q_min <= n->attr.q_zero_point && n->attr.q_zero_point <= n->attr.q_max))
+        return nn_node_fail(n, "zero point %d outside %d..%d", n->attr.q_zero_point, n->attr.q_min, n->attr.q_max);
+    return nn_set_output(g, n, 0, x->ndim, x->dims);
+}
+
+/* TFLite's MultiplyByQuantizedMultiplier: x * q / 2^31 rounded half away from zero (a
+ * saturating rounding doubling high multiply), then a rounding right shift by -shift (ties
+ * away from zero) or a left shift first. The two roundings are what make it differ from one
+ * rounding of x * m, so it is reproduced exactly. */
+static int32_t fixed_point_multiply(int32_t x, int32_t q, int shift)
+{
+    int left = shift > 0 ? shift : 0, right = shift > 0 ? 0 : -shift;
+    int64_t xs = (int64_t)x * ((int64_t)1 << left);
+    xs = xs > INT32_MAX ? INT32_MAX : xs < INT32_MIN ? INT32_MIN : xs;
+    int64_t ab = xs * q;
+    int32_t high = xs == INT32_MIN && q == INT32_MIN ? INT32_MAX : (int32_t)((ab + (ab >= 0 ? (1 << 30) : 1 - (1 << 30))) / ((int64_t)1 << 31));
+    int32_t mask = (int32_t)(((int64_t)1 << right) - 1), rem = high & mask, threshold = (mask >> 1) + (high < 0);
+    return (high >> right) + (rem > threshold);
+}
+
+/* The fixed-point rescale of one row of C channels in doubles, exactly TFLite's: high = x * q /
+ * 2^31 rounded half up (floor(v + 0.5): the rounding of its doubling high multiply, ties toward
+ * +inf for both signs), then high / 2^right rounded half away from zero. Every step is exact
+ * while |x| stays below exact_below; a row with a larger value takes fixed_point_multiply. */
+static void requantize_fixed_row(float *restrict y, const float *restrict x, const double *restrict mult, const double *restrict post,
+                                 const float *restrict exact_below, const int64_t *fixed, int64_t C, float lo, float hi)
+{
+    int exact = 1;
+    for (int64_t c = 0; c < C; c++) exact &= fabsf(x[c]) < exact_below[c];
+    if (!exact) {
+        for (int64_t c = 0; c < C; c++) {
+            float v = x[c] < -2147483520.0f ? -2147483520.0f : x[c] > 2147483520.0f ? 2147483520.0f : x[c];
+            float r = (float)fixed_point_multiply(v == v ? (int32_t)v : 0, (int32_t)fixed[2 * c], (int)fixed[2 * c + 1]);
+            r = r < lo ? lo : r;
+            y[c] = r > hi ? hi : r;
+        }
+        return;
+    }
+    double dlo = lo, dhi = hi;
+    for (int64_t c = 0; c < C; c++) {
+        double v = floor((double)x[c] * mult[c] + 0.5) * post[c];
+        double r = trunc(v + (v < 0 ? -0.5 : 0.5));
+        r = r < dlo ? dlo : r;
+        y[c] = (float)(r > dhi ? dhi : r);
+    }
+}
+
+/* The float-multiplier form: round(x * m0) half away from zero (truncf keeps it vectorisable). */
+static void requantize_float_row(float *restrict y, const float *restrict x, float m0, int64_t C, float lo, float hi)
+{
+    for (int64_t c = 0; c < C; c++) {
+        float v = x[c] * m0, t = truncf(v);
+        float r = t + (fabsf(v - t) >= 0.5f ? (v < 0 ? -1.0f : 1.0f) : 0.0f);
+        r = r < lo ? lo : r;
+        y[c] = r > hi ? hi : r;
+    }
+}
+
+size_t nn_scratch_requantize(const nn_graph *g, const nn_node *n)
+{
+    const nn_tensor *x = nn_in((nn_graph *)g, n, 0);
+    return n->num_inputs > 1 && n->inputs[1] >= 0 && x->ndim >= 1 ? (size_t)x->dims[x->ndim - 1] * 5 : 0; /* 2 doubles + 1 float */
+}
+
+void nn_run_requantize(const nn_ctx *c, const nn_node *n)
+{
+    const nn_tensor *tx = nn_in(c->g, n, 0), *tm = nn_in(c->g, n, 1);
+    const float *x = nn_in_data(c, n, 0);
+    const int64_t *fixed = tm ? tm->data : NULL;
+    float *y = nn_out_data(c, n, 0);
+    int64_t count = nn_shape_count(tx->ndim, tx->dims), C = fixed ? tx->dims[tx->ndim - 1] : (count < 4096 ? count : 4096);
+    if (C < 1) return;
+    const nn_attrs *a = &n->attr;
+    float lo = (float)(a->q_min - a->q_zero_point), hi = (float)(a->q_max - a->q_zero_point);
+    /* per-channel doubles, once, in the first thread's scratch (64-byte aligned): mult = q *
+     * 2^(left - 31) (exact: q has 31 bits), post = 2^-right, exact_below = 2^21 / 2^left (below
+     * it x * mult, 21 integer + 31 fraction bits, and x * mult + 0.5 fit a double's 53 bits) */
+    double *mult = (double *)c->scratch, *post = mult + C;
+    float *exact_below = (float *)(post + C);
+    for (int64_t ch = 0; fixed && ch < C; ch++) {
+        int shift = (int)fixed[2 * ch + 1], left = shift > 0 ? shift : 0;
+        mult[ch] = ldexp((double)fixed[2 * ch], left - 31);
+        post[ch] = ldexp(1.0, shift > 0 ? 0 : shift);
+        exact_below[ch] = (float)ldexp(1.0, 21 - left);
+    }
+    #pragma omp parallel for schedule(static) if (count >= NN_PAR_COMPUTE)
+    for (int64_t s = 0; s < count; s += C) {
+        int64_t len = count - s < C ? count - s : C;
+        if (fixed) requantize_fixed_row(y + s, x + s, mult, post, exact_below, fixed, len, lo, hi);
+        else requantize_float_row(y + s, x + s, a->q_multiplier, len, lo, hi);
+    }
 }

@@ -168,7 +168,9 @@ static const char *const op_names[] = {
     "SIN", "TRANSPOSE_CONV", "SPARSE_TO_DENSE", "TILE", "EXPAND_DIMS", "EQUAL", "NOT_EQUAL", "LOG", "SUM", "SQRT",
     "RSQRT", "SHAPE", "POW", "ARG_MIN", "FAKE_QUANT", "REDUCE_PROD", "REDUCE_MAX", "PACK", "LOGICAL_OR",
     "ONE_HOT", "LOGICAL_AND", "LOGICAL_NOT", "UNPACK", "REDUCE_MIN", "FLOOR_DIV", "REDUCE_ANY", "SQUARE",
-    "ZEROS_LIKE", "FILL", "FLOOR_MOD", "RANGE", "RESIZE_NEAREST_NEIGHBOR", "LEAKY_RELU",
+    "ZEROS_LIKE", "FILL", "FLOOR_MOD", "RANGE", "RESIZE_NEAREST_NEIGHBOR", "LEAKY_RELU", "SQUARED_DIFFERENCE",
+    "MIRROR_PAD", "ABS", "SPLIT_V", "UNIQUE", "CEIL", "REVERSE_V2", "ADD_N", "GATHER_ND", "COS", "WHERE", "RANK", "ELU",
+    "REVERSE_SEQUENCE", "MATRIX_DIAG", "QUANTIZE",
 };
 
 const char *nn_tfl_op_name(int code)
@@ -186,6 +188,8 @@ void nn_tfl_destroy(nn_tfl_model *m)
         free(m->tensors[i].name);
         free(m->tensors[i].values);
         free(m->tensors[i].ints);
+        free(m->tensors[i].scales);
+        free(m->tensors[i].qvalues);
     }
     free(m->tensors);
     free(m->ops);
@@ -269,6 +273,59 @@ static pg_status buffer_bytes(const parse_ctx *c, uint32_t b, const uint8_t **pt
     return PG_OK;
 }
 
+/* Reads Tensor.quantization of an int8 / uint8 / int32 tensor into t and checks it: scales
+ * positive and finite, one per channel of quant_dim (or one), as many zero points as scales (or
+ * none), all equal and inside the type's range (0 for int32). Other types' parameters
+ * (calibration ranges some converters leave on float tensors) are ignored. An int8 / uint8
+ * tensor without scales fails. */
+static pg_status parse_quantization(parse_ctx *c, const fb_table *tt, int i)
+{
+    nn_tfl_tensor *t = &c->m->tensors[i];
+    const fb_file *f = &c->f;
+    int is_int8 = t->type == NN_TFL_INT8 || t->type == NN_TFL_UINT8;
+    if (!is_int8 && t->type != NN_TFL_INT32) return PG_OK;
+    fb_table qt;
+    int rq = fb_subtable(tt, f, 4, &qt);
+    if (rq < 0) return bad(c, "quantization table");
+    uint32_t ns = 0, nz = 0;
+    size_t ss = 0, sz = 0;
+    int qdim = 0;
+    if (rq && (fb_vector(&qt, f, 2, 4, &ns, &ss) || fb_vector(&qt, f, 3, 8, &nz, &sz) || fb_int(&qt, f, 6, 0, &qdim)))
+        return bad(c, "quantization parameters outside the file");
+    if (ns == 0) {
+        if (is_int8)
+            return pg_fail(PG_ERR_FORMAT, "%s: tensor %d '%s': %s tensor without a quantization scale", c->name, i, t->name,
+                           t->type == NN_TFL_INT8 ? "int8" : "uint8");
+        return PG_OK;
+    }
+    if (ns > 1 && (qdim < 0 || qdim >= t->ndim || (uint32_t)t->dims[qdim] != ns))
+        return pg_fail(PG_ERR_FORMAT, "%s: tensor %d '%s': %u scales do not match quantized dimension %d", c->name, i, t->name,
+                       ns, qdim);
+    if (nz != 0 && nz != ns)
+        return pg_fail(PG_ERR_FORMAT, "%s: tensor %d '%s': %u zero points for %u scales", c->name, i, t->name, nz, ns);
+    t->scales = pg_malloc((size_t)ns * sizeof(float), "tflite quantization scales");
+    if (!t->scales) return PG_ERR_NOMEM;
+    t->num_scales = (int)ns;
+    t->quant_dim = ns > 1 ? qdim : 0;
+    int64_t lo = t->type == NN_TFL_INT8 ? -128 : 0, hi = t->type == NN_TFL_INT8 ? 127 : t->type == NN_TFL_UINT8 ? 255 : 0;
+    for (uint32_t k = 0; k < ns; k++) {
+        float s = rd_f32(f->d + ss + 4 * k);
+        int64_t zp = nz ? (int64_t)rd_u64(f->d + sz + 8 * k) : 0;
+        if (!(isfinite(s) && s > 0))
+            return pg_fail(PG_ERR_FORMAT, "%s: tensor %d '%s': quantization scale %g (channel %u) is not a positive finite number",
+                           c->name, i, t->name, (double)s, k);
+        if (zp < lo || zp > hi)
+            return pg_fail(PG_ERR_FORMAT, "%s: tensor %d '%s': zero point %lld (channel %u) outside %lld..%lld", c->name, i,
+                           t->name, (long long)zp, k, (long long)lo, (long long)hi);
+        if (k > 0 && zp != t->zero_point)
+            return pg_fail(PG_ERR_FORMAT, "%s: tensor %d '%s': per-channel zero points differ (%d, %lld)", c->name, i, t->name,
+                           t->zero_point, (long long)zp);
+        t->scales[k] = s;
+        t->zero_point = (int)zp;
+    }
+    return PG_OK;
+}
+
 /* Reads tensor i: shape, type, name, and (constants) its data as float or int32. */
 static pg_status parse_tensor(parse_ctx *c, const fb_table *tt, int i)
 {
@@ -308,6 +365,7 @@ static pg_status parse_tensor(parse_ctx *c, const fb_table *tt, int i)
     int type, buffer;
     if (fb_byte(tt, f, 1, 0, &type) || fb_int(tt, f, 2, 0, &buffer)) return bad(c, "tensor fields");
     t->type = type;
+    PG_TRY(parse_quantization(c, tt, i));
     const uint8_t *data;
     size_t len;
     PG_TRY(buffer_bytes(c, (uint32_t)buffer, &data, &len));
@@ -319,51 +377,38 @@ static pg_status parse_tensor(parse_ctx *c, const fb_table *tt, int i)
         return pg_fail(PG_ERR_FORMAT, "%s: tensor %d '%s': buffer holds %zu bytes, its shape needs %llu", c->name, i,
                        t->name, len, (unsigned long long)t->count * eb);
     size_t n = (size_t)t->count;
-    if (type == 2 || type == 4) {
+    if (type == NN_TFL_INT32 || type == NN_TFL_INT64) {
         t->ints = pg_malloc(n * sizeof(int32_t), "tflite int constant");
         if (!t->ints) return PG_ERR_NOMEM;
         for (size_t k = 0; k < n; k++) {
-            int64_t v = type == 2 ? rd_i32(data + 4 * k) : (int64_t)rd_u64(data + 8 * k);
+            int64_t v = type == NN_TFL_INT32 ? rd_i32(data + 4 * k) : (int64_t)rd_u64(data + 8 * k);
             if (v < INT32_MIN || v > INT32_MAX)
                 return pg_fail(PG_ERR_FORMAT, "%s: tensor %d '%s': int64 value out of range", c->name, i, t->name);
             t->ints[k] = (int32_t)v;
         }
-        return PG_OK;
+        if (type == NN_TFL_INT64 || !t->num_scales) return PG_OK;
+        /* a quantised int32 constant (a bias): also its real values and stored integers */
+    } else if (type == NN_TFL_INT8 || type == NN_TFL_UINT8) {
+        if (!t->num_scales)
+            return pg_fail(PG_ERR_FORMAT, "%s: tensor %d '%s': %s constant without a quantization scale", c->name, i,
+                           t->name, type == NN_TFL_INT8 ? "int8" : "uint8");
     }
     t->values = pg_malloc(n * sizeof(float), "tflite constant");
     if (!t->values) return PG_ERR_NOMEM;
-    if (type == 0) {
+    if (type == NN_TFL_FLOAT32) {
         for (size_t k = 0; k < n; k++) t->values[k] = rd_f32(data + 4 * k);
-    } else if (type == 1) {
+    } else if (type == NN_TFL_FLOAT16) {
         for (size_t k = 0; k < n; k++) t->values[k] = io_half_to_float(rd_u16(data + 2 * k));
     } else {
-        /* int8 / uint8 weights: value = scale[c] * (q - zero_point[c]) along quantized_dimension */
-        fb_table qt;
-        int rq = fb_subtable(tt, f, 4, &qt);
-        if (rq < 0) return bad(c, "quantization table");
-        uint32_t ns = 0, nz = 0;
-        size_t ss = 0, sz = 0;
-        int qdim = 0;
-        if (rq && (fb_vector(&qt, f, 2, 4, &ns, &ss) || fb_vector(&qt, f, 3, 8, &nz, &sz) || fb_int(&qt, f, 6, 0, &qdim)))
-            return bad(c, "quantization parameters outside the file");
-        if (ns == 0)
-            return pg_fail(PG_ERR_FORMAT, "%s: tensor %d '%s': %s constant without a quantization scale", c->name, i,
-                           t->name, type == 9 ? "int8" : "uint8");
-        if (ns > 1 && (qdim < 0 || qdim >= t->ndim || (uint32_t)t->dims[qdim] != ns))
-            return pg_fail(PG_ERR_FORMAT, "%s: tensor %d '%s': %u scales do not match quantized dimension %d", c->name, i,
-                           t->name, ns, qdim);
-        if (nz != 0 && nz != ns)
-            return pg_fail(PG_ERR_FORMAT, "%s: tensor %d '%s': %u zero points for %u scales", c->name, i, t->name, nz, ns);
-        size_t inner = 1, chans = ns > 1 ? ns : 1;
-        for (int k = qdim + 1; ns > 1 && k < t->ndim; k++) inner *= (size_t)t->dims[k];
+        /* value = scale[ch] * (q - zero_point) along quant_dim */
+        t->qvalues = pg_malloc(n * sizeof(int32_t), "tflite quantised constant");
+        if (!t->qvalues) return PG_ERR_NOMEM;
+        size_t inner = 1, chans = (size_t)t->num_scales;
+        for (int k = t->quant_dim + 1; chans > 1 && k < t->ndim; k++) inner *= (size_t)t->dims[k];
         for (size_t k = 0; k < n; k++) {
-            size_t ch = ns > 1 ? (k / inner) % chans : 0;
-            float scale = rd_f32(f->d + ss + 4 * ch);
-            int64_t zp = nz ? (int64_t)rd_u64(f->d + sz + 8 * ch) : 0;
-            if (!isfinite(scale) || zp < -255 || zp > 255)
-                return pg_fail(PG_ERR_FORMAT, "%s: tensor %d '%s': bad scale or zero point", c->name, i, t->name);
-            int q = type == 9 ? (int)(int8_t)data[k] : (int)data[k];
-            t->values[k] = scale * (float)(q - zp);
+            int32_t q = type == NN_TFL_INT8 ? (int8_t)data[k] : type == NN_TFL_UINT8 ? data[k] : t->ints[k];
+            t->qvalues[k] = q;
+            t->values[k] = (float)((double)t->scales[(k / inner) % chans] * ((double)q - t->zero_point));
         }
     }
     for (size_t k = 0; k < n; k++)
@@ -390,6 +435,8 @@ static int options_type(int code)
     case NN_TFL_MAXIMUM: case NN_TFL_MINIMUM: return 39;
     case NN_TFL_TRANSPOSE_CONV: return 49;
     case NN_TFL_LEAKY_RELU: return 75;
+    case NN_TFL_RESIZE_NEAREST_NEIGHBOR: return 74;
+    case NN_TFL_QUANTIZE: return 89;
     case NN_TFL_RELU: case NN_TFL_RELU6: case NN_TFL_LOGISTIC: case NN_TFL_TANH: return 0;
     default: return -1;
     }
@@ -422,6 +469,9 @@ static pg_status parse_options(parse_ctx *c, const fb_table *ot, int k, nn_tfl_o
         break;
     case NN_TFL_RESIZE_BILINEAR:
         ok = fb_byte(ot, f, 2, 0, &op->align_corners) | fb_byte(ot, f, 3, 0, &op->half_pixel_centers);
+        break;
+    case NN_TFL_RESIZE_NEAREST_NEIGHBOR:
+        ok = fb_byte(ot, f, 0, 0, &op->align_corners) | fb_byte(ot, f, 1, 0, &op->half_pixel_centers);
         break;
     case NN_TFL_STRIDED_SLICE: {
         int ellipsis = 0, new_axis = 0, offset = 0;
@@ -610,7 +660,7 @@ static pg_status infer_shape(parse_ctx *c, int k, nn_tfl_op *op, const int *resh
         }
         return PG_OK;
     }
-    case NN_TFL_RESIZE_BILINEAR: {
+    case NN_TFL_RESIZE_BILINEAR: case NN_TFL_RESIZE_NEAREST_NEIGHBOR: {
         NEED(ni == 2 && op->inputs[1] >= 0, "needs 2 inputs, has %d", ni);
         const nn_tfl_tensor *s = &T[op->inputs[1]];
         NEED(x->ndim == 4, "input must be 4-D NHWC");
@@ -674,6 +724,7 @@ static pg_status infer_shape(parse_ctx *c, int k, nn_tfl_op *op, const int *resh
         return PG_OK;
     }
     case NN_TFL_LEAKY_RELU: case NN_TFL_RELU: case NN_TFL_RELU6: case NN_TFL_LOGISTIC: case NN_TFL_TANH:
+    case NN_TFL_QUANTIZE: case NN_TFL_DEQUANTIZE:
         NEED(ni == 1, "needs 1 input, has %d", ni);
         NEED(isfinite(op->alpha), "alpha is not finite");
         *ndim = x->ndim;
@@ -681,6 +732,75 @@ static pg_status infer_shape(parse_ctx *c, int k, nn_tfl_op *op, const int *resh
         return PG_OK;
     default:
         return op_fail(c, PG_ERR_FORMAT, k, op, "unsupported op");
+    }
+#undef NEED
+}
+
+/* Whether two per-tensor quantisations are the same. */
+static int same_quantization(const nn_tfl_tensor *a, const nn_tfl_tensor *b)
+{
+    return a->type == b->type && a->scales[0] == b->scales[0] && a->zero_point == b->zero_point;
+}
+
+/* The activation types an op may read and write, and on integer activations the quantisation
+ * rules TFLite's kernels assume (see tflite.h): float ops read and write float32; integer ops
+ * read and write one integer type with per-tensor parameters; QUANTIZE / DEQUANTIZE convert. */
+static pg_status check_types(parse_ctx *c, int k, const nn_tfl_op *op)
+{
+    const nn_tfl_tensor *T = c->m->tensors, *y = &T[op->output], *x = &T[op->inputs[0]];
+#define NEED(cond, ...) do { if (!(cond)) return op_fail(c, PG_ERR_FORMAT, k, op, __VA_ARGS__); } while (0)
+    int y_int = y->type == NN_TFL_INT8 || y->type == NN_TFL_UINT8;
+    NEED(y_int || y->type == NN_TFL_FLOAT32, "output is of type %d (float32, int8 or uint8 supported)", y->type);
+    NEED(!y_int || y->num_scales == 1, "output has %d quantization scales (one per tensor supported for activations)", y->num_scales);
+    for (int j = 0; j < op->num_inputs; j++) {
+        const nn_tfl_tensor *t = op->inputs[j] >= 0 ? &T[op->inputs[j]] : NULL;
+        if (!t || nn_tfl_is_const(t)) continue;
+        int t_int = nn_tfl_is_quantized(t);
+        NEED(t_int || t->type == NN_TFL_FLOAT32, "input %d (tensor '%s') is of type %d (float32, int8 or uint8 supported)", j, t->name,
+             t->type);
+        NEED(!t_int || t->num_scales == 1, "input %d (tensor '%s') has %d quantization scales (one per tensor supported)", j, t->name,
+             t->num_scales);
+        if (op->code == NN_TFL_QUANTIZE || op->code == NN_TFL_DEQUANTIZE) continue;
+        NEED(t->type == y->type, "input %d (tensor '%s') is of type %d but the output of type %d", j, t->name, t->type, y->type);
+    }
+    if (op->code == NN_TFL_QUANTIZE) {
+        NEED(!nn_tfl_is_const(x), "QUANTIZE of a constant is not supported");
+        NEED(y_int, "QUANTIZE must write an int8 or uint8 tensor");
+        return PG_OK;
+    }
+    if (op->code == NN_TFL_DEQUANTIZE) {
+        NEED(nn_tfl_is_quantized(x) && y->type == NN_TFL_FLOAT32, "DEQUANTIZE must read int8 / uint8 and write float32");
+        return PG_OK;
+    }
+    if (!y_int) return PG_OK;
+    NEED(nn_tfl_is_quantized(x), "input 0 must be an int8 / uint8 activation");
+    switch (op->code) {
+    case NN_TFL_CONV_2D: case NN_TFL_DEPTHWISE_CONV_2D: {
+        const nn_tfl_tensor *w = &T[op->inputs[1]];
+        int depthwise = op->code == NN_TFL_DEPTHWISE_CONV_2D, cout = depthwise ? w->dims[3] : w->dims[0];
+        NEED(w->qvalues && (w->type == NN_TFL_INT8 || w->type == NN_TFL_UINT8), "weights of an integer conv must be int8 or uint8");
+        NEED(w->num_scales == 1 || (w->num_scales == cout && w->quant_dim == (depthwise ? 3 : 0)),
+             "weights have %d scales along dimension %d (1, or %d along the output channels)", w->num_scales, w->quant_dim, cout);
+        if (op->num_inputs > 2 && op->inputs[2] >= 0) {
+            const nn_tfl_tensor *b = &T[op->inputs[2]];
+            NEED(b->type == NN_TFL_INT32 && b->qvalues && b->num_scales == w->num_scales,
+                 "bias must be int32 with as many scales as the weights (%d)", w->num_scales);
+            for (int o = 0; o < b->num_scales; o++) {
+                double want = (double)x->scales[0] * w->scales[o], have = b->scales[o];
+                NEED(fabs(have - want) <= 1e-5 * want, "bias scale %g of channel %d is not input scale x weight scale (%g)", have, o, want);
+            }
+        }
+        return PG_OK;
+    }
+    case NN_TFL_ADD:
+        NEED(nn_tfl_is_quantized(&T[op->inputs[1]]), "input 1 must be an int8 / uint8 activation");
+        return PG_OK;
+    case NN_TFL_PAD: case NN_TFL_RESIZE_NEAREST_NEIGHBOR: case NN_TFL_RESHAPE:
+        NEED(same_quantization(x, y), "output quantization (scale %g, zero point %d) differs from the input's (%g, %d)", (double)y->scales[0],
+             y->zero_point, (double)x->scales[0], x->zero_point);
+        return PG_OK;
+    default:
+        return op_fail(c, PG_ERR_FORMAT, k, op, "not supported on int8 / uint8 activations");
     }
 #undef NEED
 }
@@ -734,26 +854,19 @@ static pg_status parse_operator(parse_ctx *c, const fb_table *ot, int k, const i
     if (written[op->output] || nn_tfl_is_const(out))
         return op_fail(c, PG_ERR_FORMAT, k, op, "output tensor %d is written twice or is a constant", op->output);
 
-    if (op->code == NN_TFL_DEQUANTIZE) {
+    if (op->code == NN_TFL_DEQUANTIZE && nn_tfl_is_const(&m->tensors[op->inputs[0]])) {
         /* constant folding: the output is the input's dequantised values */
         const nn_tfl_tensor *in = &m->tensors[op->inputs[0]];
-        if (ni != 1 || !in->values) return op_fail(c, PG_ERR_FORMAT, k, op, "only DEQUANTIZE of a constant is supported");
+        if (ni != 1 || !in->values) return op_fail(c, PG_ERR_FORMAT, k, op, "DEQUANTIZE of a constant that holds no numbers");
         if (!dims_equal(out, in->ndim, in->dims)) return op_fail(c, PG_ERR_FORMAT, k, op, "output shape differs from the input's");
         out->values = pg_malloc((size_t)in->count * sizeof(float), "tflite dequantized constant");
         if (!out->values) return PG_ERR_NOMEM;
         memcpy(out->values, in->values, (size_t)in->count * sizeof(float));
         return PG_OK; /* no op added */
     }
-    /* activations read and written by the runtime are float32 */
-    for (int j = 0; j < op->num_inputs; j++) {
-        const nn_tfl_tensor *t = op->inputs[j] >= 0 ? &m->tensors[op->inputs[j]] : NULL;
-        if (t && !nn_tfl_is_const(t) && t->type != 0)
-            return op_fail(c, PG_ERR_FORMAT, k, op, "input %d (tensor '%s') is of type %d; only float32 activations are supported", j,
-                           t->name, t->type);
-    }
-    if (out->type != 0) return op_fail(c, PG_ERR_FORMAT, k, op, "output is of type %d; only float32 is supported", out->type);
     int ndim = 0, dims[NN_TFL_MAX_DIMS];
     PG_TRY(infer_shape(c, k, op, reshape_new_shape, &ndim, dims));
+    PG_TRY(check_types(c, k, op));
     if (!dims_equal(out, ndim, dims)) {
         char want[96], have[96];
         dims_text(want, sizeof want, ndim, dims);
@@ -843,8 +956,9 @@ static pg_status parse_model(parse_ctx *c)
     if (!s) s = parse_io(c, &g, 2, m->outputs, &m->num_outputs, "outputs");
     for (int j = 0; !s && j < m->num_inputs; j++) {
         const nn_tfl_tensor *t = &m->tensors[m->inputs[j]];
-        if (nn_tfl_is_const(t) || t->type != 0 || t->ndim < 1)
-            s = pg_fail(PG_ERR_FORMAT, "%s: graph input '%s' must be a float32 tensor with a shape", c->name, t->name);
+        if (nn_tfl_is_const(t) || !(t->type == NN_TFL_FLOAT32 || (nn_tfl_is_quantized(t) && t->num_scales == 1)) || t->ndim < 1)
+            s = pg_fail(PG_ERR_FORMAT, "%s: graph input '%s' must be a float32, int8 or uint8 (one scale) tensor with a shape", c->name,
+                        t->name);
         else written[m->inputs[j]] = 1;
     }
     for (uint32_t k = 0; !s && k < nops; k++) {

@@ -19,8 +19,20 @@
  *
  * Supported ops (float activations; int8 / uint8 / float16 constant weights are dequantised):
  * CONV_2D, DEPTHWISE_CONV_2D, TRANSPOSE_CONV, ADD, SUB, MUL, MAXIMUM, MINIMUM, CONCATENATION,
- * STRIDED_SLICE, RESIZE_BILINEAR, PAD, LEAKY_RELU, RELU, RELU6, LOGISTIC, TANH, RESHAPE,
- * DEQUANTIZE (of a constant); fused activations NONE, RELU, RELU_N1_TO_1, RELU6, TANH.
+ * STRIDED_SLICE, RESIZE_BILINEAR, RESIZE_NEAREST_NEIGHBOR, PAD, LEAKY_RELU, RELU, RELU6,
+ * LOGISTIC, TANH, RESHAPE, DEQUANTIZE; fused activations NONE, RELU, RELU_N1_TO_1, RELU6, TANH.
+ *
+ * Integer models (int8 / uint8 activations, "full integer" quantisation): QUANTIZE (float ->
+ * int, int -> int), DEQUANTIZE, CONV_2D and DEPTHWISE_CONV_2D (int8 / uint8 weights, per-tensor
+ * or per-channel scales, int32 biases), ADD, PAD, RESIZE_NEAREST_NEIGHBOR and RESHAPE. Every
+ * quantisation parameter is checked at parse: scales positive and finite, zero points inside the
+ * type's range (0 for int32 biases), one scale per channel of the quantized dimension, a bias
+ * scale equal to input scale x weight scale, the same parameters on both sides of the ops that
+ * only move values (PAD, RESIZE_NEAREST_NEIGHBOR, RESHAPE).
+ *
+ * Value convention of the whole front end: a graph input or output tensor that the file stores
+ * as integers is exchanged as its REAL value, scale * (q - zero_point) (the reference and the
+ * runtime quantise the input themselves), so a caller feeds and reads floats either way.
  */
 #ifndef PG_NN_TFLITE_H
 #define PG_NN_TFLITE_H
@@ -58,8 +70,13 @@ enum {
     NN_TFL_MAXIMUM = 55,
     NN_TFL_MINIMUM = 57,
     NN_TFL_TRANSPOSE_CONV = 67,
+    NN_TFL_RESIZE_NEAREST_NEIGHBOR = 97,
     NN_TFL_LEAKY_RELU = 98,
+    NN_TFL_QUANTIZE = 114,
 };
+
+/* TensorType codes the front end reads. */
+enum { NN_TFL_FLOAT32 = 0, NN_TFL_FLOAT16 = 1, NN_TFL_INT32 = 2, NN_TFL_UINT8 = 3, NN_TFL_INT64 = 4, NN_TFL_INT8 = 9 };
 
 /* Fused activations (ActivationFunctionType). */
 enum { NN_TFL_ACT_NONE = 0, NN_TFL_ACT_RELU = 1, NN_TFL_ACT_RELU_N1_TO_1 = 2, NN_TFL_ACT_RELU6 = 3, NN_TFL_ACT_TANH = 4 };
@@ -73,6 +90,12 @@ typedef struct {
     float *values;           /* constants: (dims) as float, dequantised (owned); NULL for activations */
     int32_t *ints;           /* INT32 / INT64 constants (shape-like inputs) as int32 (owned), else NULL */
     int producer;            /* operator index writing it, -1 for inputs and constants */
+    /* quantisation (checked at parse); num_scales 0: none */
+    int num_scales;          /* 1 (per tensor) or dims[quant_dim] (per channel) */
+    int quant_dim;
+    float *scales;           /* (num_scales) owned */
+    int zero_point;          /* the same for every channel */
+    int32_t *qvalues;        /* quantised constants (int8 / uint8 / int32 with scales): the stored integers (owned) */
 } nn_tfl_tensor;
 
 typedef struct {
@@ -86,7 +109,7 @@ typedef struct {
     int act;                 /* NN_TFL_ACT_* */
     int axis;                /* CONCATENATION, resolved to 0..ndim-1 */
     int begin_mask, end_mask, shrink_axis_mask;
-    int align_corners, half_pixel_centers;
+    int align_corners, half_pixel_centers; /* RESIZE_* */
     float alpha;             /* LEAKY_RELU */
     /* resolved by the shape check */
     int pad[4];              /* conv-like: top, left, bottom, right */
@@ -115,11 +138,27 @@ void nn_tfl_destroy(nn_tfl_model *m); /* accepts a zeroed or destroyed model */
 const char *nn_tfl_op_name(int code);
 /* 1 if t holds constant data (weights, shape-like inputs). */
 static inline int nn_tfl_is_const(const nn_tfl_tensor *t) { return t->values != NULL || t->ints != NULL; }
+/* 1 if t is an activation stored as int8 / uint8 (its values are scale * (q - zero_point)). */
+static inline int nn_tfl_is_quantized(const nn_tfl_tensor *t)
+{
+    return !nn_tfl_is_const(t) && (t->type == NN_TFL_INT8 || t->type == NN_TFL_UINT8);
+}
+/* The integer range of an int8 / uint8 tensor. */
+static inline int nn_tfl_qmin(const nn_tfl_tensor *t) { return t->type == NN_TFL_UINT8 ? 0 : -128; }
+static inline int nn_tfl_qmax(const nn_tfl_tensor *t) { return t->type == NN_TFL_UINT8 ? 255 : 127; }
 
 /* The naive reference: runs every op with straightforward scalar loops (double accumulators)
  * on the first graph input (float, dims of m->inputs[0]) and writes the first num_outputs graph
  * outputs into out[k] (m->tensors[m->outputs[k]].count floats each, caller-allocated). Slow, and
- * meant to be: it is the oracle the runtime is tested against. */
+ * meant to be: it is the oracle the runtime is tested against. Ops on int8 / uint8 activations
+ * run in integer arithmetic as TFLite's reference kernels define it (tflite_ref_int.c). */
 pg_status nn_tfl_ref_run(const nn_tfl_model *m, const float *input, float **out, int num_outputs);
+
+/* tflite_ref_int.c: one op on integer activations. buf[t] holds tensor t's STORED integers as
+ * floats (exact for 8-bit values) for quantised activations, real values for float ones;
+ * constants are read from the tensors. Writes op's output into y. */
+pg_status nn_tfl_ref_int_op(const nn_tfl_model *m, const nn_tfl_op *op, float *const *buf, float *y);
+/* Whether the reference runs op with nn_tfl_ref_int_op (it reads or writes integer activations). */
+int nn_tfl_op_is_integer(const nn_tfl_model *m, const nn_tfl_op *op);
 
 #endif

@@ -11,10 +11,26 @@
  * Each applies only when the intermediate tensor has that one reader and is not a graph output,
  * so the result is the model's to float rounding (test_nn_tflite checks it against the naive
  * reference of tflite_ref.c, which runs the ops unfused). Fused activations the IR has no fused
- * form of (TANH, RELU_N1_TO_1, and any on CONCATENATION) become separate nodes. */
+ * form of (TANH, RELU_N1_TO_1, and any on CONCATENATION) become separate nodes.
+ *
+ * Integer models (int8 / uint8 activations) run on the same float kernels with integer values:
+ * an integer tensor holds its stored integers minus its zero point (q - zp, exact in a float),
+ * integer convs read their weights as (q_w - zp_w) and their int32 biases as they are, so a
+ * conv's sums are TFLite's int32 accumulators exactly while partial sums stay below 2^24 (always
+ * for up to 518 products of 8-bit values, in practice far beyond), and a REQUANTIZE node then does TFLite's rescale: times the per-channel
+ * input_scale * weight_scale / output_scale, rounded half away from zero, plus the zero point,
+ * clamped to the type and the fused activation's range. ADD scales each input by its scale over
+ * the output's before the sum; QUANTIZE is one REQUANTIZE; DEQUANTIZE and graph outputs multiply
+ * by the scale; a graph input is quantised from the real values the caller feeds. Convs and
+ * integer QUANTIZE reproduce TFLite's fixed-point rescale bit for bit; ADD (a float sum instead of
+ * TFLite's 2^20 fixed-point pre-scaling) and the float input's quantisation can differ only where
+ * a value lies within float rounding of a rounding boundary (test_nn_tflite_int compares both
+ * with two references on FastDepth). */
 #include "nn/nn_graph.h"
 #include "nn/tflite.h"
 
+#include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -74,34 +90,44 @@ static pg_status add_weight(import_ctx *c, const char *base, const char *suffix,
     return nn_graph_add_const(c->g, name, NN_F32, ndim, dims, data, id);
 }
 
-static pg_status conv_weights(import_ctx *c, const nn_tfl_op *op, int *wid)
+/* The conv's weights in the IR's layout: real values, or for an integer conv (integer_op) the
+ * stored integers minus the zero point. */
+static pg_status conv_weights(import_ctx *c, const nn_tfl_op *op, int integer_op, int *wid)
 {
     const nn_tfl_tensor *w = &c->m->tensors[op->inputs[1]];
     int a = w->dims[0], kh = w->dims[1], kw = w->dims[2], b = w->dims[3];
     float *out = pg_malloc((size_t)w->count * sizeof(float), "tflite conv weights");
-    if (!out) return PG_ERR_NOMEM;
+    float *centred = integer_op ? pg_malloc((size_t)w->count * sizeof(float), "tflite integer weights") : NULL;
+    if (!out || (integer_op && !centred)) {
+        free(out);
+        free(centred);
+        return PG_ERR_NOMEM;
+    }
+    for (int64_t i = 0; integer_op && i < w->count; i++) centred[i] = (float)(w->qvalues[i] - w->zero_point);
+    const float *src = integer_op ? centred : w->values;
     int64_t d[4];
     if (op->code == NN_TFL_CONV_2D) { /* OHWI -> OIHW */
         for (int o = 0; o < a; o++)
             for (int i = 0; i < kh; i++)
                 for (int j = 0; j < kw; j++)
                     for (int ch = 0; ch < b; ch++)
-                        out[(((size_t)o * b + ch) * kh + i) * kw + j] = w->values[(((size_t)o * kh + i) * kw + j) * b + ch];
+                        out[(((size_t)o * b + ch) * kh + i) * kw + j] = src[(((size_t)o * kh + i) * kw + j) * b + ch];
         d[0] = a, d[1] = b, d[2] = kh, d[3] = kw;
     } else if (op->code == NN_TFL_DEPTHWISE_CONV_2D) { /* 1HWO -> O1HW */
         for (int i = 0; i < kh; i++)
             for (int j = 0; j < kw; j++)
-                for (int o = 0; o < b; o++) out[((size_t)o * kh + i) * kw + j] = w->values[((size_t)i * kw + j) * b + o];
+                for (int o = 0; o < b; o++) out[((size_t)o * kh + i) * kw + j] = src[((size_t)i * kw + j) * b + o];
         d[0] = b, d[1] = 1, d[2] = kh, d[3] = kw;
     } else { /* TRANSPOSE_CONV: OHWI -> IOHW */
         for (int o = 0; o < a; o++)
             for (int i = 0; i < kh; i++)
                 for (int j = 0; j < kw; j++)
                     for (int ch = 0; ch < b; ch++)
-                        out[(((size_t)ch * a + o) * kh + i) * kw + j] = w->values[(((size_t)o * kh + i) * kw + j) * b + ch];
+                        out[(((size_t)ch * a + o) * kh + i) * kw + j] = src[(((size_t)o * kh + i) * kw + j) * b + ch];
         d[0] = b, d[1] = a, d[2] = kh, d[3] = kw;
     }
-    return add_weight(c, w->name, "/ir", 4, d, out, wid);
+    free(centred);
+    return add_weight(c, w->name, integer_op ? "/ir_int" : "/ir", 4, d, out, wid);
 }
 
 static nn_activation fused(int tfl_act, int *extra)
@@ -139,7 +165,8 @@ static void plan_fusions(import_ctx *c, plan_op *plan)
     }
     /* only readers: the single-reader test below holds after the folds too, since a fold moves
      * the one read of the intermediate into the producer */
-#define SOLE(t) ((t) >= 0 && c->readers[t] == 1 && !c->is_output[t] && T[t].producer >= 0)
+    /* an integer intermediate is rounded to its grid, so nothing folds across it */
+#define SOLE(t) ((t) >= 0 && c->readers[t] == 1 && !c->is_output[t] && T[t].producer >= 0 && !nn_tfl_is_quantized(&T[t]))
     for (int k = 0; k < m->num_ops; k++) {
         const nn_tfl_op *op = &m->ops[k];
         if (op->code == NN_TFL_ADD && op->act == NN_TFL_ACT_NONE) {
@@ -248,6 +275,160 @@ static pg_status extra_act(import_ctx *c, const char *base, int act, int x, int 
     return nn_graph_add_node(c->g, NN_OP_IDENTITY, base, &x, 1, &y, 1, &a, NULL);
 }
 
+/* A new activation tensor named base + suffix (shape inferred). */
+static pg_status new_tensor(import_ctx *c, const char *base, const char *suffix, int *id)
+{
+    char name[300];
+    snprintf(name, sizeof name, "%s%s", base, suffix);
+    return nn_graph_add_tensor(c->g, name, NN_F32, -1, NULL, id);
+}
+
+/* y = x * v (v a scalar constant). */
+static pg_status scale_by(import_ctx *c, const char *base, const char *suffix, int x, float v, int y)
+{
+    char name[300];
+    snprintf(name, sizeof name, "%s%s", base, suffix);
+    int k;
+    PG_TRY(nn_graph_add_const_f32(c->g, name, 1, (int64_t[]){ 1 }, &v, &k));
+    nn_attrs a;
+    nn_attrs_default(&a);
+    return nn_graph_add_node(c->g, NN_OP_MUL, name, (int[]){ x, k }, 2, &y, 1, &a, NULL);
+}
+
+/* zero point + round(v / scale), bounded so a tiny scale cannot overflow the int. */
+static int quantize_bound(float v, const nn_tfl_tensor *t)
+{
+    float r = roundf(v / t->scales[0]);
+    r = r < -1e6f ? -1e6f : r > 1e6f ? 1e6f : r;
+    return t->zero_point + (int)r;
+}
+
+/* The multiplier m > 0 as q * 2^(shift - 31), q in [2^30, 2^31) (TFLite's QuantizeMultiplier). */
+static void fixed_multiplier(double m, int64_t *q, int64_t *shift)
+{
+    if (!(m > 0 && isfinite(m))) { /* only from scales at the ends of the float range: the product is 0 */
+        *q = *shift = 0;
+        return;
+    }
+    int e;
+    double f = frexp(m, &e);
+    int64_t fixed = llround(f * 2147483648.0);
+    if (fixed == (int64_t)1 << 31) fixed /= 2, e++;
+    if (e < -31) e = 0, fixed = 0;
+    if (e > 30) e = 30, fixed = INT32_MAX;
+    *q = fixed;
+    *shift = e;
+}
+
+/* A (C, 2) int64 constant of per-channel fixed-point multipliers input_scale * weight_scale[c] /
+ * output_scale (wt NULL: input_scale / output_scale for every channel), the form REQUANTIZE takes. */
+static pg_status fixed_multipliers(import_ctx *c, const char *base, int C, const nn_tfl_tensor *xt, const nn_tfl_tensor *wt,
+                                   const nn_tfl_tensor *yt, int *id)
+{
+    int64_t *fixed = pg_malloc((size_t)C * 2 * sizeof(int64_t), "tflite requantize multipliers");
+    if (!fixed) return PG_ERR_NOMEM;
+    for (int ch = 0; ch < C; ch++) {
+        double w = wt ? wt->scales[wt->num_scales > 1 ? ch : 0] : 1.0;
+        fixed_multiplier((double)xt->scales[0] * w / yt->scales[0], &fixed[2 * ch], &fixed[2 * ch + 1]);
+    }
+    int64_t d[2] = { C, 2 };
+    char name[300];
+    snprintf(name, sizeof name, "%s/multipliers", base);
+    return nn_graph_add_const(c->g, name, NN_I64, 2, d, fixed, id); /* takes fixed over */
+}
+
+/* y = the integer tensor t's centred value (q - zero point) from x times a multiplier (mult: an
+ * int64 constant of per-channel fixed-point multipliers, or -1 for the float m0), clamped to t's
+ * range narrowed by the fused activation act (TFLite's CalculateActivationRangeQuantized: the
+ * activation's bounds quantised with round-half-away). */
+static pg_status requantize(import_ctx *c, const char *base, int x, int mult, float m0, const nn_tfl_tensor *t, int act, int y)
+{
+    nn_attrs a;
+    nn_attrs_default(&a);
+    a.q_multiplier = m0;
+    a.q_zero_point = t->zero_point;
+    a.q_min = nn_tfl_qmin(t);
+    a.q_max = nn_tfl_qmax(t);
+    int zero = quantize_bound(0.0f, t), six = quantize_bound(6.0f, t), m1 = quantize_bound(-1.0f, t), p1 = quantize_bound(1.0f, t);
+    if (act == NN_TFL_ACT_RELU || act == NN_TFL_ACT_RELU6) a.q_min = zero > a.q_min ? zero : a.q_min;
+    if (act == NN_TFL_ACT_RELU6) a.q_max = six < a.q_max ? six : a.q_max;
+    if (act == NN_TFL_ACT_RELU_N1_TO_1) {
+        a.q_min = m1 > a.q_min ? m1 : a.q_min;
+        a.q_max = p1 < a.q_max ? p1 : a.q_max;
+    }
+    if (a.q_max < a.q_min) a.q_max = a.q_min; /* an activation range outside the type: everything clamps to one value */
+    char name[300];
+    snprintf(name, sizeof name, "%s/requantize", base);
+    int in[2] = { x, mult };
+    return nn_graph_add_node(c->g, NN_OP_REQUANTIZE, name, in, mult >= 0 ? 2 : 1, &y, 1, &a, NULL);
+}
+
+/* The ops that compute integer tensors (see the file comment): QUANTIZE, DEQUANTIZE of an
+ * activation, and CONV_2D / DEPTHWISE_CONV_2D / ADD writing int8 / uint8. */
+static int is_integer_compute(const nn_tfl_model *m, const nn_tfl_op *op)
+{
+    if (op->code == NN_TFL_QUANTIZE || op->code == NN_TFL_DEQUANTIZE) return 1;
+    int computes = op->code == NN_TFL_CONV_2D || op->code == NN_TFL_DEPTHWISE_CONV_2D || op->code == NN_TFL_ADD;
+    return computes && nn_tfl_is_quantized(&m->tensors[op->output]);
+}
+
+static pg_status emit_integer_op(import_ctx *c, const nn_tfl_op *op, const char *base, int y)
+{
+    const nn_tfl_model *m = c->m;
+    const nn_tfl_tensor *xt = &m->tensors[op->inputs[0]], *yt = &m->tensors[op->output];
+    int x, acc;
+    PG_TRY(ir_tensor(c, op->inputs[0], &x));
+    if (op->code == NN_TFL_QUANTIZE && !nn_tfl_is_quantized(xt)) /* real -> integer: round(x / s) */
+        return requantize(c, base, x, -1, 1.0f / yt->scales[0], yt, NN_TFL_ACT_NONE, y);
+    if (op->code == NN_TFL_QUANTIZE) { /* integer -> integer: TFLite's fixed-point input_scale / output_scale */
+        int mult, channels = yt->ndim ? yt->dims[yt->ndim - 1] : 1; /* REQUANTIZE refuses a 0-d tensor */
+        PG_TRY(fixed_multipliers(c, base, channels, xt, NULL, yt, &mult));
+        return requantize(c, base, x, mult, 0.0f, yt, NN_TFL_ACT_NONE, y);
+    }
+    if (op->code == NN_TFL_DEQUANTIZE) return scale_by(c, base, "/scale", x, xt->scales[0], y);
+    PG_TRY(new_tensor(c, base, "/acc", &acc));
+    nn_attrs a;
+    nn_attrs_default(&a);
+    if (op->code == NN_TFL_ADD) {
+        /* a * (sa / sy) + b * (sb / sy): the sum in units of the output's step */
+        const nn_tfl_tensor *bt = &m->tensors[op->inputs[1]];
+        int b, sa, sb;
+        PG_TRY(ir_tensor(c, op->inputs[1], &b));
+        PG_TRY(new_tensor(c, base, "/a", &sa));
+        PG_TRY(new_tensor(c, base, "/b", &sb));
+        PG_TRY(scale_by(c, base, "/a_scale", x, (float)((double)xt->scales[0] / yt->scales[0]), sa));
+        PG_TRY(scale_by(c, base, "/b_scale", b, (float)((double)bt->scales[0] / yt->scales[0]), sb));
+        PG_TRY(nn_graph_add_node(c->g, NN_OP_ADD, base, (int[]){ sa, sb }, 2, &acc, 1, &a, NULL));
+        return requantize(c, base, acc, -1, 1.0f, yt, op->act, y);
+    }
+    /* CONV_2D / DEPTHWISE_CONV_2D: integer weights and bias, exact sums in float (see the file
+     * comment), then the per-channel rescale */
+    const nn_tfl_tensor *wt = &m->tensors[op->inputs[1]];
+    const nn_tfl_tensor *bt = op->num_inputs > 2 && op->inputs[2] >= 0 ? &m->tensors[op->inputs[2]] : NULL;
+    int cout = yt->dims[3], in[3], mult;
+    in[0] = x;
+    PG_TRY(conv_weights(c, op, 1, &in[1]));
+    in[2] = -1;
+    if (bt) {
+        float *bias = pg_malloc((size_t)cout * sizeof(float), "tflite integer bias");
+        if (!bias) return PG_ERR_NOMEM;
+        for (int o = 0; o < cout; o++) bias[o] = (float)bt->qvalues[o];
+        int64_t d = cout;
+        char name[300];
+        snprintf(name, sizeof name, "%s/bias_int", base);
+        PG_TRY(nn_graph_add_const(c->g, name, NN_F32, 1, &d, bias, &in[2]));
+    }
+    PG_TRY(fixed_multipliers(c, base, cout, xt, wt, yt, &mult));
+    a.layout = NN_LAYOUT_NHWC;
+    a.kernel[0] = wt->dims[1], a.kernel[1] = wt->dims[2];
+    a.stride[0] = op->stride_h, a.stride[1] = op->stride_w;
+    a.dilation[0] = op->dilation_h, a.dilation[1] = op->dilation_w;
+    for (int i = 0; i < 4; i++) a.pads[i] = op->pad[i];
+    a.group = op->code == NN_TFL_DEPTHWISE_CONV_2D ? xt->dims[3] : xt->dims[3] / wt->dims[3];
+    PG_TRY(nn_graph_add_node(c->g, NN_OP_CONV, base, in, 3, &acc, 1, &a, NULL));
+    return requantize(c, base, acc, mult, 0.0f, yt, op->act, y);
+}
+
 static pg_status emit_op(import_ctx *c, int k, const plan_op *p)
 {
     const nn_tfl_model *m = c->m;
@@ -265,6 +446,7 @@ static pg_status emit_op(import_ctx *c, int k, const plan_op *p)
     if (op->code == NN_TFL_CONCATENATION && op->act != NN_TFL_ACT_NONE) extra = op->act;
     int y, target;
     PG_TRY(ir_tensor(c, p->output, &target));
+    if (is_integer_compute(m, op)) return emit_integer_op(c, op, base, target);
     y = target;
     if (extra) {
         char name[300];
@@ -280,7 +462,7 @@ static pg_status emit_op(import_ctx *c, int k, const plan_op *p)
         int tc = op->code == NN_TFL_TRANSPOSE_CONV;
         const nn_tfl_tensor *w = &m->tensors[op->inputs[1]], *x = &m->tensors[op->inputs[tc ? 2 : 0]];
         PG_TRY(ir_tensor(c, op->inputs[tc ? 2 : 0], &in[0]));
-        PG_TRY(conv_weights(c, op, &in[1]));
+        PG_TRY(conv_weights(c, op, 0, &in[1]));
         PG_TRY(ir_tensor(c, p->bias, &in[2]));
         nin = 3;
         ir_op = tc ? NN_OP_CONV_TRANSPOSE : NN_OP_CONV;
@@ -350,6 +532,17 @@ static pg_status emit_op(import_ctx *c, int k, const plan_op *p)
         }
         break;
     }
+    case NN_TFL_RESIZE_NEAREST_NEIGHBOR:
+        PG_TRY(ir_tensor(c, op->inputs[0], &in[0]));
+        nin = 1;
+        ir_op = NN_OP_RESIZE;
+        a.resize_mode = NN_RESIZE_NEAREST;
+        /* TFLite: floor((o + offset) * in/out), or round(o * (in-1)/(out-1)) with align_corners */
+        a.coord_mode = op->align_corners ? NN_COORD_ALIGN_CORNERS : op->half_pixel_centers ? NN_COORD_TF_HALF_PIXEL_FOR_NN : NN_COORD_ASYMMETRIC;
+        a.nearest_mode = op->align_corners ? NN_NEAREST_ROUND_PREFER_CEIL : NN_NEAREST_FLOOR;
+        a.out_h = yt->dims[1], a.out_w = yt->dims[2];
+        a.act = NN_ACT_NONE;
+        break;
     case NN_TFL_RESIZE_BILINEAR:
         PG_TRY(ir_tensor(c, op->inputs[0], &in[0]));
         nin = 1;
@@ -397,6 +590,33 @@ static pg_status emit_op(import_ctx *c, int k, const plan_op *p)
     return PG_OK;
 }
 
+/* The IR graph input for TFLite input t. An integer input is fed its real values (tflite.h) and
+ * quantised by a first node, as a TFLite caller does before feeding. */
+static pg_status import_input(import_ctx *c, int t, int *id)
+{
+    const nn_tfl_tensor *tt = &c->m->tensors[t];
+    if (!nn_tfl_is_quantized(tt)) return ir_tensor(c, t, id);
+    int q;
+    PG_TRY(ir_tensor(c, t, &q));
+    int64_t d[NN_TFL_MAX_DIMS];
+    dims64(tt, d);
+    char name[300];
+    snprintf(name, sizeof name, "%s/real", tt->name);
+    PG_TRY(nn_graph_add_tensor(c->g, name, NN_F32, tt->ndim, d, id));
+    return requantize(c, tt->name, *id, -1, 1.0f / tt->scales[0], tt, NN_TFL_ACT_NONE, q);
+}
+
+/* The IR graph output for TFLite output t: an integer output is given as its real value. */
+static pg_status import_output(import_ctx *c, int t, int *id)
+{
+    const nn_tfl_tensor *tt = &c->m->tensors[t];
+    if (!nn_tfl_is_quantized(tt)) return ir_tensor(c, t, id);
+    int q;
+    PG_TRY(ir_tensor(c, t, &q));
+    PG_TRY(new_tensor(c, tt->name, "/real", id));
+    return scale_by(c, tt->name, "/output_scale", q, tt->scales[0], *id);
+}
+
 pg_status nn_tflite_import(const uint8_t *data, size_t size, const char *name, nn_graph *g)
 {
     nn_tfl_model m;
@@ -417,10 +637,10 @@ pg_status nn_tflite_import(const uint8_t *data, size_t size, const char *name, n
         plan_fusions(&c, plan);
     }
     int ins[NN_TFL_MAX_IO], outs[NN_TFL_MAX_IO];
-    for (int j = 0; !st && j < m.num_inputs; j++) st = ir_tensor(&c, m.inputs[j], &ins[j]);
+    for (int j = 0; !st && j < m.num_inputs; j++) st = import_input(&c, m.inputs[j], &ins[j]);
     for (int k = 0; !st && k < m.num_ops; k++)
         if (!plan[k].skip) st = emit_op(&c, k, &plan[k]);
-    for (int j = 0; !st && j < m.num_outputs; j++) st = ir_tensor(&c, m.outputs[j], &outs[j]);
+    for (int j = 0; !st && j < m.num_outputs; j++) st = import_output(&c, m.outputs[j], &outs[j]);
     if (!st) st = nn_graph_set_io(g, ins, m.num_inputs, outs, m.num_outputs);
     free(plan);
     free(c.ir);

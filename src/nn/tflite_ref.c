@@ -217,7 +217,31 @@ static void ref_resize(const nn_tfl_op *op, const nn_tfl_tensor *xt, const float
         }
 }
 
-static void ref_pad(const nn_tfl_op *op, const nn_tfl_tensor *xt, const float *x, const nn_tfl_tensor *yt, float *y)
+/* value: what the border holds (0, or an integer tensor's zero point: its stored 0). */
+/* TFLite's RESIZE_NEAREST_NEIGHBOR source index: floor((o + offset) * in/out), or with
+ * align_corners round(o * (in-1)/(out-1)); offset 0.5 with half_pixel_centers; clamped. */
+static int nearest_index(const nn_tfl_op *op, int o, int in, int out)
+{
+    float scale = op->align_corners && out > 1 ? (float)(in - 1) / (float)(out - 1) : (float)in / (float)out;
+    float f = ((float)o + (op->half_pixel_centers ? 0.5f : 0.0f)) * scale;
+    int i = op->align_corners ? (int)roundf(f) : (int)floorf(f);
+    if (i > in - 1) i = in - 1;
+    return i < 0 ? 0 : i;
+}
+
+/* Copies values, so it serves float and integer tensors alike. */
+static void ref_resize_nearest(const nn_tfl_op *op, const nn_tfl_tensor *xt, const float *x, const nn_tfl_tensor *yt, float *y)
+{
+    int N = xt->dims[0], H = xt->dims[1], W = xt->dims[2], C = xt->dims[3], OH = yt->dims[1], OW = yt->dims[2];
+    for (int n = 0; n < N; n++)
+        for (int oy = 0; oy < OH; oy++)
+            for (int ox = 0; ox < OW; ox++) {
+                const float *src = x + (((size_t)n * H + nearest_index(op, oy, H, OH)) * W + nearest_index(op, ox, W, OW)) * C;
+                memcpy(y + (((size_t)n * OH + oy) * OW + ox) * C, src, (size_t)C * sizeof(float));
+            }
+}
+
+static void ref_pad(const nn_tfl_op *op, const nn_tfl_tensor *xt, const float *x, const nn_tfl_tensor *yt, float value, float *y)
 {
     int nd = yt->ndim, coord[NN_TFL_MAX_DIMS] = { 0 };
     for (size_t i = 0; i < (size_t)yt->count; i++) {
@@ -228,7 +252,7 @@ static void ref_pad(const nn_tfl_op *op, const nn_tfl_tensor *xt, const float *x
             if (c < 0 || c >= xt->dims[d]) inside = 0;
             src = src * (size_t)xt->dims[d] + (size_t)(c < 0 ? 0 : c);
         }
-        y[i] = inside ? x[src] : 0.0f;
+        y[i] = inside ? x[src] : value;
         for (int d = nd - 1; d >= 0; d--) {
             if (++coord[d] < yt->dims[d]) break;
             coord[d] = 0;
@@ -263,6 +287,18 @@ static int reads_floats(const nn_tfl_op *op, int j)
     }
 }
 
+/* An integer graph input gets real values (tflite.h): stored as round(x / scale) + zero point,
+ * clamped to the type (what a TFLite caller does before feeding the model). */
+static void quantize_input(const nn_tfl_tensor *t, const float *x, float *q)
+{
+    for (size_t i = 0; i < (size_t)t->count; i++) {
+        float r = roundf(x[i] / t->scales[0]);
+        r = r == r ? r : 0;
+        float v = r + (float)t->zero_point;
+        q[i] = v < nn_tfl_qmin(t) ? (float)nn_tfl_qmin(t) : v > nn_tfl_qmax(t) ? (float)nn_tfl_qmax(t) : v;
+    }
+}
+
 pg_status nn_tfl_ref_run(const nn_tfl_model *m, const float *input, float **out, int num_outputs)
 {
     if (num_outputs < 0 || num_outputs > m->num_outputs) return pg_fail(PG_ERR_ARG, "reference run: %d outputs asked, the model has %d", num_outputs, m->num_outputs);
@@ -284,7 +320,8 @@ pg_status nn_tfl_ref_run(const nn_tfl_model *m, const float *input, float **out,
         const nn_tfl_tensor *it = &m->tensors[m->inputs[0]];
         buf[m->inputs[0]] = pg_malloc((size_t)it->count * sizeof(float), "reference input");
         if (!buf[m->inputs[0]]) st = PG_ERR_NOMEM;
-        else memcpy(buf[m->inputs[0]], input, (size_t)it->count * sizeof(float));
+        else if (!nn_tfl_is_quantized(it)) memcpy(buf[m->inputs[0]], input, (size_t)it->count * sizeof(float));
+        else quantize_input(it, input, buf[m->inputs[0]]);
     }
     for (int k = 0; !st && k < m->num_ops; k++) {
         const nn_tfl_op *op = &m->ops[k];
@@ -311,7 +348,8 @@ pg_status nn_tfl_ref_run(const nn_tfl_model *m, const float *input, float **out,
         }
         buf[op->output] = y;
         const float *b2 = op->num_inputs > 2 && op->inputs[2] >= 0 ? buf[op->inputs[2]] : NULL;
-        switch (op->code) {
+        if (nn_tfl_op_is_integer(m, op)) st = nn_tfl_ref_int_op(m, op, buf, y);
+        else switch (op->code) {
         case NN_TFL_CONV_2D:
             ref_conv(op, t0, &m->tensors[op->inputs[1]], buf[op->inputs[0]], buf[op->inputs[1]], b2, yt, y);
             break;
@@ -334,8 +372,11 @@ pg_status nn_tfl_ref_run(const nn_tfl_model *m, const float *input, float **out,
         case NN_TFL_RESIZE_BILINEAR:
             ref_resize(op, t0, buf[op->inputs[0]], yt, y);
             break;
+        case NN_TFL_RESIZE_NEAREST_NEIGHBOR:
+            ref_resize_nearest(op, t0, buf[op->inputs[0]], yt, y);
+            break;
         case NN_TFL_PAD:
-            ref_pad(op, t0, buf[op->inputs[0]], yt, y);
+            ref_pad(op, t0, buf[op->inputs[0]], yt, nn_tfl_is_quantized(yt) ? (float)yt->zero_point : 0.0f, y);
             break;
         default:
             ref_unary(op, buf[op->inputs[0]], (size_t)yt->count, y);
@@ -355,7 +396,10 @@ pg_status nn_tfl_ref_run(const nn_tfl_model *m, const float *input, float **out,
             st = pg_fail(PG_ERR_FORMAT, "reference run: output tensor %d is never computed", m->outputs[j]);
             break;
         }
-        memcpy(out[j], buf[m->outputs[j]], (size_t)m->tensors[m->outputs[j]].count * sizeof(float));
+        const nn_tfl_tensor *ot = &m->tensors[m->outputs[j]];
+        for (size_t i = 0; i < (size_t)ot->count; i++)
+            out[j][i] = nn_tfl_is_quantized(ot) ? (float)((double)ot->scales[0] * (buf[m->outputs[j]][i] - ot->zero_point))
+                                                : buf[m->outputs[j]][i];
     }
     for (int i = 0; buf && i < m->num_tensors; i++)
         if (!nn_tfl_is_const(&m->tensors[i])) free(buf[i]);

@@ -1,7 +1,8 @@
 /* fuzz_tflite.c - libFuzzer harness: the TFLite front end on any bytes - the parser and its
  * reference interpreter, then the importer, the runtime's prepare and (for small graphs) a run.
- * Seeds: tests/fuzz/corpus/tflite (small synthetic models written by tests/test_nn_tflite.c and
- * tests/test_depth_model.c, never the real model). */
+ * Seeds: tests/fuzz/corpus/tflite (small synthetic models written by tests/test_nn_tflite.c,
+ * tests/test_nn_tflite_int.c (int8_ops.tflite: the integer ops) and tests/test_depth_model.c,
+ * never the real model). */
 #include "fuzz_common.h"
 #include "nn/nn.h"
 #include "nn/tflite.h"
