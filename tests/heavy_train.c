@@ -1,6 +1,7 @@
 /* heavy_train.c - the deformation earns its keep: on a small dynamic scene, the 4D model
  * (coarse + fine) fits the real view over time better than static Gaussians trained as long,
- * and the learned static flags take part of the Gaussians off the network. */
+ * and the learned static flags take part of the Gaussians off the network; motion crops lift
+ * the moving pixels of a longer clip at the same number of steps. */
 #include <stdlib.h>
 #include <string.h>
 
@@ -10,9 +11,11 @@
 #include "train/trainset.h"
 #include "train_toy.h"
 
-static double run(const train_set *ts, int coarse, int iters, int static_check, int *n_static, int *n_total)
+static double run(const train_set *ts, int coarse, int iters, int static_check, int crops, int *n_static, int *n_total,
+                  double *moving)
 {
     train_config c = train_default_config();
+    c.motion_crops = crops;
     c.iters = iters;
     c.coarse_iters = coarse;
     c.init_points = 3000;
@@ -31,6 +34,9 @@ static double run(const train_set *ts, int coarse, int iters, int static_check, 
     if (!s) return 0;
     CHECK_OK(train_session_run(s));
     CHECK_OK(train_session_evaluate(s, IO_ROLE_REAL, &psnr));
+    train_eval_scores parts = {0};
+    CHECK_OK(train_session_evaluate_parts(s, IO_ROLE_REAL, &parts));
+    *moving = parts.psnr_moving;
     *n_static = train_session_static_count(s);
     *n_total = train_session_gaussians(s);
     train_session_destroy(s);
@@ -47,12 +53,26 @@ int main(void)
     train_set ts;
     CHECK_OK(train_set_load(data, &ts));
     int ns0, nt0, ns1, nt1;
-    double p_static = run(&ts, 160, 160, 0, &ns0, &nt0);
-    double p_dyn = run(&ts, 50, 160, 30, &ns1, &nt1);
+    double m0, m1;
+    double p_static = run(&ts, 160, 160, 0, 0, &ns0, &nt0, &m0);
+    double p_dyn = run(&ts, 50, 160, 30, 0, &ns1, &nt1, &m1);
     fprintf(stderr, "real-view PSNR over all frames: static %.2f dB, 4D %.2f dB; static flags %d of %d\n", p_static,
             p_dyn, ns1, nt1);
     CHECK(p_dyn > p_static + 1.0, "4D model %.2f dB should beat static Gaussians %.2f dB", p_dyn, p_static);
     CHECK(ns1 > 0, "some Gaussians should be flagged static");
+    train_set_destroy(&ts);
+
+    /* 24 frames: each frame's motion is seen ~3 times in 70 fine steps without crops (measured at
+     * 160 steps: 20.62 dB without, 30.57 dB with two crops per step) */
+    snprintf(data, sizeof data, "%s/long", dir);
+    CHECK_OK(toy_write_trainset(data, 96, 72, 24, 3, 0));
+    CHECK_OK(train_set_load(data, &ts));
+    double m_plain, m_crops;
+    run(&ts, 50, 120, 0, 0, &ns0, &nt0, &m_plain);
+    run(&ts, 50, 120, 0, 2, &ns1, &nt1, &m_crops);
+    fprintf(stderr, "24 frames, moving-pixel PSNR: %.2f dB without motion crops, %.2f dB with two per step\n", m_plain,
+            m_crops);
+    CHECK(m_crops > m_plain + 1.0, "motion crops: moving PSNR %.2f dB, without %.2f dB", m_crops, m_plain);
     train_set_destroy(&ts);
     return test_summary("heavy_train");
 }
