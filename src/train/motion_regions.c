@@ -4,109 +4,61 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* A box in tiles, inclusive, with its moving pixels. */
-typedef struct {
-    int x0, y0, x1, y1, moving;
-} tile_box;
-
-static int boxes_overlap(const tile_box *a, const tile_box *b)
+/* The box of the active tiles, one tile wider on every side (the SSIM window and the movers'
+ * edges need context); 0 if no tile is active. One box for all movers: a box per separate mover
+ * (smaller crops, drawn by their pixels) measured 1.25 dB worse on the classroom clip's moving
+ * pixels (31.69 vs 32.94 dB), the crops then favouring small far movers over the person. */
+static int frame_box(const int *count, int tw, int th, int box[4])
 {
-    return a->x0 <= b->x1 && b->x0 <= a->x1 && a->y0 <= b->y1 && b->y0 <= a->y1;
-}
-
-/* The 8-connected groups of active tiles, each as its box one tile wider on every side (the SSIM
- * window and the mover's edges need context), boxes that then overlap merged: separate movers
- * get separate crops, so a crop of one does not pay for the still floor between them. Returns
- * the number of boxes written to out (at most tw * th); label and stack are scratch (tw * th). */
-static int frame_boxes(const int *count, int tw, int th, int *label, int *stack, tile_box *out)
-{
-    const int n = tw * th;
-    for (int i = 0; i < n; i++) label[i] = count[i] >= TRAIN_REGION_TILE_MIN ? 0 : -1;
-    int nb = 0;
-    for (int seed = 0; seed < n; seed++) {
-        if (label[seed] != 0) continue;
-        tile_box b = { tw, th, -1, -1, 0 };
-        int top = 0;
-        stack[top++] = seed;
-        label[seed] = 1;
-        while (top > 0) {
-            int i = stack[--top], tx = i % tw, ty = i / tw;
-            b.x0 = tx < b.x0 ? tx : b.x0, b.x1 = tx > b.x1 ? tx : b.x1;
-            b.y0 = ty < b.y0 ? ty : b.y0, b.y1 = ty > b.y1 ? ty : b.y1;
-            b.moving += count[i];
-            for (int dy = -1; dy <= 1; dy++)
-                for (int dx = -1; dx <= 1; dx++) {
-                    int x = tx + dx, y = ty + dy;
-                    if (x < 0 || y < 0 || x >= tw || y >= th || label[y * tw + x] != 0) continue;
-                    label[y * tw + x] = 1;
-                    stack[top++] = y * tw + x;
-                }
-        }
-        b.x0 = b.x0 > 0 ? b.x0 - 1 : 0, b.y0 = b.y0 > 0 ? b.y0 - 1 : 0;
-        b.x1 = b.x1 < tw - 1 ? b.x1 + 1 : b.x1, b.y1 = b.y1 < th - 1 ? b.y1 + 1 : b.y1;
-        out[nb++] = b;
-    }
-    for (int merged = 1; merged;) {
-        merged = 0;
-        for (int i = 0; i < nb && !merged; i++)
-            for (int j = i + 1; j < nb && !merged; j++)
-                if (boxes_overlap(&out[i], &out[j])) {
-                    tile_box *a = &out[i], *b = &out[j];
-                    a->x0 = b->x0 < a->x0 ? b->x0 : a->x0, a->y0 = b->y0 < a->y0 ? b->y0 : a->y0;
-                    a->x1 = b->x1 > a->x1 ? b->x1 : a->x1, a->y1 = b->y1 > a->y1 ? b->y1 : a->y1;
-                    a->moving += b->moving;
-                    out[j] = out[--nb];
-                    merged = 1;
-                }
-    }
-    return nb;
+    int x0 = tw, y0 = th, x1 = -1, y1 = -1;
+    for (int ty = 0; ty < th; ty++)
+        for (int tx = 0; tx < tw; tx++)
+            if (count[ty * tw + tx] >= TRAIN_REGION_TILE_MIN) {
+                x0 = tx < x0 ? tx : x0, x1 = tx > x1 ? tx : x1;
+                y0 = ty < y0 ? ty : y0, y1 = ty > y1 ? ty : y1;
+            }
+    if (x1 < 0) return 0;
+    box[0] = x0 > 0 ? x0 - 1 : 0, box[1] = y0 > 0 ? y0 - 1 : 0;
+    box[2] = x1 < tw - 1 ? x1 + 1 : x1, box[3] = y1 < th - 1 ? y1 + 1 : y1;
+    return 1;
 }
 
 pg_status train_motion_regions_find(const uint8_t *moving, int frames, int width, int height, train_motion_regions *r)
 {
     memset(r, 0, sizeof *r);
-    const int T = TRAIN_REGION_TILE, tw = (width + T - 1) / T, th = (height + T - 1) / T, n = tw * th;
+    const int T = TRAIN_REGION_TILE, tw = (width + T - 1) / T, th = (height + T - 1) / T;
     r->frames = frames, r->width = width, r->height = height;
     r->start = pg_calloc((size_t)frames + 1, sizeof *r->start, "moving regions");
-    int *count = pg_malloc((size_t)n * 3 * sizeof *count, "moving regions");
-    tile_box *fb = pg_malloc((size_t)n * sizeof *fb, "moving regions");
-    int cap = 0;
-    pg_status st = PG_OK;
-    if (!r->start || !count || !fb) {
-        st = PG_ERR_NOMEM;
-        goto done;
+    r->boxes = pg_calloc((size_t)frames, sizeof *r->boxes, "moving regions");
+    int *count = pg_malloc((size_t)tw * th * sizeof *count, "moving regions");
+    if (!r->start || !r->boxes || !count) {
+        free(count);
+        train_motion_regions_destroy(r);
+        return PG_ERR_NOMEM;
     }
     for (int f = 0; f < frames; f++) {
         const uint8_t *mv = moving + (size_t)f * width * height;
-        memset(count, 0, (size_t)n * sizeof *count);
+        memset(count, 0, (size_t)tw * th * sizeof *count);
+        int total = 0;
         for (int y = 0; y < height; y++)
-            for (int x = 0; x < width; x++) count[(y / T) * tw + x / T] += mv[(size_t)y * width + x] != 0;
-        int nb = frame_boxes(count, tw, th, count + n, count + 2 * n, fb);
-        int total = r->start[f];
-        if (total + nb > cap) {
-            int nc = 2 * cap > total + nb ? 2 * cap : total + nb + 64;
-            train_region *grown = realloc(r->boxes, (size_t)nc * sizeof *grown);
-            if (!grown) {
-                st = pg_fail(PG_ERR_NOMEM, "out of memory for moving regions");
-                goto done;
+            for (int x = 0; x < width; x++) {
+                int m = mv[(size_t)y * width + x] != 0;
+                count[(y / T) * tw + x / T] += m;
+                total += m;
             }
-            r->boxes = grown, cap = nc;
+        int b[4], n = r->start[f];
+        if (frame_box(count, tw, th, b)) {
+            train_region *o = &r->boxes[n++];
+            o->x = b[0] * T, o->y = b[1] * T;
+            o->w = ((b[2] + 1) * T < width ? (b[2] + 1) * T : width) - o->x;
+            o->h = ((b[3] + 1) * T < height ? (b[3] + 1) * T : height) - o->y;
+            o->moving = total;
+            r->frames_with_motion++;
         }
-        for (int k = 0; k < nb; k++) {
-            train_region *o = &r->boxes[total + k];
-            o->x = fb[k].x0 * T, o->y = fb[k].y0 * T;
-            o->w = ((fb[k].x1 + 1) * T < width ? (fb[k].x1 + 1) * T : width) - o->x;
-            o->h = ((fb[k].y1 + 1) * T < height ? (fb[k].y1 + 1) * T : height) - o->y;
-            o->moving = fb[k].moving;
-        }
-        r->start[f + 1] = total + nb;
-        r->frames_with_motion += nb > 0;
+        r->start[f + 1] = n;
     }
-done:
     free(count);
-    free(fb);
-    if (st) train_motion_regions_destroy(r);
-    return st;
+    return PG_OK;
 }
 
 void train_motion_regions_destroy(train_motion_regions *r)

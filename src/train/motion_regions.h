@@ -16,9 +16,9 @@
 #include "core/status.h"
 
 /* Tiles of this many pixels a side are counted; a tile with at least TRAIN_REGION_TILE_MIN
- * moving pixels is part of a mover (a lone flickering pixel, dilated to 5 x 5, or two stay below it). */
+ * moving pixels is part of a mover (a lone flickering pixel, dilated to 5 x 5, stays below it). */
 #define TRAIN_REGION_TILE 16
-#define TRAIN_REGION_TILE_MIN 40
+#define TRAIN_REGION_TILE_MIN 26
 
 typedef struct {
     int x, y, w, h; /* pixels */
@@ -34,7 +34,8 @@ typedef struct {
 
 pg_status train_motion_regions_find(const uint8_t *moving, int frames, int width, int height, train_motion_regions *r);
 void train_motion_regions_destroy(train_motion_regions *r);
-/* A frame with motion (uniformly) and one of its boxes (in proportion to its moving pixels). */
+/* A frame with motion (uniformly) and one of its boxes (in proportion to its moving pixels;
+ * today one box per frame holds all its movers). */
 const train_region *train_motion_regions_draw(const train_motion_regions *r, pg_rng *rng, int *frame);
 /* Mean share of a frame with motion that its boxes cover. */
 double train_motion_regions_mean_area(const train_motion_regions *r);
