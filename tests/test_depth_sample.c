@@ -144,8 +144,8 @@ int main(void)
         rc = test_run_cli(args, err, sizeof err);
         CHECK(rc == 2 && strstr(err, "valid depth"), "all-NaN input: exit %d, '%s'", rc, err);
         /* Usage errors. */
-        snprintf(args, sizeof args, "prepare '%s' --out '%s/x'", data, dir);
-        CHECK(test_run_cli(args, err, sizeof err) == 2, "missing --depth accepted");
+        snprintf(args, sizeof args, "prepare '%s' --depth '%s'", data, path);
+        CHECK(test_run_cli(args, err, sizeof err) == 2 && strstr(err, "--out"), "missing --out accepted: '%s'", err);
         snprintf(args, sizeof args, "prepare '%s' --depth '%s' --out '%s/x' --size 12by3", data, path, dir);
         CHECK(test_run_cli(args, err, sizeof err) == 2, "bad --size accepted");
         snprintf(args, sizeof args, "prepare '%s/missing' --depth '%s' --out '%s/x'", dir, path, dir);
