@@ -551,6 +551,15 @@ static void crop_in_place(float *buf, int W, int c, const int *rect)
                 (size_t)rect[2] * c * sizeof *buf);
 }
 
+/* The camera of rect (x0, y0, w, h) of cam's image: its size, the principal point shifted. */
+static pg_camera crop_camera(const pg_camera *cam, const int *rect)
+{
+    pg_camera c = *cam;
+    c.width = rect[2], c.height = rect[3];
+    c.cx -= (float)rect[0], c.cy -= (float)rect[1];
+    return c;
+}
+
 /* The SSIM workspace for a w x h image: the full-size one, or one kept for the last crop size. */
 static pg_status ssim_workspace(train_session *s, int w, int h, optim_ssim_ws **ws)
 {
@@ -583,8 +592,7 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, const 
         crop_in_place(s->target.data, ts->width, 3, rect);
         crop_in_place(s->mask, ts->width, 1, rect);
         if (has_depth) crop_in_place(s->depth_t, ts->width, 1, rect);
-        cam.width = rect[2], cam.height = rect[3];
-        cam.cx -= (float)rect[0], cam.cy -= (float)rect[1];
+        cam = crop_camera(&cam, rect);
     }
     const int W = cam.width, H = cam.height;
     const size_t px = (size_t)W * H;
@@ -653,9 +661,7 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
     const pg_camera *cams[TRAIN_MAX_BATCH];
     for (int b = 0; b < nb; b++) cams[b] = &ts->views[views[b]].cam;
     if (rect) { /* cull to the crop's frustum */
-        crop_cam = *cams[0];
-        crop_cam.width = rect[2], crop_cam.height = rect[3];
-        crop_cam.cx -= (float)rect[0], crop_cam.cy -= (float)rect[1];
+        crop_cam = crop_camera(cams[0], rect);
         cams[0] = &crop_cam;
     }
     float t = train_frame_time(f, ts->frames);
