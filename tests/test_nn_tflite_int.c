@@ -387,44 +387,6 @@ static void test_corruption(void)
     free(good);
 }
 
-/* Spearman rank correlation (average ranks for ties). */
-static const float *rank_key;
-static int rank_cmp(const void *a, const void *b)
-{
-    float x = rank_key[*(const int *)a], y = rank_key[*(const int *)b];
-    return (x > y) - (x < y);
-}
-static void ranks(const float *v, int n, double *r)
-{
-    int *idx = malloc((size_t)n * sizeof(int));
-    for (int i = 0; i < n; i++) idx[i] = i;
-    rank_key = v;
-    qsort(idx, (size_t)n, sizeof(int), rank_cmp);
-    for (int i = 0; i < n;) {
-        int j = i;
-        while (j + 1 < n && v[idx[j + 1]] == v[idx[i]]) j++;
-        for (int k = i; k <= j; k++) r[idx[k]] = (i + j) / 2.0;
-        i = j + 1;
-    }
-    free(idx);
-}
-static double spearman(const float *a, const float *b, int n)
-{
-    double *ra = malloc((size_t)n * sizeof(double)), *rb = malloc((size_t)n * sizeof(double));
-    ranks(a, n, ra);
-    ranks(b, n, rb);
-    double ma = 0, mb = 0, sab = 0, saa = 0, sbb = 0;
-    for (int i = 0; i < n; i++) ma += ra[i], mb += rb[i];
-    ma /= n, mb /= n;
-    for (int i = 0; i < n; i++) {
-        sab += (ra[i] - ma) * (rb[i] - mb);
-        saa += (ra[i] - ma) * (ra[i] - ma);
-        sbb += (rb[i] - mb) * (rb[i] - mb);
-    }
-    free(ra);
-    free(rb);
-    return sab / sqrt(saa * sbb);
-}
 
 /* The real FastDepth (skipped when ../shared/models does not have it). */
 static void test_fastdepth(const char *tmp)
@@ -483,7 +445,7 @@ static void test_fastdepth(const char *tmp)
     pg_array gt;
     CHECK_OK(io_npy_load(gt_path, &gt));
     if (gt.data && full.data) {
-        double rho = spearman(full.data, gt.data, img.width * img.height);
+        double rho = test_spearman(full.data, gt.data, img.width * img.height);
         printf("FastDepth on tabletop_dev cam00 frame 0: Spearman %.4f vs depth_gt\n", rho);
         CHECK(rho >= 0.6, "Spearman %.4f", rho);
     }

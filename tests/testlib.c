@@ -90,3 +90,42 @@ float test_median_ratio(const float *a, const float *b, size_t n)
     free(r);
     return med;
 }
+
+/* Spearman rank correlation (average ranks for ties). */
+static const float *rank_key;
+static int rank_cmp(const void *a, const void *b)
+{
+    float x = rank_key[*(const int *)a], y = rank_key[*(const int *)b];
+    return (x > y) - (x < y);
+}
+static void ranks(const float *v, int n, double *r)
+{
+    int *idx = malloc((size_t)n * sizeof(int));
+    for (int i = 0; i < n; i++) idx[i] = i;
+    rank_key = v;
+    qsort(idx, (size_t)n, sizeof(int), rank_cmp);
+    for (int i = 0; i < n;) {
+        int j = i;
+        while (j + 1 < n && v[idx[j + 1]] == v[idx[i]]) j++;
+        for (int k = i; k <= j; k++) r[idx[k]] = (i + j) / 2.0;
+        i = j + 1;
+    }
+    free(idx);
+}
+double test_spearman(const float *a, const float *b, int n)
+{
+    double *ra = malloc((size_t)n * sizeof(double)), *rb = malloc((size_t)n * sizeof(double));
+    ranks(a, n, ra);
+    ranks(b, n, rb);
+    double ma = 0, mb = 0, sab = 0, saa = 0, sbb = 0;
+    for (int i = 0; i < n; i++) ma += ra[i], mb += rb[i];
+    ma /= n, mb /= n;
+    for (int i = 0; i < n; i++) {
+        sab += (ra[i] - ma) * (rb[i] - mb);
+        saa += (ra[i] - ma) * (ra[i] - ma);
+        sbb += (rb[i] - mb) * (rb[i] - mb);
+    }
+    free(ra);
+    free(rb);
+    return sab / sqrt(saa * sbb);
+}

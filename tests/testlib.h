@@ -52,5 +52,7 @@ int test_files_equal(const char *a, const char *b);
 /* Median of a[i] / b[i] over the i where both are > 0 (0 if there is none), e.g. a depth
  * map's scale against the ground truth. */
 float test_median_ratio(const float *a, const float *b, size_t n);
+/* Spearman rank correlation of a and b (average ranks for ties), e.g. depth against ground truth. */
+double test_spearman(const float *a, const float *b, int n);
 
 #endif
