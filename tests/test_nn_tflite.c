@@ -401,6 +401,10 @@ static void test_hostile(void)
 static void test_real_model(void)
 {
     char path[4096], data_dir[4096], video[4200], gt_path[4300];
+#ifdef PG_SANITIZED
+    printf("SKIP real PyDNet++ under the sanitizers (checked in the Release pass)\n");
+    return;
+#endif
     snprintf(path, sizeof path, "%s/models/pydnet++_matterport.tflite", PG_SHARED_DIR);
     if (!pg_path_exists(path) || !test_shared_data("tabletop_dev", data_dir, sizeof data_dir)) {
         printf("SKIP real PyDNet++: %s or tabletop_dev not found\n", path);
