@@ -288,11 +288,14 @@ int main(void)
         s = NULL;
         CHECK_OK(train_session_create(&s, &ts, &tc, NULL, 0));
         if (s) {
-            int crop_frames = 0;
+            int crop_frames = 0, crop_proxies = 0;
             double crop_area = 0;
-            train_session_motion_regions(s, &crop_frames, &crop_area);
+            train_session_motion_regions(s, &crop_frames, &crop_area, &crop_proxies);
             CHECK(crop_frames == ts.frames && crop_area > 0.02 && crop_area < 0.8,
                   "moving regions: %d of %d frames, mean area %.3f of the frame", crop_frames, ts.frames, crop_area);
+            CHECK(crop_proxies == train_set_count_role(&ts, IO_ROLE_PROXY),
+                  "proxies with a moving region: %d of %d (the toy's mover is in every proxy)", crop_proxies,
+                  train_set_count_role(&ts, IO_ROLE_PROXY));
         }
         train_session_destroy(s);
         check_learns_and_resumes(&ts, tc, dir, "motion crops");

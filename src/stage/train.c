@@ -154,12 +154,13 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
     train_session_deform_stats(s, &md, &mm);
     cJSON_AddNumberToObject(root, "mean_deformed_per_iteration", md);
     cJSON_AddNumberToObject(root, "mean_movable_per_iteration", mm);
-    int crop_frames;
+    int crop_frames, crop_proxies;
     double crop_area;
-    train_session_motion_regions(s, &crop_frames, &crop_area);
+    train_session_motion_regions(s, &crop_frames, &crop_area, &crop_proxies);
     cJSON_AddNumberToObject(root, "motion_crops", cfg->motion_crops);
     cJSON_AddNumberToObject(root, "motion_crop_frames", crop_frames);
     cJSON_AddNumberToObject(root, "motion_crop_area", crop_area);
+    cJSON_AddNumberToObject(root, "motion_crop_proxies", crop_proxies);
     cJSON_AddNumberToObject(root, "seed", (double)cfg->seed);
     cJSON_AddNumberToObject(root, "threads", r->threads);
     cJSON_AddNumberToObject(root, "coarse_iters", cfg->coarse_iters);

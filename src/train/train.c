@@ -38,7 +38,7 @@ train_config train_default_config(void)
     c.checkpoint_every = 0;
     c.views_per_step = 4;
     c.times_per_step = 1;
-    c.motion_crops = 2; /* the moving pixels of the real view, rendered alone twice a step: +3.9 dB moving on the classroom clip (docs/train.md) */
+    c.motion_crops = 2; /* the moving pixels of the real view and of a proxy, rendered alone each step (docs/train.md) */
     c.real_weight = 0.5f;
     c.moving_weight = 9.0f;
     c.proxy_moving_weight = 1.0f;
@@ -84,9 +84,10 @@ int train_session_static_count(const train_session *s)
     for (int i = 0; i < s->g.count; i++) n += s->is_static[i] != 0;
     return n;
 }
-void train_session_motion_regions(const train_session *s, int *frames, double *mean_area)
+void train_session_motion_regions(const train_session *s, int *frames, double *mean_area, int *proxies)
 {
     *frames = s->regions.frames_with_motion;
+    *proxies = s->proxy_crop_views;
     *mean_area = train_motion_regions_mean_area(&s->regions);
 }
 void train_session_deform_stats(const train_session *s, double *mean_deformed, double *mean_movable)
@@ -113,6 +114,8 @@ void train_session_destroy(train_session *s)
         for (int v = 0; v < s->ts->num_views; v++) free(s->moving[v]);
     free(s->moving);
     train_motion_regions_destroy(&s->regions);
+    for (int v = 0; s->proxy_regions && v < s->ts->num_views; v++) train_motion_regions_destroy(&s->proxy_regions[v]);
+    free(s->proxy_regions);
     optim_adam_destroy(s->gopt);
     train_net_destroy(s->net);
     optim_adam_destroy(s->nopt);
@@ -174,7 +177,8 @@ static pg_status find_moving_pixels(train_session *s)
     return PG_OK;
 }
 
-/* The movers of the (first) real view, boxed per frame, for motion crops. */
+/* The movers of the (first) real view, boxed per frame, for motion crops; with two crops or more,
+ * also each proxy's (found from its own colours, the mask dropped once boxed). */
 static pg_status find_moving_regions(train_session *s)
 {
     const train_set *ts = s->ts;
@@ -183,7 +187,20 @@ static pg_status find_moving_regions(train_session *s)
     for (int v = 0; v < ts->num_views && s->crop_view < 0; v++)
         if (s->moving[v]) s->crop_view = v;
     if (s->crop_view < 0) return PG_OK;
-    return train_motion_regions_find(s->moving[s->crop_view], ts->frames, ts->width, ts->height, &s->regions);
+    PG_TRY(train_motion_regions_find(s->moving[s->crop_view], ts->frames, ts->width, ts->height, &s->regions));
+    if (s->cfg.motion_crops < 2 || train_set_count_role(ts, IO_ROLE_PROXY) == 0) return PG_OK;
+    s->proxy_regions = pg_calloc((size_t)ts->num_views, sizeof *s->proxy_regions, "proxy moving regions");
+    uint8_t *mask = pg_malloc((size_t)ts->frames * ts->width * ts->height, "proxy moving mask");
+    pg_status st = s->proxy_regions && mask ? PG_OK : PG_ERR_NOMEM;
+    for (int v = 0; v < ts->num_views && st == PG_OK; v++) {
+        if (ts->views[v].role != IO_ROLE_PROXY) continue;
+        st = depth_moving_masks(ts->views[v].rgb, ts->frames, ts->width, ts->height, TRAIN_MOVING_THRESH,
+                                TRAIN_MOVING_DILATE, mask);
+        if (!st) st = train_motion_regions_find(mask, ts->frames, ts->width, ts->height, &s->proxy_regions[v]);
+        if (!st) s->proxy_crop_views += s->proxy_regions[v].frames_with_motion > 0;
+    }
+    free(mask);
+    return st;
 }
 
 static int times_per_step(const train_config *c) { return c->times_per_step > 1 ? c->times_per_step : 1; }
@@ -719,20 +736,30 @@ static pg_status step_time(train_session *s, int slot, int first, double *loss_o
     return step_views(s, f, views, weights, nb, NULL, first, loss_out);
 }
 
-/* A motion crop: the real view at a random frame with motion, rendered over one mover's box
- * alone at the real view's weight. The moving part is a few percent of the frame and changes
- * with every frame, while the still scene is learnt from any frame; a crop costs a fraction of a
- * full time (fewer pixels, fewer Gaussians through the network), so a long clip's frames get
- * their motion fitted more often for the same CPU time. */
-static pg_status step_motion_crop(train_session *s, double *loss_out)
+/* Motion crop k of a step: a view at a random frame with motion, rendered over the box around its
+ * movers alone. The moving part is a few percent of the frame and changes with every frame, while
+ * the still scene is learnt from any frame; a crop costs a fraction of a full time (fewer pixels,
+ * fewer Gaussians through the network), so a long clip's frames get their motion fitted more
+ * often for the same CPU time. Even crops show the real view at its weight, odd ones a random
+ * proxy at the proxies' share: real-view crops alone fit the motion to the one camera and blur
+ * it from every other (tabletop_dev held-out moving -1.1 dB, docs/train.md). */
+static pg_status step_motion_crop(train_session *s, int k, double *loss_out)
 {
     *loss_out = 0;
-    int f;
-    const train_region *b = train_motion_regions_draw(&s->regions, &s->rng, &f);
+    int f, view = s->crop_view;
+    float w = s->cfg.real_weight;
+    const train_motion_regions *regions = &s->regions;
+    if (k % 2 == 1 && s->proxy_crop_views > 0) {
+        int pick = (int)pg_rng_below(&s->rng, (uint32_t)s->proxy_crop_views);
+        for (int v = 0; v < s->ts->num_views; v++)
+            if (s->proxy_regions[v].frames_with_motion > 0 && pick-- == 0) view = v;
+        regions = &s->proxy_regions[view];
+        w = 1.0f - s->cfg.real_weight;
+    }
+    const train_region *b = train_motion_regions_draw(regions, &s->rng, &f);
     if (!b) return PG_OK;
     const int rect[4] = { b->x, b->y, b->w, b->h };
-    float w = s->cfg.real_weight;
-    return step_views(s, f, &s->crop_view, &w, 1, rect, 0, loss_out);
+    return step_views(s, f, &view, &w, 1, rect, 0, loss_out);
 }
 
 pg_status train_session_step(train_session *s)
@@ -751,7 +778,7 @@ pg_status train_session_step(train_session *s)
     }
     for (int k = 0; s->fine && k < motion_crops(s); k++) {
         double lk;
-        PG_TRY(step_motion_crop(s, &lk));
+        PG_TRY(step_motion_crop(s, k, &lk));
     }
     if (s->fine) {
         double tr = pg_time_seconds();

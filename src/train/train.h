@@ -95,9 +95,10 @@ int train_session_gaussians(const train_session *s);
 /* Mean number of Gaussians sent through the network per fine iteration (after static flags and
  * culling) and mean number of movable ones (this process only, not across --resume). */
 void train_session_deform_stats(const train_session *s, double *mean_deformed, double *mean_movable);
-/* Frames of the real view with a moving region for motion crops (0 when crops are off) and the
- * regions' mean share of the frame. */
-void train_session_motion_regions(const train_session *s, int *frames, double *mean_area);
+/* Frames of the real view with a moving region for motion crops (0 when crops are off), the
+ * regions' mean share of the frame, and the proxies with a moving region (crops alternate the real
+ * view with them). */
+void train_session_motion_regions(const train_session *s, int *frames, double *mean_area, int *proxies);
 /* Gaussians flagged static (never sent through the network). */
 int train_session_static_count(const train_session *s);
 
