@@ -35,7 +35,7 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
         { "--iters", CLI_INT, &c->iters, "training iterations (default: the preset's)" },
         { "--deform-width", CLI_INT, &c->deform_width, "deformation MLP width (default: the trainer's)" },
         { "--deform-head-width", CLI_INT, &c->deform_head_width, "hidden width of each deformation head (default 32)" },
-        { "--motion-crops", CLI_INT, &c->motion_crops, "extra real-view renders per fine step over one mover's box (default 2; 0 = off)" },
+        { "--motion-crops", CLI_INT, &c->motion_crops, "extra renders per fine step over the box around the movers, the real view and a proxy in turn (default 2; 0 = off)" },
         { "--pose-scale", CLI_FLOAT, &c->pose_scale, "depth-to-pose scale instead of fitting it (dataset poses)" },
         { "--threads", CLI_INT, &c->threads, "worker threads for every stage (default: all cores)" },
         { "--seed", CLI_INT, &c->seed, "random seed (default 1)" },
