@@ -86,9 +86,10 @@ int train_session_static_count(const train_session *s)
 }
 void train_session_motion_regions(const train_session *s, int *frames, double *mean_area, int *proxies)
 {
-    *frames = s->regions.frames_with_motion;
+    const train_motion_regions *r = s->crop_view >= 0 ? &s->regions[s->crop_view] : NULL;
+    *frames = r ? r->frames_with_motion : 0;
     *proxies = s->proxy_crop_views;
-    *mean_area = train_motion_regions_mean_area(&s->regions);
+    *mean_area = r ? train_motion_regions_mean_area(r) : 0.0;
 }
 void train_session_deform_stats(const train_session *s, double *mean_deformed, double *mean_movable)
 {
@@ -113,9 +114,8 @@ void train_session_destroy(train_session *s)
     if (s->moving)
         for (int v = 0; v < s->ts->num_views; v++) free(s->moving[v]);
     free(s->moving);
-    train_motion_regions_destroy(&s->regions);
-    for (int v = 0; s->proxy_regions && v < s->ts->num_views; v++) train_motion_regions_destroy(&s->proxy_regions[v]);
-    free(s->proxy_regions);
+    for (int v = 0; s->regions && v < s->ts->num_views; v++) train_motion_regions_destroy(&s->regions[v]);
+    free(s->regions);
     optim_adam_destroy(s->gopt);
     train_net_destroy(s->net);
     optim_adam_destroy(s->nopt);
@@ -187,17 +187,19 @@ static pg_status find_moving_regions(train_session *s)
     for (int v = 0; v < ts->num_views && s->crop_view < 0; v++)
         if (s->moving[v]) s->crop_view = v;
     if (s->crop_view < 0) return PG_OK;
-    PG_TRY(train_motion_regions_find(s->moving[s->crop_view], ts->frames, ts->width, ts->height, &s->regions));
+    s->regions = pg_calloc((size_t)ts->num_views, sizeof *s->regions, "moving regions");
+    if (!s->regions) return PG_ERR_NOMEM;
+    PG_TRY(train_motion_regions_find(s->moving[s->crop_view], ts->frames, ts->width, ts->height,
+                                     &s->regions[s->crop_view]));
     if (s->cfg.motion_crops < 2 || train_set_count_role(ts, IO_ROLE_PROXY) == 0) return PG_OK;
-    s->proxy_regions = pg_calloc((size_t)ts->num_views, sizeof *s->proxy_regions, "proxy moving regions");
     uint8_t *mask = pg_malloc((size_t)ts->frames * ts->width * ts->height, "proxy moving mask");
-    pg_status st = s->proxy_regions && mask ? PG_OK : PG_ERR_NOMEM;
+    pg_status st = mask ? PG_OK : PG_ERR_NOMEM;
     for (int v = 0; v < ts->num_views && st == PG_OK; v++) {
         if (ts->views[v].role != IO_ROLE_PROXY) continue;
         st = depth_moving_masks(ts->views[v].rgb, ts->frames, ts->width, ts->height, TRAIN_MOVING_THRESH,
                                 TRAIN_MOVING_DILATE, mask);
-        if (!st) st = train_motion_regions_find(mask, ts->frames, ts->width, ts->height, &s->proxy_regions[v]);
-        if (!st) s->proxy_crop_views += s->proxy_regions[v].frames_with_motion > 0;
+        if (!st) st = train_motion_regions_find(mask, ts->frames, ts->width, ts->height, &s->regions[v]);
+        if (!st) s->proxy_crop_views += s->regions[v].frames_with_motion > 0;
     }
     free(mask);
     return st;
@@ -205,7 +207,10 @@ static pg_status find_moving_regions(train_session *s)
 
 static int times_per_step(const train_config *c) { return c->times_per_step > 1 ? c->times_per_step : 1; }
 /* motion crops each step will make (none without a moving region) */
-static int motion_crops(const train_session *s) { return s->regions.frames_with_motion > 0 ? s->cfg.motion_crops : 0; }
+static int motion_crops(const train_session *s)
+{
+    return s->crop_view >= 0 && s->regions[s->crop_view].frames_with_motion > 0 ? s->cfg.motion_crops : 0;
+}
 
 int train_time_texels(int frames, int fine_iters)
 {
@@ -748,15 +753,13 @@ static pg_status step_motion_crop(train_session *s, int k, double *loss_out)
     *loss_out = 0;
     int f, view = s->crop_view;
     float w = s->cfg.real_weight;
-    const train_motion_regions *regions = &s->regions;
     if (k % 2 == 1 && s->proxy_crop_views > 0) {
         int pick = (int)pg_rng_below(&s->rng, (uint32_t)s->proxy_crop_views);
         for (int v = 0; v < s->ts->num_views; v++)
-            if (s->proxy_regions[v].frames_with_motion > 0 && pick-- == 0) view = v;
-        regions = &s->proxy_regions[view];
+            if (s->ts->views[v].role == IO_ROLE_PROXY && s->regions[v].frames_with_motion > 0 && pick-- == 0) view = v;
         w = 1.0f - s->cfg.real_weight;
     }
-    const train_region *b = train_motion_regions_draw(regions, &s->rng, &f);
+    const train_region *b = train_motion_regions_draw(&s->regions[view], &s->rng, &f);
     if (!b) return PG_OK;
     const int rect[4] = { b->x, b->y, b->w, b->h };
     return step_views(s, f, &view, &w, 1, rect, 0, loss_out);

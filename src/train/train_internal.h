@@ -37,9 +37,9 @@ struct train_session {
     int *idx;            /* (side_cap) Gaussians sent through the network */
     uint8_t **moving;    /* (num_views) per real view (F, H, W) moving pixels, else NULL; may be NULL */
     int crop_view;       /* the real view whose moving region motion crops render (-1: none) */
-    train_motion_regions regions; /* its movers' boxes per frame */
-    train_motion_regions *proxy_regions; /* (num_views): each proxy's movers' boxes (empty for other views) */
-    int proxy_crop_views;                /* proxies with a moving region */
+    train_motion_regions *regions; /* (num_views) movers' boxes per frame: the crop view's and, with two
+                                    * crops or more, each proxy's (empty for the other views); may be NULL */
+    int proxy_crop_views;          /* proxies with a moving region */
     train_net *net;
     optim_adam *nopt;    /* Adam of the network parameters: TRAIN_NET_* groups, one row */
 
