@@ -62,9 +62,9 @@ static int ref_project(const double *p, const pg_camera *cam, double xy[2], doub
         T[3*r+j] = J[3*r]*cam->R[j] + J[3*r+1]*cam->R[3+j] + J[3*r+2]*cam->R[6+j];
     for (int r = 0; r < 2; r++) for (int j = 0; j < 3; j++)
         TC[3*r+j] = T[3*r]*cov[j] + T[3*r+1]*cov[3+j] + T[3*r+2]*cov[6+j];
-    double a = TC[0]*T[0] + TC[1]*T[1] + TC[2]*T[2] + 0.3;
+    double a = TC[0]*T[0] + TC[1]*T[1] + TC[2]*T[2] + 0.1;
     double b = TC[0]*T[3] + TC[1]*T[4] + TC[2]*T[5];
-    double c = TC[3]*T[3] + TC[4]*T[4] + TC[5]*T[5] + 0.3;
+    double c = TC[3]*T[3] + TC[4]*T[4] + TC[5]*T[5] + 0.1;
     double det = a*c - b*b;
     conic[0] = c/det; conic[1] = -b/det; conic[2] = a/det;
     if (cov2d) { cov2d[0] = a; cov2d[1] = b; cov2d[2] = c; }

@@ -10,6 +10,7 @@
  */
 #include "testlib.h"
 #include "splat_ref.h"
+#include "splat/filter3d.h"
 #include "splat/project.h"
 #include "splat/raster.h"
 #include "splat/sh.h"
@@ -18,6 +19,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 static double rel(double a, double b, double floor)
 {
@@ -321,11 +323,85 @@ static void test_raster(int output)
     for (int simd = 0; simd < kinds; simd++) splat_gaussians_destroy(&grads[simd]);
 }
 
+/* Double reference of the 3D filter for one Gaussian: filtered log-scales and opacity logit. */
+static void filter3d_ref(const double ls[3], double o, double var, double out[4])
+{
+    double log_rho = 0;
+    for (int k = 0; k < 3; k++) {
+        out[k] = 0.5 * log(exp(2 * ls[k]) + var);
+        log_rho += ls[k] - out[k];
+    }
+    double a = 1 / (1 + exp(-o)) * exp(log_rho);
+    out[3] = log(a / (1 - a));
+}
+
+/* The 3D filter: its backward against central differences of the double reference (scales far
+ * below, near and far above the filter; opacities from 0.02 to 0.9975), and the variance it takes
+ * from the cameras (the nearest camera that sees a point; none in front: 0). */
+static void test_filter3d(void)
+{
+    enum { N = 60 };
+    pg_rng rng;
+    pg_rng_seed(&rng, 11);
+    float ls[N * 3], op[N], var[N], saved[N * 4], g_ls[N * 3], g_op[N];
+    double w[N][4];
+    for (int i = 0; i < N; i++) {
+        var[i] = i % 10 == 9 ? 0.0f : (float)exp(-6 + 4 * pg_rng_uniform(&rng));
+        for (int k = 0; k < 3; k++) ls[3 * i + k] = (float)(-7 + 7 * pg_rng_uniform(&rng));
+        op[i] = (float)(-4 + 10 * pg_rng_uniform(&rng));
+        for (int k = 0; k < 4; k++) w[i][k] = pg_rng_normal(&rng);
+    }
+    float fl[N * 3], fo[N];
+    memcpy(fl, ls, sizeof ls);
+    memcpy(fo, op, sizeof op);
+    splat_filter3d_forward(fl, fo, var, N, saved);
+    for (int i = 0; i < N; i++) {
+        for (int k = 0; k < 3; k++) g_ls[3 * i + k] = (float)w[i][k];
+        g_op[i] = (float)w[i][3];
+    }
+    splat_filter3d_backward(saved, var, N, g_ls, g_op);
+    double worst = 0, worst_fwd = 0;
+    const double h = 1e-6;
+    for (int i = 0; i < N; i++) {
+        double base[4] = { ls[3 * i], ls[3 * i + 1], ls[3 * i + 2], op[i] }, ref[4];
+        filter3d_ref(base, base[3], var[i], ref);
+        for (int k = 0; k < 3; k++) worst_fwd = fmax(worst_fwd, fabs(ref[k] - fl[3 * i + k]));
+        worst_fwd = fmax(worst_fwd, fabs(ref[3] - fo[i]) / fmax(1, fabs(ref[3])));
+        for (int p = 0; p < 4; p++) {
+            double hi[4], lo[4], x[4];
+            memcpy(x, base, sizeof x);
+            x[p] += h;
+            filter3d_ref(x, x[3], var[i], hi);
+            x[p] -= 2 * h;
+            filter3d_ref(x, x[3], var[i], lo);
+            double fd = 0;
+            for (int k = 0; k < 4; k++) fd += w[i][k] * (hi[k] - lo[k]) / (2 * h);
+            double an = p < 3 ? g_ls[3 * i + p] : g_op[i];
+            worst = fmax(worst, rel(an, fd, 1e-3));
+        }
+    }
+    CHECK(worst_fwd < 1e-5, "3D filter forward off the double reference by %.3g", worst_fwd);
+    CHECK(worst < 1e-3, "3D filter backward vs finite differences: worst relative error %.3g", worst);
+
+    pg_camera cams[2];
+    pg_camera_from_fov(&cams[0], 100, 80, 60);
+    pg_camera_from_fov(&cams[1], 100, 80, 60);
+    cams[1].t[2] = 2; /* 2 units further back: camera z = world z + 2 */
+    const float means[3 * 3] = { 0, 0, 4, 3.5f, 0, 4, 0, 0, -5 }; /* both see; only the far one sees; behind */
+    float v[3];
+    splat_filter3d_compute(means, 3, cams, 2, v);
+    const double foot0 = 4.0 / cams[0].fx, foot1 = 6.0 / cams[1].fx;
+    CHECK(fabs(v[0] - 0.2 * foot0 * foot0) < 1e-6 * v[0], "filter of a point both cameras see: %g", (double)v[0]);
+    CHECK(fabs(v[1] - 0.2 * foot1 * foot1) < 1e-6 * v[1], "filter of a point only the far camera sees: %g", (double)v[1]);
+    CHECK(v[2] == 0, "filter of a point behind every camera: %g", (double)v[2]);
+}
+
 int main(void)
 {
     test_projection();
     test_projection16();
     test_sh();
+    test_filter3d();
     for (int output = 0; output < 3; output++) test_raster(output);
     return test_summary("test_splat_grad");
 }

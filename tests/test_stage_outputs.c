@@ -110,7 +110,9 @@ int main(void)
     long fixed = file_bytes(path);
     snprintf(path, sizeof path, "%s/vid/renders/orbit.mp4", dir);
     long orbit = file_bytes(path);
-    CHECK(orbit > 2 * fixed && fixed > 0, "the orbit (%ld bytes) should be far larger than the fixed video (%ld)", orbit, fixed);
+    /* a moving camera codes to far more bytes than a still one (measured 1.9x with the 3D filter's
+     * smoother splats, 2.3x before) */
+    CHECK(orbit > 3 * fixed / 2 && fixed > 0, "the orbit (%ld bytes) should be far larger than the fixed video (%ld)", orbit, fixed);
     for (int crash = 0; crash < 2; crash++) {
         snprintf(path, sizeof path, "%s/vid/renders", dir);
         pg_remove_tree(path);

@@ -3,7 +3,9 @@
  * t = R mean + T (camera space); mean2D = (fx t.x/t.z + cx, fy t.y/t.z + cy);
  * J = [[fx/z, 0, -fx u], [0, fy/z, -fy w]] / with u = clamp(t.x/z) / z etc. (the clamp to 1.3x
  * the frustum keeps J bounded for Gaussians far outside the view; the clamped coordinate passes
- * no gradient); Sigma2D = J R Sigma R^T J^T + 0.3 I; conic = Sigma2D^-1 stored (a, b, c) with
+ * no gradient); Sigma2D = J R Sigma R^T J^T + 0.1 I (the screen-space filter: a tenth
+ * of a squared pixel at any output size; the 3D filter, splat/filter3d.h, bounds what the training
+ * views could not resolve); conic = Sigma2D^-1 stored (a, b, c) with
  * sigma(dx, dy) = 0.5 (a dx^2 + c dy^2) + b dx dy.
  */
 #ifndef PG_PROJECT_H
@@ -11,7 +13,7 @@
 
 #include "core/camera.h"
 
-#define SPLAT_LOWPASS 0.3f
+#define SPLAT_LOWPASS 0.1f
 
 typedef struct {
     float xy[2];    /* pixel coordinates of the projected mean */

@@ -3,14 +3,15 @@
  *
  * Layout (little-endian, written in one go to a temporary file then renamed):
  *   "PGDYCKP1"                              magic
- *   u32 version (6), u32 flags (bit 0: optimiser state present), u32 config text length, config
+ *   u32 version (7), u32 flags (bit 0: optimiser state present), u32 config text length, config
  *   text ("key=value\n" lines)
  *   i32 iter, fine, frames, width, height, num_views; u64 rng[4]
  *   f32 extent, unit, center[3], max_disp, bg[3]    (unit: the user's length per trainer length)
  *   i32 N, sh_degree; Gaussians (means, log_scales, quats, opacity, sh for N rows)
  *   with optimiser state: Adam of the Gaussians: i32 step[6], then per group f32 m[N x cols],
  *       v[N x cols] (groups means, log_scales, quats, opacity, sh_dc, sh_rest of 3, 3, 4, 1, 3, 45 cols)
- *   u8 is_static[N]; with optimiser state: f32 grad_accum[N], grad_denom[N]
+ *   u8 is_static[N]; f32 filter_var[N] (the 3D filter, splat/filter3d.h); with optimiser state:
+ *       f32 grad_accum[N], grad_denom[N]
  *   if fine: network config (f32 aabb[6], i32 width, res, tres, channels, head_width, u64 seed),
  *       u64 P, f32 params[P], with optimiser state: Adam of the network: i32 step[2], then per
  *       group m, v (groups HexPlane grids [0, grid_end) and MLP [grid_end, P))
@@ -20,7 +21,7 @@
  * machine-dependent is stored, so equal training gives equal bytes. Only the current version is
  * read (1: one step count for all Gaussian groups, moments stored like Gaussians; 3: no head
  * width in the network config; 4: no unit, trained in the depth's own units; 5: no flags, always
- * optimiser state). The checkpoint written when training ends leaves the optimiser state out (it
+ * optimiser state; 6: no 3D filter). The checkpoint written when training ends leaves the optimiser state out (it
  * is two thirds of the bytes and only a continuation needs it): continuing a finished model
  * starts Adam afresh, while an interrupted run resumes bit-exactly from a periodic checkpoint.
  */
@@ -34,10 +35,11 @@
 #include <zlib.h>
 
 #include "core/fileutil.h"
+#include "splat/filter3d.h"
 
 #define CKPT_MAGIC "PGDYCKP1"
 #define CKPT_END "PGEND\0\0\0"
-#define CKPT_VERSION 6u
+#define CKPT_VERSION 7u
 #define CKPT_HAS_OPTIMIZER 1u
 #define CKPT_MAX_STEP 100000000 /* iterations and Adam steps beyond this are corruption */
 #define SH_ROW (PG_SH_COEFFS * 3)
@@ -177,6 +179,7 @@ pg_status train_checkpoint_write(train_session *s, const char *path, int with_op
     put_gaussians(&b, &s->g, n);
     if (with_optimizer) put_adam(&b, s->gopt);
     put(&b, s->is_static, (size_t)n);
+    put(&b, s->filter_var, (size_t)n * 4);
     if (with_optimizer) {
         put(&b, s->grad_accum, (size_t)n * 4);
         put(&b, s->grad_denom, (size_t)n * 4);
@@ -247,6 +250,15 @@ static pg_status check_finite(const pg_gaussians *g, int n, const char *path)
             if (!isfinite(arrays[a][i]))
                 return pg_fail(PG_ERR_FORMAT, "%s: Gaussian %zu has a non-finite parameter (corrupt checkpoint)", path,
                                i / cols[a]);
+    return PG_OK;
+}
+
+/* The 3D filter's variances: finite and >= 0 (a crafted value would blow up every render). */
+static pg_status check_filter(const float *var, int n, const char *path)
+{
+    for (int i = 0; i < n; i++)
+        if (!(var[i] >= 0 && var[i] < INFINITY))
+            return pg_fail(PG_ERR_FORMAT, "%s: 3D filter of Gaussian %d is %g", path, i, (double)var[i]);
     return PG_OK;
 }
 
@@ -442,6 +454,8 @@ pg_status train_checkpoint_read(train_session *s, const char *path)
     }
     s->g.sh_degree = h.sh_degree;
     get(&r, s->is_static, (size_t)h.n);
+    get(&r, s->filter_var, (size_t)h.n * 4);
+    if ((st = check_filter(s->filter_var, h.n, path))) goto done;
     if (h.optimizer) {
         get(&r, s->grad_accum, (size_t)h.n * 4);
         get(&r, s->grad_denom, (size_t)h.n * 4);
@@ -490,11 +504,19 @@ pg_status train_model_load(const char *path, train_model *m)
     to_user_units(&m->g, m->unit);
     if (h.optimizer) skip(&r, OPTIM_GAUSS_GROUPS * 4 + (size_t)h.n * GAUSS_FLOATS * 4 * 2); /* Adam state */
     m->is_static = pg_malloc((size_t)h.n, "model static flags");
-    if (!m->is_static) {
+    m->filter_var = pg_malloc((size_t)h.n * sizeof(float) + 1, "model 3D filter");
+    if (!m->is_static || !m->filter_var) {
         st = PG_ERR_NOMEM;
         goto done;
     }
     get(&r, m->is_static, (size_t)h.n);
+    get(&r, m->filter_var, (size_t)h.n * 4);
+    if (r.bad) {
+        st = pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint", path);
+        goto done;
+    }
+    if ((st = check_filter(m->filter_var, h.n, path))) goto done;
+    for (int i = 0; i < h.n; i++) m->filter_var[i] *= h.unit * h.unit; /* the user's units */
     if (h.optimizer) skip(&r, (size_t)h.n * 8);
     if (h.fine) {
         train_net_config nc;
@@ -515,13 +537,18 @@ void train_model_destroy(train_model *m)
     splat_gaussians_destroy(&m->g);
     splat_gaussians_destroy(&m->g_net);
     free(m->is_static);
+    free(m->filter_var);
     train_net_destroy(m->net);
     memset(m, 0, sizeof *m);
 }
 
 pg_status train_model_deform(train_model *m, float t, pg_gaussians *out)
 {
-    if (!m->net) return splat_gaussians_copy(&m->g, out);
+    if (!m->net) {
+        PG_TRY(splat_gaussians_copy(&m->g, out));
+        splat_filter3d_forward(out->log_scales, out->opacity, m->filter_var, out->count, NULL);
+        return PG_OK;
+    }
     PG_TRY(splat_gaussians_copy(&m->g_net, out));
     const int n = m->g_net.count;
     int *idx = pg_malloc((size_t)n * sizeof(int) + 1, "deform indices");
@@ -531,8 +558,10 @@ pg_status train_model_deform(train_model *m, float t, pg_gaussians *out)
         if (!m->is_static[i]) idx[k++] = i;
     pg_status st = k ? train_net_forward(m->net, &m->g_net, idx, k, t, out) : PG_OK;
     free(idx);
-    if (!st) to_user_units(out, m->unit);
-    return st;
+    if (st) return st;
+    to_user_units(out, m->unit);
+    splat_filter3d_forward(out->log_scales, out->opacity, m->filter_var, out->count, NULL);
+    return PG_OK;
 }
 
 const char *train_config_invalid(const train_config *c)

@@ -35,11 +35,18 @@ pg_status train_ensure_side(train_session *s, int n)
     int *e = realloc(s->idx, (size_t)nc * sizeof(int));
     if (!e) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
     s->idx = e;
+    float *f = realloc(s->filter_var, (size_t)nc * sizeof(float));
+    if (!f) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
+    s->filter_var = f;
+    float *h = realloc(s->filter_saved, (size_t)nc * 4 * sizeof(float));
+    if (!h) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
+    s->filter_saved = h;
     size_t old = (size_t)s->side_cap, add = (size_t)(nc - s->side_cap);
     memset(s->is_static + old, 0, add);
     memset(s->grad_accum + old, 0, add * sizeof(float));
     memset(s->grad_denom + old, 0, add * sizeof(float));
     memset(s->vs_grad + old, 0, add * sizeof(float));
+    memset(s->filter_var + old, 0, add * sizeof(float));
     s->side_cap = nc;
     return PG_OK;
 }

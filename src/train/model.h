@@ -55,6 +55,7 @@ typedef struct {
     pg_gaussians g_net;  /* the same in the trainer's units (train_set_normalize_units), the network's input */
     float unit;          /* the user's length per trainer length */
     uint8_t *is_static;  /* (N) 1 = never deformed */
+    float *filter_var;   /* (N) the 3D filter's variance in the user's units (splat/filter3d.h) */
     train_net *net;      /* NULL before the fine stage */
     int frames;
     float bg[3];
@@ -64,7 +65,8 @@ pg_status train_model_load(const char *path, train_model *m);
 void train_model_destroy(train_model *m);
 /* Time in [0,1] of frame f of a video with `frames` frames. */
 float train_frame_time(int f, int frames);
-/* Every Gaussian at time t in the user's units (static ones copied from the canonical set); out is resized. */
+/* Every Gaussian at time t in the user's units (static ones copied from the canonical set), scales and
+ * opacity through the 3D filter: what a renderer draws; out is resized. */
 pg_status train_model_deform(train_model *m, float t, pg_gaussians *out);
 
 #endif

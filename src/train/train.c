@@ -6,7 +6,8 @@
  *   1. pick a frame (every frame once per epoch, in a shuffled order), t = frame / (F - 1), and the
  *      batch: the real view and views_per_step - 1 proxies of that frame
  *   2. d = canonical copy; rows of movable Gaussians that may be in any batch view go through the network
- *   3. per view: rasterize d, weighted loss, backward -> dg (summed in batch order)
+ *   3. d's scales and opacity through the 3D filter (splat/filter3d.h); per view: rasterize d,
+ *      weighted loss, backward -> dg (summed in batch order), then back through the filter
  *   4. gg = dg (identity path); network backward adds the deformation path into gg and its params
  *   5. K-Planes regularisers, Adam on the Gaussians and the network (train_adam.c), density statistics
  * The coarse stage is the same without step 2/4 (d = g).
@@ -24,6 +25,7 @@
 #include "optim/loss_depth.h"
 #include "optim/loss_image.h"
 #include "depth/moving_mask.h"
+#include "splat/filter3d.h"
 
 train_config train_default_config(void)
 {
@@ -111,6 +113,8 @@ void train_session_destroy(train_session *s)
     free(s->grad_denom);
     free(s->vs_grad);
     free(s->idx);
+    free(s->filter_var);
+    free(s->filter_saved);
     if (s->moving)
         for (int v = 0; v < s->ts->num_views; v++) free(s->moving[v]);
     free(s->moving);
@@ -273,6 +277,7 @@ pg_status train_session_set_gaussians(train_session *s, const pg_gaussians *g, c
     for (int i = 0; i < g->count; i++) s->is_static[i] = is_static ? is_static[i] : 0;
     memset(s->grad_accum, 0, (size_t)s->side_cap * sizeof(float));
     memset(s->grad_denom, 0, (size_t)s->side_cap * sizeof(float));
+    train_update_filter(s);
     return PG_OK;
 }
 
@@ -317,6 +322,7 @@ pg_status train_session_create(train_session **out, const train_set *ts, const t
     } else {
         pg_rng_seed(&s->rng, cfg->seed);
         if ((st = train_init_gaussians(s))) goto fail;
+        train_update_filter(s);
         if (!s->cfg.use_static_flags) memset(s->is_static, 0, (size_t)s->g.count);
         if (s->cfg.coarse_iters == 0 && (st = start_fine(s))) goto fail;
     }
@@ -470,17 +476,30 @@ static int load_target(train_session *s, int vi, int f, int moving)
     return v->depth != NULL;
 }
 
+void train_update_filter(train_session *s)
+{
+    const train_set *ts = s->ts;
+    pg_camera cams[ts->num_views > 0 ? ts->num_views : 1];
+    int ncam = 0;
+    for (int v = 0; v < ts->num_views; v++)
+        if (ts->views[v].role != IO_ROLE_TEST) cams[ncam++] = ts->views[v].cam;
+    splat_filter3d_compute(s->g.means, s->g.count, cams, ncam, s->filter_var);
+}
+
 /* Deformed copy d of the canonical set at time t for the ncam cameras (culling to their frusta
- * when enabled; ncam 0: no culling). */
+ * when enabled; ncam 0: no culling), with the 3D filter applied (the unfiltered values kept in
+ * filter_saved for the backward). */
 static pg_status deform_all(train_session *s, const pg_camera *const *cams, int ncam, float t, int *n_deformed)
 {
     copy_gaussians(&s->d, &s->g);
     *n_deformed = 0;
-    if (!s->fine) return PG_OK;
-    int n = build_subset(s, cams, s->cfg.use_frustum_cull ? ncam : 0);
-    *n_deformed = n;
-    if (n == 0) return PG_OK;
-    return train_net_forward(s->net, &s->g, s->idx, n, t, &s->d);
+    if (s->fine) {
+        int n = build_subset(s, cams, s->cfg.use_frustum_cull ? ncam : 0);
+        *n_deformed = n;
+        if (n > 0) PG_TRY(train_net_forward(s->net, &s->g, s->idx, n, t, &s->d));
+    }
+    splat_filter3d_forward(s->d.log_scales, s->d.opacity, s->filter_var, s->d.count, s->filter_saved);
+    return PG_OK;
 }
 
 /* lambda_d * scale-and-shift-invariant L2 of the rendered depth against the target, divided by
@@ -722,7 +741,8 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
     }
     t0 = pg_time_seconds();
 
-    /* identity path, then the deformation path for the deformed rows */
+    /* through the 3D filter, then the identity path and the deformation path for the deformed rows */
+    splat_filter3d_backward(s->filter_saved, s->filter_var, s->dg.count, s->dg.log_scales, s->dg.opacity);
     if (first) copy_gaussians(&s->gg, &s->dg);
     else blend_gaussians(&s->gg, &s->dg, 1);
     if (s->fine && nd > 0) PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, &s->dg, &s->gg));
@@ -798,8 +818,9 @@ pg_status train_session_step(train_session *s)
 
     int it = s->iter;
     if (c->sh_ramp_every > 0 && it % c->sh_ramp_every == 0 && s->g.sh_degree < c->sh_max_degree) s->g.sh_degree++;
-    if (it < c->densify_until && it >= c->densify_from && c->densify_every > 0 && it % c->densify_every == 0)
-        PG_TRY(train_densify_and_prune(s, 1));
+    int densified = it < c->densify_until && it >= c->densify_from && c->densify_every > 0 && it % c->densify_every == 0;
+    if (densified) PG_TRY(train_densify_and_prune(s, 1));
+    if (densified || it % TRAIN_FILTER_EVERY == 0) train_update_filter(s);
     int fine_it = it - c->coarse_iters;
     if (s->fine && c->static_check_every > 0 && fine_it >= 2 * c->static_check_every &&
         fine_it % c->static_check_every == 0 && c->use_static_flags)

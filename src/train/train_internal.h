@@ -35,6 +35,9 @@ struct train_session {
     float *grad_denom;   /* (side_cap) times visible */
     float *vs_grad;      /* (side_cap) this iteration's view-space gradient norm */
     int *idx;            /* (side_cap) Gaussians sent through the network */
+    float *filter_var;   /* (side_cap) 3D smoothing filter variance (splat/filter3d.h), from the
+                          * canonical means every TRAIN_FILTER_EVERY steps and after densification */
+    float *filter_saved; /* (side_cap, 4) the deformed set's log-scales and opacity before the filter */
     uint8_t **moving;    /* (num_views) per real view (F, H, W) moving pixels, else NULL; may be NULL */
     int crop_view;       /* the real view whose moving region motion crops render (-1: none) */
     train_motion_regions *regions; /* (num_views) movers' boxes per frame: the crop view's and, with two
@@ -65,6 +68,11 @@ struct train_session {
 /* Adam groups of the network's flat parameter array (train_net_grid_end splits it). */
 enum { TRAIN_NET_GRID, TRAIN_NET_MLP, TRAIN_NET_GROUPS };
 
+/* the 3D filter follows the means this often (Mip-Splatting's interval) */
+#define TRAIN_FILTER_EVERY 100
+
+/* train.c */
+void train_update_filter(train_session *s);
 /* train_adam.c */
 pg_status train_adam_resize_gaussians(train_session *s, int n);
 pg_status train_adam_create_net(train_session *s);

@@ -1,0 +1,32 @@
+/* filter3d.h - the 3D smoothing filter of anti-aliased splatting (Mip-Splatting, Yu et al. 2024).
+ *
+ * A Gaussian no view trained at a finer scale than one pixel is convolved with an isotropic 3D
+ * Gaussian of variance var = SPLAT_FILTER3D_VAR x (z / f)^2, where z / f is its smallest pixel
+ * footprint over the training cameras: Sigma' = Sigma + var I keeps the rotation and turns each
+ * scale s into sqrt(s^2 + var), and the opacity is multiplied by rho = prod s / sqrt(s^2 + var) so
+ * the splat's integral is kept. A Gaussian thinner than a training pixel then renders as what the
+ * training views saw, at any output size, instead of a needle. The filter is a per-Gaussian
+ * constant: training recomputes it from the canonical means on a schedule (src/train) and the
+ * checkpoint stores it.
+ */
+#ifndef PG_FILTER3D_H
+#define PG_FILTER3D_H
+
+#include "core/camera.h"
+
+/* the filter's variance in squared training pixels (Mip-Splatting's 0.2) */
+#define SPLAT_FILTER3D_VAR 0.2f
+
+/* var[i] for the n means from the ncam training cameras: the smallest footprint over the cameras
+ * that see the point (in front, inside the frustum widened by 15 % on each side); over the
+ * cameras it is in front of when none sees it; 0 when it is behind them all. */
+void splat_filter3d_compute(const float *means, int n, const pg_camera *cams, int ncam, float *var);
+
+/* In place: log_scales (n, 3) and opacity logits (n) become the filtered ones. saved (n, 4) keeps
+ * the unfiltered values for the backward (NULL: rendering only). */
+void splat_filter3d_forward(float *log_scales, float *opacity, const float *var, int n, float *saved);
+/* In place: the gradients d_log_scales (n, 3) and d_opacity (n) of the filtered values become
+ * those of the unfiltered ones saved by the forward. */
+void splat_filter3d_backward(const float *saved, const float *var, int n, float *d_log_scales, float *d_opacity);
+
+#endif
