@@ -517,6 +517,7 @@ pg_status train_model_load(const char *path, train_model *m)
     }
     if ((st = check_filter(m->filter_var, h.n, path))) goto done;
     for (int i = 0; i < h.n; i++) m->filter_var[i] *= h.unit * h.unit; /* the user's units */
+    splat_filter3d_forward(m->g.log_scales, m->g.opacity, m->filter_var, h.n, NULL);
     if (h.optimizer) skip(&r, (size_t)h.n * 8);
     if (h.fine) {
         train_net_config nc;
@@ -544,11 +545,7 @@ void train_model_destroy(train_model *m)
 
 pg_status train_model_deform(train_model *m, float t, pg_gaussians *out)
 {
-    if (!m->net) {
-        PG_TRY(splat_gaussians_copy(&m->g, out));
-        splat_filter3d_forward(out->log_scales, out->opacity, m->filter_var, out->count, NULL);
-        return PG_OK;
-    }
+    if (!m->net) return splat_gaussians_copy(&m->g, out);
     PG_TRY(splat_gaussians_copy(&m->g_net, out));
     const int n = m->g_net.count;
     int *idx = pg_malloc((size_t)n * sizeof(int) + 1, "deform indices");

@@ -51,7 +51,7 @@ float train_net_regularize(train_net *net, float w_tv, float w_time, float w_l1)
 
 /* ---- the model ---- */
 typedef struct {
-    pg_gaussians g;      /* canonical Gaussians, in the user's units */
+    pg_gaussians g;      /* canonical Gaussians as drawn: the user's units, through the 3D filter */
     pg_gaussians g_net;  /* the same in the trainer's units (train_set_normalize_units), the network's input */
     float unit;          /* the user's length per trainer length */
     uint8_t *is_static;  /* (N) 1 = never deformed */
