@@ -336,7 +336,7 @@ static void filter3d_ref(const double ls[3], double o, double var, double out[4]
 }
 
 /* The 3D filter: its backward against central differences of the double reference (scales far
- * below, near and far above the filter; opacities from 0.02 to 0.9975), and the variance it takes
+ * below, near and far above the filter; opacity logits from -100 to 12), and the variance it takes
  * from the cameras (the nearest camera that sees a point; none in front: 0). */
 static void test_filter3d(void)
 {
@@ -349,6 +349,7 @@ static void test_filter3d(void)
         var[i] = i % 10 == 9 ? 0.0f : (float)exp(-6 + 4 * pg_rng_uniform(&rng));
         for (int k = 0; k < 3; k++) ls[3 * i + k] = (float)(-7 + 7 * pg_rng_uniform(&rng));
         op[i] = (float)(-4 + 10 * pg_rng_uniform(&rng));
+        if (i % 10 == 3) op[i] = i % 20 == 3 ? 12.0f : -100.0f; /* near-opaque; below float's sigmoid */
         for (int k = 0; k < 4; k++) w[i][k] = pg_rng_normal(&rng);
     }
     float fl[N * 3], fo[N];

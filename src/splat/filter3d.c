@@ -26,29 +26,31 @@ void splat_filter3d_compute(const float *means, int n, const pg_camera *cams, in
     }
 }
 
-/* log(sigmoid(x)) without overflow */
-static float log_sigmoid(float x) { return x > 0 ? -log1pf(expf(-x)) : x - log1pf(expf(x)); }
+/* What forward and backward share for one Gaussian: w_k = var / (s_k^2 + var) (the filtered
+ * log-scale is 0.5 log(s_k^2 + var)), rho = prod s_k / sqrt(s_k^2 + var), the opacity a and the
+ * complements 1 - a and 1 - a rho (each formed without cancellation, so opacities near 1 keep
+ * their precision). Eight exp/log in all: this runs over every Gaussian at every rendered time. */
+typedef struct {
+    float q[3], w[3], rho, a, na, na_filtered;
+} filter_terms;
 
-/* One axis: the filtered log-scale and w = var / (s^2 + var), from exponents that are never
- * positive (a scale far below or far above the filter stays finite). */
-static float filtered_log_scale(float ls, float log_var, float *w)
+static void filter_terms_of(const float ls[3], float o, float var, filter_terms *f)
 {
-    const float e = 2.0f * ls - log_var; /* log(s^2 / var) */
-    if (e > 0) {
-        const float r = expf(-e);
-        *w = r / (1.0f + r);
-        return ls + 0.5f * log1pf(r);
+    float keep = 1.0f;
+    for (int k = 0; k < 3; k++) {
+        const float s2 = expf(2.0f * ls[k]);
+        f->q[k] = s2 + var;
+        f->w[k] = var / f->q[k];
+        keep *= s2 / f->q[k];
     }
-    const float r = expf(e);
-    *w = 1.0f / (1.0f + r);
-    return 0.5f * (log_var + log1pf(r));
-}
-
-/* The filtered opacity's complement 1 - sigmoid(o) rho, accurate when both are near 1. */
-static float filtered_opacity_complement(float o, float log_rho)
-{
-    const float a = 1.0f / (1.0f + expf(-o)), na = 1.0f / (1.0f + expf(o));
-    return na + a * -expm1f(log_rho);
+    f->rho = sqrtf(keep);
+    /* 1 - rho = (1 - keep) / (1 + rho), 1 - keep = 1 - prod (1 - w_k) nested */
+    const float lost = f->w[0] + (1.0f - f->w[0]) * (f->w[1] + (1.0f - f->w[1]) * f->w[2]);
+    const float one_minus_rho = lost / (1.0f + f->rho);
+    const float e = expf(-o);
+    f->a = 1.0f / (1.0f + e);
+    f->na = e < INFINITY ? e / (1.0f + e) : 1.0f;
+    f->na_filtered = f->na + f->a * one_minus_rho;
 }
 
 void splat_filter3d_forward(float *log_scales, float *opacity, const float *var, int n, float *saved)
@@ -61,35 +63,27 @@ void splat_filter3d_forward(float *log_scales, float *opacity, const float *var,
             saved[4 * (size_t)i + 3] = opacity[i];
         }
         if (!(var[i] > 0)) continue;
-        const float log_var = logf(var[i]);
-        float log_rho = 0, w;
-        for (int k = 0; k < 3; k++) {
-            const float f = filtered_log_scale(ls[k], log_var, &w);
-            log_rho += ls[k] - f;
-            ls[k] = f;
-        }
-        const float o = opacity[i];
-        opacity[i] = log_sigmoid(o) + log_rho - logf(filtered_opacity_complement(o, log_rho));
+        filter_terms f;
+        filter_terms_of(ls, opacity[i], var[i], &f);
+        for (int k = 0; k < 3; k++) ls[k] = 0.5f * logf(f.q[k]);
+        /* a tiny opacity: a rho / (1 - a rho) = e^o rho to float precision */
+        opacity[i] = f.a > 0 ? logf(f.a * f.rho / f.na_filtered) : opacity[i] + logf(f.rho);
     }
 }
 
-/* With a' = sigmoid(o) rho the filtered opacity and w_k = var / (s_k^2 + var):
- *   d log s'_k / d log s_k = 1 - w_k,  d log rho / d log s_k = w_k,
- *   d o' / d log rho = 1 / (1 - a'),  d o' / d o = (1 - a) / (1 - a'). */
+/* With a' = a rho the filtered opacity: d log s'_k / d log s_k = 1 - w_k, d log rho / d log s_k =
+ * w_k, d o' / d log rho = 1 / (1 - a'), d o' / d o = (1 - a) / (1 - a'). */
 void splat_filter3d_backward(const float *saved, const float *var, int n, float *d_log_scales, float *d_opacity)
 {
     #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
         if (!(var[i] > 0)) continue;
         const float *ls = saved + 4 * (size_t)i;
-        const float o = ls[3];
-        const float log_var = logf(var[i]);
-        float w[3], log_rho = 0;
-        for (int k = 0; k < 3; k++) log_rho += ls[k] - filtered_log_scale(ls[k], log_var, &w[k]);
-        const float inv_na2 = 1.0f / filtered_opacity_complement(o, log_rho);
-        const float g_o = d_opacity[i];
+        filter_terms f;
+        filter_terms_of(ls, ls[3], var[i], &f);
+        const float g_o = d_opacity[i], inv_na = 1.0f / f.na_filtered;
         float *g = d_log_scales + 3 * (size_t)i;
-        for (int k = 0; k < 3; k++) g[k] = g[k] * (1.0f - w[k]) + g_o * w[k] * inv_na2;
-        d_opacity[i] = g_o * inv_na2 / (1.0f + expf(o));
+        for (int k = 0; k < 3; k++) g[k] = g[k] * (1.0f - f.w[k]) + g_o * f.w[k] * inv_na;
+        d_opacity[i] = g_o * f.na * inv_na;
     }
 }
