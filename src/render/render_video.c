@@ -51,7 +51,6 @@ pg_status render_video_write(render_model *rm, const pg_camera *real, const floa
     const pg_camera *sized = opt->num_keys > 0 ? &opt->keys[0] : opt->use_camera ? &opt->camera : real;
     const int W = sized->width, H = sized->height;
     int steps = opt->path.steps;
-    if (opt->use_camera) steps = render_model_frames(rm);
     if (opt->num_keys > 0) steps = opt->num_keys;
     if (steps <= 0) return pg_fail(PG_ERR_ARG, "camera path '%s' has no steps", name);
     PG_TRY(pg_mkdir_p(out_dir));

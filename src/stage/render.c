@@ -122,6 +122,7 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
         if (dataset_cam && !keys) {
             vo.use_camera = 1;
             vo.camera = sc->cams[k];
+            if (c->steps == 0) vo.path.steps = frames > 0 ? frames : 1; /* one render per input frame */
         }
         render_video_report rep;
         pg_staged_dir out;
