@@ -392,9 +392,31 @@ static void test_filter3d(void)
     float v[3];
     splat_filter3d_compute(means, 3, cams, 2, v);
     const double foot0 = 4.0 / cams[0].fx, foot1 = 6.0 / cams[1].fx;
-    CHECK(fabs(v[0] - 0.2 * foot0 * foot0) < 1e-6 * v[0], "filter of a point both cameras see: %g", (double)v[0]);
-    CHECK(fabs(v[1] - 0.2 * foot1 * foot1) < 1e-6 * v[1], "filter of a point only the far camera sees: %g", (double)v[1]);
+    CHECK(fabs(v[0] - SPLAT_FILTER3D_VAR * foot0 * foot0) < 1e-6 * v[0], "filter of a point both cameras see: %g", (double)v[0]);
+    CHECK(fabs(v[1] - SPLAT_FILTER3D_VAR * foot1 * foot1) < 1e-6 * v[1], "filter of a point only the far camera sees: %g", (double)v[1]);
     CHECK(v[2] == 0, "filter of a point behind every camera: %g", (double)v[2]);
+
+    /* fresh Gaussians: after fit_init, filtered, they draw at their initial opacity (below the
+     * cap) and no scale is under the filter's std */
+    float il[N * 3], io[N], jl[N * 3], jo[N];
+    memcpy(il, ls, sizeof ls);
+    for (int i = 0; i < N; i++) io[i] = logf(0.3f / 0.7f);
+    memcpy(jl, il, sizeof il);
+    memcpy(jo, io, sizeof io);
+    splat_filter3d_fit_init(jl, jo, var, N);
+    int thin = 0;
+    double worst_op = 0;
+    for (int i = 0; i < N; i++)
+        for (int k = 0; k < 3; k++) thin += var[i] > 0 && expf(2 * jl[3 * i + k]) < 0.999f * var[i];
+    memcpy(fl, jl, sizeof jl);
+    memcpy(fo, jo, sizeof jo);
+    splat_filter3d_forward(fl, fo, var, N, NULL);
+    for (int i = 0; i < N; i++) {
+        const double raised = 1 / (1 + exp(-(double)jo[i]));
+        if (raised < 0.98) worst_op = fmax(worst_op, fabs(1 / (1 + exp(-(double)fo[i])) - 0.3));
+    }
+    CHECK(thin == 0, "%d scales under the filter's std after fit_init", thin);
+    CHECK(worst_op < 1e-5, "filtered opacity after fit_init off the initial 0.3 by %.3g", worst_op);
 }
 
 int main(void)

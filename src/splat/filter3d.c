@@ -26,6 +26,23 @@ void splat_filter3d_compute(const float *means, int n, const pg_camera *cams, in
     }
 }
 
+void splat_filter3d_fit_init(float *log_scales, float *opacity, const float *var, int n)
+{
+    #pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; i++) {
+        if (!(var[i] > 0)) continue;
+        float *ls = log_scales + 3 * (size_t)i, keep = 1.0f;
+        const float floor_ls = 0.5f * logf(var[i]);
+        for (int k = 0; k < 3; k++) {
+            ls[k] = fmaxf(ls[k], floor_ls);
+            const float s2 = expf(2.0f * ls[k]);
+            keep *= s2 / (s2 + var[i]);
+        }
+        const float a = 1.0f / (1.0f + expf(-opacity[i])), raised = fminf(a / sqrtf(keep), 0.99f);
+        opacity[i] = logf(raised / (1.0f - raised));
+    }
+}
+
 /* What forward and backward share for one Gaussian: w_k = var / (s_k^2 + var) (the filtered
  * log-scale is 0.5 log(s_k^2 + var)), rho = prod s_k / sqrt(s_k^2 + var), the opacity a and the
  * complements 1 - a and 1 - a rho (each formed without cancellation, so opacities near 1 keep

@@ -14,13 +14,21 @@
 
 #include "core/camera.h"
 
-/* the filter's variance in squared training pixels (Mip-Splatting's 0.2) */
-#define SPLAT_FILTER3D_VAR 0.2f
+/* the filter's variance in squared training pixels (Mip-Splatting uses 0.2: at the 64x48 of
+ * heavy_depth_units it cost 5 dB moving at the training camera; 0.1 gives that back, docs/splat.md) */
+#define SPLAT_FILTER3D_VAR 0.1f
 
 /* var[i] for the n means from the ncam training cameras: the smallest footprint over the cameras
  * that see the point (in front, inside the frustum widened by 15 % on each side); over the
  * cameras it is in front of when none sees it; 0 when it is behind them all. */
 void splat_filter3d_compute(const float *means, int n, const pg_camera *cams, int ncam, float *var);
+
+/* In place, for freshly initialised Gaussians: each scale raised to at least the filter's std and
+ * the opacity raised so the filtered Gaussian draws with the opacity it was initialised with
+ * (capped at 0.99). Initial Gaussians smaller than a training pixel would otherwise start at a
+ * fraction of their opacity (a fifth at 64x48) and the first hundreds of steps would only win it
+ * back. */
+void splat_filter3d_fit_init(float *log_scales, float *opacity, const float *var, int n);
 
 /* In place: log_scales (n, 3) and opacity logits (n) become the filtered ones. saved (n, 4) keeps
  * the unfiltered values for the backward (NULL: rendering only). */

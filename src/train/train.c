@@ -323,6 +323,7 @@ pg_status train_session_create(train_session **out, const train_set *ts, const t
         pg_rng_seed(&s->rng, cfg->seed);
         if ((st = train_init_gaussians(s))) goto fail;
         train_update_filter(s);
+        splat_filter3d_fit_init(s->g.log_scales, s->g.opacity, s->filter_var, s->g.count);
         if (!s->cfg.use_static_flags) memset(s->is_static, 0, (size_t)s->g.count);
         if (s->cfg.coarse_iters == 0 && (st = start_fine(s))) goto fail;
     }
