@@ -112,19 +112,20 @@ static void test_warp_and_mesh(void)
     free(rgb); free(depth); free(wrgb); free(wdepth); free(zmesh); free(zside); free(tdepth);
 }
 
-/* Depth in units 1/s of the pose units: the photometric fit must find s. */
-static void test_pose_scale(void)
+/* Depth in units 1/s of the pose units: the photometric fit must find s, with training cameras
+ * near the real one (a DyNeRF rig) and spread wide around the scene (a Panoptic dome, where most
+ * of each target sees what the real camera does not). */
+static void check_pose_scale(const char *rig, const float (*ang)[2], int n)
 {
-    enum { W = 160, H = 120, N = 3 };
-    pg_camera cam, t[N];
+    enum { W = 160, H = 120 };
+    pg_camera cam, t[8];
     pg_camera_from_fov(&cam, W, H, 60);
     float *rgb = malloc(sizeof(float) * W * H * 3), *depth = malloc(sizeof(float) * W * H);
-    float *trgb[N];
+    float *trgb[8];
     proxy_procedural_render(&cam, 0, 2, rgb, depth);
     const float s_true = 1.7f;
     for (int i = 0; i < W * H; i++) depth[i] /= s_true;
-    const float ang[N][2] = { { 0.12f, 0 }, { -0.1f, 0.05f }, { 0.05f, -0.12f } };
-    for (int k = 0; k < N; k++) {
+    for (int k = 0; k < n; k++) {
         float c[3] = { 0, 0, 3 }, up[3] = { 0, -1, 0 };
         float eye[3] = { 3 * sinf(ang[k][0]), 3 * sinf(ang[k][1]), 3 - 3 * cosf(ang[k][0]) * cosf(ang[k][1]) };
         t[k] = cam;
@@ -134,13 +135,22 @@ static void test_pose_scale(void)
     }
     proxy_scale_report rep;
     proxy_scale_options so = proxy_default_scale_options();
-    CHECK_OK(proxy_fit_pose_scale(&cam, rgb, depth, N, t, (const float *const *)trgb, &so, &rep));
-    CHECK(fabsf(rep.scale / s_true - 1) < 0.01f, "fitted scale %g, true %g (cost %g, coverage %g)", rep.scale,
-          s_true, rep.cost, rep.coverage);
-    printf("pose scale: fitted %.4f true %.4f cost %.4f coverage %.3f evals %d\n", rep.scale, s_true, rep.cost,
-           rep.coverage, rep.evaluations);
-    for (int k = 0; k < N; k++) free(trgb[k]);
+    so.scale_min = 1.0f / 16, so.scale_max = 16, so.coarse_steps = 64; /* the range when bounds are unknown */
+    CHECK_OK(proxy_fit_pose_scale(&cam, rgb, depth, n, t, (const float *const *)trgb, &so, &rep));
+    CHECK(fabsf(rep.scale / s_true - 1) < 0.02f, "%s: fitted scale %g, true %g (cost %g, coverage %g)", rig,
+          rep.scale, s_true, rep.cost, rep.coverage);
+    printf("pose scale, %s: fitted %.4f true %.4f cost %.4f coverage %.3f evals %d\n", rig, rep.scale, s_true,
+           rep.cost, rep.coverage, rep.evaluations);
+    for (int k = 0; k < n; k++) free(trgb[k]);
     free(rgb); free(depth);
+}
+
+static void test_pose_scale(void)
+{
+    const float near[3][2] = { { 0.12f, 0 }, { -0.1f, 0.05f }, { 0.05f, -0.12f } };
+    const float wide[4][2] = { { 0.5f, 0 }, { -0.6f, 0.1f }, { 0.8f, -0.15f }, { -0.9f, 0.2f } };
+    check_pose_scale("near cameras", near, 3);
+    check_pose_scale("cameras 29-53 degrees away", wide, 4);
 }
 
 int main(void)

@@ -125,7 +125,9 @@ typedef struct {
     int n;
     const pg_camera *targets;
     const float *const *target_rgb; /* n x (H,W,3) */
-    float *zbuf;                    /* (H,W) scratch */
+    const float *chance;            /* n: mean |real - target| of unrelated pixel pairs */
+    float *zbuf, *uv;               /* (H,W), (H,W,2) scratch: front-most warped point per target pixel */
+    int *src;                       /* (H,W) scratch: its real pixel, -1 where nothing landed */
 } scale_level;
 
 /* Bilinear RGB sample at continuous pixel coordinate (x, y) (pixel centres at +0.5). */
@@ -144,47 +146,68 @@ static void sample_bilinear(const float *img, int W, int H, float x, float y, fl
         out[c] = (1 - ay) * ((1 - ax) * p00[c] + ax * p01[c]) + ay * ((1 - ax) * p10[c] + ax * p11[c]);
 }
 
-/* Photometric cost of scale s: every valid real pixel is projected into each target; if it is the
- * front-most surface there (z-buffer test) its colour is compared with the bilinearly sampled
- * target colour. Sampling the target (instead of splatting the source) keeps the cost smooth in s. */
+static float rgb_l1(const float *a, const float *b)
+{
+    return fabsf(a[0] - b[0]) + fabsf(a[1] - b[1]) + fabsf(a[2] - b[2]);
+}
+
+/* What an unexplained target pixel costs: the real and target frames compared half a frame apart,
+ * i.e. the error of pairing pixels that have nothing to do with each other. */
+static float chance_error(const float *rgb, const float *target, size_t N)
+{
+    double sum = 0;
+    for (size_t i = 0; i < N; i++) sum += rgb_l1(rgb + 3 * i, target + 3 * ((i + N / 2) % N));
+    return N ? (float)(sum / (3.0 * N)) : 1.0f;
+}
+
+/* Photometric cost of scale s, counted in the targets' pixels: every valid real pixel is projected
+ * into each target, the front-most one per target pixel is compared with the target colour sampled
+ * bilinearly where it lands (sampling the target keeps the cost smooth in s), and the target pixels
+ * nothing lands on cost the chance error. A mean over covered pixels alone let a wrong scale win by
+ * piling the whole real frame onto a few target pixels that happen to match (Panoptic with
+ * FastDepth's depth fitted 0.24 of the true size, issue 28); here such a scale explains little of
+ * any target and scores near chance. */
 static void scale_cost(scale_level *L, float s, float *cost, float *coverage)
 {
     int W = L->real.width, H = L->real.height;
+    size_t N = (size_t)W * H;
     double sum = 0;
-    long used = 0, total = 0;
+    long covered = 0, total = 0;
     for (int k = 0; k < L->n; k++) {
         const pg_camera *dst = &L->targets[k];
-        for (size_t i = 0; i < (size_t)W * H; i++) L->zbuf[i] = FLT_MAX;
-        for (int pass = 0; pass < 2; pass++) {
-            for (int v = 0; v < H; v++) {
-                for (int u = 0; u < W; u++) {
-                    float d = L->depth[(size_t)v * W + u];
-                    if (!depth_valid(d)) continue;
-                    float X[3], uv[2];
-                    pg_camera_unproject(&L->real, u + 0.5f, v + 0.5f, d * s, X);
-                    float z = pg_camera_project(dst, X, uv);
-                    if (!(z > 1e-6f)) continue;
-                    int x = (int)floorf(uv[0]), y = (int)floorf(uv[1]);
-                    if (x < 0 || y < 0 || x >= W || y >= H) continue;
-                    size_t o = (size_t)y * W + x;
-                    if (pass == 0) {
-                        if (z < L->zbuf[o]) L->zbuf[o] = z;
-                        continue;
-                    }
-                    if (z > L->zbuf[o] * 1.02f) continue; /* occluded in the target */
-                    float t[3];
-                    sample_bilinear(L->target_rgb[k], W, H, uv[0], uv[1], t);
-                    const float *p = L->rgb + ((size_t)v * W + u) * 3;
-                    sum += fabsf(t[0] - p[0]) + fabsf(t[1] - p[1]) + fabsf(t[2] - p[2]);
-                    used++;
-                }
+        for (size_t i = 0; i < N; i++) L->zbuf[i] = FLT_MAX, L->src[i] = -1;
+        for (int v = 0; v < H; v++) {
+            for (int u = 0; u < W; u++) {
+                float d = L->depth[(size_t)v * W + u];
+                if (!depth_valid(d)) continue;
+                float X[3], uv[2];
+                pg_camera_unproject(&L->real, u + 0.5f, v + 0.5f, d * s, X);
+                float z = pg_camera_project(dst, X, uv);
+                if (!(z > 1e-6f)) continue;
+                int x = (int)floorf(uv[0]), y = (int)floorf(uv[1]);
+                if (x < 0 || y < 0 || x >= W || y >= H) continue;
+                size_t o = (size_t)y * W + x;
+                if (z >= L->zbuf[o]) continue;
+                L->zbuf[o] = z;
+                L->src[o] = v * W + u;
+                L->uv[2 * o] = uv[0], L->uv[2 * o + 1] = uv[1];
             }
         }
-        total += (long)W * H;
+        long hit = 0;
+        double err = 0;
+        for (size_t o = 0; o < N; o++) {
+            if (L->src[o] < 0) continue;
+            float t[3];
+            sample_bilinear(L->target_rgb[k], W, H, L->uv[2 * o], L->uv[2 * o + 1], t);
+            err += rgb_l1(t, L->rgb + 3 * (size_t)L->src[o]) / 3.0;
+            hit++;
+        }
+        sum += err + (double)L->chance[k] * (double)(N - hit);
+        covered += hit;
+        total += (long)N;
     }
-    *coverage = total > 0 ? (float)used / total : 0;
-    /* Too few overlapping pixels means the scale is implausible: make it lose. */
-    *cost = used > 16 && *coverage > 0.05f ? (float)(sum / (3.0 * used)) : 1.0f;
+    *coverage = total > 0 ? (float)covered / total : 0;
+    *cost = total > 0 ? (float)(sum / total) : 1.0f;
 }
 
 /* 2x box downsampling of an (H,W,C) image (odd edges dropped). */
@@ -210,6 +233,68 @@ static float *downsample(const float *img, int W, int H, int C, int depth_mode)
     return out;
 }
 
+/* Level `L` as the 2x box-downsampled copy of `finer` (cameras resized, chance errors measured
+ * at that size); the caller frees the owned arrays with free_level. */
+static pg_status downsample_level(const scale_level *finer, scale_level *L)
+{
+    int W = finer->real.width, H = finer->real.height, n = finer->n;
+    *L = *finer;
+    L->real = finer->real;
+    pg_camera_resize(&L->real, W / 2, H / 2);
+    float **trgb = pg_calloc((size_t)n, sizeof(float *), "scale fit targets");
+    pg_camera *tcam = pg_calloc((size_t)n, sizeof(pg_camera), "scale fit cameras");
+    float *chance = pg_calloc((size_t)n, sizeof(float), "scale fit chance errors");
+    L->rgb = downsample(finer->rgb, W, H, 3, 0);
+    L->depth = downsample(finer->depth, W, H, 1, 1);
+    L->targets = tcam, L->target_rgb = (const float *const *)trgb, L->chance = chance;
+    if (!trgb || !tcam || !chance || !L->rgb || !L->depth) return PG_ERR_NOMEM;
+    for (int k = 0; k < n; k++) {
+        if (!(trgb[k] = downsample(finer->target_rgb[k], W, H, 3, 0))) return PG_ERR_NOMEM;
+        tcam[k] = finer->targets[k];
+        pg_camera_resize(&tcam[k], W / 2, H / 2);
+        chance[k] = chance_error(L->rgb, trgb[k], (size_t)(W / 2) * (H / 2));
+    }
+    return PG_OK;
+}
+
+static void free_level(scale_level *L)
+{
+    if (L->target_rgb)
+        for (int k = 0; k < L->n; k++) free((void *)L->target_rgb[k]);
+    free((void *)L->target_rgb);
+    free((void *)L->targets);
+    free((void *)L->chance);
+    free((void *)L->rgb);
+    free((void *)L->depth);
+}
+
+/* Golden-section search for the cheapest log-scale in [a, b] on one level; returns its centre. */
+static double golden_search(scale_level *L, double a, double b, int iters, int *evals)
+{
+    const double gr = 0.5 * (sqrt(5.0) - 1.0);
+    double x1 = b - gr * (b - a), x2 = a + gr * (b - a);
+    float f1, f2, cov;
+    scale_cost(L, (float)exp(x1), &f1, &cov);
+    scale_cost(L, (float)exp(x2), &f2, &cov);
+    *evals += 2;
+    for (int i = 0; i < iters; i++, (*evals)++) {
+        if (f1 < f2) {
+            b = x2, x2 = x1, f2 = f1;
+            x1 = b - gr * (b - a);
+            scale_cost(L, (float)exp(x1), &f1, &cov);
+        } else {
+            a = x1, x1 = x2, f1 = f2;
+            x2 = a + gr * (b - a);
+            scale_cost(L, (float)exp(x2), &f2, &cov);
+        }
+    }
+    return 0.5 * (a + b);
+}
+
+/* Coarse to fine: a dense log grid on the quarter-size images (downsampling widens the basin of
+ * the right scale: on wide baselines it is only +-3 % wide at full size, narrower than a coarse
+ * grid's step), golden-section search at half size around the best grid point, then at full size
+ * within +-4 %. */
 pg_status proxy_fit_pose_scale(const pg_camera *real, const float *rgb, const float *depth, int n,
                                const pg_camera *targets, const float *const *target_rgb,
                                const proxy_scale_options *opt_in, proxy_scale_report *report)
@@ -225,71 +310,72 @@ pg_status proxy_fit_pose_scale(const pg_camera *real, const float *rgb, const fl
         opt.scale_min = 0.125f;
         opt.scale_max = 8.0f;
     }
-    if (opt.coarse_steps < 3) opt.coarse_steps = 3;
+    double l0 = log(opt.scale_min), l1 = log(opt.scale_max);
+    int steps = (int)ceil((l1 - l0) / 0.03) + 1; /* 3 % apart at the coarsest level */
+    if (steps < opt.coarse_steps) steps = opt.coarse_steps;
+    if (steps < 3) steps = 3;
 
     pg_status st = PG_OK;
-    int w = W / 2, h = H / 2;
-    float *rgb2 = NULL, *depth2 = NULL, *zbuf = NULL;
-    float **trgb2 = pg_calloc((size_t)n, sizeof(float *), "target pointers");
-    pg_camera *tcam2 = pg_calloc((size_t)n, sizeof(pg_camera), "target cameras");
-    if (!trgb2 || !tcam2) { st = PG_ERR_NOMEM; goto done; }
-    rgb2 = downsample(rgb, W, H, 3, 0);
-    depth2 = downsample(depth, W, H, 1, 1);
-    zbuf = pg_malloc((size_t)W * H * sizeof(float), "scale fit z-buffer");
-    if (!rgb2 || !depth2 || !zbuf) { st = PG_ERR_NOMEM; goto done; }
-    for (int k = 0; k < n; k++) {
-        trgb2[k] = downsample(target_rgb[k], W, H, 3, 0);
-        if (!trgb2[k]) { st = PG_ERR_NOMEM; goto done; }
-        tcam2[k] = targets[k];
-        pg_camera_resize(&tcam2[k], w, h);
+    enum { LEVELS = 3 };
+    scale_level lv[LEVELS];
+    memset(lv, 0, sizeof lv);
+    int levels = 1;
+    float *chance = pg_calloc((size_t)n, sizeof(float), "scale fit chance errors");
+    float *zbuf = pg_malloc((size_t)W * H * sizeof(float), "scale fit z-buffer");
+    float *uv = pg_malloc((size_t)W * H * 2 * sizeof(float), "scale fit warp coordinates");
+    int *src = pg_malloc((size_t)W * H * sizeof(int), "scale fit source pixels");
+    if (!chance || !zbuf || !uv || !src) { st = PG_ERR_NOMEM; goto done; }
+    for (int k = 0; k < n; k++) chance[k] = chance_error(rgb, target_rgb[k], (size_t)W * H);
+    lv[0] = (scale_level){ *real, rgb, depth, n, targets, target_rgb, chance, zbuf, uv, src };
+    while (levels < LEVELS && lv[levels - 1].real.width >= 32 && lv[levels - 1].real.height >= 32) {
+        st = downsample_level(&lv[levels - 1], &lv[levels]);
+        levels++;
+        if (st) goto done;
     }
-    pg_camera real2 = *real;
-    pg_camera_resize(&real2, w, h);
-    scale_level coarse = { real2, rgb2, depth2, n, tcam2, (const float *const *)trgb2, zbuf };
-    scale_level fine = { *real, rgb, depth, n, targets, target_rgb, zbuf };
 
-    /* Coarse grid in log s at half resolution. */
-    double l0 = log(opt.scale_min), l1 = log(opt.scale_max);
-    int best = 0, evals = 0;
-    float best_cost = FLT_MAX;
-    for (int i = 0; i < opt.coarse_steps; i++) {
-        float s = (float)exp(l0 + (l1 - l0) * i / (opt.coarse_steps - 1)), c, cov;
-        scale_cost(&coarse, s, &c, &cov);
-        evals++;
-        if (c < best_cost) { best_cost = c; best = i; }
+    /* the grid's deepest local minima, each refined: a basin that looks best at quarter size is not
+     * always the deepest at full size (FastDepth on tabletop_dev: 3.12 vs 1.77) */
+    enum { CANDIDATES = 3 };
+    scale_level *coarsest = &lv[levels - 1];
+    float *grid = pg_malloc((size_t)steps * sizeof(float), "scale fit grid");
+    if (!grid) { st = PG_ERR_NOMEM; goto done; }
+    int evals = 0;
+    for (int i = 0; i < steps; i++, evals++) {
+        float cov;
+        scale_cost(coarsest, (float)exp(l0 + (l1 - l0) * i / (steps - 1)), &grid[i], &cov);
     }
-    /* Golden-section search at full resolution on the bracket around the best grid point. */
-    double step = (l1 - l0) / (opt.coarse_steps - 1);
-    double a = l0 + (best - 1) * step, b = l0 + (best + 1) * step;
-    const double gr = 0.5 * (sqrt(5.0) - 1.0);
-    double x1 = b - gr * (b - a), x2 = a + gr * (b - a);
-    float f1, f2, cov;
-    scale_cost(&fine, (float)exp(x1), &f1, &cov);
-    scale_cost(&fine, (float)exp(x2), &f2, &cov);
-    evals += 2;
-    for (int i = 0; i < opt.refine_steps; i++) {
-        if (f1 < f2) {
-            b = x2; x2 = x1; f2 = f1;
-            x1 = b - gr * (b - a);
-            scale_cost(&fine, (float)exp(x1), &f1, &cov);
-        } else {
-            a = x1; x1 = x2; f1 = f2;
-            x2 = a + gr * (b - a);
-            scale_cost(&fine, (float)exp(x2), &f2, &cov);
+    int cand[CANDIDATES], nc = 0;
+    for (int i = 0; i < steps; i++) {
+        if ((i > 0 && grid[i - 1] < grid[i]) || (i + 1 < steps && grid[i + 1] <= grid[i])) continue;
+        if (nc < CANDIDATES) cand[nc++] = i;
+        else if (grid[i] < grid[cand[CANDIDATES - 1]]) cand[CANDIDATES - 1] = i;
+        else continue;
+        for (int j = nc - 1; j > 0 && grid[cand[j]] < grid[cand[j - 1]]; j--) {
+            int tmp = cand[j];
+            cand[j] = cand[j - 1], cand[j - 1] = tmp;
         }
-        evals++;
     }
-    float s = (float)exp(0.5 * (a + b));
+    free(grid);
+    double step = (l1 - l0) / (steps - 1), best_x = l0;
+    float best_cost = FLT_MAX;
+    for (int c = 0; c < nc; c++) {
+        double x = l0 + cand[c] * step;
+        if (levels > 2) x = golden_search(&lv[1], x - 2 * step, x + 2 * step, opt.refine_steps / 2, &evals);
+        x = golden_search(&lv[0], x - log(1.04), x + log(1.04), opt.refine_steps, &evals);
+        float cost, cov;
+        scale_cost(&lv[0], (float)exp(x), &cost, &cov);
+        evals++;
+        if (cost < best_cost) best_cost = cost, best_x = x;
+    }
+    float s = (float)exp(best_x);
     report->scale = s;
-    scale_cost(&fine, s, &report->cost, &report->coverage);
+    scale_cost(&lv[0], s, &report->cost, &report->coverage);
     report->evaluations = evals + 1;
 done:
-    if (trgb2)
-        for (int k = 0; k < n; k++) free(trgb2[k]);
-    free(trgb2);
-    free(tcam2);
-    free(rgb2);
-    free(depth2);
+    for (int l = 1; l < levels; l++) free_level(&lv[l]);
+    free(chance);
     free(zbuf);
+    free(uv);
+    free(src);
     return st;
 }

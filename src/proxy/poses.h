@@ -42,8 +42,8 @@ typedef struct {
 
 typedef struct {
     float scale;         /* the best s */
-    float cost;          /* mean |warp - target| over covered pixels at s (RGB, [0,1]) */
-    float coverage;      /* covered fraction of the target pixels at s */
+    float cost;          /* mean |warp - target| per target pixel at s, chance error where nothing landed */
+    float coverage;      /* fraction of the target pixels some real pixel lands on at s */
     int evaluations;     /* cost evaluations made */
 } proxy_scale_report;
 
