@@ -82,9 +82,16 @@ void splat_filter3d_forward(float *log_scales, float *opacity, const float *var,
         if (!(var[i] > 0)) continue;
         filter_terms f;
         filter_terms_of(ls, opacity[i], var[i], &f);
-        for (int k = 0; k < 3; k++) ls[k] = 0.5f * logf(f.q[k]);
-        /* a tiny opacity: a rho / (1 - a rho) = e^o rho to float precision */
-        opacity[i] = f.a > 0 ? logf(f.a * f.rho / f.na_filtered) : opacity[i] + logf(f.rho);
+        float log_rho = 0;
+        for (int k = 0; k < 3; k++) {
+            const float filtered = 0.5f * logf(f.q[k]);
+            log_rho += ls[k] - filtered;
+            ls[k] = filtered;
+        }
+        /* a rho below float (a needle the deformation squeezed to e^-36 on two axes made rho 0 and
+         * the opacity -inf, then NaN in training): logit(a rho) = log a + log rho to float precision */
+        const float o = opacity[i], softplus_neg_o = o < -20.0f ? -o : log1pf(expf(-o));
+        opacity[i] = f.a > 0 && f.rho > 1e-30f ? logf(f.a * f.rho / f.na_filtered) : log_rho - softplus_neg_o;
     }
 }
 
