@@ -46,21 +46,33 @@ void splat_filter3d_fit_init(float *log_scales, float *opacity, const float *var
 /* What forward and backward share for one Gaussian: w_k = var / (s_k^2 + var) (the filtered
  * log-scale is 0.5 log(s_k^2 + var)), rho = prod s_k / sqrt(s_k^2 + var), the opacity a and the
  * complements 1 - a and 1 - a rho (each formed without cancellation, so opacities near 1 keep
- * their precision). Eight exp/log in all: this runs over every Gaussian at every rendered time. */
+ * their precision). This runs over every Gaussian at every rendered time. */
 typedef struct {
-    float q[3], w[3], rho, a, na, na_filtered;
+    float log_q[3], w[3], log_rho, rho, a, na, na_filtered;
 } filter_terms;
 
+/* log(1 + e^x) without overflow or underflow */
+static float softplusf(float x)
+{
+    return x > 20.0f ? x : x < -20.0f ? expf(x) : log1pf(expf(x));
+}
+
+/* In logs throughout: the deformation can push a log-scale past +-44, where s^2 overflows or
+ * underflows float (tabletop_dev at 160x120 went NaN at step ~415 that way). With
+ * d_k = log var - 2 log s_k: w_k = sigmoid(d_k), log q_k = 2 log s_k + softplus(d_k) and
+ * log rho = -1/2 sum softplus(d_k). */
 static void filter_terms_of(const float ls[3], float o, float var, filter_terms *f)
 {
-    float keep = 1.0f;
+    const float lv = logf(var);
+    float log_keep = 0.0f;
     for (int k = 0; k < 3; k++) {
-        const float s2 = expf(2.0f * ls[k]);
-        f->q[k] = s2 + var;
-        f->w[k] = var / f->q[k];
-        keep *= s2 / f->q[k];
+        const float d = lv - 2.0f * ls[k], sp = softplusf(d);
+        f->w[k] = 1.0f / (1.0f + expf(-d));
+        f->log_q[k] = 2.0f * ls[k] + sp;
+        log_keep -= sp;
     }
-    f->rho = sqrtf(keep);
+    f->log_rho = 0.5f * log_keep;
+    f->rho = expf(f->log_rho);
     /* 1 - rho = (1 - keep) / (1 + rho), 1 - keep = 1 - prod (1 - w_k) nested */
     const float lost = f->w[0] + (1.0f - f->w[0]) * (f->w[1] + (1.0f - f->w[1]) * f->w[2]);
     const float one_minus_rho = lost / (1.0f + f->rho);
@@ -82,16 +94,11 @@ void splat_filter3d_forward(float *log_scales, float *opacity, const float *var,
         if (!(var[i] > 0)) continue;
         filter_terms f;
         filter_terms_of(ls, opacity[i], var[i], &f);
-        float log_rho = 0;
-        for (int k = 0; k < 3; k++) {
-            const float filtered = 0.5f * logf(f.q[k]);
-            log_rho += ls[k] - filtered;
-            ls[k] = filtered;
-        }
-        /* a rho below float (a needle the deformation squeezed to e^-36 on two axes made rho 0 and
-         * the opacity -inf, then NaN in training): logit(a rho) = log a + log rho to float precision */
-        const float o = opacity[i], softplus_neg_o = o < -20.0f ? -o : log1pf(expf(-o));
-        opacity[i] = f.a > 0 && f.rho > 1e-30f ? logf(f.a * f.rho / f.na_filtered) : log_rho - softplus_neg_o;
+        for (int k = 0; k < 3; k++) ls[k] = 0.5f * f.log_q[k];
+        /* a rho far below 1 (a needle the deformation squeezed to e^-36 on two axes): a rho under
+         * float made the opacity -inf; logit(a rho) = log a + log rho to float precision there */
+        const float o = opacity[i], log_a_rho = f.log_rho - softplusf(-o);
+        opacity[i] = log_a_rho > -30.0f ? logf(f.a * f.rho / f.na_filtered) : log_a_rho;
     }
 }
 
