@@ -135,7 +135,7 @@ static void check_pose_scale(const char *rig, const float (*ang)[2], int n)
     }
     proxy_scale_report rep;
     proxy_scale_options so = proxy_default_scale_options();
-    so.scale_min = 1.0f / 16, so.scale_max = 16, so.coarse_steps = 64; /* the range when bounds are unknown */
+    so.scale_min = 1.0f / 16, so.scale_max = 16; /* the range when bounds are unknown */
     CHECK_OK(proxy_fit_pose_scale(&cam, rgb, depth, n, t, (const float *const *)trgb, &so, &rep));
     CHECK(fabsf(rep.scale / s_true - 1) < 0.02f, "%s: fitted scale %g, true %g (cost %g, coverage %g)", rig,
           rep.scale, s_true, rep.cost, rep.coverage);

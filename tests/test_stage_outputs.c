@@ -120,5 +120,12 @@ int main(void)
         CHECK(rc != 0 && !exists_in("vid/renders"), "%s mid-orbit: exit %d, renders/ %s", crash ? "killed" : "disk full", rc,
               exists_in("vid/renders") ? "left half-filled" : "absent");
     }
+
+    /* a dataset camera with --steps: that many evenly spread times (slow motion), not the 4 frames */
+    snprintf(args, sizeof args, "render '%s/vid/model' --out '%s/slow' --path dataset-cam --camera 0 --steps 7 --png --no-depth", dir, dir);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 0 && exists_in("slow/cam00/0006.png") && !exists_in("slow/cam00/0007.png"),
+          "render --steps 7 at a dataset camera: exit %d, %s; 0006.png %s, 0007.png %s", rc, err,
+          exists_in("slow/cam00/0006.png") ? "written" : "missing", exists_in("slow/cam00/0007.png") ? "written" : "absent");
     return test_summary("test_stage_outputs");
 }

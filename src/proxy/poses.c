@@ -239,7 +239,6 @@ static pg_status downsample_level(const scale_level *finer, scale_level *L)
 {
     int W = finer->real.width, H = finer->real.height, n = finer->n;
     *L = *finer;
-    L->real = finer->real;
     pg_camera_resize(&L->real, W / 2, H / 2);
     float **trgb = pg_calloc((size_t)n, sizeof(float *), "scale fit targets");
     pg_camera *tcam = pg_calloc((size_t)n, sizeof(pg_camera), "scale fit cameras");
@@ -357,7 +356,7 @@ pg_status proxy_fit_pose_scale(const pg_camera *real, const float *rgb, const fl
     }
     free(grid);
     double step = (l1 - l0) / (steps - 1), best_x = l0;
-    float best_cost = FLT_MAX;
+    float best_cost = FLT_MAX, best_coverage = 0;
     for (int c = 0; c < nc; c++) {
         double x = l0 + cand[c] * step;
         if (levels > 2) x = golden_search(&lv[1], x - 2 * step, x + 2 * step, opt.refine_steps / 2, &evals);
@@ -365,12 +364,12 @@ pg_status proxy_fit_pose_scale(const pg_camera *real, const float *rgb, const fl
         float cost, cov;
         scale_cost(&lv[0], (float)exp(x), &cost, &cov);
         evals++;
-        if (cost < best_cost) best_cost = cost, best_x = x;
+        if (cost < best_cost) best_cost = cost, best_coverage = cov, best_x = x;
     }
-    float s = (float)exp(best_x);
-    report->scale = s;
-    scale_cost(&lv[0], s, &report->cost, &report->coverage);
-    report->evaluations = evals + 1;
+    report->scale = (float)exp(best_x);
+    report->cost = best_cost;
+    report->coverage = best_coverage;
+    report->evaluations = evals;
 done:
     for (int l = 1; l < levels; l++) free_level(&lv[l]);
     free(chance);

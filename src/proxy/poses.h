@@ -36,7 +36,7 @@ float proxy_camera_angle_deg(const pg_camera *a, const pg_camera *b);
 
 typedef struct {
     float scale_min, scale_max; /* search range for s (0,0: derived from the data) */
-    int coarse_steps;           /* log-spaced samples of the coarse grid (48) */
+    int coarse_steps;           /* least log-spaced samples of the coarse grid (the grid is 3 % apart, more when the range is wide) */
     int refine_steps;           /* golden-section refinements at full resolution (24) */
 } proxy_scale_options;
 
@@ -52,7 +52,8 @@ proxy_scale_options proxy_default_scale_options(void);
 /* Evaluation-only alignment of depth units to pose units. Fits one global scale s such that
  * forward-warping the real frame 0 (rgb (H,W,3), depth (H,W)) with depth s*D into each of the
  * n target cameras reproduces their frame 0 (targets[k] (H,W,3), same size as the real frame).
- * Coarse log grid at half resolution, then golden-section search at full resolution.
+ * Every target pixel counts (the chance error where no real pixel lands). A log grid 3 % apart at
+ * quarter size, then golden-section search around its three deepest minima at half and full size.
  * The caller must not pass test cameras. */
 pg_status proxy_fit_pose_scale(const pg_camera *real, const float *rgb, const float *depth, int n,
                                const pg_camera *targets, const float *const *target_rgb,

@@ -87,7 +87,6 @@ static pg_status fit_scale(pg_dataset *ds, int real_idx, const pg_camera *real, 
         } else {
             so.scale_min = 1.0f / 16;
             so.scale_max = 16;
-            so.coarse_steps = 64;
         }
         st = proxy_fit_pose_scale(real, real_img.data, depth0, n, cams, ptrs, &so, rep);
         *scale = rep->scale;
