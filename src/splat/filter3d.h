@@ -14,9 +14,10 @@
 
 #include "core/camera.h"
 
-/* the filter's variance in squared training pixels (Mip-Splatting uses 0.2: at the 64x48 of
- * heavy_depth_units it cost 5 dB moving at the training camera; 0.1 gives that back, docs/splat.md) */
-#define SPLAT_FILTER3D_VAR 0.1f
+/* the filter's variance in squared training pixels: the smallest of 0.1, 0.15, 0.2 (Mip-Splatting's)
+ * whose renders at 2x and 4x the training size are no worse than the training-size render upscaled
+ * (0.1 was 0.2 dB under); smaller is sharper at the training camera (docs/viewer.md) */
+#define SPLAT_FILTER3D_VAR 0.15f
 
 /* var[i] for the n means from the ncam training cameras: the smallest footprint over the cameras
  * that see the point (in front, inside the frustum widened by 15 % on each side); over the
