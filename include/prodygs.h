@@ -127,6 +127,8 @@ typedef struct {
                                         per-frame Gaussians, fitted with fit_steps / fit_block) */
     int fit_steps, fit_block;        /* splat: per-frame fit Adam steps (50), pixel block (1) */
     int frames, width, height, threads, force; /* force: recompute cached frames */
+    int diagnose;                    /* dataset poses: score each proxy against its camera's real
+                                        frames (OUT/diagnose.json, OUT/vis/) */
 } pg_proxies_config;
 
 typedef struct {
@@ -134,6 +136,8 @@ typedef struct {
     int frames, computed, reused, proxies, threads, pose_scale_fitted;
     double pose_scale, pose_scale_cost, mean_valid_fraction, seconds;
     double mean_source_psnr;         /* splat: fitted model vs the real frame; NaN for mesh */
+    int diagnosed_views;             /* diagnose: proxies scored against their camera's real frames */
+    double diagnose_psnr_reprojected, diagnose_psnr_guessed, diagnose_psnr_moving; /* pooled; NaN: none */
 } pg_proxies_report;
 
 void pg_proxies_defaults(pg_proxies_config *c);

@@ -26,6 +26,7 @@ int cmd_proxies(int argc, char **argv)
         { "--fov", CLI_FLOAT, &c.fov, "single video: horizontal field of view in degrees (60)" },
         { "--threads", CLI_INT, &c.threads, "worker threads (default: all cores)" },
         { "--force", CLI_FLAG, &c.force, "recompute frames even if cached" },
+        { "--diagnose", CLI_FLAG, &c.diagnose, "dataset poses: score each proxy against its camera's real frames (OUT/diagnose.json, OUT/vis/)" },
     };
     cli_spec spec = { "prodygs proxies", "INPUT --depth PATH --out DIR [options]",
                       "Renders proxy views of every frame from virtual cameras (paper 3.2) into a training set.\n\n"
@@ -48,5 +49,13 @@ int cmd_proxies(int argc, char **argv)
            "\"mean_source_psnr\": %s, \"threads\": %d, \"seconds\": %.1f}\n",
            c.out, r.frames, r.computed, r.reused, r.proxies, r.poses, r.pose_scale, r.pose_scale_fitted ? "true" : "false",
            r.pose_scale_cost, r.mean_valid_fraction, cli_json_number(r.mean_source_psnr, 2, psnr, sizeof psnr), r.threads, r.seconds);
+    if (c.diagnose) {
+        char a[32], b[32], m[32];
+        printf("{\"diagnosed_views\": %d, \"psnr_reprojected\": %s, \"psnr_guessed\": %s, \"psnr_moving\": %s, "
+               "\"diagnosis\": \"%s/diagnose.json\"}\n",
+               r.diagnosed_views, cli_json_number(r.diagnose_psnr_reprojected, 2, a, sizeof a),
+               cli_json_number(r.diagnose_psnr_guessed, 2, b, sizeof b),
+               cli_json_number(r.diagnose_psnr_moving, 2, m, sizeof m), c.out);
+    }
     return 0;
 }

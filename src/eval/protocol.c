@@ -16,11 +16,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* The moving-pixel definition of the evaluation: colour off the temporal median by > 0.12 in any
- * channel, dilated 2 px. */
-#define EVAL_MOVING_THRESH 0.12f
-#define EVAL_MOVING_DILATE 2
-
 typedef struct {
     const scene_cameras *sc;
     render_model *rm;
@@ -36,23 +31,22 @@ typedef struct {
 /* Frames that get a side-by-side PNG: first, middle, last. */
 static int wants_side_by_side(int f, int frames) { return f == 0 || f == frames / 2 || f == frames - 1; }
 
-/* Every frame of dataset camera `cam` as bytes (F, H, W, 3), then its moving-pixel masks. */
-static pg_status camera_moving_masks(eval_ctx *c, int cam, int W, int H, uint8_t **moving)
+pg_status eval_dataset_moving_masks(pg_dataset *ds, int cam, int frames, int W, int H, uint8_t **moving)
 {
     size_t px = (size_t)W * H;
-    uint8_t *rgb = pg_malloc((size_t)c->frames * px * 3, "evaluation frames");
-    *moving = pg_malloc((size_t)c->frames * px, "moving masks");
+    uint8_t *rgb = pg_malloc((size_t)frames * px * 3, "evaluation frames");
+    *moving = pg_malloc((size_t)frames * px, "moving masks");
     pg_status st = rgb && *moving ? PG_OK : PG_ERR_NOMEM;
-    for (int f = 0; st == PG_OK && f < c->frames; f++) {
+    for (int f = 0; st == PG_OK && f < frames; f++) {
         pg_image img = {0};
-        st = io_dataset_frame(c->ds, cam, f, &img);
+        st = io_dataset_frame(ds, cam, f, &img);
         if (st == PG_OK && (img.width != W || img.height != H || img.channels != 3))
-            st = pg_fail(PG_ERR_SIZE, "camera %s: frame %d is %dx%d, the model renders %dx%d",
-                         io_dataset_camera_name(c->ds, cam), f, img.width, img.height, W, H);
+            st = pg_fail(PG_ERR_SIZE, "camera %s: frame %d is %dx%d, expected %dx%d", io_dataset_camera_name(ds, cam), f,
+                         img.width, img.height, W, H);
         if (st == PG_OK) pg_image_to_rgb8(&img, rgb + (size_t)f * px * 3);
         pg_image_destroy(&img);
     }
-    if (st == PG_OK) st = depth_moving_masks(rgb, c->frames, W, H, EVAL_MOVING_THRESH, EVAL_MOVING_DILATE, *moving);
+    if (st == PG_OK) st = depth_moving_masks(rgb, frames, W, H, EVAL_MOVING_THRESH, EVAL_MOVING_DILATE, *moving);
     free(rgb);
     if (st) {
         free(*moving);
@@ -71,7 +65,7 @@ static pg_status score_camera(eval_ctx *c, int k, int cam, eval_role role)
     uint8_t *moving = NULL, *labels = pg_malloc(px, "evaluation labels");
     pg_image pred = {0}, truth = {0};
     pg_status st = labels ? PG_OK : PG_ERR_NOMEM;
-    if (st == PG_OK) st = camera_moving_masks(c, cam, W, H, &moving);
+    if (st == PG_OK) st = eval_dataset_moving_masks(c->ds, cam, c->frames, W, H, &moving);
     if (st == PG_OK) st = pg_image_create(&pred, W, H, 3);
     for (int f = 0; st == PG_OK && f < c->frames; f++) {
         pg_render_output out;

@@ -7,7 +7,19 @@
 #ifndef PG_EVAL_PROTOCOL_H
 #define PG_EVAL_PROTOCOL_H
 
+#include <stdint.h>
+
 #include "eval/metrics.h"
+#include "io/dataset.h"
+
+/* The moving-pixel definition of the evaluation: colour off the temporal median by > 0.12 in any
+ * channel, dilated 2 px. */
+#define EVAL_MOVING_THRESH 0.12f
+#define EVAL_MOVING_DILATE 2
+
+/* The first `frames` frames of dataset camera cam (decoded at W x H) -> *moving (frames, H, W),
+ * 1 = moving by the definition above; malloc'd, NULL on failure. */
+pg_status eval_dataset_moving_masks(pg_dataset *ds, int cam, int frames, int W, int H, uint8_t **moving);
 
 /* dataset: the DyNeRF (or Panoptic) directory; model: the trained model directory (with
  * trainset.json); sbs_dir: where truth|render|error PNGs go (NULL: none). */

@@ -18,6 +18,7 @@
 #include "io/depth_io.h"
 #include "proxy/poses.h"
 #include "proxy/proxy.h"
+#include "stage/proxies_diagnose.h"
 
 #define MAX_CAMS 256
 
@@ -232,6 +233,11 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
         io_dataset_close(ds);
         return pg_fail(PG_ERR_ARG, "proxies: %s has no camera left for dataset poses (use --poses hemisphere)", input);
     }
+    if (c->diagnose && !use_dataset_poses) {
+        io_dataset_close(ds);
+        return pg_fail(PG_ERR_ARG, "proxies: %s: --diagnose needs proxies at dataset cameras (--poses dataset on a "
+                       "multi-camera input): nothing was recorded where hemisphere proxies look from", input);
+    }
 
     io_depth_options zo = io_depth_defaults();
     zo.width = W;
@@ -321,9 +327,11 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
     if (c->pad >= 0) po.fit.pad = c->pad;
     proxy_result res;
     pg_staged_dir staged;
+    proxies_diagnosis diag = { 0, NAN, NAN, NAN };
     st = begin_output(out, &staged);
     if (!st) {
         st = proxy_generate(&po, &job, staged.work, &res);
+        if (!st && c->diagnose) st = stage_proxies_diagnose(ds, staged.work, &real, M, names, cams, F, W, H, &diag);
         if (st) pg_staged_dir_abort(&staged);
         else st = pg_staged_dir_commit(&staged);
     }
@@ -340,6 +348,10 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
     r->mean_valid_fraction = res.mean_valid_fraction;
     r->mean_source_psnr = res.mean_source_psnr;
     r->seconds = res.wall_s;
+    r->diagnosed_views = diag.views;
+    r->diagnose_psnr_reprojected = diag.psnr_reprojected;
+    r->diagnose_psnr_guessed = diag.psnr_guessed;
+    r->diagnose_psnr_moving = diag.psnr_moving;
 done:
     free(cams);
     free(names);
