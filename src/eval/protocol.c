@@ -28,8 +28,7 @@ typedef struct {
     eval_results *results;
 } eval_ctx;
 
-/* Frames that get a side-by-side PNG: first, middle, last. */
-static int wants_side_by_side(int f, int frames) { return f == 0 || f == frames / 2 || f == frames - 1; }
+int eval_wants_side_by_side(int f, int frames) { return f == 0 || f == frames / 2 || f == frames - 1; }
 
 pg_status eval_dataset_moving_masks(pg_dataset *ds, int cam, int frames, int W, int H, uint8_t **moving)
 {
@@ -85,7 +84,7 @@ static pg_status score_camera(eval_ctx *c, int k, int cam, eval_role role)
             if (st == PG_OK) st = eval_score_regions(c->ws, &pred, &truth, labels, EVAL_SEEN, 3, &s);
         }
         if (st == PG_OK) st = eval_results_add(c->results, sc->names[k], role, f, &s);
-        if (st == PG_OK && c->sbs_dir && wants_side_by_side(f, c->frames)) {
+        if (st == PG_OK && c->sbs_dir && eval_wants_side_by_side(f, c->frames)) {
             char file[96], path[4200];
             snprintf(file, sizeof file, "%s_%04d.png", sc->names[k], f);
             st = pg_path_join(path, sizeof path, c->sbs_dir, file);

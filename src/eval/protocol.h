@@ -20,6 +20,9 @@
 /* The first `frames` frames of dataset camera cam (decoded at W x H) -> *moving (frames, H, W),
  * 1 = moving by the definition above; malloc'd, NULL on failure. */
 pg_status eval_dataset_moving_masks(pg_dataset *ds, int cam, int frames, int W, int H, uint8_t **moving);
+/* 1 for the frames that get a side-by-side PNG (first, middle, last of `frames`), in eval and in
+ * `proxies --diagnose`, so both show the same moments. */
+int eval_wants_side_by_side(int f, int frames);
 
 /* dataset: the DyNeRF (or Panoptic) directory; model: the trained model directory (with
  * trainset.json); sbs_dir: where truth|render|error PNGs go (NULL: none). */

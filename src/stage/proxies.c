@@ -331,9 +331,11 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
     st = begin_output(out, &staged);
     if (!st) {
         st = proxy_generate(&po, &job, staged.work, &res);
-        if (!st && c->diagnose) st = stage_proxies_diagnose(ds, staged.work, &real, M, names, cams, F, W, H, &diag);
         if (st) pg_staged_dir_abort(&staged);
         else st = pg_staged_dir_commit(&staged);
+        /* After the commit: the proxies are complete whatever the diagnosis meets (diagnose.json
+         * is written atomically on its own). */
+        if (!st && c->diagnose) st = stage_proxies_diagnose(ds, out, &real, M, names, cams, F, W, H, &diag);
     }
     free(tcams);
     if (st) goto done;

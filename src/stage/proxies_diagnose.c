@@ -10,6 +10,7 @@
 
 #include "core/fileutil.h"
 #include "core/progress.h"
+#include "eval/metrics.h"
 #include "eval/protocol.h"
 #include "eval/report.h"
 #include "io/image_io.h"
@@ -21,30 +22,18 @@
  * this, plausible guesses (outpainted margin, filled holes: 128); 0 is invalid (docs/FORMATS.md). */
 #define DIAG_REPROJECTED 0.75f
 
-/* Squared error summed over RGB and the pixel count of one class of pixels. */
-typedef struct {
-    double sse;
-    long n;
-} diag_sum;
-
-static void diag_add(diag_sum *s, const float *a, const float *b)
+/* Adds one pixel's squared RGB error to a region (eval's pooled-PSNR sums; SSIM unused here). */
+static void diag_add(eval_region *g, const float *a, const float *b)
 {
-    for (int c = 0; c < 3; c++) s->sse += (double)(a[c] - b[c]) * (a[c] - b[c]);
-    s->n++;
-}
-
-static double diag_psnr(const diag_sum *s)
-{
-    if (s->n == 0) return NAN;
-    double mse = s->sse / (3.0 * (double)s->n);
-    return mse > 0 ? -10.0 * log10(mse) : 99.0;
+    for (int c = 0; c < 3; c++) g->sse += (double)(a[c] - b[c]) * (a[c] - b[c]);
+    g->pixels += 1;
 }
 
 enum { DIAG_REPROJ, DIAG_GUESS, DIAG_MOVING, DIAG_CLASSES };
 
 /* One proxy view against dataset camera cam, every frame; sums into s (and the pooled totals). */
 static pg_status diagnose_view(pg_dataset *ds, int cam, const char *dir, const char *name, int F, int W, int H,
-                               diag_sum s[DIAG_CLASSES], long *pixels)
+                               eval_region s[DIAG_CLASSES], long *pixels)
 {
     const size_t px = (size_t)W * H;
     uint8_t *moving = NULL;
@@ -67,7 +56,7 @@ static pg_status diagnose_view(pg_dataset *ds, int cam, const char *dir, const c
             diag_add(&s[w >= DIAG_REPROJECTED ? DIAG_REPROJ : DIAG_GUESS], a, b);
             if (moving[(size_t)f * px + i]) diag_add(&s[DIAG_MOVING], a, b);
         }
-        if (st == PG_OK && (f == 0 || f == F / 2 || f == F - 1)) {
+        if (st == PG_OK && eval_wants_side_by_side(f, F)) {
             char file[128], vis[4400];
             snprintf(file, sizeof file, "vis/diagnose_%s_%04d.png", name, f);
             st = pg_path_join(vis, sizeof vis, dir, file);
@@ -83,13 +72,13 @@ static pg_status diagnose_view(pg_dataset *ds, int cam, const char *dir, const c
     return st;
 }
 
-static void add_region(cJSON *obj, const char *key, const diag_sum *s, long pixels)
+static void add_region(cJSON *obj, const char *key, const eval_region *s, long pixels)
 {
     cJSON *r = cJSON_AddObjectToObject(obj, key);
-    double p = diag_psnr(s);
+    double p = eval_region_psnr(s);
     if (isnan(p)) cJSON_AddNullToObject(r, "psnr");
     else cJSON_AddNumberToObject(r, "psnr", p);
-    cJSON_AddNumberToObject(r, "fraction", pixels > 0 ? (double)s->n / (double)pixels : 0.0);
+    cJSON_AddNumberToObject(r, "fraction", pixels > 0 ? s->pixels / (double)pixels : 0.0);
 }
 
 pg_status stage_proxies_diagnose(pg_dataset *ds, const char *dir, const pg_camera *real, int M, const char *const *names,
@@ -99,14 +88,14 @@ pg_status stage_proxies_diagnose(pg_dataset *ds, const char *dir, const pg_camer
     PG_TRY(pg_path_join(path, sizeof path, dir, "vis"));
     PG_TRY(pg_mkdir_p(path));
     cJSON *root = cJSON_CreateObject(), *arr = cJSON_AddArrayToObject(root, "cameras");
-    diag_sum total[DIAG_CLASSES] = { 0 };
+    eval_region total[DIAG_CLASSES] = { 0 };
     long total_pixels = 0;
     pg_status st = PG_OK;
     out->views = 0;
     for (int k = 0; k < M && st == PG_OK; k++) {
         const int cam = io_dataset_find_camera(ds, names[k]);
         if (cam < 0) continue; /* not a dataset camera: nothing recorded there */
-        diag_sum s[DIAG_CLASSES] = { 0 };
+        eval_region s[DIAG_CLASSES] = { 0 };
         long pixels = 0;
         st = diagnose_view(ds, cam, dir, names[k], F, W, H, s, &pixels);
         if (st) break;
@@ -119,16 +108,16 @@ pg_status stage_proxies_diagnose(pg_dataset *ds, const char *dir, const pg_camer
         cJSON_AddItemToArray(arr, v);
         for (int c = 0; c < DIAG_CLASSES; c++) {
             total[c].sse += s[c].sse;
-            total[c].n += s[c].n;
+            total[c].pixels += s[c].pixels;
         }
         total_pixels += pixels;
         out->views++;
         pg_progress_report("diagnose", k + 1, M, "camera=%s reprojected=%.2f moving=%.2f", names[k],
-                           diag_psnr(&s[DIAG_REPROJ]), diag_psnr(&s[DIAG_MOVING]));
+                           eval_region_psnr(&s[DIAG_REPROJ]), eval_region_psnr(&s[DIAG_MOVING]));
     }
-    out->psnr_reprojected = diag_psnr(&total[DIAG_REPROJ]);
-    out->psnr_guessed = diag_psnr(&total[DIAG_GUESS]);
-    out->psnr_moving = diag_psnr(&total[DIAG_MOVING]);
+    out->psnr_reprojected = eval_region_psnr(&total[DIAG_REPROJ]);
+    out->psnr_guessed = eval_region_psnr(&total[DIAG_GUESS]);
+    out->psnr_moving = eval_region_psnr(&total[DIAG_MOVING]);
     if (st == PG_OK) {
         cJSON *all = cJSON_AddObjectToObject(root, "all");
         add_region(all, "reprojected", &total[DIAG_REPROJ], total_pixels);
