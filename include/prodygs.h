@@ -164,6 +164,7 @@ typedef struct {
     int deform_res, deform_width, static_check_every; /* 0: defaults / off */
     int deform_head_width;  /* hidden width of each deformation head (0: the trainer's default, 32) */
     int deform_tres;        /* HexPlane time texels (0: the trainer's rule, train_time_texels) */
+    int deform_time_coarsen; /* coarse scale's time rows: 1 per 2^k of the fine scale's (-1: the trainer's, 2) */
     int use_static, use_cull; /* static Gaussians skip the network; frustum culling (1, 1) */
     int eval_train;         /* also score the real views, moving and static pixels apart */
     int stop_at_iter;       /* tests: stop after this iteration as if killed (0: off) */
@@ -297,6 +298,7 @@ typedef struct {
     int frames, width, height, iters; /* 0: all / the preset's */
     int deform_width;                 /* 0: the trainer's default */
     int deform_head_width;            /* 0: the trainer's default (32) */
+    int deform_time_coarsen;          /* -1: the trainer's default (2) */
     int motion_crops;                 /* motion crops per fine step (-1: the trainer's default) */
     int threads;                      /* 0: all cores; every stage uses this count */
     int seed;                         /* (1) */

@@ -94,6 +94,7 @@ static void small_config(deform_config *cfg)
     cfg->res_space = 4;
     cfg->num_scales = 2;
     cfg->res_time = 5;
+    cfg->time_coarsen = 1; /* the coarse scale has 3 time rows, the fine one 5: both paths FD-checked */
     cfg->width = 8;
     cfg->feature_layers = 2;
     cfg->head_init_scale = 1.0f;
@@ -439,6 +440,7 @@ static void test_identity_blob_reg(void)
     cfg.res_time = 6;
     cfg.width = 16;
     cfg.head_width = 32; /* stored in the blob */
+    cfg.time_coarsen = 2; /* so is this */
     const float aabb[6] = { 0, 0, 0, 1, 1, 1 };
     deform_network *net = NULL;
     CHECK_OK(deform_network_create(&net, &cfg, aabb));
@@ -495,7 +497,8 @@ static void test_identity_blob_reg(void)
     CHECK_OK(deform_network_load(&back, path));
     CHECK(back && back->num_params == net->num_params &&
               memcmp(back->params, net->params, net->num_params * sizeof(float)) == 0 &&
-              back->cfg.res_time == 6 && back->cfg.head_width == 32 && back->grid.aabb[4] == 1.0f,
+              back->cfg.res_time == 6 && back->cfg.head_width == 32 && back->cfg.time_coarsen == 2 &&
+              back->grid.time_coarsen == 2 && back->grid.aabb[4] == 1.0f,
           "blob round trip differs");
     size_t n = deform_network_blob_size(net);
     unsigned char *buf = malloc(n);
@@ -506,6 +509,9 @@ static void test_identity_blob_reg(void)
     memcpy(buf, "PGDEFRM1", 8);
     CHECK(deform_network_read_blob(&bad, buf, n, "v1.bin") == PG_ERR_FORMAT && strstr(pg_last_error(), "PGDEFRM1"),
           "format 1 blob: %s", pg_last_error());
+    memcpy(buf, "PGDEFRM2", 8);
+    CHECK(deform_network_read_blob(&bad, buf, n, "v2.bin") == PG_ERR_FORMAT && strstr(pg_last_error(), "PGDEFRM2"),
+          "format 2 blob: %s", pg_last_error());
     buf[0] = 'X';
     CHECK(deform_network_read_blob(&bad, buf, n, "magic.bin") == PG_ERR_FORMAT, "bad magic accepted");
     free(buf);

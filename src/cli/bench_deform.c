@@ -22,6 +22,7 @@ int bench_deform(int argc, char **argv)
     deform_config cfg;
     deform_config_default(&cfg);
     cfg.head_width = train_default_config().deform_head_width; /* the trainer's network */
+    cfg.time_coarsen = train_default_config().deform_time_coarsen;
     const cli_option opts[] = {
         { "--points", CLI_INT, &points, "number of points (default 100000)" },
         { "--threads", CLI_INT, &threads, "threads (default 1)" },

@@ -47,6 +47,8 @@ pg_status deform_config_validate(const deform_config *c)
     if (c->res_space < 2 || (c->res_space << (c->num_scales - 1)) > 4096)
         return pg_fail(PG_ERR_ARG, "deform: res_space %d not in [2, 4096 >> (scales-1)]", c->res_space);
     if (c->res_time < 2 || c->res_time > 100000) return pg_fail(PG_ERR_ARG, "deform: res_time %d not in [2, 100000]", c->res_time);
+    if (c->time_coarsen < 0 || c->time_coarsen > 8)
+        return pg_fail(PG_ERR_ARG, "deform: time_coarsen %d not in [0, 8]", c->time_coarsen);
     if (c->width < 1 || c->width > 4096) return pg_fail(PG_ERR_ARG, "deform: width %d not in [1, 4096]", c->width);
     if (c->feature_layers < 1 || c->feature_layers > DEFORM_MAX_FEATURE_LAYERS)
         return pg_fail(PG_ERR_ARG, "deform: feature_layers %d not in [1, %d]", c->feature_layers, DEFORM_MAX_FEATURE_LAYERS);
@@ -128,6 +130,7 @@ static pg_status network_alloc(deform_network **out, const deform_config *cfg, c
     net->grid.S = cfg->num_scales;
     net->grid.R = cfg->res_space;
     net->grid.T = cfg->res_time;
+    net->grid.time_coarsen = cfg->time_coarsen;
     memcpy(net->grid.aabb, aabb, 6 * sizeof(float));
     net->num_params = plan_layout(net);
     net->params = alloc_floats(net->num_params, 1, "deform parameters");
@@ -188,6 +191,7 @@ size_t deform_config_num_params(const deform_config *cfg)
     net->grid.S = cfg->num_scales;
     net->grid.R = cfg->res_space;
     net->grid.T = cfg->res_time;
+    net->grid.time_coarsen = cfg->time_coarsen;
     size_t n = plan_layout(net);
     free(net);
     return n;
@@ -541,13 +545,12 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
      * in the per-thread buffers), and the MLP. */
     size_t ranges[HEX_MAX_SCALES * HEX_PLANES + 1][2];
     int nranges = 0;
-    const int trow = hex_time_row(&net->grid, ws->t);
     for (int s = 0; s < net->cfg.num_scales; s++)
         for (int p = 0; p < HEX_PLANES; p++) {
             size_t off = net->plane_off[s][p], len = hex_plane_size(&net->grid, s, p);
             if (hex_plane_axes[p][1] == 3) {
-                size_t row = len / (size_t)net->cfg.res_time;
-                off += (size_t)trow * row;
+                size_t row = len / (size_t)hex_time_res(&net->grid, s);
+                off += (size_t)hex_time_row(&net->grid, s, ws->t) * row;
                 len = 2 * row;
             }
             ranges[nranges][0] = off;
@@ -673,11 +676,11 @@ float deform_network_regularize(deform_network *net, float w_tv, float w_time, f
 /* ---------------------------------------------------------------------------------------------- */
 /* blobs                                                                                           */
 
-/* magic, i32 channels, res_space, num_scales, res_time, width, feature_layers, head_width, f32 aabb[6],
- * u64 parameter count. Version 1 (no head_width) is refused. */
-#define BLOB_MAGIC "PGDEFRM2"
-#define BLOB_MAGIC_V1 "PGDEFRM1"
-#define BLOB_INTS 7
+/* magic, i32 channels, res_space, num_scales, res_time, width, feature_layers, head_width, time_coarsen,
+ * f32 aabb[6], u64 parameter count. Older versions (1: no head_width, 2: no time_coarsen) are refused. */
+#define BLOB_MAGIC "PGDEFRM3"
+#define BLOB_MAGIC_OLD "PGDEFRM"
+#define BLOB_INTS 8
 #define BLOB_AABB (8 + 4 * BLOB_INTS)
 #define BLOB_COUNT (BLOB_AABB + 4 * 6)
 #define BLOB_HEADER (BLOB_COUNT + 8)
@@ -691,7 +694,7 @@ pg_status deform_network_write_blob(const deform_network *net, void *buf, size_t
     unsigned char *p = buf;
     const deform_config *c = &net->cfg;
     int32_t h[BLOB_INTS] = { c->channels, c->res_space, c->num_scales, c->res_time, c->width, c->feature_layers,
-                             c->head_width };
+                             c->head_width, c->time_coarsen };
     uint64_t np = net->num_params;
     memcpy(p, BLOB_MAGIC, 8);
     memcpy(p + 8, h, sizeof(h));
@@ -705,9 +708,9 @@ pg_status deform_network_read_blob(deform_network **out, const void *buf, size_t
 {
     *out = NULL;
     const unsigned char *p = buf;
-    if (size >= 8 && memcmp(p, BLOB_MAGIC_V1, 8) == 0)
-        return pg_fail(PG_ERR_FORMAT, "%s: deformation network blob format %s (before head_width), this build reads only %s",
-                       what, BLOB_MAGIC_V1, BLOB_MAGIC);
+    if (size >= 8 && memcmp(p, BLOB_MAGIC_OLD, 7) == 0 && memcmp(p, BLOB_MAGIC, 8) != 0)
+        return pg_fail(PG_ERR_FORMAT, "%s: deformation network blob format %.8s, this build reads only %s", what,
+                       (const char *)p, BLOB_MAGIC);
     if (size < BLOB_HEADER || memcmp(p, BLOB_MAGIC, 8) != 0)
         return pg_fail(PG_ERR_FORMAT, "%s: not a deformation network blob", what);
     int32_t h[BLOB_INTS];
@@ -725,6 +728,7 @@ pg_status deform_network_read_blob(deform_network **out, const void *buf, size_t
     c.width = h[4];
     c.feature_layers = h[5];
     c.head_width = h[6];
+    c.time_coarsen = h[7];
     pg_status st = deform_config_validate(&c);
     if (st) return pg_fail_context(PG_ERR_FORMAT, "%s: ", what);
     deform_network *net;

@@ -32,10 +32,10 @@ static inline __attribute__((always_inline)) void hex_axis_setup(hex_axis *ax, f
     ax->dgdx = dg;
 }
 
-int hex_time_row(const hex_grid *g, float t)
+int hex_time_row(const hex_grid *g, int s, float t)
 {
     hex_axis ax;
-    hex_axis_setup(&ax, t, 1.0f, g->T);
+    hex_axis_setup(&ax, t, 1.0f, hex_time_res(g, s));
     return ax.i0;
 }
 
@@ -57,10 +57,12 @@ size_t hex_slice_size(const hex_grid *g)
 
 void hex_slice_layout(hex_slice *sl, float *buf, const hex_grid *g, float t)
 {
-    hex_axis ax;
-    hex_axis_setup(&ax, t, 1.0f, g->T);
-    sl->row = ax.i0;
-    sl->w = ax.w;
+    for (int s = 0; s < g->S; s++) {
+        hex_axis ax;
+        hex_axis_setup(&ax, t, 1.0f, hex_time_res(g, s));
+        sl->row[s] = ax.i0;
+        sl->w[s] = ax.w;
+    }
     for (int s = 0; s < g->S; s++)
         for (int q = 0; q < 3; q++) {
             sl->s[s][q] = buf;
@@ -70,11 +72,11 @@ void hex_slice_layout(hex_slice *sl, float *buf, const hex_grid *g, float t)
 
 PG_CLONES void hex_slice_forward(hex_slice *sl, const hex_grid *g)
 {
-    const float w = sl->w;
     for (int s = 0; s < g->S; s++)
         for (int q = 0; q < 3; q++) {
+            const float w = sl->w[s];
             size_t row = (size_t)(g->R << s) * g->C;
-            const float *r0 = g->planes[s][3 + q] + (size_t)sl->row * row, *r1 = r0 + row;
+            const float *r0 = g->planes[s][3 + q] + (size_t)sl->row[s] * row, *r1 = r0 + row;
             float *o = sl->s[s][q];
             #pragma omp simd
             for (size_t i = 0; i < row; i++) o[i] = (1 - w) * r0[i] + w * r1[i];
@@ -83,11 +85,11 @@ PG_CLONES void hex_slice_forward(hex_slice *sl, const hex_grid *g)
 
 PG_CLONES void hex_slice_backward(float *const d_planes[HEX_MAX_SCALES][HEX_PLANES], const hex_slice *d_sl, const hex_grid *g)
 {
-    const float w = d_sl->w;
     for (int s = 0; s < g->S; s++)
         for (int q = 0; q < 3; q++) {
+            const float w = d_sl->w[s];
             size_t row = (size_t)(g->R << s) * g->C;
-            float *r0 = d_planes[s][3 + q] + (size_t)d_sl->row * row, *r1 = r0 + row;
+            float *r0 = d_planes[s][3 + q] + (size_t)d_sl->row[s] * row, *r1 = r0 + row;
             const float *d = d_sl->s[s][q];
             #pragma omp simd
             for (size_t i = 0; i < row; i++) {

@@ -29,7 +29,9 @@ typedef struct {
     int C;                  /* channels per plane */
     int S;                  /* number of scales */
     int R;                  /* spatial resolution of scale 0 (scale s: R << s) */
-    int T;                  /* time resolution */
+    int T;                  /* time resolution of the finest scale */
+    int time_coarsen;       /* k: scale s has ((T - 1) >> (k * (S - 1 - s))) + 1 time rows, at least 2 (0: T at
+                             * every scale), so the coarse scale's time rows are shared by 2^k times as many frames */
     float aabb[6];          /* min xyz, max xyz */
     float *planes[HEX_MAX_SCALES][HEX_PLANES];  /* (res_b, res_a, C) views into the parameters */
 } hex_grid;
@@ -51,19 +53,26 @@ typedef struct {
  * spatial axis (2 texels instead of 4); the backward accumulates into a slice-shaped gradient that
  * hex_slice_backward spreads onto the two rows once per call. */
 typedef struct {
-    int row;                            /* first of the two time rows (of T) */
-    float w;                            /* weight of row + 1 */
+    int row[HEX_MAX_SCALES];            /* first of the two time rows (of the scale's time resolution) */
+    float w[HEX_MAX_SCALES];            /* weight of row + 1 */
     float *s[HEX_MAX_SCALES][3];        /* (res_a, C) for time planes 3, 4, 5 (a = x, y, z) */
 } hex_slice;
 
+/* Time rows of scale s: coarser scales may have coarser time, so their rows are shared by many
+ * frames and train from all of them. */
+static inline int hex_time_res(const hex_grid *g, int s)
+{
+    int r = ((g->T - 1) >> (g->time_coarsen * (g->S - 1 - s))) + 1;
+    return r > 2 ? r : 2;
+}
 /* Resolution of coordinate axis d (0..3) at scale s. */
-static inline int hex_axis_res(const hex_grid *g, int s, int d) { return d == 3 ? g->T : g->R << s; }
+static inline int hex_axis_res(const hex_grid *g, int s, int d) { return d == 3 ? hex_time_res(g, s) : g->R << s; }
 /* Number of floats of plane p at scale s. */
 size_t hex_plane_size(const hex_grid *g, int s, int p);
 
-/* First of the two time rows (of T) that a sample at t reads; the backward writes only rows
- * hex_time_row(g, t) and +1 of the time planes. */
-int hex_time_row(const hex_grid *g, float t);
+/* First of the two time rows of scale s that a sample at t reads; the backward writes only rows
+ * hex_time_row(g, s, t) and +1 of that scale's time planes. */
+int hex_time_row(const hex_grid *g, int s, float t);
 
 /* Floats of one slice; hex_slice_layout points sl into buf (hex_slice_size floats) for time t,
  * hex_slice_forward fills it from the planes, hex_slice_backward adds a slice gradient d_sl (laid

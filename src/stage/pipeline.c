@@ -54,6 +54,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
     c->refine = c->align = c->fuse = c->planes = 1;
     c->seed = 1;
     c->motion_crops = -1;
+    c->deform_time_coarsen = -1;
 }
 
 /* What a pipeline run settles before its first stage: the cameras by name, the size and the
@@ -75,6 +76,8 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "--seed must be >= 0 (got %d)", c->seed);
     if (c->deform_width < 0 || c->deform_width > 1024)
         return pg_fail(PG_ERR_ARG, "--deform-width must be in 1..1024 (got %d)", c->deform_width);
+    if (c->deform_time_coarsen < -1 || c->deform_time_coarsen > 8)
+        return pg_fail(PG_ERR_ARG, "--deform-time-coarsen must be in 0..8 (got %d)", c->deform_time_coarsen);
     if (c->motion_crops < -1 || c->motion_crops > TRAIN_MAX_BATCH)
         return pg_fail(PG_ERR_ARG, "--motion-crops must be in 0..%d (got %d)", TRAIN_MAX_BATCH, c->motion_crops);
     if (c->deform_head_width < 0 || c->deform_head_width > 1024)
@@ -406,6 +409,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.deform_width = c->deform_width;
     tc.deform_head_width = c->deform_head_width;
     tc.motion_crops = c->motion_crops;
+    tc.deform_time_coarsen = c->deform_time_coarsen;
     tc.seed = c->seed;
     tc.threads = plan->threads;
     tc.eval_train = 1; /* the training camera's moving/static PSNR: whether the motion was captured */

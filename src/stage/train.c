@@ -33,6 +33,7 @@ void pg_train_defaults(pg_train_config *c)
     c->real_weight = c->moving_weight = c->lambda_depth = c->lambda_dssim = c->proxy_moving_weight = -1;
     c->use_static = c->use_cull = 1;
     c->motion_crops = -1;
+    c->deform_time_coarsen = -1;
 }
 
 cJSON *stage_train_config_json(const pg_train_config *c)
@@ -41,11 +42,11 @@ cJSON *stage_train_config_json(const pg_train_config *c)
     const int ints[] = { c->iters, c->coarse_iters, c->seed, c->max_gaussians, c->init_points, c->sh_degree,
                          c->proxies, c->frames, c->width, c->views_per_step, c->deform_res, c->deform_width,
                          c->deform_head_width, c->static_check_every, c->use_static, c->use_cull, c->deform_tres,
-                         c->times_per_step, c->motion_crops };
+                         c->times_per_step, c->motion_crops, c->deform_time_coarsen };
     static const char *int_names[] = { "iters", "coarse_iters", "seed", "max_gaussians", "init_points", "sh_degree",
                                        "proxies", "frames", "width", "views_per_step", "deform_res", "deform_width",
                                        "deform_head_width", "static_check_every", "use_static", "use_cull", "deform_tres",
-                                       "times_per_step", "motion_crops" };
+                                       "times_per_step", "motion_crops", "deform_time_coarsen" };
     for (size_t k = 0; k < sizeof ints / sizeof ints[0]; k++) cJSON_AddNumberToObject(j, int_names[k], ints[k]);
     const float floats[] = { c->real_weight, c->moving_weight, c->lambda_depth, c->lambda_dssim, c->proxy_moving_weight };
     static const char *float_names[] = { "real_weight", "moving_weight", "lambda_depth", "lambda_dssim",
@@ -87,6 +88,8 @@ static pg_status check_config(const pg_train_config *c)
         return pg_fail(PG_ERR_ARG, "train: --deform-res/--deform-width out of range 0..1024");
     if (c->deform_tres < 0 || c->deform_tres == 1 || c->deform_tres > 100000)
         return pg_fail(PG_ERR_ARG, "train: --deform-time-res %d out of range 2..100000 (0 = the trainer's rule)", c->deform_tres);
+    if (c->deform_time_coarsen < -1 || c->deform_time_coarsen > 8)
+        return pg_fail(PG_ERR_ARG, "train: --deform-time-coarsen %d out of range 0..8", c->deform_time_coarsen);
     if (c->deform_head_width < 0 || c->deform_head_width > 1024)
         return pg_fail(PG_ERR_ARG, "train: --deform-head-width %d out of range 1..1024 (0 = --deform-width)",
                        c->deform_head_width);
@@ -253,6 +256,7 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
     cfg.deform_res = c->deform_res;
     cfg.deform_width = c->deform_width;
     cfg.deform_tres = c->deform_tres;
+    if (c->deform_time_coarsen >= 0) cfg.deform_time_coarsen = c->deform_time_coarsen;
     if (c->deform_head_width > 0) cfg.deform_head_width = c->deform_head_width;
     cfg.use_static_flags = c->use_static;
     cfg.static_check_every = c->static_check_every;

@@ -3,7 +3,7 @@
  *
  * Layout (little-endian, written in one go to a temporary file then renamed):
  *   "PGDYCKP1"                              magic
- *   u32 version (7), u32 flags (bit 0: optimiser state present), u32 config text length, config
+ *   u32 version (8), u32 flags (bit 0: optimiser state present), u32 config text length, config
  *   text ("key=value\n" lines)
  *   i32 iter, fine, frames, width, height, num_views; u64 rng[4]
  *   f32 extent, unit, center[3], max_disp, bg[3]    (unit: the user's length per trainer length)
@@ -12,7 +12,7 @@
  *       v[N x cols] (groups means, log_scales, quats, opacity, sh_dc, sh_rest of 3, 3, 4, 1, 3, 45 cols)
  *   u8 is_static[N]; f32 filter_var[N] (the 3D filter, splat/filter3d.h); with optimiser state:
  *       f32 grad_accum[N], grad_denom[N]
- *   if fine: network config (f32 aabb[6], i32 width, res, tres, channels, head_width, u64 seed),
+ *   if fine: network config (f32 aabb[6], i32 width, res, tres, channels, head_width, time_coarsen, u64 seed),
  *       u64 P, f32 params[P], with optimiser state: Adam of the network: i32 step[2], then per
  *       group m, v (groups HexPlane grids [0, grid_end) and MLP [grid_end, P))
  *   "PGEND\0\0\0", u32 CRC-32 (zlib) of every byte before it
@@ -21,7 +21,7 @@
  * machine-dependent is stored, so equal training gives equal bytes. Only the current version is
  * read (1: one step count for all Gaussian groups, moments stored like Gaussians; 3: no head
  * width in the network config; 4: no unit, trained in the depth's own units; 5: no flags, always
- * optimiser state; 6: no 3D filter). The checkpoint written when training ends leaves the optimiser state out (it
+ * optimiser state; 6: no 3D filter; 7: no time_coarsen in the network config). The checkpoint written when training ends leaves the optimiser state out (it
  * is two thirds of the bytes and only a continuation needs it): continuing a finished model
  * starts Adam afresh, while an interrupted run resumes bit-exactly from a periodic checkpoint.
  */
@@ -39,7 +39,7 @@
 
 #define CKPT_MAGIC "PGDYCKP1"
 #define CKPT_END "PGEND\0\0\0"
-#define CKPT_VERSION 7u
+#define CKPT_VERSION 8u
 #define CKPT_HAS_OPTIMIZER 1u
 #define CKPT_MAX_STEP 100000000 /* iterations and Adam steps beyond this are corruption */
 #define SH_ROW (PG_SH_COEFFS * 3)
@@ -103,7 +103,7 @@ static void config_text(const train_config *c, char *out, size_t size)
              "opacity_reset_every=%d\ndensify_grad=%.9g\npercent_dense=%.9g\nprune_opacity=%.9g\n"
              "prune_big_scale=%.9g\nuse_static_flags=%d\nuse_frustum_cull=%d\nstatic_check_every=%d\n"
              "static_eps=%.9g\ndeform_width=%d\ndeform_res=%d\ndeform_tres=%d\ndeform_channels=%d\n"
-             "deform_head_width=%d\nreal_weight=%.9g\nmoving_weight=%.9g\nproxy_moving_weight=%.9g\ntimes_per_step=%d\nmotion_crops=%d\n",
+             "deform_head_width=%d\ndeform_time_coarsen=%d\nreal_weight=%.9g\nmoving_weight=%.9g\nproxy_moving_weight=%.9g\ntimes_per_step=%d\nmotion_crops=%d\n",
              c->iters, c->coarse_iters, (unsigned long long)c->seed, c->max_gaussians, c->init_points, c->views_per_step,
              c->sh_max_degree, c->sh_ramp_every, c->bg[0], c->bg[1], c->bg[2], c->lambda_dssim, c->lambda_depth,
              c->reg_tv, c->reg_time, c->reg_l1, c->lr_means, c->lr_means_final, c->lr_scales, c->lr_quats,
@@ -111,7 +111,7 @@ static void config_text(const train_config *c, char *out, size_t size)
              c->densify_from, c->densify_until, c->densify_every, c->opacity_reset_every, c->densify_grad,
              c->percent_dense, c->prune_opacity, c->prune_big_scale, c->use_static_flags, c->use_frustum_cull,
              c->static_check_every, c->static_eps, c->deform_width, c->deform_res, c->deform_tres,
-             c->deform_channels, c->deform_head_width, c->real_weight, c->moving_weight, c->proxy_moving_weight, c->times_per_step, c->motion_crops);
+             c->deform_channels, c->deform_head_width, c->deform_time_coarsen, c->real_weight, c->moving_weight, c->proxy_moving_weight, c->times_per_step, c->motion_crops);
 }
 
 static int cfg_get(const char *text, const char *key, char *val, size_t size)
@@ -144,7 +144,7 @@ static void config_parse(const char *text, train_config *c)
     GI(densify_until); GI(densify_every); GI(opacity_reset_every); GF(densify_grad); GF(percent_dense);
     GF(prune_opacity); GF(prune_big_scale); GI(use_static_flags); GI(use_frustum_cull);
     GI(static_check_every); GF(static_eps); GI(deform_width); GI(deform_res); GI(deform_tres);
-    GI(deform_channels); GI(deform_head_width); GF(real_weight); GF(moving_weight); GF(proxy_moving_weight); GI(times_per_step); GI(motion_crops);
+    GI(deform_channels); GI(deform_head_width); GI(deform_time_coarsen); GF(real_weight); GF(moving_weight); GF(proxy_moving_weight); GI(times_per_step); GI(motion_crops);
 #undef GI
 #undef GF
     if (cfg_get(text, "seed", v, sizeof v)) c->seed = strtoull(v, NULL, 10);
@@ -193,6 +193,7 @@ pg_status train_checkpoint_write(train_session *s, const char *path, int with_op
         put_i32(&b, nc->tres);
         put_i32(&b, nc->channels);
         put_i32(&b, nc->head_width);
+        put_i32(&b, nc->time_coarsen);
         put_u64(&b, nc->seed);
         uint64_t P = train_net_num_params(s->net);
         put_u64(&b, P);
@@ -373,11 +374,13 @@ static pg_status read_net(rd *r, const char *path, train_net_config *nc, train_n
     nc->tres = get_i32(r);
     nc->channels = get_i32(r);
     nc->head_width = get_i32(r);
+    nc->time_coarsen = get_i32(r);
     nc->seed = get_u64(r);
     uint64_t P = get_u64(r);
     if (r->bad) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (network)", path);
     if (nc->width < 0 || nc->width > 4096 || nc->res < 0 || nc->res > 4096 || nc->tres < 0 || nc->tres > 100000 ||
-        nc->channels < 0 || nc->channels > 1024 || nc->head_width < 0 || nc->head_width > 4096)
+        nc->channels < 0 || nc->channels > 1024 || nc->head_width < 0 || nc->head_width > 4096 ||
+        nc->time_coarsen < 0 || nc->time_coarsen > 8)
         return pg_fail(PG_ERR_FORMAT, "%s: corrupt network config in the checkpoint", path);
     /* sizes first: the parameters (and their Adam moments) must be in the file before the network
      * they describe is allocated */
@@ -575,7 +578,8 @@ const char *train_config_invalid(const train_config *c)
         return "an interval";
     if (c->deform_width < 0 || c->deform_width > 4096 || c->deform_res < 0 || c->deform_res > 4096 ||
         c->deform_tres < 0 || c->deform_tres > 100000 || c->deform_channels < 0 || c->deform_channels > 1024 ||
-        c->deform_head_width < 0 || c->deform_head_width > 4096)
+        c->deform_head_width < 0 || c->deform_head_width > 4096 || c->deform_time_coarsen < 0 ||
+        c->deform_time_coarsen > 8)
         return "deformation network size";
     const float f[] = { c->lambda_dssim, c->lambda_depth, c->reg_tv, c->reg_time, c->reg_l1, c->lr_means,
                         c->lr_means_final, c->lr_scales, c->lr_quats, c->lr_opacity, c->lr_sh_dc, c->lr_sh_rest,

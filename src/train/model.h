@@ -26,6 +26,7 @@ typedef struct {
     float aabb_min[3], aabb_max[3]; /* position normalisation box */
     int width, res, tres, channels;  /* 0 = defaults */
     int head_width;                  /* 0 = width */
+    int time_coarsen;                /* deform_config.time_coarsen (0: every scale at tres) */
     uint64_t seed;
 } train_net_config;
 

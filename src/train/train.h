@@ -55,6 +55,7 @@ typedef struct {
     float static_eps;        /* max |delta position| / extent to call a Gaussian static */
     int deform_width, deform_res, deform_tres, deform_channels; /* 0 = library defaults */
     int deform_head_width;   /* hidden width of each of the network's five heads (32; 0 = deform_width) */
+    int deform_time_coarsen; /* the coarse spatial scale's time rows: one per 2^k of the fine scale's (2) */
 } train_config;
 
 /* Most views trained against one deformation (views_per_step is clamped to it). */

@@ -32,6 +32,7 @@ static void deform_config_of(const train_net_config *cfg, deform_config *dc)
     if (cfg->tres > 0) dc->res_time = cfg->tres;
     if (cfg->channels > 0) dc->channels = cfg->channels;
     dc->head_width = cfg->head_width;
+    dc->time_coarsen = cfg->time_coarsen;
     dc->seed = cfg->seed;
 }
 
