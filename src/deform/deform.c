@@ -47,8 +47,8 @@ pg_status deform_config_validate(const deform_config *c)
     if (c->res_space < 2 || (c->res_space << (c->num_scales - 1)) > 4096)
         return pg_fail(PG_ERR_ARG, "deform: res_space %d not in [2, 4096 >> (scales-1)]", c->res_space);
     if (c->res_time < 2 || c->res_time > 100000) return pg_fail(PG_ERR_ARG, "deform: res_time %d not in [2, 100000]", c->res_time);
-    if (c->time_coarsen < 0 || c->time_coarsen > 8)
-        return pg_fail(PG_ERR_ARG, "deform: time_coarsen %d not in [0, 8]", c->time_coarsen);
+    if (c->time_coarsen < 0 || c->time_coarsen > HEX_MAX_TIME_COARSEN)
+        return pg_fail(PG_ERR_ARG, "deform: time_coarsen %d not in [0, %d]", c->time_coarsen, HEX_MAX_TIME_COARSEN);
     if (c->width < 1 || c->width > 4096) return pg_fail(PG_ERR_ARG, "deform: width %d not in [1, 4096]", c->width);
     if (c->feature_layers < 1 || c->feature_layers > DEFORM_MAX_FEATURE_LAYERS)
         return pg_fail(PG_ERR_ARG, "deform: feature_layers %d not in [1, %d]", c->feature_layers, DEFORM_MAX_FEATURE_LAYERS);
@@ -115,6 +115,18 @@ static void bind_planes(deform_network *net)
         for (int p = 0; p < HEX_PLANES; p++) net->grid.planes[s][p] = net->params + net->plane_off[s][p];
 }
 
+/* The config and the grid sizes it implies (what plan_layout needs), shared by the allocation and
+ * the parameter count so both always agree. */
+static void set_config(deform_network *net, const deform_config *cfg)
+{
+    net->cfg = *cfg;
+    net->grid.C = cfg->channels;
+    net->grid.S = cfg->num_scales;
+    net->grid.R = cfg->res_space;
+    net->grid.T = cfg->res_time;
+    net->grid.time_coarsen = cfg->time_coarsen;
+}
+
 /* Allocates params/grads for cfg (no initialisation). */
 static pg_status network_alloc(deform_network **out, const deform_config *cfg, const float aabb[6])
 {
@@ -125,12 +137,7 @@ static pg_status network_alloc(deform_network **out, const deform_config *cfg, c
             return pg_fail(PG_ERR_ARG, "deform: AABB axis %d is empty or not finite (%g .. %g)", d, aabb[d], aabb[3 + d]);
     deform_network *net = pg_calloc(1, sizeof(*net), "deform network");
     if (!net) return PG_ERR_NOMEM;
-    net->cfg = *cfg;
-    net->grid.C = cfg->channels;
-    net->grid.S = cfg->num_scales;
-    net->grid.R = cfg->res_space;
-    net->grid.T = cfg->res_time;
-    net->grid.time_coarsen = cfg->time_coarsen;
+    set_config(net, cfg);
     memcpy(net->grid.aabb, aabb, 6 * sizeof(float));
     net->num_params = plan_layout(net);
     net->params = alloc_floats(net->num_params, 1, "deform parameters");
@@ -186,12 +193,7 @@ size_t deform_config_num_params(const deform_config *cfg)
     if (deform_config_validate(cfg)) return 0;
     deform_network *net = pg_calloc(1, sizeof(*net), "deform layout");
     if (!net) return 0;
-    net->cfg = *cfg;
-    net->grid.C = cfg->channels;
-    net->grid.S = cfg->num_scales;
-    net->grid.R = cfg->res_space;
-    net->grid.T = cfg->res_time;
-    net->grid.time_coarsen = cfg->time_coarsen;
+    set_config(net, cfg);
     size_t n = plan_layout(net);
     free(net);
     return n;
@@ -550,7 +552,7 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
             size_t off = net->plane_off[s][p], len = hex_plane_size(&net->grid, s, p);
             if (hex_plane_axes[p][1] == 3) {
                 size_t row = len / (size_t)hex_time_res(&net->grid, s);
-                off += (size_t)hex_time_row(&net->grid, s, ws->t) * row;
+                off += (size_t)ws->sl.row[s] * row; /* the forward's slice: the rows it read at t */
                 len = 2 * row;
             }
             ranges[nranges][0] = off;

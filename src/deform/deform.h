@@ -63,7 +63,7 @@ typedef struct {
     int res_space;         /* R, spatial resolution of the coarsest scale (default 64) */
     int num_scales;        /* S, spatial scales R, 2R, ... (default 2, at most 4) */
     int res_time;          /* T, time resolution of the finest scale (default 150; >= 2) */
-    int time_coarsen;      /* k (default 0, at most 8): scale s has ((T-1) >> (k (S-1-s))) + 1 time rows: a long
+    int time_coarsen;      /* k (default 0, at most HEX_MAX_TIME_COARSEN): scale s has ((T-1) >> (k (S-1-s))) + 1 time rows: a long
                             * clip's coarse rows are each fitted by many frames (issue 24, docs/deform.md) */
     int width;             /* W, MLP width (default 64: measured as good as 128, docs/deform.md) */
     int feature_layers;    /* Linear+ReLU layers before the heads (default 1) */

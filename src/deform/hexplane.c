@@ -32,13 +32,6 @@ static inline __attribute__((always_inline)) void hex_axis_setup(hex_axis *ax, f
     ax->dgdx = dg;
 }
 
-int hex_time_row(const hex_grid *g, int s, float t)
-{
-    hex_axis ax;
-    hex_axis_setup(&ax, t, 1.0f, hex_time_res(g, s));
-    return ax.i0;
-}
-
 void hex_point_setup(hex_point *hp, const hex_grid *g, const float *pos)
 {
     for (int d = 0; d < 3; d++) {
@@ -62,12 +55,11 @@ void hex_slice_layout(hex_slice *sl, float *buf, const hex_grid *g, float t)
         hex_axis_setup(&ax, t, 1.0f, hex_time_res(g, s));
         sl->row[s] = ax.i0;
         sl->w[s] = ax.w;
-    }
-    for (int s = 0; s < g->S; s++)
         for (int q = 0; q < 3; q++) {
             sl->s[s][q] = buf;
             buf += (size_t)(g->R << s) * g->C;
         }
+    }
 }
 
 PG_CLONES void hex_slice_forward(hex_slice *sl, const hex_grid *g)

@@ -21,6 +21,7 @@
 
 #define HEX_PLANES 6
 #define HEX_MAX_SCALES 4
+#define HEX_MAX_TIME_COARSEN 8 /* largest hex_grid.time_coarsen any config, blob or checkpoint may hold */
 
 /* Which of the 4 coordinates (0 x, 1 y, 2 z, 3 t) each plane uses: {a (columns), b (rows)}. */
 extern const int hex_plane_axes[HEX_PLANES][2];
@@ -69,10 +70,6 @@ static inline int hex_time_res(const hex_grid *g, int s)
 static inline int hex_axis_res(const hex_grid *g, int s, int d) { return d == 3 ? hex_time_res(g, s) : g->R << s; }
 /* Number of floats of plane p at scale s. */
 size_t hex_plane_size(const hex_grid *g, int s, int p);
-
-/* First of the two time rows of scale s that a sample at t reads; the backward writes only rows
- * hex_time_row(g, s, t) and +1 of that scale's time planes. */
-int hex_time_row(const hex_grid *g, int s, float t);
 
 /* Floats of one slice; hex_slice_layout points sl into buf (hex_slice_size floats) for time t,
  * hex_slice_forward fills it from the planes, hex_slice_backward adds a slice gradient d_sl (laid

@@ -76,8 +76,9 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "--seed must be >= 0 (got %d)", c->seed);
     if (c->deform_width < 0 || c->deform_width > 1024)
         return pg_fail(PG_ERR_ARG, "--deform-width must be in 1..1024 (got %d)", c->deform_width);
-    if (c->deform_time_coarsen < -1 || c->deform_time_coarsen > 8)
-        return pg_fail(PG_ERR_ARG, "--deform-time-coarsen must be in 0..8 (got %d)", c->deform_time_coarsen);
+    if (c->deform_time_coarsen < -1 || c->deform_time_coarsen > HEX_MAX_TIME_COARSEN)
+        return pg_fail(PG_ERR_ARG, "--deform-time-coarsen must be in 0..%d (got %d)", HEX_MAX_TIME_COARSEN,
+                       c->deform_time_coarsen);
     if (c->motion_crops < -1 || c->motion_crops > TRAIN_MAX_BATCH)
         return pg_fail(PG_ERR_ARG, "--motion-crops must be in 0..%d (got %d)", TRAIN_MAX_BATCH, c->motion_crops);
     if (c->deform_head_width < 0 || c->deform_head_width > 1024)

@@ -88,8 +88,9 @@ static pg_status check_config(const pg_train_config *c)
         return pg_fail(PG_ERR_ARG, "train: --deform-res/--deform-width out of range 0..1024");
     if (c->deform_tres < 0 || c->deform_tres == 1 || c->deform_tres > 100000)
         return pg_fail(PG_ERR_ARG, "train: --deform-time-res %d out of range 2..100000 (0 = the trainer's rule)", c->deform_tres);
-    if (c->deform_time_coarsen < -1 || c->deform_time_coarsen > 8)
-        return pg_fail(PG_ERR_ARG, "train: --deform-time-coarsen %d out of range 0..8", c->deform_time_coarsen);
+    if (c->deform_time_coarsen < -1 || c->deform_time_coarsen > HEX_MAX_TIME_COARSEN)
+        return pg_fail(PG_ERR_ARG, "train: --deform-time-coarsen %d out of range 0..%d", c->deform_time_coarsen,
+                       HEX_MAX_TIME_COARSEN);
     if (c->deform_head_width < 0 || c->deform_head_width > 1024)
         return pg_fail(PG_ERR_ARG, "train: --deform-head-width %d out of range 1..1024 (0 = --deform-width)",
                        c->deform_head_width);

@@ -380,7 +380,7 @@ static pg_status read_net(rd *r, const char *path, train_net_config *nc, train_n
     if (r->bad) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (network)", path);
     if (nc->width < 0 || nc->width > 4096 || nc->res < 0 || nc->res > 4096 || nc->tres < 0 || nc->tres > 100000 ||
         nc->channels < 0 || nc->channels > 1024 || nc->head_width < 0 || nc->head_width > 4096 ||
-        nc->time_coarsen < 0 || nc->time_coarsen > 8)
+        nc->time_coarsen < 0 || nc->time_coarsen > HEX_MAX_TIME_COARSEN)
         return pg_fail(PG_ERR_FORMAT, "%s: corrupt network config in the checkpoint", path);
     /* sizes first: the parameters (and their Adam moments) must be in the file before the network
      * they describe is allocated */
@@ -579,7 +579,7 @@ const char *train_config_invalid(const train_config *c)
     if (c->deform_width < 0 || c->deform_width > 4096 || c->deform_res < 0 || c->deform_res > 4096 ||
         c->deform_tres < 0 || c->deform_tres > 100000 || c->deform_channels < 0 || c->deform_channels > 1024 ||
         c->deform_head_width < 0 || c->deform_head_width > 4096 || c->deform_time_coarsen < 0 ||
-        c->deform_time_coarsen > 8)
+        c->deform_time_coarsen > HEX_MAX_TIME_COARSEN)
         return "deformation network size";
     const float f[] = { c->lambda_dssim, c->lambda_depth, c->reg_tv, c->reg_time, c->reg_l1, c->lr_means,
                         c->lr_means_final, c->lr_scales, c->lr_quats, c->lr_opacity, c->lr_sh_dc, c->lr_sh_rest,

@@ -19,6 +19,7 @@
 #include <stdint.h>
 
 #include "core/status.h"
+#include "deform/hexplane.h"
 #include "splat/gaussians.h"
 #include "train/trainset.h"
 
