@@ -300,6 +300,7 @@ typedef struct {
     int deform_head_width;            /* 0: the trainer's default (32) */
     int deform_time_coarsen;          /* -1: the trainer's default (2) */
     int motion_crops;                 /* motion crops per fine step (-1: the trainer's default) */
+    float proxy_moving_weight;        /* loss weight of proxy pixels showing the movers (-1: the trainer's, 1) */
     int threads;                      /* 0: all cores; every stage uses this count */
     int seed;                         /* (1) */
     int evaluate;                     /* score the test cameras into OUT/metrics.json, report.md */

@@ -55,6 +55,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
     c->seed = 1;
     c->motion_crops = -1;
     c->deform_time_coarsen = -1;
+    c->proxy_moving_weight = -1;
 }
 
 /* What a pipeline run settles before its first stage: the cameras by name, the size and the
@@ -81,6 +82,8 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
                        c->deform_time_coarsen);
     if (c->motion_crops < -1 || c->motion_crops > TRAIN_MAX_BATCH)
         return pg_fail(PG_ERR_ARG, "--motion-crops must be in 0..%d (got %d)", TRAIN_MAX_BATCH, c->motion_crops);
+    if (c->proxy_moving_weight != -1 && !(c->proxy_moving_weight >= 0 && c->proxy_moving_weight <= 1))
+        return pg_fail(PG_ERR_ARG, "--proxy-moving-weight must be in [0, 1] (got %g)", c->proxy_moving_weight);
     if (c->deform_head_width < 0 || c->deform_head_width > 1024)
         return pg_fail(PG_ERR_ARG, "--deform-head-width must be in 1..1024 (got %d)", c->deform_head_width);
     if (c->depth_scale < 0) return pg_fail(PG_ERR_ARG, "--depth-scale must be > 0 (got %g)", c->depth_scale);
@@ -411,6 +414,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.deform_head_width = c->deform_head_width;
     tc.motion_crops = c->motion_crops;
     tc.deform_time_coarsen = c->deform_time_coarsen;
+    tc.proxy_moving_weight = c->proxy_moving_weight;
     tc.seed = c->seed;
     tc.threads = plan->threads;
     tc.eval_train = 1; /* the training camera's moving/static PSNR: whether the motion was captured */
