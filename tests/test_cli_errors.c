@@ -335,6 +335,8 @@ int main(void)
     expect_error(a, "foo");
     snprintf(a, sizeof a, "eval @/ds %s --out @/v --max-angle 500", dep);
     expect_error(a, "--max-angle");
+    snprintf(a, sizeof a, "eval @/ds %s --out @/v --proxy-moving-weight 2", dep);
+    expect_error(a, "--proxy-moving-weight must be in [0, 1] (got 2)");
     snprintf(a, sizeof a, "eval @/ds %s --out @/v --proxy-render foo", dep);
     expect_error(a, "--proxy-render must be mesh or splat, not 'foo'");
     expect_error("eval @/ds --depth @/trunc.npy --out @/v --test-cams 1", "trunc.npy");
