@@ -75,17 +75,8 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "--frames must be >= 1 (got %d)", c->frames);
     PG_TRY(stage_check_threads("pipeline", c->threads));
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "--seed must be >= 0 (got %d)", c->seed);
-    if (c->deform_width < 0 || c->deform_width > 1024)
-        return pg_fail(PG_ERR_ARG, "--deform-width must be in 1..1024 (got %d)", c->deform_width);
-    if (c->deform_time_coarsen < -1 || c->deform_time_coarsen > HEX_MAX_TIME_COARSEN)
-        return pg_fail(PG_ERR_ARG, "--deform-time-coarsen must be in 0..%d (got %d)", HEX_MAX_TIME_COARSEN,
-                       c->deform_time_coarsen);
-    if (c->motion_crops < -1 || c->motion_crops > TRAIN_MAX_BATCH)
-        return pg_fail(PG_ERR_ARG, "--motion-crops must be in 0..%d (got %d)", TRAIN_MAX_BATCH, c->motion_crops);
-    if (c->proxy_moving_weight != -1 && !(c->proxy_moving_weight >= 0 && c->proxy_moving_weight <= 1))
-        return pg_fail(PG_ERR_ARG, "--proxy-moving-weight must be in [0, 1] (got %g)", c->proxy_moving_weight);
-    if (c->deform_head_width < 0 || c->deform_head_width > 1024)
-        return pg_fail(PG_ERR_ARG, "--deform-head-width must be in 1..1024 (got %d)", c->deform_head_width);
+    PG_TRY(stage_check_trainer_options("pipeline", c->deform_width, c->deform_head_width, c->deform_time_coarsen,
+                                       c->motion_crops, c->proxy_moving_weight));
     if (c->depth_scale < 0) return pg_fail(PG_ERR_ARG, "--depth-scale must be > 0 (got %g)", c->depth_scale);
     if (c->pose_scale < 0) return pg_fail(PG_ERR_ARG, "--pose-scale must be > 0 (got %g)", c->pose_scale);
     if (c->proxy_render && strcmp(c->proxy_render, "mesh") != 0 && strcmp(c->proxy_render, "splat") != 0)

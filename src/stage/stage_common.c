@@ -3,6 +3,8 @@
 
 #include "core/parallel.h"
 #include "core/status.h"
+#include "deform/hexplane.h"
+#include "train/train.h"
 
 int stage_use_threads(int threads)
 {
@@ -24,5 +26,22 @@ pg_status stage_check_size(const char *stage, int width, int height)
 pg_status stage_check_threads(const char *stage, int threads)
 {
     if (threads < 0 || threads > 256) return pg_fail(PG_ERR_ARG, "%s: --threads %d must be in 1..256 (0 = all cores)", stage, threads);
+    return PG_OK;
+}
+
+pg_status stage_check_trainer_options(const char *stage, int deform_width, int deform_head_width,
+                                      int deform_time_coarsen, int motion_crops, float proxy_moving_weight)
+{
+    if (deform_width < 0 || deform_width > 1024)
+        return pg_fail(PG_ERR_ARG, "%s: --deform-width must be in 1..1024 (got %d)", stage, deform_width);
+    if (deform_head_width < 0 || deform_head_width > 1024)
+        return pg_fail(PG_ERR_ARG, "%s: --deform-head-width must be in 1..1024 (got %d)", stage, deform_head_width);
+    if (deform_time_coarsen < -1 || deform_time_coarsen > HEX_MAX_TIME_COARSEN)
+        return pg_fail(PG_ERR_ARG, "%s: --deform-time-coarsen must be in 0..%d (got %d)", stage, HEX_MAX_TIME_COARSEN,
+                       deform_time_coarsen);
+    if (motion_crops < -1 || motion_crops > TRAIN_MAX_BATCH)
+        return pg_fail(PG_ERR_ARG, "%s: --motion-crops must be in 0..%d (got %d)", stage, TRAIN_MAX_BATCH, motion_crops);
+    if (proxy_moving_weight != -1 && !(proxy_moving_weight >= 0 && proxy_moving_weight <= 1))
+        return pg_fail(PG_ERR_ARG, "%s: --proxy-moving-weight must be in [0, 1] (got %g)", stage, proxy_moving_weight);
     return PG_OK;
 }

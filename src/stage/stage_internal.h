@@ -18,6 +18,10 @@ pg_status stage_check_threads(const char *stage, int threads);
 /* Checks a requested size: 0x0 keeps the input's, one side 0 keeps the aspect, else sides in
  * STAGE_MIN_SIDE..STAGE_MAX_SIDE. */
 pg_status stage_check_size(const char *stage, int width, int height);
+/* Checks the trainer options that both `train` and `run`/`eval` take, with one wording for both
+ * (-1 = the trainer's default; widths 0 = the trainer's default too). */
+pg_status stage_check_trainer_options(const char *stage, int deform_width, int deform_head_width,
+                                      int deform_time_coarsen, int motion_crops, float proxy_moving_weight);
 
 /* The settings that decide a stage's result, as JSON (threads and output paths left out), so
  * a marker can tell whether a finished stage is still current. */

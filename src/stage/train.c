@@ -66,12 +66,8 @@ static pg_status check_config(const pg_train_config *c)
     if (c->init_points < 1) return pg_fail(PG_ERR_ARG, "train: --init-points %d must be >= 1", c->init_points);
     if (c->times_per_step < 0 || c->times_per_step > TRAIN_MAX_BATCH)
         return pg_fail(PG_ERR_ARG, "train: --times-per-step %d must be in 1..%d", c->times_per_step, TRAIN_MAX_BATCH);
-    if (c->motion_crops < -1 || c->motion_crops > TRAIN_MAX_BATCH)
-        return pg_fail(PG_ERR_ARG, "train: --motion-crops %d must be in 0..%d", c->motion_crops, TRAIN_MAX_BATCH);
     if (c->views_per_step < 1 || c->views_per_step > TRAIN_MAX_BATCH)
         return pg_fail(PG_ERR_ARG, "train: --views-per-step %d must be in 1..%d", c->views_per_step, TRAIN_MAX_BATCH);
-    if (c->proxy_moving_weight != -1 && !(c->proxy_moving_weight >= 0 && c->proxy_moving_weight <= 1))
-        return pg_fail(PG_ERR_ARG, "train: --proxy-moving-weight %g must be in [0, 1]", c->proxy_moving_weight);
     if (c->real_weight != -1 && !(c->real_weight >= 0 && c->real_weight <= 1))
         return pg_fail(PG_ERR_ARG, "train: --real-weight %g must be in [0, 1]", c->real_weight);
     if (c->moving_weight != -1 && !(c->moving_weight >= 0 && c->moving_weight <= 100))
@@ -84,16 +80,12 @@ static pg_status check_config(const pg_train_config *c)
     PG_TRY(stage_check_threads("train", c->threads));
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "train: --seed %d must be >= 0", c->seed);
     if (c->sh_degree < 0 || c->sh_degree > 3) return pg_fail(PG_ERR_ARG, "train: --sh-degree must be 0..3");
-    if (c->deform_res < 0 || c->deform_res > 1024 || c->deform_width < 0 || c->deform_width > 1024)
-        return pg_fail(PG_ERR_ARG, "train: --deform-res/--deform-width out of range 0..1024");
+    if (c->deform_res < 0 || c->deform_res > 1024)
+        return pg_fail(PG_ERR_ARG, "train: --deform-res %d out of range 0..1024", c->deform_res);
+    PG_TRY(stage_check_trainer_options("train", c->deform_width, c->deform_head_width, c->deform_time_coarsen,
+                                       c->motion_crops, c->proxy_moving_weight));
     if (c->deform_tres < 0 || c->deform_tres == 1 || c->deform_tres > 100000)
         return pg_fail(PG_ERR_ARG, "train: --deform-time-res %d out of range 2..100000 (0 = the trainer's rule)", c->deform_tres);
-    if (c->deform_time_coarsen < -1 || c->deform_time_coarsen > HEX_MAX_TIME_COARSEN)
-        return pg_fail(PG_ERR_ARG, "train: --deform-time-coarsen %d out of range 0..%d", c->deform_time_coarsen,
-                       HEX_MAX_TIME_COARSEN);
-    if (c->deform_head_width < 0 || c->deform_head_width > 1024)
-        return pg_fail(PG_ERR_ARG, "train: --deform-head-width %d out of range 1..1024 (0 = --deform-width)",
-                       c->deform_head_width);
     if (c->checkpoint_every < 0) return pg_fail(PG_ERR_ARG, "train: --checkpoint-every must be >= 0");
     if (c->static_check_every < 0) return pg_fail(PG_ERR_ARG, "train: --static-check-every must be >= 0");
     return PG_OK;
