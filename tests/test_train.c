@@ -155,9 +155,24 @@ static void test_margin_past_frame(const char *dir)
     train_set_destroy(&ts);
 }
 
+/* The preset's budget on a long clip: short clips keep it, a 300-frame clip gets ~40 fits of each
+ * frame in the fine stage, and no clip gets more than TRAIN_MAX_BUDGET_SCALE times it. */
+static void test_iterations_for_clip(void)
+{
+    CHECK(train_iterations_for_clip(1500, 30, 2) == 1500, "30 frames keep 1500, got %d", train_iterations_for_clip(1500, 30, 2));
+    CHECK(train_iterations_for_clip(1500, 60, 2) == 1500, "60 frames keep 1500");
+    int it = train_iterations_for_clip(1500, 300, 2);
+    CHECK(it == 250 + 4000, "300 frames, 3 fits per step: 250 coarse + 4000 fine, got %d", it);
+    CHECK((it - 250) * 3 >= 300 * TRAIN_FITS_PER_FRAME, "each frame fitted %d times", TRAIN_FITS_PER_FRAME);
+    CHECK(train_iterations_for_clip(1500, 120, 0) == 250 + 4800, "no crops: one fit per step");
+    CHECK(train_iterations_for_clip(1500, 5000, 2) == 4500, "capped at 3x, got %d", train_iterations_for_clip(1500, 5000, 2));
+    CHECK(train_iterations_for_clip(8000, 300, 2) == 8000, "the quality preset covers 300 frames");
+}
+
 int main(void)
 {
     test_depth_storage();
+    test_iterations_for_clip();
     char dir[1024], data[1100], a[1200], b[1200], cmd[8192], err[4096];
     test_tmpdir("test_train", dir, sizeof dir);
     snprintf(data, sizeof data, "%s/set", dir);

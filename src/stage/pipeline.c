@@ -62,7 +62,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
  * preset's numbers, so every stage gets the same values. */
 typedef struct {
     char train_camera[128], test_cameras[1024];
-    int width, height, iters, proxies, threads, fit_steps;
+    int width, height, iters, coarse_iters, proxies, threads, fit_steps;
     const char *poses;
     char depth[4200];         /* the depth file prepare reads: c->depth or the depth stage's output */
 } pipeline_plan;
@@ -174,6 +174,16 @@ static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipelin
     io_dataset_close(ds);
     PG_TRY(st);
     plan->iters = c->iters > 0 ? c->iters : p->iters;
+    plan->coarse_iters = -1; /* the trainer's: a sixth */
+    if (c->iters <= 0) { /* a long clip: more fine iterations, the coarse (still) stage as the preset's */
+        int crops = c->motion_crops >= 0 ? c->motion_crops : train_default_config().motion_crops;
+        plan->iters = train_iterations_for_clip(p->iters, frames, crops);
+        plan->coarse_iters = p->iters / 6;
+        if (plan->iters > p->iters)
+            fprintf(stderr, "prodygs: %d training iterations (the %s preset's %d, raised for %d frames so each "
+                    "frame's motion is fitted ~%d times; --iters to choose)\n", plan->iters, p->name, p->iters,
+                    frames, TRAIN_FITS_PER_FRAME);
+    }
     plan->fit_steps = p->fit_steps;
     plan->proxies = c->proxies >= 0 ? c->proxies : (nt > 0 ? -1 : p->proxies);
     plan->poses = c->poses ? c->poses : nt > 0 ? "dataset" : "hemisphere";
@@ -401,6 +411,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.input = proxies_dir;
     tc.out = dir;
     tc.iters = plan->iters;
+    tc.coarse_iters = plan->coarse_iters;
     tc.deform_width = c->deform_width;
     tc.deform_head_width = c->deform_head_width;
     tc.motion_crops = c->motion_crops;

@@ -224,6 +224,15 @@ int train_time_texels(int frames, int fine_iters)
     return t > 2 ? t : 2;
 }
 
+int train_iterations_for_clip(int iters, int frames, int motion_crops)
+{
+    long fine = iters - iters / 6, fits_per_step = 1 + (motion_crops > 0 ? motion_crops : 0);
+    long need = ((long)frames * TRAIN_FITS_PER_FRAME + fits_per_step - 1) / fits_per_step;
+    if (need <= fine) return iters;
+    long raised = iters / 6 + need, cap = (long)iters * TRAIN_MAX_BUDGET_SCALE;
+    return (int)(raised < cap ? raised : cap);
+}
+
 /* Creates the network (fine stage) over the box of the canonical means that go through it (the
  * movable ones; all when static flags are off or none is movable): the HexPlane's texels then
  * sit where the motion is instead of spreading over the whole room. Points outside the box
