@@ -160,12 +160,13 @@ static void test_margin_past_frame(const char *dir)
 static void test_iterations_for_clip(void)
 {
     CHECK(train_iterations_for_clip(1500, 30, 2) == 1500, "30 frames keep 1500, got %d", train_iterations_for_clip(1500, 30, 2));
-    CHECK(train_iterations_for_clip(1500, 60, 2) == 1500, "60 frames keep 1500");
-    int it = train_iterations_for_clip(1500, 300, 2);
-    CHECK(it == 250 + 4000, "300 frames, 3 fits per step: 250 coarse + 4000 fine, got %d", it);
-    CHECK((it - 250) * 3 >= 300 * TRAIN_FITS_PER_FRAME, "each frame fitted %d times", TRAIN_FITS_PER_FRAME);
-    CHECK(train_iterations_for_clip(1500, 100, 0) == 250 + 4000, "no crops: one fit per step");
-    CHECK(train_iterations_for_clip(1500, 5000, 2) == 4500, "capped at 3x, got %d", train_iterations_for_clip(1500, 5000, 2));
+    CHECK(train_iterations_for_clip(1500, 90, 2) == 1500, "90 frames keep 1500");
+    int it = train_iterations_for_clip(1500, 120, 2);
+    CHECK(it == 250 + 1600, "120 frames, 3 fits per step: 250 coarse + 1600 fine, got %d", it);
+    CHECK((it - 250) * 3 >= 120 * TRAIN_FITS_PER_FRAME, "each frame fitted %d times", TRAIN_FITS_PER_FRAME);
+    CHECK(train_iterations_for_clip(1500, 60, 0) == 250 + 2400, "no crops: one fit per step");
+    CHECK(train_iterations_for_clip(1500, 300, 2) == 1500 * TRAIN_MAX_BUDGET_SCALE, "300 frames: the cap, got %d",
+          train_iterations_for_clip(1500, 300, 2));
     CHECK(train_iterations_for_clip(8000, 300, 2) == 8000, "the quality preset covers 300 frames");
 }
 

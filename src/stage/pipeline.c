@@ -180,9 +180,9 @@ static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipelin
         plan->iters = train_iterations_for_clip(p->iters, frames, crops);
         plan->coarse_iters = p->iters / 6;
         if (plan->iters > p->iters)
-            fprintf(stderr, "prodygs: %d training iterations (the %s preset's %d, raised for %d frames so each "
-                    "frame's motion is fitted ~%d times; --iters to choose)\n", plan->iters, p->name, p->iters,
-                    frames, TRAIN_FITS_PER_FRAME);
+            fprintf(stderr, "prodygs: %d training iterations (the %s preset's %d, raised for %d frames: each frame's "
+                    "motion is fitted ~%d times; --iters to choose)\n", plan->iters, p->name, p->iters, frames,
+                    (plan->iters - plan->coarse_iters) * (1 + (crops > 0 ? crops : 0)) / (frames > 0 ? frames : 1));
     }
     plan->fit_steps = p->fit_steps;
     plan->proxies = c->proxies >= 0 ? c->proxies : (nt > 0 ? -1 : p->proxies);

@@ -77,9 +77,10 @@ int train_time_texels(int frames, int fine_times); /* fine_times: fine iteration
  * 300 a fifth as often (the 300-frame sample scene lost 6 dB of moving PSNR against 30 frames at
  * 1,500 iterations; 3,000 won back 3.1). So the fine stage (5/6 of the budget) gets at least
  * TRAIN_FITS_PER_FRAME times per frame, each step fitting 1 + motion_crops times, up to
- * TRAIN_MAX_BUDGET_SCALE times the preset's budget. Short clips keep `iters`. */
+ * TRAIN_MAX_BUDGET_SCALE times the preset's budget (the first doubling buys the most; docs/train.md).
+ * Short clips keep `iters`. */
 #define TRAIN_FITS_PER_FRAME 40
-#define TRAIN_MAX_BUDGET_SCALE 3
+#define TRAIN_MAX_BUDGET_SCALE 2
 int train_iterations_for_clip(int iters, int frames, int motion_crops);
 
 typedef struct train_session train_session;
