@@ -173,16 +173,16 @@ static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipelin
     io_video_target_size(&vo, io_dataset_width(ds), io_dataset_height(ds), &fw, &fh);
     io_dataset_close(ds);
     PG_TRY(st);
-    plan->iters = c->iters > 0 ? c->iters : p->iters;
-    plan->coarse_iters = -1; /* the trainer's: a sixth */
-    if (c->iters <= 0) { /* a long clip: more fine iterations, the coarse (still) stage as the preset's */
+    plan->iters = c->iters;
+    plan->coarse_iters = -1; /* the trainer's default */
+    if (c->iters <= 0) { /* the preset's, raised for a long clip; the coarse (still) stage stays the preset's */
         int crops = c->motion_crops >= 0 ? c->motion_crops : train_default_config().motion_crops;
         plan->iters = train_iterations_for_clip(p->iters, frames, crops);
-        plan->coarse_iters = p->iters / 6;
+        plan->coarse_iters = train_default_coarse_iters(p->iters);
         if (plan->iters > p->iters)
             fprintf(stderr, "prodygs: %d training iterations (the %s preset's %d, raised for %d frames: each frame's "
                     "motion is fitted ~%d times; --iters to choose)\n", plan->iters, p->name, p->iters, frames,
-                    (plan->iters - plan->coarse_iters) * (1 + (crops > 0 ? crops : 0)) / (frames > 0 ? frames : 1));
+                    (plan->iters - plan->coarse_iters) * train_fits_per_step(crops) / (frames > 0 ? frames : 1));
     }
     plan->fit_steps = p->fit_steps;
     plan->proxies = c->proxies >= 0 ? c->proxies : (nt > 0 ? -1 : p->proxies);

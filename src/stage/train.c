@@ -231,7 +231,7 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
 
     train_config cfg = train_default_config();
     cfg.iters = c->iters;
-    cfg.coarse_iters = c->coarse_iters >= 0 ? c->coarse_iters : c->iters / 6;
+    cfg.coarse_iters = c->coarse_iters >= 0 ? c->coarse_iters : train_default_coarse_iters(c->iters);
     cfg.seed = (uint64_t)c->seed;
     cfg.threads = r->threads;
     cfg.max_gaussians = c->max_gaussians;

@@ -224,12 +224,15 @@ int train_time_texels(int frames, int fine_iters)
     return t > 2 ? t : 2;
 }
 
+int train_default_coarse_iters(int iters) { return iters / 6; }
+int train_fits_per_step(int motion_crops) { return 1 + (motion_crops > 0 ? motion_crops : 0); }
+
 int train_iterations_for_clip(int iters, int frames, int motion_crops)
 {
-    long fine = iters - iters / 6, fits_per_step = 1 + (motion_crops > 0 ? motion_crops : 0);
+    long coarse = train_default_coarse_iters(iters), fits_per_step = train_fits_per_step(motion_crops);
     long need = ((long)frames * TRAIN_FITS_PER_FRAME + fits_per_step - 1) / fits_per_step;
-    if (need <= fine) return iters;
-    long raised = iters / 6 + need, cap = (long)iters * TRAIN_MAX_BUDGET_SCALE;
+    if (need <= iters - coarse) return iters;
+    long raised = coarse + need, cap = (long)iters * TRAIN_MAX_BUDGET_SCALE;
     return (int)(raised < cap ? raised : cap);
 }
 

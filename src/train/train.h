@@ -82,6 +82,10 @@ int train_time_texels(int frames, int fine_times); /* fine_times: fine iteration
 #define TRAIN_FITS_PER_FRAME 40
 #define TRAIN_MAX_BUDGET_SCALE 2
 int train_iterations_for_clip(int iters, int frames, int motion_crops);
+/* The coarse (still) stage's iterations when none are asked for: a sixth of the budget. */
+int train_default_coarse_iters(int iters);
+/* Times one fine step fits: the step's own time and each motion crop (negative crops: none). */
+int train_fits_per_step(int motion_crops);
 
 typedef struct train_session train_session;
 
