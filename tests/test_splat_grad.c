@@ -113,8 +113,8 @@ static void test_projection16(void)
         for (int k = 0; k < 3; k++) ls[3*i+k] = (float)pg_rng_range(&rng, -3, -1);
         for (int k = 0; k < 4; k++) q[4*i+k] = (float)pg_rng_normal(&rng);
     }
-    float lim[4];
-    splat_project_limits(&cam, lim);
+    float lim[SPLAT_LIM_COUNT];
+    splat_project_limits(&cam, SPLAT_LOWPASS, lim);
     float out[9][16], dxy[2][16], dcon[3][16], dz[16];
     unsigned valid;
     if (!splat_kernel_supported(SPLAT_KERNEL_AVX512) || !splat_project_forward16(means, ls, q, 0, &cam, lim, 0.01f, out, &valid)) {

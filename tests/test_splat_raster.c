@@ -2,6 +2,7 @@
  * determinism across runs and thread counts, edge cases and bad input. */
 #include "testlib.h"
 #include "splat/random_scene.h"
+#include "splat/project.h"
 #include "splat/raster.h"
 #include "core/parallel.h"
 #include "core/rng.h"
@@ -235,6 +236,59 @@ static void test_crop_camera(void)
     splat_raster_destroy(r);
 }
 
+/* A render at 3x the training size, given the training focal, samples the image the training size
+ * drew: its pixel (3i+1, 3j+1) sits on the 1x pixel (i, j)'s centre and must show the same colour.
+ * With each camera's own pixel filter the sub-pixel splats of the 3x render are thinner and fainter,
+ * and the two renders part. Checked on every kernel the CPU has. */
+static void test_training_pixel_filter(void)
+{
+    const int W = 40, H = 30, N = 400, S = 3;
+    pg_camera cam1, cam3;
+    pg_camera_from_fov(&cam1, W, H, 60);
+    pg_camera_from_fov(&cam3, S * W, S * H, 60);
+    pg_render_settings s = splat_default_settings();
+    CHECK(fabsf(splat_lowpass_for(&cam3, &s) - SPLAT_LOWPASS) < 1e-9f, "no training focal: plain filter");
+    s.train_focal = cam1.fx;
+    CHECK(fabsf(splat_lowpass_for(&cam1, &s) - SPLAT_LOWPASS) < 1e-9f, "training size: plain filter");
+    CHECK(fabsf(splat_lowpass_for(&cam3, &s) - 9 * SPLAT_LOWPASS) < 1e-5f, "3x: %g (0.9 wanted)", splat_lowpass_for(&cam3, &s));
+    pg_camera half;
+    pg_camera_from_fov(&half, W / 2, H / 2, 60);
+    CHECK(fabsf(splat_lowpass_for(&half, &s) - SPLAT_LOWPASS) < 1e-9f, "coarser than training: the pixel's own filter");
+
+    pg_gaussians g;
+    CHECK_OK(splat_gaussians_create(&g, N));
+    CHECK_OK(splat_random_scene(&g, &cam1, N, 0.4f, 0, 11)); /* mostly thinner than a training pixel */
+    splat_raster *r;
+    CHECK_OK(splat_raster_create(&r));
+    pg_set_threads(2);
+    for (int k = 0; k < SPLAT_KERNELS; k++) {
+        if (!splat_kernel_supported((splat_kernel_kind)k)) continue;
+        splat_raster_set_kernel(r, (splat_kernel_kind)k);
+        float *ref = malloc((size_t)W * H * 3 * sizeof(float));
+        pg_render_output out;
+        s.train_focal = cam1.fx;
+        CHECK_OK(splat_render_forward(r, &g, &cam1, &s, &out));
+        memcpy(ref, out.rgb, (size_t)W * H * 3 * sizeof(float));
+        double worst[2] = { 0, 0 };
+        for (int consistent = 0; consistent < 2; consistent++) {
+            s.train_focal = consistent ? cam1.fx : 0.0f;
+            CHECK_OK(splat_render_forward(r, &g, &cam3, &s, &out));
+            for (int y = 0; y < H; y++)
+                for (int x = 0; x < W; x++)
+                    for (int c = 0; c < 3; c++)
+                        worst[consistent] = fmax(worst[consistent], fabs(ref[((size_t)y * W + x) * 3 + c] -
+                                                                           out.rgb[(((size_t)(S * y + 1) * S * W) + S * x + 1) * 3 + c]));
+        }
+        printf("training-pixel filter, %s: 3x vs 1x at shared centres %.2e (own-pixel filter: %.3f)\n", splat_kernel_name((splat_kernel_kind)k), worst[1], worst[0]);
+        CHECK(worst[1] < 1e-4, "%s: 3x render off the 1x one by %g at shared pixel centres", splat_kernel_name((splat_kernel_kind)k), worst[1]);
+        CHECK(worst[0] > 0.1, "%s: without the training focal the 3x render should part from the 1x one (%g)",
+              splat_kernel_name((splat_kernel_kind)k), worst[0]);
+        free(ref);
+    }
+    splat_gaussians_destroy(&g);
+    splat_raster_destroy(r);
+}
+
 static void test_bench_cli(void)
 {
     char err[512];
@@ -249,6 +303,7 @@ int main(void)
     test_simd_and_determinism();
     test_edge_cases();
     test_crop_camera();
+    test_training_pixel_filter();
     test_bench_cli();
     return test_summary("test_splat_raster");
 }

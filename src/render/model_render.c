@@ -5,12 +5,29 @@
 #include <string.h>
 
 #include "core/fileutil.h"
+#include "render/scene_cameras.h"
 
 struct render_model {
     train_model model;
     pg_gaussians at_t; /* deformed copy */
     splat_raster *raster;
+    float train_focal; /* the real view's focal length in pixels (0: no cameras beside the model) */
 };
+
+/* The focal length the model was trained at, from the cameras.json beside it: renders finer than
+ * that keep a training pixel's screen-space filter (splat_lowpass_for). A model without its
+ * cameras renders with the plain filter. */
+static float training_focal(const char *path)
+{
+    scene_cameras *sc = pg_calloc(1, sizeof *sc, "model cameras");
+    float f = 0.0f;
+    if (sc && scene_cameras_for_model(path, NULL, sc) == PG_OK) {
+        const pg_camera *c = &sc->cams[sc->real];
+        f = c->fx > c->fy ? c->fx : c->fy;
+    }
+    free(sc);
+    return f;
+}
 
 pg_status render_model_checkpoint_path(const char *path, char *out, size_t size)
 {
@@ -33,6 +50,7 @@ pg_status render_model_open(const char *path, render_model **rm)
         render_model_close(r);
         return st;
     }
+    r->train_focal = training_focal(path);
     *rm = r;
     return PG_OK;
 }
@@ -60,6 +78,7 @@ pg_status render_model_frame(render_model *rm, const pg_camera *cam, float t, pg
     PG_TRY(render_model_gaussians_at(rm, t, &g));
     pg_render_settings s = splat_default_settings();
     memcpy(s.background, rm->model.bg, sizeof s.background);
+    s.train_focal = rm->train_focal;
     return splat_render_forward(rm->raster, g, cam, &s, out);
 }
 

@@ -6,13 +6,14 @@
 #include <math.h>
 
 /* Frustum limits of x/z (y/z) widened by 15% of the view width on each side: 1.3x the half-width
- * for a centred principal point. */
-void splat_project_limits(const pg_camera *cam, float lim[4])
+ * for a centred principal point; then the screen-space filter. */
+void splat_project_limits(const pg_camera *cam, float lowpass, float lim[SPLAT_LIM_COUNT])
 {
     float x0 = -cam->cx / cam->fx, x1 = (cam->width - cam->cx) / cam->fx;
     float y0 = -cam->cy / cam->fy, y1 = (cam->height - cam->cy) / cam->fy;
     lim[0] = x0 - 0.15f * (x1 - x0); lim[1] = x1 + 0.15f * (x1 - x0);
     lim[2] = y0 - 0.15f * (y1 - y0); lim[3] = y1 + 0.15f * (y1 - y0);
+    lim[4] = lowpass;
 }
 
 /* Sigma = M M^T with M = R(q/|q|) diag(exp(log_scale)); also returns R and the scales. */
@@ -31,7 +32,7 @@ static void cov3d_forward(const float log_scale[3], const float quat[4], float R
 }
 
 /* J (2x3, row-major) for camera point t; clamp flags say which of x/z, y/z hit the limits. */
-static void jacobian(const pg_camera *cam, const float lim[4], const float t[3], float J[6], int clampflag[2], float uv_c[2])
+static void jacobian(const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], const float t[3], float J[6], int clampflag[2], float uv_c[2])
 {
     float z = t[2], iz = 1.0f / z, u = t[0] * iz, w = t[1] * iz;
     float uc = clampf(u, lim[0], lim[1]), wc = clampf(w, lim[2], lim[3]);
@@ -52,7 +53,7 @@ typedef struct {
 } sigma2d_state;
 
 /* Sigma2D of a Gaussian whose mean is at camera point t (shared by forward and backward). */
-static void sigma2d_forward(const float log_scale[3], const float quat[4], const pg_camera *cam, const float lim[4],
+static void sigma2d_forward(const float log_scale[3], const float quat[4], const pg_camera *cam, const float lim[SPLAT_LIM_COUNT],
                             const float t[3], sigma2d_state *S)
 {
     cov3d_forward(log_scale, quat, S->Rq, S->s, S->M, S->cov);
@@ -65,21 +66,21 @@ static void sigma2d_forward(const float log_scale[3], const float quat[4], const
     for (int r = 0; r < 2; r++)
         for (int j = 0; j < 3; j++)
             TC[3*r+j] = Tm[3*r]*cov[j] + Tm[3*r+1]*cov[3+j] + Tm[3*r+2]*cov[6+j];
-    S->sxx = TC[0]*Tm[0] + TC[1]*Tm[1] + TC[2]*Tm[2] + SPLAT_LOWPASS;
+    S->sxx = TC[0]*Tm[0] + TC[1]*Tm[1] + TC[2]*Tm[2] + lim[4];
     S->sxy = TC[0]*Tm[3] + TC[1]*Tm[4] + TC[2]*Tm[5];
-    S->syy = TC[3]*Tm[3] + TC[4]*Tm[4] + TC[5]*Tm[5] + SPLAT_LOWPASS;
+    S->syy = TC[3]*Tm[3] + TC[4]*Tm[4] + TC[5]*Tm[5] + lim[4];
 }
 
 int splat_project_forward(const float mean[3], const float log_scale[3], const float quat[4],
                           const pg_camera *cam, float near_clip, splat_proj *p)
 {
-    float lim[4];
-    splat_project_limits(cam, lim);
+    float lim[SPLAT_LIM_COUNT];
+    splat_project_limits(cam, SPLAT_LOWPASS, lim);
     return splat_project_forward_lim(mean, log_scale, quat, cam, lim, near_clip, p);
 }
 
 int splat_project_forward_lim(const float mean[3], const float log_scale[3], const float quat[4],
-                              const pg_camera *cam, const float lim[4], float near_clip, splat_proj *p)
+                              const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], float near_clip, splat_proj *p)
 {
     float t[3];
     mat3_mul_vec(t, cam->R, mean);
@@ -103,13 +104,13 @@ void splat_project_backward(const float mean[3], const float log_scale[3], const
                             const pg_camera *cam, const float d_xy[2], const float d_conic[3], float d_z,
                             float d_mean[3], float d_log_scale[3], float d_quat[4])
 {
-    float lim[4];
-    splat_project_limits(cam, lim);
+    float lim[SPLAT_LIM_COUNT];
+    splat_project_limits(cam, SPLAT_LOWPASS, lim);
     splat_project_backward_lim(mean, log_scale, quat, cam, lim, d_xy, d_conic, d_z, d_mean, d_log_scale, d_quat);
 }
 
 void splat_project_backward_lim(const float mean[3], const float log_scale[3], const float quat[4],
-                                const pg_camera *cam, const float lim[4], const float d_xy[2],
+                                const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], const float d_xy[2],
                                 const float d_conic[3], float d_z, float d_mean[3], float d_log_scale[3],
                                 float d_quat[4])
 {

@@ -3,9 +3,10 @@
  * t = R mean + T (camera space); mean2D = (fx t.x/t.z + cx, fy t.y/t.z + cy);
  * J = [[fx/z, 0, -fx u], [0, fy/z, -fy w]] / with u = clamp(t.x/z) / z etc. (the clamp to 1.3x
  * the frustum keeps J bounded for Gaussians far outside the view; the clamped coordinate passes
- * no gradient); Sigma2D = J R Sigma R^T J^T + 0.1 I (the screen-space filter: a tenth
- * of a squared pixel at any output size; the 3D filter, splat/filter3d.h, bounds what the training
- * views could not resolve); conic = Sigma2D^-1 stored (a, b, c) with
+ * no gradient); Sigma2D = J R Sigma R^T J^T + lowpass I (the screen-space filter: a tenth of a
+ * squared pixel, of a training pixel when the camera draws finer than training did, see
+ * splat_lowpass_for; the 3D filter, splat/filter3d.h, bounds what the training views could not
+ * resolve); conic = Sigma2D^-1 stored (a, b, c) with
  * sigma(dx, dy) = 0.5 (a dx^2 + c dy^2) + b dx dy.
  */
 #ifndef PG_PROJECT_H
@@ -14,6 +15,10 @@
 #include "core/camera.h"
 
 #define SPLAT_LOWPASS 0.1f
+
+/* lim of the projection functions: the x/z and y/z clamp bounds, then the screen-space filter's
+ * variance in squared pixels of the camera drawn */
+#define SPLAT_LIM_COUNT 5
 
 typedef struct {
     float xy[2];    /* pixel coordinates of the projected mean */
@@ -31,12 +36,12 @@ void splat_project_backward(const float mean[3], const float log_scale[3], const
                             const pg_camera *cam, const float d_xy[2], const float d_conic[3], float d_z,
                             float d_mean[3], float d_log_scale[3], float d_quat[4]);
 
-/* The same with the frustum-clamp limits precomputed by splat_project_limits (hot loops). */
-void splat_project_limits(const pg_camera *cam, float lim[4]);
+/* The same with the frustum-clamp limits and filter precomputed by splat_project_limits (hot loops). */
+void splat_project_limits(const pg_camera *cam, float lowpass, float lim[SPLAT_LIM_COUNT]);
 int splat_project_forward_lim(const float mean[3], const float log_scale[3], const float quat[4],
-                              const pg_camera *cam, const float lim[4], float near_clip, splat_proj *p);
+                              const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], float near_clip, splat_proj *p);
 void splat_project_backward_lim(const float mean[3], const float log_scale[3], const float quat[4],
-                                const pg_camera *cam, const float lim[4], const float d_xy[2],
+                                const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], const float d_xy[2],
                                 const float d_conic[3], float d_z, float d_mean[3], float d_log_scale[3],
                                 float d_quat[4]);
 /* Gaussians i0 .. i0+15 at once (AVX-512 builds; returns 0 and does nothing otherwise).
@@ -44,13 +49,13 @@ void splat_project_backward_lim(const float mean[3], const float log_scale[3], c
  * Gaussian i0+l was kept. Float results differ from the scalar path by rounding only (exp is
  * a polynomial here). */
 int splat_project_forward16(const float *means, const float *log_scales, const float *quats, int i0,
-                            const pg_camera *cam, const float lim[4], float near_clip, float out[9][16],
+                            const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], float near_clip, float out[9][16],
                             unsigned *valid);
 /* Adds the gradients of Gaussians i0 .. i0+15 whose bit is set in mask (AVX-512 builds;
  * returns 0 and does nothing otherwise). Inputs as in splat_project_backward, one row per
  * quantity with 16 lanes. */
 int splat_project_backward16(const float *means, const float *log_scales, const float *quats, int i0,
-                             const pg_camera *cam, const float lim[4], const float d_xy[2][16],
+                             const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], const float d_xy[2][16],
                              const float d_conic[3][16], const float d_z[16], unsigned mask,
                              float *d_means, float *d_log_scales, float *d_quats);
 

@@ -35,7 +35,7 @@ typedef struct {
     __m512 sxx, sxy, syy;         /* Sigma2D plus the low-pass term */
 } sigma16;
 
-static inline void sigma2d16(const pg_camera *cam, const float lim[4], const __m512 t[3], const __m512 ls[3],
+static inline void sigma2d16(const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], const __m512 t[3], const __m512 ls[3],
                              const __m512 q[4], sigma16 *S)
 {
     const float *W = cam->R;
@@ -83,14 +83,14 @@ static inline void sigma2d16(const pg_camera *cam, const float lim[4], const __m
         TC0[j] = _mm512_fmadd_ps(T0[0], C[j], _mm512_fmadd_ps(T0[1], C[3+j], _mm512_mul_ps(T0[2], C[6+j])));
         TC1[j] = _mm512_fmadd_ps(T1[0], C[j], _mm512_fmadd_ps(T1[1], C[3+j], _mm512_mul_ps(T1[2], C[6+j])));
     }
-    __m512 lp = _mm512_set1_ps(SPLAT_LOWPASS);
+    __m512 lp = _mm512_set1_ps(lim[4]);
     S->sxx = _mm512_add_ps(_mm512_fmadd_ps(TC0[0], T0[0], _mm512_fmadd_ps(TC0[1], T0[1], _mm512_mul_ps(TC0[2], T0[2]))), lp);
     S->sxy = _mm512_fmadd_ps(TC0[0], T1[0], _mm512_fmadd_ps(TC0[1], T1[1], _mm512_mul_ps(TC0[2], T1[2])));
     S->syy = _mm512_add_ps(_mm512_fmadd_ps(TC1[0], T1[0], _mm512_fmadd_ps(TC1[1], T1[1], _mm512_mul_ps(TC1[2], T1[2]))), lp);
 }
 
 int splat_project_forward16(const float *means, const float *log_scales, const float *quats, int i0,
-                            const pg_camera *cam, const float lim[4], float near_clip, float out[9][16],
+                            const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], float near_clip, float out[9][16],
                             unsigned *valid)
 {
     const __m512i lane = _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0);
@@ -126,7 +126,7 @@ int splat_project_forward16(const float *means, const float *log_scales, const f
 
 /* Vector twin of splat_project_backward_lim for Gaussians i0 .. i0+15 (lanes in `mask`). */
 int splat_project_backward16(const float *means, const float *log_scales, const float *quats, int i0,
-                             const pg_camera *cam, const float lim[4], const float d_xy[2][16],
+                             const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], const float d_xy[2][16],
                              const float d_conic[3][16], const float d_z[16], unsigned mask,
                              float *d_means, float *d_log_scales, float *d_quats)
 {
@@ -241,7 +241,7 @@ int splat_project_backward16(const float *means, const float *log_scales, const 
 }
 #else
 int splat_project_forward16(const float *means, const float *log_scales, const float *quats, int i0,
-                            const pg_camera *cam, const float lim[4], float near_clip, float out[9][16],
+                            const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], float near_clip, float out[9][16],
                             unsigned *valid)
 {
     (void)means; (void)log_scales; (void)quats; (void)i0; (void)cam; (void)lim; (void)near_clip; (void)out;
@@ -250,7 +250,7 @@ int splat_project_forward16(const float *means, const float *log_scales, const f
 }
 
 int splat_project_backward16(const float *means, const float *log_scales, const float *quats, int i0,
-                             const pg_camera *cam, const float lim[4], const float d_xy[2][16],
+                             const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], const float d_xy[2][16],
                              const float d_conic[3][16], const float d_z[16], unsigned mask,
                              float *d_means, float *d_log_scales, float *d_quats)
 {

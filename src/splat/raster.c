@@ -50,7 +50,7 @@ struct splat_raster {
     int valid, n, width, height, tiles_x, tiles_y, sh_degree, visible;
     size_t m;
     float bg[3];
-    float lim[4];               /* frustum clamp limits of the camera */
+    float lim[SPLAT_LIM_COUNT]; /* frustum clamp limits and screen-space filter of the camera */
     float cam_center[3];
 };
 
@@ -61,7 +61,15 @@ pg_render_settings splat_default_settings(void)
     s.near_clip = 0.01f;
     s.sh_degree = -1;
     s.whole = NULL;
+    s.train_focal = 0.0f;
     return s;
+}
+
+float splat_lowpass_for(const pg_camera *cam, const pg_render_settings *s)
+{
+    if (!(s->train_focal > 0)) return SPLAT_LOWPASS;
+    const float ratio = fmaxf(cam->fx, cam->fy) / s->train_focal;
+    return ratio > 1.0f ? SPLAT_LOWPASS * ratio * ratio : SPLAT_LOWPASS;
 }
 
 pg_status splat_raster_create(splat_raster **out)
@@ -328,7 +336,7 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     PG_TRY(ensure_tiles(r, tx * ty));
     r->n = n; r->width = W; r->height = H; r->tiles_x = tx; r->tiles_y = ty; r->sh_degree = deg;
     for (int c = 0; c < 3; c++) r->bg[c] = s->background[c];
-    splat_project_limits(s->whole ? s->whole : cam, r->lim);
+    splat_project_limits(s->whole ? s->whole : cam, splat_lowpass_for(cam, s), r->lim);
     pg_camera_center(cam, r->cam_center);
 
     /* Preprocess, then gradient slot offsets (Gaussian-major) and the visible list in index
@@ -467,9 +475,9 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
     }
 
     /* Per-Gaussian fixed-order reduction of the slots, then the chain through SH and projection. */
-    float C[3], lim[4];
+    float C[3], lim[SPLAT_LIM_COUNT];
     pg_camera_center(cam, C);
-    splat_project_limits(s->whole ? s->whole : cam, lim);
+    splat_project_limits(s->whole ? s->whole : cam, splat_lowpass_for(cam, s), lim);
     int deg = r->sh_degree, n = g->count;
     const pg_camera *frame = s->whole ? s->whole : cam;
     float half_w = 0.5f * frame->width, half_h = 0.5f * frame->height;

@@ -26,6 +26,10 @@ typedef struct {
      * by the crop's corner): projection clamps and view-space gradient units follow the whole
      * image, so a crop renders exactly the whole image's pixels */
     const pg_camera *whole;
+    /* focal length in pixels of the views the Gaussians were trained on (0: unknown). A camera
+     * drawing finer than that (a render larger than the training size) gets a training pixel's
+     * screen-space filter instead of its own pixel's (splat_lowpass_for) */
+    float train_focal;
 } pg_render_settings;
 
 typedef struct {
@@ -40,6 +44,12 @@ typedef struct {
 typedef struct splat_raster splat_raster;
 
 pg_render_settings splat_default_settings(void);
+/* The screen-space filter's variance in squared pixels of cam: SPLAT_LOWPASS, times the square of
+ * how many of cam's pixels one training pixel spans when that is above 1. Trained at one size,
+ * each splat's footprint includes the filter of a training pixel; a larger render that shrank
+ * the filter to its own pixel drew every small splat thinner and fainter than training fitted
+ * it (the demo at 2x: 24.43 dB against 24.77 with the training pixel's filter; docs/viewer.md). */
+float splat_lowpass_for(const pg_camera *cam, const pg_render_settings *s);
 pg_status splat_raster_create(splat_raster **r);
 void splat_raster_destroy(splat_raster *r);
 /* Renders; out's buffers stay valid until the next forward or destroy. */
