@@ -195,6 +195,56 @@ static double masked_psnr(const pg_image *a, const float *ref, const float *alph
     return n ? 10 * log10(255.0 * 255.0 / (se / (double)n + 1e-12)) : 0;
 }
 
+#define LARGER 3 /* the viewer's canvas at 3x the training camera's size */
+
+/* The viewer at LARGER x the training size against the CPU render of the camera scaled alike:
+ * both draw with a training pixel's screen-space filter (splat_lowpass_for), so the viewer must be
+ * clearly closer to that render than to one with the output pixel's filter (49.3 vs 44.2 dB). */
+static void check_larger_shot(const cJSON *rep, render_model *rm, const pg_camera *cam, const char *tmp)
+{
+    const cJSON *shots = cJSON_GetObjectItem(rep, "shots");
+    CHECK(cJSON_GetArraySize(shots) == 1, "expected 1 shot at %dx", LARGER);
+    if (cJSON_GetArraySize(shots) != 1) return;
+    char file[1300];
+    snprintf(file, sizeof file, "%s/shot_x%d.png", tmp, LARGER);
+    pg_image shot = { 0 };
+    CHECK_OK(load_data_url(cJSON_GetStringValue(cJSON_GetObjectItem(cJSON_GetArrayItem(shots, 0), "png")), file, &shot));
+    pg_camera big = *cam;
+    big.width *= LARGER, big.height *= LARGER;
+    big.fx *= LARGER, big.fy *= LARGER, big.cx *= LARGER, big.cy *= LARGER;
+    CHECK(shot.width == big.width && shot.height == big.height, "shot %dx%d, camera %dx%d", shot.width, shot.height,
+          big.width, big.height);
+    pg_render_output out;
+    CHECK_OK(render_model_frame(rm, &big, 0.5f, &out));
+    if (shot.width == big.width && shot.height == big.height) {
+        size_t px = (size_t)big.width * big.height;
+        float *ref = malloc(px * 3 * sizeof(float)), *alpha = malloc(px * sizeof(float));
+        memcpy(ref, out.rgb, px * 3 * sizeof(float));
+        memcpy(alpha, out.alpha, px * sizeof(float));
+        int covered;
+        double psnr = masked_psnr(&shot, ref, alpha, &covered);
+        const pg_gaussians *g;
+        splat_raster *plain = NULL;
+        double psnr_plain = 0;
+        CHECK_OK(render_model_gaussians_at(rm, 0.5f, &g));
+        CHECK_OK(splat_raster_create(&plain));
+        pg_render_settings s = splat_default_settings();
+        if (plain && splat_render_forward(plain, g, &big, &s, &out) == PG_OK) {
+            int c2;
+            psnr_plain = masked_psnr(&shot, out.rgb, alpha, &c2);
+        }
+        splat_raster_destroy(plain);
+        fprintf(stderr, "viewer vs render at %dx the training camera, t = 0.5: PSNR %.2f dB over %d covered pixels "
+                        "(against the output pixel's filter: %.2f)\n", LARGER, psnr, covered, psnr_plain);
+        CHECK(psnr >= 28.0, "PSNR %.2f dB at %dx (>= 28 wanted)", psnr, LARGER);
+        CHECK(psnr >= psnr_plain + 2.0, "the viewer at %dx is as close to the output pixel's filter (%.2f dB) as to the "
+              "training pixel's (%.2f)", LARGER, psnr_plain, psnr);
+        free(ref);
+        free(alpha);
+    }
+    pg_image_destroy(&shot);
+}
+
 /* Part 1: screenshots of the model's viewer against the CPU renderer. */
 static void check_model(const char *chromium, const char *model, const char *tmp)
 {
@@ -212,6 +262,9 @@ static void check_model(const char *chromium, const char *model, const char *tmp
     snprintf(page, sizeof page, "%s?shot=1&camera=train&times=0,1", url);
     cJSON *rep = u ? browse(chromium, page, "400,300", tmp) : NULL;
     CHECK(rep != NULL, "no report from the page %s", page);
+    snprintf(page, sizeof page, "%s?shot=1&camera=train&times=0.5&scale=%d", url, LARGER);
+    cJSON *rep_larger = u ? browse(chromium, page, "400,300", tmp) : NULL;
+    CHECK(rep_larger != NULL, "no report from the page %s", page);
     const char *screenshot = getenv("PG_VIEW_SCREENSHOT");
     if (u && screenshot && *screenshot) { /* the interactive page, for the README */
         char shot_arg[1200], view_url[512];
@@ -229,7 +282,10 @@ static void check_model(const char *chromium, const char *model, const char *tmp
     }
     stop_group(server);
     if (fd >= 0) close(fd);
-    if (!rep) return;
+    if (!rep) {
+        cJSON_Delete(rep_larger);
+        return;
+    }
     const cJSON *err = cJSON_GetObjectItem(rep, "error");
     CHECK(!err, "page error: %s", cJSON_GetStringValue(err));
     const cJSON *shots = cJSON_GetObjectItem(rep, "shots");
@@ -289,6 +345,8 @@ static void check_model(const char *chromium, const char *model, const char *tmp
         CHECK(nm > 20, "the model does not move (%zu moving pixels)", nm);
         CHECK(ratio >= 5.0, "moving/static difference ratio %.2f (>= 5 wanted)", ratio);
     }
+    if (rm && rep_larger) check_larger_shot(rep_larger, rm, cam, tmp);
+    cJSON_Delete(rep_larger);
     CHECK(load_ms > 0 && load_ms < 5000, "scene load took %.0f ms", load_ms);
     for (int k = 0; k < 2; k++) {
         pg_image_destroy(&shot[k]);
