@@ -210,8 +210,7 @@ static void check_larger_shot(const cJSON *rep, render_model *rm, const pg_camer
     pg_image shot = { 0 };
     CHECK_OK(load_data_url(cJSON_GetStringValue(cJSON_GetObjectItem(cJSON_GetArrayItem(shots, 0), "png")), file, &shot));
     pg_camera big = *cam;
-    big.width *= LARGER, big.height *= LARGER;
-    big.fx *= LARGER, big.fy *= LARGER, big.cx *= LARGER, big.cy *= LARGER;
+    pg_camera_resize(&big, LARGER * cam->width, LARGER * cam->height);
     CHECK(shot.width == big.width && shot.height == big.height, "shot %dx%d, camera %dx%d", shot.width, shot.height,
           big.width, big.height);
     pg_render_output out;
