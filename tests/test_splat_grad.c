@@ -343,7 +343,7 @@ static void test_filter3d(void)
     enum { N = 60 };
     pg_rng rng;
     pg_rng_seed(&rng, 11);
-    float ls[N * 3], op[N], var[N], saved[N * 4], g_ls[N * 3], g_op[N];
+    float ls[N * 3], op[N], var[N], saved[N * SPLAT_FILTER3D_SAVED], g_ls[N * 3], g_op[N];
     double w[N][4];
     for (int i = 0; i < N; i++) {
         var[i] = i % 10 == 9 ? 0.0f : (float)exp(-6 + 4 * pg_rng_uniform(&rng));

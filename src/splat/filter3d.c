@@ -43,62 +43,51 @@ void splat_filter3d_fit_init(float *log_scales, float *opacity, const float *var
     }
 }
 
-/* What forward and backward share for one Gaussian: w_k = var / (s_k^2 + var) (the filtered
- * log-scale is 0.5 log(s_k^2 + var)), rho = prod s_k / sqrt(s_k^2 + var), the opacity a and the
- * complements 1 - a and 1 - a rho (each formed without cancellation, so opacities near 1 keep
- * their precision). This runs over every Gaussian at every rendered time. */
-typedef struct {
-    float log_q[3], w[3], log_rho, rho, a, na, na_filtered;
-} filter_terms;
-
-/* log(1 + e^x) without overflow or underflow */
-static float softplusf(float x)
+/* log(1 + e^x) and the logistic sigmoid of x from one exponential, e = e^-|x| (never overflows):
+ * this runs for every Gaussian at every rendered time, so each transcendental counts. */
+static inline void softplus_sigmoid(float x, float *sp, float *sig)
 {
-    return x > 20.0f ? x : x < -20.0f ? expf(x) : log1pf(expf(x));
+    const float e = expf(-fabsf(x)), inv = 1.0f / (1.0f + e);
+    *sp = fmaxf(x, 0.0f) + log1pf(e);
+    *sig = x >= 0.0f ? inv : e * inv;
 }
 
 /* In logs throughout: the deformation can push a log-scale past +-44, where s^2 overflows or
  * underflows float (tabletop_dev at 160x120 went NaN at step ~415 that way). With
- * d_k = log var - 2 log s_k: w_k = sigmoid(d_k), log q_k = 2 log s_k + softplus(d_k) and
- * log rho = -1/2 sum softplus(d_k). */
-static void filter_terms_of(const float ls[3], float o, float var, filter_terms *f)
-{
-    const float lv = logf(var);
-    float log_keep = 0.0f;
-    for (int k = 0; k < 3; k++) {
-        const float d = lv - 2.0f * ls[k], sp = softplusf(d);
-        f->w[k] = 1.0f / (1.0f + expf(-d));
-        f->log_q[k] = 2.0f * ls[k] + sp;
-        log_keep -= sp;
-    }
-    f->log_rho = 0.5f * log_keep;
-    f->rho = expf(f->log_rho);
-    /* 1 - rho = (1 - keep) / (1 + rho), 1 - keep = 1 - prod (1 - w_k) nested */
-    const float lost = f->w[0] + (1.0f - f->w[0]) * (f->w[1] + (1.0f - f->w[1]) * f->w[2]);
-    const float one_minus_rho = lost / (1.0f + f->rho);
-    const float e = expf(-o);
-    f->a = 1.0f / (1.0f + e);
-    f->na = e < INFINITY ? e / (1.0f + e) : 1.0f;
-    f->na_filtered = f->na + f->a * one_minus_rho;
-}
-
+ * d_k = log var - 2 log s_k: w_k = var / (s_k^2 + var) = sigmoid(d_k), the filtered log-scale is
+ * log s_k + softplus(d_k) / 2 and log rho = -1/2 sum softplus(d_k). The opacity a = sigmoid(o),
+ * 1 - a and 1 - a rho = (1 - a) + a (1 - rho) are formed without cancellation, so opacities near 1
+ * keep their precision. What the backward needs is saved (w_k, (1 - a) / (1 - a rho),
+ * 1 / (1 - a rho)), so it runs without a transcendental. */
 void splat_filter3d_forward(float *log_scales, float *opacity, const float *var, int n, float *saved)
 {
     #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
-        float *ls = log_scales + 3 * (size_t)i;
-        if (saved) {
-            for (int k = 0; k < 3; k++) saved[4 * (size_t)i + k] = ls[k];
-            saved[4 * (size_t)i + 3] = opacity[i];
-        }
         if (!(var[i] > 0)) continue;
-        filter_terms f;
-        filter_terms_of(ls, opacity[i], var[i], &f);
-        for (int k = 0; k < 3; k++) ls[k] = 0.5f * f.log_q[k];
+        float *ls = log_scales + 3 * (size_t)i, w[3], log_keep = 0.0f;
+        const float lv = logf(var[i]);
+        for (int k = 0; k < 3; k++) {
+            float sp;
+            softplus_sigmoid(lv - 2.0f * ls[k], &sp, &w[k]);
+            ls[k] += 0.5f * sp;
+            log_keep -= sp;
+        }
+        const float log_rho = 0.5f * log_keep, rho = expf(log_rho);
+        /* 1 - rho = (1 - keep) / (1 + rho), 1 - keep = 1 - prod (1 - w_k) nested */
+        const float lost = w[0] + (1.0f - w[0]) * (w[1] + (1.0f - w[1]) * w[2]);
+        const float o = opacity[i], eo = expf(-fabsf(o)), inv = 1.0f / (1.0f + eo);
+        const float a = o >= 0.0f ? inv : eo * inv, na = o >= 0.0f ? eo * inv : inv;
+        const float na_filtered = na + a * (lost / (1.0f + rho));
         /* a rho far below 1 (a needle the deformation squeezed to e^-36 on two axes): a rho under
          * float made the opacity -inf; logit(a rho) = log a + log rho to float precision there */
-        const float o = opacity[i], log_a_rho = f.log_rho - softplusf(-o);
-        opacity[i] = log_a_rho > -30.0f ? logf(f.a * f.rho / f.na_filtered) : log_a_rho;
+        const float log_a_rho = log_rho - (fmaxf(-o, 0.0f) + log1pf(eo));
+        opacity[i] = log_a_rho > -30.0f ? logf(a * rho / na_filtered) : log_a_rho;
+        if (saved) {
+            float *sv = saved + SPLAT_FILTER3D_SAVED * (size_t)i;
+            sv[0] = w[0], sv[1] = w[1], sv[2] = w[2];
+            sv[3] = na / na_filtered;
+            sv[4] = 1.0f / na_filtered;
+        }
     }
 }
 
@@ -109,12 +98,10 @@ void splat_filter3d_backward(const float *saved, const float *var, int n, float 
     #pragma omp parallel for schedule(static)
     for (int i = 0; i < n; i++) {
         if (!(var[i] > 0)) continue;
-        const float *ls = saved + 4 * (size_t)i;
-        filter_terms f;
-        filter_terms_of(ls, ls[3], var[i], &f);
-        const float g_o = d_opacity[i], inv_na = 1.0f / f.na_filtered;
+        const float *sv = saved + SPLAT_FILTER3D_SAVED * (size_t)i;
+        const float g_o = d_opacity[i];
         float *g = d_log_scales + 3 * (size_t)i;
-        for (int k = 0; k < 3; k++) g[k] = g[k] * (1.0f - f.w[k]) + g_o * f.w[k] * inv_na;
-        d_opacity[i] = g_o * f.na * inv_na;
+        for (int k = 0; k < 3; k++) g[k] = g[k] * (1.0f - sv[k]) + g_o * sv[k] * sv[4];
+        d_opacity[i] = g_o * sv[3];
     }
 }

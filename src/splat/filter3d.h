@@ -31,11 +31,14 @@ void splat_filter3d_compute(const float *means, int n, const pg_camera *cams, in
  * back. */
 void splat_filter3d_fit_init(float *log_scales, float *opacity, const float *var, int n);
 
-/* In place: log_scales (n, 3) and opacity logits (n) become the filtered ones. saved (n, 4) keeps
- * the unfiltered values for the backward (NULL: rendering only). */
+/* floats per Gaussian the forward saves for the backward */
+#define SPLAT_FILTER3D_SAVED 5
+
+/* In place: log_scales (n, 3) and opacity logits (n) become the filtered ones. saved
+ * (n, SPLAT_FILTER3D_SAVED) keeps what the backward needs (NULL: rendering only). */
 void splat_filter3d_forward(float *log_scales, float *opacity, const float *var, int n, float *saved);
 /* In place: the gradients d_log_scales (n, 3) and d_opacity (n) of the filtered values become
- * those of the unfiltered ones saved by the forward. */
+ * those of the unfiltered ones, from what the forward saved. */
 void splat_filter3d_backward(const float *saved, const float *var, int n, float *d_log_scales, float *d_opacity);
 
 #endif

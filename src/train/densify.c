@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "core/mathx.h"
+#include "splat/filter3d.h"
 
 #define SH_ROW (PG_SH_COEFFS * 3)
 
@@ -38,7 +39,7 @@ pg_status train_ensure_side(train_session *s, int n)
     float *f = realloc(s->filter_var, (size_t)nc * sizeof(float));
     if (!f) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
     s->filter_var = f;
-    float *h = realloc(s->filter_saved, (size_t)nc * 4 * sizeof(float));
+    float *h = realloc(s->filter_saved, (size_t)nc * SPLAT_FILTER3D_SAVED * sizeof(float));
     if (!h) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
     s->filter_saved = h;
     size_t old = (size_t)s->side_cap, add = (size_t)(nc - s->side_cap);
