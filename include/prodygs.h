@@ -149,6 +149,7 @@ typedef struct {
     const char *out;        /* model directory (required) */
     int iters;              /* total iterations, coarse included (3000) */
     int coarse_iters;       /* static iterations first (-1: iters / 6) */
+    int densify_until;      /* no densification from this iteration on (0: 70 % of iters) */
     int resume;             /* continue from OUT/model.ckpt when it exists */
     int threads;            /* 0: all cores */
     int seed;               /* (1) */

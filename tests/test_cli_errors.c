@@ -303,6 +303,7 @@ int main(void)
     expect_error("train @/ds --out @/t --iters 2 --width 100000", "--width");
     expect_error("train @/ds --out @/t --iters 2 --width -3", "--width");
     expect_error("train @/ds --out @/t --iters 2 --coarse-iters -1", "--coarse-iters");
+    expect_error("train @/ds --out @/t --iters 2 --densify-until 3", "train: --densify-until 3 must be in 0..2 (--iters)");
     expect_error("train @/ds --out @/t --iters 2 --init-points -1", "--init-points");
     expect_error("train @/ds --out @/t --iters 2 --views-per-step 0", "--views-per-step");
     expect_error("train @/ds --out @/t --iters 2 --frames -1", "--frames");

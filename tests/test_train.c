@@ -168,6 +168,13 @@ static void test_iterations_for_clip(void)
     CHECK(train_iterations_for_clip(1500, 300, 2) == 1500 * TRAIN_MAX_BUDGET_SCALE, "300 frames: the cap, got %d",
           train_iterations_for_clip(1500, 300, 2));
     CHECK(train_iterations_for_clip(8000, 300, 2) == 8000, "the quality preset covers 300 frames");
+    /* the raised budget fits longer; it does not densify longer (memory and checkpoint size) */
+    train_budget b = train_budget_for_clip(1500, 300, 2);
+    CHECK(b.iters == 3000 && b.coarse_iters == 250 && b.densify_until == 1050,
+          "300 frames: 3000 iterations, coarse 250, densify until 1050; got %d, %d, %d", b.iters, b.coarse_iters,
+          b.densify_until);
+    b = train_budget_for_clip(1500, 30, 2);
+    CHECK(b.iters == 1500 && b.densify_until == 1050, "30 frames: the preset's 1500, densify until 1050");
 }
 
 int main(void)

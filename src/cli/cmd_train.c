@@ -17,6 +17,7 @@ int cmd_train(int argc, char **argv)
         {"--out", CLI_STR, &c.out, "model directory to write (model.ckpt, train.json, cameras.json) (required)"},
         {"--iters", CLI_INT, &c.iters, "total iterations, coarse included (3000)"},
         {"--coarse-iters", CLI_INT, &c.coarse_iters, "static-Gaussian iterations before the deformation (iters/6)"},
+        {"--densify-until", CLI_INT, &c.densify_until, "no densification from this iteration on (70 % of --iters)"},
         {"--resume", CLI_FLAG, &c.resume, "continue from MODEL/model.ckpt if present"},
         {"--threads", CLI_INT, &c.threads, "worker threads (default: all cores)"},
         {"--seed", CLI_INT, &c.seed, "random seed (1)"},

@@ -62,7 +62,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
  * preset's numbers, so every stage gets the same values. */
 typedef struct {
     char train_camera[128], test_cameras[1024];
-    int width, height, iters, coarse_iters, proxies, threads, fit_steps;
+    int width, height, iters, coarse_iters, densify_until, proxies, threads, fit_steps;
     const char *poses;
     char depth[4200];         /* the depth file prepare reads: c->depth or the depth stage's output */
 } pipeline_plan;
@@ -175,14 +175,19 @@ static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipelin
     PG_TRY(st);
     plan->iters = c->iters;
     plan->coarse_iters = -1; /* the trainer's default */
+    plan->densify_until = 0;
     if (c->iters <= 0) { /* the preset's, raised for a long clip; the coarse (still) stage stays the preset's */
         int crops = c->motion_crops >= 0 ? c->motion_crops : train_default_config().motion_crops;
-        plan->iters = train_iterations_for_clip(p->iters, frames, crops);
-        plan->coarse_iters = train_default_coarse_iters(p->iters);
+        train_budget b = train_budget_for_clip(p->iters, frames, crops);
+        plan->iters = b.iters;
+        plan->coarse_iters = b.coarse_iters;
+        plan->densify_until = b.densify_until;
         if (plan->iters > p->iters)
             fprintf(stderr, "prodygs: %d training iterations (the %s preset's %d, raised for %d frames: each frame's "
-                    "motion is fitted ~%d times; --iters to choose)\n", plan->iters, p->name, p->iters, frames,
-                    (plan->iters - plan->coarse_iters) * train_fits_per_step(crops) / (frames > 0 ? frames : 1));
+                    "motion is fitted ~%d times; densification stops at the preset's %d; --iters to choose)\n",
+                    plan->iters, p->name, p->iters, frames,
+                    (plan->iters - plan->coarse_iters) * train_fits_per_step(crops) / (frames > 0 ? frames : 1),
+                    plan->densify_until);
     }
     plan->fit_steps = p->fit_steps;
     plan->proxies = c->proxies >= 0 ? c->proxies : (nt > 0 ? -1 : p->proxies);
@@ -412,6 +417,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.out = dir;
     tc.iters = plan->iters;
     tc.coarse_iters = plan->coarse_iters;
+    tc.densify_until = plan->densify_until;
     tc.deform_width = c->deform_width;
     tc.deform_head_width = c->deform_head_width;
     tc.motion_crops = c->motion_crops;

@@ -42,11 +42,12 @@ cJSON *stage_train_config_json(const pg_train_config *c)
     const int ints[] = { c->iters, c->coarse_iters, c->seed, c->max_gaussians, c->init_points, c->sh_degree,
                          c->proxies, c->frames, c->width, c->views_per_step, c->deform_res, c->deform_width,
                          c->deform_head_width, c->static_check_every, c->use_static, c->use_cull, c->deform_tres,
-                         c->times_per_step, c->motion_crops, c->deform_time_coarsen };
+                         c->times_per_step, c->motion_crops, c->deform_time_coarsen, c->densify_until };
     static const char *int_names[] = { "iters", "coarse_iters", "seed", "max_gaussians", "init_points", "sh_degree",
                                        "proxies", "frames", "width", "views_per_step", "deform_res", "deform_width",
                                        "deform_head_width", "static_check_every", "use_static", "use_cull", "deform_tres",
-                                       "times_per_step", "motion_crops", "deform_time_coarsen" };
+                                       "times_per_step", "motion_crops", "deform_time_coarsen",
+                                       "densify_until" };
     for (size_t k = 0; k < sizeof ints / sizeof ints[0]; k++) cJSON_AddNumberToObject(j, int_names[k], ints[k]);
     const float floats[] = { c->real_weight, c->moving_weight, c->lambda_depth, c->lambda_dssim, c->proxy_moving_weight };
     static const char *float_names[] = { "real_weight", "moving_weight", "lambda_depth", "lambda_dssim",
@@ -63,6 +64,8 @@ static pg_status check_config(const pg_train_config *c)
     if (c->iters < 1) return pg_fail(PG_ERR_ARG, "train: --iters %d must be >= 1", c->iters);
     if (c->coarse_iters < -1 || c->coarse_iters > c->iters)
         return pg_fail(PG_ERR_ARG, "train: --coarse-iters %d must be in 0..%d (--iters)", c->coarse_iters, c->iters);
+    if (c->densify_until < 0 || c->densify_until > c->iters)
+        return pg_fail(PG_ERR_ARG, "train: --densify-until %d must be in 0..%d (--iters)", c->densify_until, c->iters);
     if (c->init_points < 1) return pg_fail(PG_ERR_ARG, "train: --init-points %d must be >= 1", c->init_points);
     if (c->times_per_step < 0 || c->times_per_step > TRAIN_MAX_BATCH)
         return pg_fail(PG_ERR_ARG, "train: --times-per-step %d must be in 1..%d", c->times_per_step, TRAIN_MAX_BATCH);
@@ -232,6 +235,7 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
     train_config cfg = train_default_config();
     cfg.iters = c->iters;
     cfg.coarse_iters = c->coarse_iters >= 0 ? c->coarse_iters : train_default_coarse_iters(c->iters);
+    if (c->densify_until > 0) cfg.densify_until = c->densify_until;
     cfg.seed = (uint64_t)c->seed;
     cfg.threads = r->threads;
     cfg.max_gaussians = c->max_gaussians;

@@ -63,7 +63,7 @@ train_config train_default_config(void)
     c.lr_grid = 1.6e-2f;
     c.lr_grid_final = 1.6e-3f;
     c.densify_from = 200;
-    c.densify_until = 0; /* 0: 70% of iters */
+    c.densify_until = 0; /* 0: train_default_densify_until(iters) */
     c.densify_every = 100;
     c.opacity_reset_every = 0;
     c.densify_grad = 2e-4f;
@@ -225,6 +225,14 @@ int train_time_texels(int frames, int fine_iters)
 }
 
 int train_default_coarse_iters(int iters) { return iters / 6; }
+int train_default_densify_until(int iters) { return (int)(0.7 * iters); }
+
+train_budget train_budget_for_clip(int preset_iters, int frames, int motion_crops)
+{
+    train_budget b = { train_iterations_for_clip(preset_iters, frames, motion_crops),
+                       train_default_coarse_iters(preset_iters), train_default_densify_until(preset_iters) };
+    return b;
+}
 int train_fits_per_step(int motion_crops) { return 1 + (motion_crops > 0 ? motion_crops : 0); }
 
 int train_iterations_for_clip(int iters, int frames, int motion_crops)
@@ -308,7 +316,7 @@ pg_status train_session_create(train_session **out, const train_set *ts, const t
     s->ts = ts;
     s->cfg = *cfg;
     if (s->cfg.views_per_step < 1) s->cfg.views_per_step = 1;
-    if (s->cfg.densify_until <= 0) s->cfg.densify_until = (int)(0.7 * cfg->iters);
+    if (s->cfg.densify_until <= 0) s->cfg.densify_until = train_default_densify_until(cfg->iters);
     if (ckpt_path) snprintf(s->ckpt_path, sizeof s->ckpt_path, "%s", ckpt_path);
     pg_status st;
     size_t px = (size_t)ts->width * ts->height;
