@@ -64,13 +64,15 @@ void optim_adam_destroy(optim_adam *opt);
  * param and grad are the full (rows, row_stride) arrays. */
 pg_status optim_adam_step_group(optim_adam *opt, int gi, float *param, const float *grad, float lr);
 /* One group's part of optim_adam_step_groups: param and grad are the full (rows, row_stride)
- * arrays; only the first `cols` (0..the group's cols) columns of each row are updated. */
+ * arrays; only the first `cols` (0..the group's cols) columns of each row are updated.
+ * row_lr (rows), when not NULL, multiplies lr row by row. */
 typedef struct {
     int group;
     float *param;
     const float *grad;
     float lr;
     int cols;
+    const float *row_lr;
 } optim_group_step;
 
 enum { OPTIM_MAX_GROUP_STEPS = 8 };

@@ -62,6 +62,7 @@ train_config train_default_config(void)
     c.lr_net_final = 1.6e-4f;
     c.lr_grid = 1.6e-2f;
     c.lr_grid_final = 1.6e-3f;
+    c.lr_static_scale = 2.0f;
     c.densify_from = 200;
     c.densify_until = 0; /* 0: train_default_densify_until(iters) */
     c.densify_every = 100;
@@ -116,6 +117,7 @@ void train_session_destroy(train_session *s)
     free(s->idx);
     free(s->filter_var);
     free(s->filter_saved);
+    free(s->row_lr);
     if (s->moving)
         for (int v = 0; v < s->ts->num_views; v++) free(s->moving[v]);
     free(s->moving);

@@ -47,6 +47,7 @@ typedef struct {
     /* learning rates (means scaled by the scene extent) */
     float lr_means, lr_means_final, lr_scales, lr_quats, lr_opacity, lr_sh_dc, lr_sh_rest;
     float lr_net, lr_net_final, lr_grid, lr_grid_final;
+    float lr_static_scale; /* factor on the static Gaussians' scale/rotation/opacity/colour rates (2) */
     /* density control */
     int densify_from, densify_until, densify_every, opacity_reset_every;
     float densify_grad, percent_dense, prune_opacity, prune_big_scale;

@@ -54,27 +54,36 @@ static float stage_lr(const train_session *s, float lr0, float lr1)
 
 /* The Gaussian groups; a group with lr <= 0 is frozen. The SH degree only grows and
  * coefficients above it get no gradient, so their moments are still zero and an Adam step would
- * not move them: only the columns up to the current degree are stepped, DC and rest in one pass
- * over the SH rows. */
+ * not move them: only the columns up to the current degree are stepped. Scales, rotation,
+ * opacity and colour go in one pass over the rows, at lr_static_scale times the rate on the static
+ * Gaussians: 3DGS's rates are set for 30,000 iterations and the still scene converges faster at
+ * twice them in our 1,500-3,000, while the movable ones keep theirs, which the deformation network
+ * follows (docs/train.md). */
 static pg_status step_gaussians(train_session *s)
 {
     const train_config *c = &s->cfg;
     pg_gaussians *g = &s->g;
     const pg_gaussians *gr = &s->gg;
-    float lr[OPTIM_GAUSS_GROUPS] = {stage_lr(s, c->lr_means, c->lr_means_final) * s->extent,
-                                    c->lr_scales, c->lr_quats, c->lr_opacity, c->lr_sh_dc, c->lr_sh_rest};
-    float *P[OPTIM_G_SH_DC] = {g->means, g->log_scales, g->quats, g->opacity};
-    const float *G[OPTIM_G_SH_DC] = {gr->means, gr->log_scales, gr->quats, gr->opacity};
-    for (int i = 0; i < OPTIM_G_SH_DC; i++)
-        if (lr[i] > 0) PG_TRY(optim_adam_step_group(s->gopt, i, P[i], G[i], lr[i]));
-    int deg = g->sh_degree, cols[OPTIM_GAUSS_GROUPS] = {0};
-    cols[OPTIM_G_SH_DC] = 3;
-    cols[OPTIM_G_SH_REST] = (deg + 1) * (deg + 1) * 3 - 3;
-    optim_group_step sh[2];
+    float lr_means = stage_lr(s, c->lr_means, c->lr_means_final) * s->extent;
+    if (lr_means > 0) PG_TRY(optim_adam_step_group(s->gopt, OPTIM_G_MEANS, g->means, gr->means, lr_means));
+    const float *row_lr = NULL;
+    if (c->lr_static_scale != 1.0f) {
+        for (int i = 0; i < g->count; i++) s->row_lr[i] = s->is_static[i] ? c->lr_static_scale : 1.0f;
+        row_lr = s->row_lr;
+    }
+    int deg = g->sh_degree, sh_rest_cols = (deg + 1) * (deg + 1) * 3 - 3;
+    const optim_group_step all[] = {
+        {OPTIM_G_LOG_SCALES, g->log_scales, gr->log_scales, c->lr_scales, 3, row_lr},
+        {OPTIM_G_QUATS, g->quats, gr->quats, c->lr_quats, 4, row_lr},
+        {OPTIM_G_OPACITY, g->opacity, gr->opacity, c->lr_opacity, 1, row_lr},
+        {OPTIM_G_SH_DC, g->sh, gr->sh, c->lr_sh_dc, 3, row_lr},
+        {OPTIM_G_SH_REST, g->sh, gr->sh, c->lr_sh_rest, sh_rest_cols, row_lr},
+    };
+    optim_group_step run[5];
     int n = 0;
-    for (int i = OPTIM_G_SH_DC; i <= OPTIM_G_SH_REST; i++)
-        if (lr[i] > 0) sh[n++] = (optim_group_step){i, g->sh, gr->sh, lr[i], cols[i]};
-    return optim_adam_step_groups(s->gopt, sh, n);
+    for (int i = 0; i < 5; i++)
+        if (all[i].lr > 0) run[n++] = all[i];
+    return optim_adam_step_groups(s->gopt, run, n);
 }
 
 static pg_status step_network(train_session *s)
