@@ -63,7 +63,7 @@ static void test_column_steps(void)
     CHECK_OK(optim_adam_create(&b, d, 2, 2, 1e-15f));
     float pa[12], pb[12], g[12] = { 9, 1, -2, 0, 0, 0, -9, 3, 0.5f, 0, 0, 0 };
     for (int i = 0; i < 12; i++) pa[i] = pb[i] = (float)i;
-    optim_group_step two[2] = { { 0, pa, g, 0.3f, 1, NULL }, { 1, pa, g, 0.1f, 2, NULL } };
+    optim_group_step two[2] = { { 0, pa, g, 0.3f, 1, NULL, 1.0f }, { 1, pa, g, 0.1f, 2, NULL, 1.0f } };
     two[1].cols = 6;
     CHECK(optim_adam_step_groups(a, two, 2) == PG_ERR_ARG && optim_adam_group_step(a, 0) == 0,
           "too many columns accepted");
@@ -107,21 +107,22 @@ static void test_column_steps(void)
     optim_adam_destroy(f0);
     optim_adam_destroy(f1);
 
-    /* per-row factors: row 0 at twice the rate, row 1 at the rate, as two separate optimisers */
+    /* boosted rows: row 0 at twice the rate, row 1 at the rate, as two separate optimisers */
     optim_group_desc rows2 = { "rows", 3, 0, 3 };
     optim_adam *w, *w0, *w1;
     CHECK_OK(optim_adam_create(&w, &rows2, 1, 2, 1e-15f));
     CHECK_OK(optim_adam_create(&w0, &rows2, 1, 1, 1e-15f));
     CHECK_OK(optim_adam_create(&w1, &rows2, 1, 1, 1e-15f));
-    float pw[6] = { 1, 2, 3, 4, 5, 6 }, pv[6], gw[6] = { 0.5f, -2, 1e-3f, 3, -0.1f, 7 }, factor[2] = { 2, 1 };
+    float pw[6] = { 1, 2, 3, 4, 5, 6 }, pv[6], gw[6] = { 0.5f, -2, 1e-3f, 3, -0.1f, 7 };
+    const uint8_t boosted[2] = { 1, 0 };
     memcpy(pv, pw, sizeof pw);
-    optim_group_step rs = { 0, pw, gw, 0.3f, 3, factor };
+    optim_group_step rs = { 0, pw, gw, 0.3f, 3, boosted, 2.0f };
     for (int it = 0; it < 3; it++) {
         CHECK_OK(optim_adam_step_groups(w, &rs, 1));
         CHECK_OK(optim_adam_step_group(w0, 0, pv, gw, 0.6f));
         CHECK_OK(optim_adam_step_group(w1, 0, pv + 3, gw + 3, 0.3f));
     }
-    CHECK(memcmp(pw, pv, sizeof pw) == 0, "per-row factors differ from separate rates: %g vs %g, %g vs %g", pw[0],
+    CHECK(memcmp(pw, pv, sizeof pw) == 0, "boosted rows differ from separate rates: %g vs %g, %g vs %g", pw[0],
           pv[0], pw[3], pv[3]);
     CHECK(pw[0] != 1 && pw[3] != 4, "rows did not move");
     optim_adam_destroy(w);

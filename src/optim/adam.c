@@ -106,7 +106,8 @@ typedef struct {
     const float *gr;
     int ncols;
     float step_size, inv_sqrt_c2;
-    const float *row_lr;
+    const uint8_t *boost_rows;
+    float boost;
 } adam_run;
 
 /* Advances the group's step count and folds the bias corrections into the step size and
@@ -117,7 +118,7 @@ static adam_run prepare_run(optim_adam *opt, const optim_group_step *st)
     g->step++;
     double c1 = 1.0 - pow(opt->beta1, g->step), c2 = 1.0 - pow(opt->beta2, g->step);
     adam_run r = { g, st->param + g->d.col0, st->grad + g->d.col0, st->cols,
-                   (float)(st->lr / c1), (float)(1.0 / sqrt(c2)), st->row_lr };
+                   (float)(st->lr / c1), (float)(1.0 / sqrt(c2)), st->boost_rows, st->boost };
     return r;
 }
 
@@ -139,7 +140,7 @@ pg_status optim_adam_step_group(optim_adam *opt, int gi, float *param, const flo
 {
     if (gi < 0 || gi >= opt->ngroups) return pg_fail(PG_ERR_ARG, "adam: no group %d", gi);
     adam_group *g = &opt->g[gi];
-    optim_group_step st = { gi, param, grad, lr, g->d.cols, NULL };
+    optim_group_step st = { gi, param, grad, lr, g->d.cols, NULL, 1.0f };
     if (g->d.row_stride != g->d.cols && opt->rows != 1) return optim_adam_step_groups(opt, &st, 1);
     /* Contiguous run (full rows, or one row): adam_span over blocks split across the threads. */
     adam_run r = prepare_run(opt, &st);
@@ -180,7 +181,7 @@ pg_status optim_adam_step_groups(optim_adam *opt, const optim_group_step *steps,
             int stride = u->g->d.row_stride, cols = u->g->d.cols, ncols = u->ncols;
             float *p = u->p + (size_t)r * stride, *m = u->g->m + (size_t)r * cols, *v = u->g->v + (size_t)r * cols;
             const float *gr = u->gr + (size_t)r * stride;
-            float step_size = u->row_lr ? u->step_size * u->row_lr[r] : u->step_size;
+            float step_size = u->boost_rows && u->boost_rows[r] ? u->step_size * u->boost : u->step_size;
             adam_span(p, gr, m, v, ncols, b1, b2, eps, step_size, u->inv_sqrt_c2);
         }
     return PG_OK;
@@ -200,7 +201,7 @@ pg_status optim_adam_step_gaussians(optim_adam *opt, pg_gaussians *g, const pg_g
     optim_group_step sh[2];
     int n = 0;
     for (int i = OPTIM_G_SH_DC; i <= OPTIM_G_SH_REST; i++)
-        if (lr[i] > 0) sh[n++] = (optim_group_step){ i, P[i], G[i], lr[i], opt->g[i].d.cols, NULL };
+        if (lr[i] > 0) sh[n++] = (optim_group_step){ i, P[i], G[i], lr[i], opt->g[i].d.cols, NULL, 1.0f };
     return optim_adam_step_groups(opt, sh, n);
 }
 

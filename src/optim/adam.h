@@ -24,6 +24,8 @@
 #ifndef PG_ADAM_H
 #define PG_ADAM_H
 
+#include <stdint.h>
+
 #include "core/status.h"
 #include "splat/gaussians.h"
 
@@ -65,14 +67,15 @@ void optim_adam_destroy(optim_adam *opt);
 pg_status optim_adam_step_group(optim_adam *opt, int gi, float *param, const float *grad, float lr);
 /* One group's part of optim_adam_step_groups: param and grad are the full (rows, row_stride)
  * arrays; only the first `cols` (0..the group's cols) columns of each row are updated.
- * row_lr (rows), when not NULL, multiplies lr row by row. */
+ * Rows r with boost_rows[r] != 0 (boost_rows (rows) may be NULL) step at lr * boost. */
 typedef struct {
     int group;
     float *param;
     const float *grad;
     float lr;
     int cols;
-    const float *row_lr;
+    const uint8_t *boost_rows;
+    float boost;
 } optim_group_step;
 
 enum { OPTIM_MAX_GROUP_STEPS = 8 };

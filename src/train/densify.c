@@ -42,9 +42,6 @@ pg_status train_ensure_side(train_session *s, int n)
     float *h = realloc(s->filter_saved, (size_t)nc * SPLAT_FILTER3D_SAVED * sizeof(float));
     if (!h) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
     s->filter_saved = h;
-    float *lr = realloc(s->row_lr, (size_t)nc * sizeof(float));
-    if (!lr) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
-    s->row_lr = lr;
     size_t old = (size_t)s->side_cap, add = (size_t)(nc - s->side_cap);
     memset(s->is_static + old, 0, add);
     memset(s->grad_accum + old, 0, add * sizeof(float));

@@ -117,7 +117,6 @@ void train_session_destroy(train_session *s)
     free(s->idx);
     free(s->filter_var);
     free(s->filter_saved);
-    free(s->row_lr);
     if (s->moving)
         for (int v = 0; v < s->ts->num_views; v++) free(s->moving[v]);
     free(s->moving);

@@ -66,22 +66,20 @@ static pg_status step_gaussians(train_session *s)
     const pg_gaussians *gr = &s->gg;
     float lr_means = stage_lr(s, c->lr_means, c->lr_means_final) * s->extent;
     if (lr_means > 0) PG_TRY(optim_adam_step_group(s->gopt, OPTIM_G_MEANS, g->means, gr->means, lr_means));
-    const float *row_lr = NULL;
-    if (c->lr_static_scale != 1.0f) {
-        for (int i = 0; i < g->count; i++) s->row_lr[i] = s->is_static[i] ? c->lr_static_scale : 1.0f;
-        row_lr = s->row_lr;
-    }
+    const uint8_t *st = s->is_static;
+    const float k = c->lr_static_scale;
     int deg = g->sh_degree, sh_rest_cols = (deg + 1) * (deg + 1) * 3 - 3;
     const optim_group_step all[] = {
-        {OPTIM_G_LOG_SCALES, g->log_scales, gr->log_scales, c->lr_scales, 3, row_lr},
-        {OPTIM_G_QUATS, g->quats, gr->quats, c->lr_quats, 4, row_lr},
-        {OPTIM_G_OPACITY, g->opacity, gr->opacity, c->lr_opacity, 1, row_lr},
-        {OPTIM_G_SH_DC, g->sh, gr->sh, c->lr_sh_dc, 3, row_lr},
-        {OPTIM_G_SH_REST, g->sh, gr->sh, c->lr_sh_rest, sh_rest_cols, row_lr},
+        {OPTIM_G_LOG_SCALES, g->log_scales, gr->log_scales, c->lr_scales, 3, st, k},
+        {OPTIM_G_QUATS, g->quats, gr->quats, c->lr_quats, 4, st, k},
+        {OPTIM_G_OPACITY, g->opacity, gr->opacity, c->lr_opacity, 1, st, k},
+        {OPTIM_G_SH_DC, g->sh, gr->sh, c->lr_sh_dc, 3, st, k},
+        {OPTIM_G_SH_REST, g->sh, gr->sh, c->lr_sh_rest, sh_rest_cols, st, k},
     };
-    optim_group_step run[5];
+    enum { NGROUPS = sizeof all / sizeof all[0] };
+    optim_group_step run[NGROUPS];
     int n = 0;
-    for (int i = 0; i < 5; i++)
+    for (int i = 0; i < NGROUPS; i++)
         if (all[i].lr > 0) run[n++] = all[i];
     return optim_adam_step_groups(s->gopt, run, n);
 }

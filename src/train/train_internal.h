@@ -38,7 +38,6 @@ struct train_session {
     float *filter_var;   /* (side_cap) 3D smoothing filter variance (splat/filter3d.h), from the
                           * canonical means every TRAIN_FILTER_EVERY steps and after densification */
     float *filter_saved; /* (side_cap, SPLAT_FILTER3D_SAVED) what the 3D filter's backward needs */
-    float *row_lr;       /* (side_cap) each Gaussian's learning-rate factor (train_adam.c) */
     uint8_t **moving;    /* (num_views) per real view (F, H, W) moving pixels, else NULL; may be NULL */
     int crop_view;       /* the real view whose moving region motion crops render (-1: none) */
     train_motion_regions *regions; /* (num_views) movers' boxes per frame: the crop view's and, with two
