@@ -3,8 +3,8 @@
  *
  * Layout (little-endian, written in one go to a temporary file then renamed):
  *   "PGDYCKP1"                              magic
- *   u32 version (8), u32 flags (bit 0: optimiser state present), u32 config text length, config
- *   text ("key=value\n" lines)
+ *   u32 version (8), u32 flags (bit 0: optimiser state present; bit 1: the parameters' average), u32
+ *   config text length, config text ("key=value\n" lines)
  *   i32 iter, fine, frames, width, height, num_views; u64 rng[4]
  *   f32 extent, unit, center[3], max_disp, bg[3]    (unit: the user's length per trainer length)
  *   i32 N, sh_degree; Gaussians (means, log_scales, quats, opacity, sh for N rows)
@@ -15,6 +15,8 @@
  *   if fine: network config (f32 aabb[6], i32 width, res, tres, channels, head_width, time_coarsen, u64 seed),
  *       u64 P, f32 params[P], with optimiser state: Adam of the network: i32 step[2], then per
  *       group m, v (groups HexPlane grids [0, grid_end) and MLP [grid_end, P))
+ *   with the average flag (bit 1, only with optimiser state): the parameters' moving average
+ *       (average.c): Gaussians as above for N rows, then if fine f32 params[P]
  *   "PGEND\0\0\0", u32 CRC-32 (zlib) of every byte before it
  * The CRC is checked before anything is parsed, and every field is range-checked before it sizes
  * an allocation, so a damaged or crafted file fails with one message. Adam sections are the optimiser's groups in order (src/optim/adam). Nothing time- or
@@ -41,6 +43,7 @@
 #define CKPT_END "PGEND\0\0\0"
 #define CKPT_VERSION 8u
 #define CKPT_HAS_OPTIMIZER 1u
+#define CKPT_HAS_AVERAGE 2u /* only with the optimiser state */
 #define CKPT_MAX_STEP 100000000 /* iterations and Adam steps beyond this are corruption */
 #define SH_ROW (PG_SH_COEFFS * 3)
 #define GAUSS_FLOATS (3 + 3 + 4 + 1 + SH_ROW) /* per Gaussian, also the Adam columns per row */
@@ -103,7 +106,7 @@ static void config_text(const train_config *c, char *out, size_t size)
              "opacity_reset_every=%d\ndensify_grad=%.9g\npercent_dense=%.9g\nprune_opacity=%.9g\n"
              "prune_big_scale=%.9g\nuse_static_flags=%d\nuse_frustum_cull=%d\nstatic_check_every=%d\n"
              "static_eps=%.9g\ndeform_width=%d\ndeform_res=%d\ndeform_tres=%d\ndeform_channels=%d\n"
-             "deform_head_width=%d\ndeform_time_coarsen=%d\nreal_weight=%.9g\nmoving_weight=%.9g\nproxy_moving_weight=%.9g\ntimes_per_step=%d\nmotion_crops=%d\nlr_static_scale=%.9g\n",
+             "deform_head_width=%d\ndeform_time_coarsen=%d\nreal_weight=%.9g\nmoving_weight=%.9g\nproxy_moving_weight=%.9g\ntimes_per_step=%d\nmotion_crops=%d\nlr_static_scale=%.9g\naverage_decay=%.9g\n",
              c->iters, c->coarse_iters, (unsigned long long)c->seed, c->max_gaussians, c->init_points, c->views_per_step,
              c->sh_max_degree, c->sh_ramp_every, c->bg[0], c->bg[1], c->bg[2], c->lambda_dssim, c->lambda_depth,
              c->reg_tv, c->reg_time, c->reg_l1, c->lr_means, c->lr_means_final, c->lr_scales, c->lr_quats,
@@ -111,7 +114,7 @@ static void config_text(const train_config *c, char *out, size_t size)
              c->densify_from, c->densify_until, c->densify_every, c->opacity_reset_every, c->densify_grad,
              c->percent_dense, c->prune_opacity, c->prune_big_scale, c->use_static_flags, c->use_frustum_cull,
              c->static_check_every, c->static_eps, c->deform_width, c->deform_res, c->deform_tres,
-             c->deform_channels, c->deform_head_width, c->deform_time_coarsen, c->real_weight, c->moving_weight, c->proxy_moving_weight, c->times_per_step, c->motion_crops, c->lr_static_scale);
+             c->deform_channels, c->deform_head_width, c->deform_time_coarsen, c->real_weight, c->moving_weight, c->proxy_moving_weight, c->times_per_step, c->motion_crops, c->lr_static_scale, c->average_decay);
 }
 
 static int cfg_get(const char *text, const char *key, char *val, size_t size)
@@ -144,7 +147,7 @@ static void config_parse(const char *text, train_config *c)
     GI(densify_until); GI(densify_every); GI(opacity_reset_every); GF(densify_grad); GF(percent_dense);
     GF(prune_opacity); GF(prune_big_scale); GI(use_static_flags); GI(use_frustum_cull);
     GI(static_check_every); GF(static_eps); GI(deform_width); GI(deform_res); GI(deform_tres);
-    GI(deform_channels); GI(deform_head_width); GI(deform_time_coarsen); GF(real_weight); GF(moving_weight); GF(proxy_moving_weight); GI(times_per_step); GI(motion_crops); GF(lr_static_scale);
+    GI(deform_channels); GI(deform_head_width); GI(deform_time_coarsen); GF(real_weight); GF(moving_weight); GF(proxy_moving_weight); GI(times_per_step); GI(motion_crops); GF(lr_static_scale); GF(average_decay);
 #undef GI
 #undef GF
     if (cfg_get(text, "seed", v, sizeof v)) c->seed = strtoull(v, NULL, 10);
@@ -158,7 +161,8 @@ pg_status train_checkpoint_write(train_session *s, const char *path, int with_op
     config_text(&s->cfg, text, sizeof text);
     put(&b, CKPT_MAGIC, 8);
     put_i32(&b, (int32_t)CKPT_VERSION);
-    put_i32(&b, with_optimizer ? (int32_t)CKPT_HAS_OPTIMIZER : 0);
+    const int with_average = with_optimizer && s->avg_on;
+    put_i32(&b, (int32_t)((with_optimizer ? CKPT_HAS_OPTIMIZER : 0) | (with_average ? CKPT_HAS_AVERAGE : 0)));
     put_i32(&b, (int32_t)strlen(text));
     put(&b, text, strlen(text));
     put_i32(&b, s->iter);
@@ -199,6 +203,10 @@ pg_status train_checkpoint_write(train_session *s, const char *path, int with_op
         put_u64(&b, P);
         put(&b, train_net_params(s->net), (size_t)P * 4);
         if (with_optimizer) put_adam(&b, s->nopt);
+    }
+    if (with_average) {
+        put_gaussians(&b, &s->avg_g, n);
+        if (s->fine) put(&b, s->avg_net, train_net_num_params(s->net) * 4);
     }
     put(&b, CKPT_END, 8);
     if (!b.failed) put_i32(&b, (int32_t)crc32_z(crc32(0L, Z_NULL, 0), b.data, b.size));
@@ -291,6 +299,7 @@ typedef struct {
     train_config cfg;
     int iter, fine, frames, width, height, num_views;
     int optimizer; /* the file holds the optimiser state */
+    int average;   /* and the parameters' moving average */
     uint64_t rng[4];
     float extent, unit, center[3], max_disp, bg[3];
     int n, sh_degree;
@@ -319,8 +328,10 @@ static pg_status read_header(rd *r, const char *path, ckpt_header *h)
 {
     r->off = 12; /* magic and version: checked with the CRC */
     uint32_t flags = (uint32_t)get_i32(r);
-    if (flags & ~CKPT_HAS_OPTIMIZER) return pg_fail(PG_ERR_FORMAT, "%s: unknown checkpoint flags %#x", path, flags);
+    if ((flags & ~(CKPT_HAS_OPTIMIZER | CKPT_HAS_AVERAGE)) || ((flags & CKPT_HAS_AVERAGE) && !(flags & CKPT_HAS_OPTIMIZER)))
+        return pg_fail(PG_ERR_FORMAT, "%s: unknown checkpoint flags %#x", path, flags);
     h->optimizer = (int)(flags & CKPT_HAS_OPTIMIZER);
+    h->average = (int)((flags & CKPT_HAS_AVERAGE) != 0);
     int32_t tl = get_i32(r);
     if (tl < 0 || (size_t)tl > r->size - r->off) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint", path);
     char *text = pg_malloc((size_t)tl + 1, "checkpoint config");
@@ -403,6 +414,26 @@ static pg_status read_net(rd *r, const char *path, train_net_config *nc, train_n
     return PG_OK;
 }
 
+/* The parameters' moving average of a periodic checkpoint into the session (none: it restarts). */
+static pg_status read_average(rd *r, const char *path, train_session *s, const ckpt_header *h)
+{
+    s->avg_on = 0;
+    if (!h->average) return PG_OK;
+    size_t P = h->fine ? train_net_num_params(s->net) : 0;
+    if ((r->size - r->off) / 4 < (size_t)h->n * GAUSS_FLOATS + P)
+        return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (parameter average)", path);
+    PG_TRY(splat_gaussians_copy(&s->g, &s->avg_g)); /* sized like the Gaussians, then overwritten */
+    get_gaussians(r, &s->avg_g, h->n);
+    PG_TRY(check_finite(&s->avg_g, h->n, path));
+    if (P) {
+        free(s->avg_net);
+        if (!(s->avg_net = pg_malloc(P * sizeof(float), "parameter average"))) return PG_ERR_NOMEM;
+        get(r, s->avg_net, P * 4);
+    }
+    s->avg_on = 1;
+    return PG_OK;
+}
+
 static pg_status check_end(rd *r, const char *path)
 {
     char end[8];
@@ -470,6 +501,7 @@ pg_status train_checkpoint_read(train_session *s, const char *path)
         if ((st = read_net(&r, path, &s->net_cfg, &s->net, s, h.optimizer))) goto done;
         s->fine = 1;
     }
+    if ((st = read_average(&r, path, s, &h))) goto done;
     st = check_end(&r, path);
 done:
     free(data);
@@ -526,6 +558,7 @@ pg_status train_model_load(const char *path, train_model *m)
         train_net_config nc;
         if ((st = read_net(&r, path, &nc, &m->net, NULL, h.optimizer))) goto done;
     }
+    if (h.average) skip(&r, ((size_t)h.n * GAUSS_FLOATS + (h.fine ? train_net_num_params(m->net) : 0)) * 4);
     st = check_end(&r, path);
     m->frames = h.frames;
     memcpy(m->bg, h.bg, sizeof h.bg);
@@ -574,6 +607,7 @@ const char *train_config_invalid(const train_config *c)
     if (c->max_gaussians < 16 || c->max_gaussians > CKPT_MAX_GAUSSIANS) return "max_gaussians";
     if (c->init_points < 1 || c->init_points > CKPT_MAX_GAUSSIANS) return "init_points";
     if (c->sh_max_degree < 0 || c->sh_max_degree > 3) return "sh_max_degree";
+    if (!(c->average_decay >= 0 && c->average_decay < 1)) return "average_decay";
     if (c->sh_ramp_every < 0 || c->densify_every < 0 || c->opacity_reset_every < 0 || c->static_check_every < 0)
         return "an interval";
     if (c->deform_width < 0 || c->deform_width > 4096 || c->deform_res < 0 || c->deform_res > 4096 ||

@@ -63,6 +63,7 @@ train_config train_default_config(void)
     c.lr_grid = 1.6e-2f;
     c.lr_grid_final = 1.6e-3f;
     c.lr_static_scale = 2.0f;
+    c.average_decay = 0.99f; /* issue 24: the last ~100 steps averaged (docs/train.md) */
     c.densify_from = 200;
     c.densify_until = 0; /* 0: train_default_densify_until(iters) */
     c.densify_every = 100;
@@ -125,6 +126,7 @@ void train_session_destroy(train_session *s)
     optim_adam_destroy(s->gopt);
     train_net_destroy(s->net);
     optim_adam_destroy(s->nopt);
+    train_average_destroy(s);
     splat_raster_destroy(s->raster);
     pg_image_destroy(&s->target);
     free(s->mask);
@@ -599,6 +601,7 @@ static pg_status check_static(train_session *s)
         s->g.opacity[i] += mean[o + 10];
         for (int a = 0; a < 48; a++) s->g.sh[(size_t)i * 48 + a] += mean[o + 11 + a];
         s->is_static[i] = 1;
+        train_average_restart(s);
     }
     (void)N;
     free(lo);
@@ -839,6 +842,7 @@ pg_status train_session_step(train_session *s)
     t0 = t1;
     s->last_loss = loss;
     s->iter++;
+    PG_TRY(train_average_update(s));
 
     int it = s->iter;
     if (c->sh_ramp_every > 0 && it % c->sh_ramp_every == 0 && s->g.sh_degree < c->sh_max_degree) s->g.sh_degree++;
@@ -874,6 +878,7 @@ pg_status train_session_run(train_session *s)
                                s->last_loss, s->last_psnr, s->g.count, ips, eta, s->fine ? "" : " (coarse)");
         }
     }
+    PG_TRY(train_average_apply(s));
     if (s->ckpt_path[0]) PG_TRY(train_checkpoint_write(s, s->ckpt_path, 0));
     return PG_OK;
 }

@@ -48,6 +48,7 @@ typedef struct {
     float lr_means, lr_means_final, lr_scales, lr_quats, lr_opacity, lr_sh_dc, lr_sh_rest;
     float lr_net, lr_net_final, lr_grid, lr_grid_final;
     float lr_static_scale; /* factor on the static Gaussians' scale/rotation/opacity/colour rates (2) */
+    float average_decay;   /* the model is this moving average of the parameters after densify_until (0.99; 0 = the last step's) */
     /* density control */
     int densify_from, densify_until, densify_every, opacity_reset_every;
     float densify_grad, percent_dense, prune_opacity, prune_big_scale;

@@ -45,6 +45,10 @@ struct train_session {
     int proxy_crop_views;          /* proxies with a moving region */
     train_net *net;
     optim_adam *nopt;    /* Adam of the network parameters: TRAIN_NET_* groups, one row */
+    /* the parameters' moving average (average.c; checkpointed with the optimiser state) */
+    int avg_on;          /* 1 once the average started */
+    pg_gaussians avg_g;  /* of the canonical Gaussians */
+    float *avg_net;      /* of the network's parameters */
 
     splat_raster *raster;
     pg_image target;     /* (H, W, 3) */
@@ -84,6 +88,12 @@ pg_status train_ensure_side(train_session *s, int n);
 pg_status train_resize_all(train_session *s, int n);
 pg_status train_densify_and_prune(train_session *s, int densify);
 void train_reset_opacity(train_session *s);
+/* average.c: after each optimiser step (from densify_until on); after the parameters changed
+ * outside the optimiser; at the end of the run (the model becomes the average) */
+pg_status train_average_update(train_session *s);
+void train_average_restart(train_session *s);
+pg_status train_average_apply(train_session *s);
+void train_average_destroy(train_session *s);
 /* checkpoint.c */
 /* with_optimizer 0 (the end of training): the model alone, a third of the bytes. */
 pg_status train_checkpoint_write(train_session *s, const char *path, int with_optimizer);
