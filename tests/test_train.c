@@ -1,9 +1,12 @@
 /* test_train.c - trainer machinery on a tiny rendered scene: training-set loader, training
  * lowers the error, checkpoint -> render gives the session's image, kill + --resume gives a
  * byte-identical final checkpoint (in process and through the CLI), clean CLI errors. */
+#include <dirent.h>
 #include <math.h>
+#include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <zlib.h>
 
@@ -556,6 +559,31 @@ int main(void)
           "CLI resume with another head width: %s", err);
     snprintf(a, sizeof a, "%s/m1/train.json", dir);
     CHECK(pg_path_exists(a), "train.json written");
+
+    /* a full disk while the checkpoint streams out (writes capped at 300 kB, EFBIG): exit 3 naming
+     * the checkpoint, and neither it nor its temporary is left */
+    {
+        struct rlimit old_lim, capped;
+        getrlimit(RLIMIT_FSIZE, &old_lim);
+        capped = old_lim;
+        capped.rlim_cur = 300000;
+        signal(SIGXFSZ, SIG_IGN);
+        setrlimit(RLIMIT_FSIZE, &capped);
+        snprintf(cmd, sizeof cmd, "train '%s' --out '%s/m3' %s", data, dir, opts);
+        int rc = test_run_cli(cmd, err, sizeof err);
+        setrlimit(RLIMIT_FSIZE, &old_lim);
+        signal(SIGXFSZ, SIG_DFL);
+        CHECK(rc == 3 && strstr(err, "model.ckpt") && strstr(err, "File too large"), "checkpoint on a full disk: exit %d, %s",
+              rc, err);
+        snprintf(a, sizeof a, "%s/m3/model.ckpt", dir);
+        CHECK(!pg_path_exists(a), "a failed checkpoint write left %s", a);
+        int temps = 0;
+        snprintf(a, sizeof a, "%s/m3", dir);
+        DIR *d = opendir(a);
+        for (struct dirent *e; d && (e = readdir(d));) temps += strstr(e->d_name, ".tmp") != NULL;
+        if (d) closedir(d);
+        CHECK(temps == 0, "a failed checkpoint write left %d temporary files", temps);
+    }
 
     /* bad input */
     CHECK(test_run_cli("train", err, sizeof err) == 2, "no args -> 2");

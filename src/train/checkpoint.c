@@ -30,6 +30,7 @@
 #include "train/train_internal.h"
 
 #include <dirent.h>
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -48,28 +49,19 @@
 #define SH_ROW (PG_SH_COEFFS * 3)
 #define GAUSS_FLOATS (3 + 3 + 4 + 1 + SH_ROW) /* per Gaussian, also the Adam columns per row */
 
+/* The checkpoint streams into its temporary file with the CRC kept as the bytes go: a copy of
+ * the model and its optimiser state in memory (growing by doubling) was up to twice the file. */
 typedef struct {
-    unsigned char *data;
-    size_t size, cap;
-    int failed;
+    FILE *fp;
+    uLong crc;
+    int failed; /* the errno of the first failed write, else 0 */
 } buf;
 
 static void put(buf *b, const void *p, size_t n)
 {
-    if (b->failed) return;
-    if (b->size + n > b->cap) {
-        size_t nc = b->cap ? b->cap : 1 << 20;
-        while (nc < b->size + n) nc *= 2;
-        unsigned char *d = realloc(b->data, nc);
-        if (!d) {
-            b->failed = 1;
-            return;
-        }
-        b->data = d;
-        b->cap = nc;
-    }
-    memcpy(b->data + b->size, p, n);
-    b->size += n;
+    if (b->failed || n == 0) return;
+    b->crc = crc32_z(b->crc, p, n);
+    if (fwrite(p, 1, n, b->fp) != n) b->failed = errno ? errno : EIO;
 }
 static void put_i32(buf *b, int32_t x) { put(b, &x, 4); }
 static void put_u64(buf *b, uint64_t x) { put(b, &x, 8); }
@@ -156,7 +148,9 @@ static void config_parse(const char *text, train_config *c)
 
 pg_status train_checkpoint_write(train_session *s, const char *path, int with_optimizer)
 {
-    buf b = {0};
+    pg_atomic_file f;
+    PG_TRY(pg_atomic_open(&f, path));
+    buf b = { f.fp, crc32(0L, Z_NULL, 0), 0 };
     char text[8192];
     config_text(&s->cfg, text, sizeof text);
     put(&b, CKPT_MAGIC, 8);
@@ -209,14 +203,13 @@ pg_status train_checkpoint_write(train_session *s, const char *path, int with_op
         if (s->fine) put(&b, s->avg_net, train_net_num_params(s->net) * 4);
     }
     put(&b, CKPT_END, 8);
-    if (!b.failed) put_i32(&b, (int32_t)crc32_z(crc32(0L, Z_NULL, 0), b.data, b.size));
+    int32_t crc = (int32_t)b.crc;
+    put(&b, &crc, 4);
     if (b.failed) {
-        free(b.data);
-        return pg_fail(PG_ERR_NOMEM, "%s: out of memory building the checkpoint", path);
+        pg_atomic_abort(&f);
+        return pg_fail(PG_ERR_ENV, "%s: write failed: %s", path, strerror(b.failed));
     }
-    pg_status st = pg_write_file_atomic(path, b.data, b.size);
-    free(b.data);
-    return st;
+    return pg_atomic_commit(&f);
 }
 
 /* ---------- reading ---------- */
