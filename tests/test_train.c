@@ -370,7 +370,7 @@ int main(void)
     }
 
     /* the parameters' average: the final model, and a resume from a checkpoint taken while
-     * averaging (densification ends at 20, killed at 33) gives the same bytes */
+     * averaging (densification ends at 15, checkpoint at 20, killed at 33) gives the same bytes */
     test_parameter_average(&ts);
     {
         train_config tc = small_config();

@@ -11,19 +11,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* avg = keep * avg + (1 - keep) * x over n floats, in blocks over the threads. */
-static void blend_into_average(float *avg, const float *x, size_t n, float keep)
-{
-    const size_t block = (size_t)1 << 14;
-    const long nb = (long)((n + block - 1) / block);
-    const float take = 1.0f - keep;
-#pragma omp parallel for schedule(static)
-    for (long b = 0; b < nb; b++) {
-        size_t lo = (size_t)b * block, hi = n - lo < block ? n : lo + block;
-        for (size_t k = lo; k < hi; k++) avg[k] = keep * avg[k] + take * x[k];
-    }
-}
-
 static int average_due(const train_session *s)
 {
     return s->cfg.average_decay > 0 && s->fine && s->iter >= s->cfg.densify_until;
@@ -41,13 +28,8 @@ pg_status train_average_update(train_session *s)
         s->avg_on = 1;
         return PG_OK;
     }
-    const size_t n = (size_t)s->g.count;
-    float *avg[5] = { s->avg_g.means, s->avg_g.log_scales, s->avg_g.quats, s->avg_g.opacity, s->avg_g.sh };
-    const float *cur[5] = { s->g.means, s->g.log_scales, s->g.quats, s->g.opacity, s->g.sh };
-    const size_t len[5] = { n * 3, n * 3, n * 4, n, n * PG_SH_COEFFS * 3 };
-    for (int a = 0; a < 5; a++) blend_into_average(avg[a], cur[a], len[a], s->cfg.average_decay);
-    blend_into_average(s->avg_net, net, P, s->cfg.average_decay);
-    s->avg_g.sh_degree = s->g.sh_degree;
+    train_blend_gaussians(&s->avg_g, &s->g, TRAIN_BLEND_AVERAGE, s->cfg.average_decay);
+    train_blend_floats(s->avg_net, net, P, TRAIN_BLEND_AVERAGE, s->cfg.average_decay);
     return PG_OK;
 }
 

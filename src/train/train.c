@@ -139,29 +139,39 @@ void train_session_destroy(train_session *s)
     free(s);
 }
 
-/* dst = src (add 0) or dst += src (add 1), every parameter: 24 MB per pass at 100k Gaussians,
- * several times per iteration, so split over the threads in blocks. */
-static void blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, int add)
+/* Every parameter pass is 24 MB at 100k Gaussians and runs several times per iteration, so it
+ * is split over the threads in blocks. */
+void train_blend_floats(float *dst, const float *src, size_t n, train_blend how, float keep)
 {
-    const size_t n = (size_t)src->count, block = (size_t)1 << 14;
+    const size_t block = (size_t)1 << 14;
+    const long nb = (long)((n + block - 1) / block);
+    const float take = 1.0f - keep;
+#pragma omp parallel for schedule(static)
+    for (long b = 0; b < nb; b++) {
+        size_t lo = (size_t)b * block, m = n - lo < block ? n - lo : block;
+        if (how == TRAIN_BLEND_COPY)
+            memcpy(dst + lo, src + lo, m * sizeof(float));
+        else if (how == TRAIN_BLEND_ADD)
+            for (size_t k = lo; k < lo + m; k++) dst[k] += src[k];
+        else
+            for (size_t k = lo; k < lo + m; k++) dst[k] = keep * dst[k] + take * src[k];
+    }
+}
+
+void train_blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, train_blend how, float keep)
+{
+    const size_t n = (size_t)src->count;
     float *d[5] = { dst->means, dst->log_scales, dst->quats, dst->opacity, dst->sh };
     const float *s[5] = { src->means, src->log_scales, src->quats, src->opacity, src->sh };
     const size_t len[5] = { n * 3, n * 3, n * 4, n, n * PG_SH_COEFFS * 3 };
-    for (int a = 0; a < 5; a++) {
-        const long nb = (long)((len[a] + block - 1) / block);
-#pragma omp parallel for schedule(static)
-        for (long b = 0; b < nb; b++) {
-            size_t lo = (size_t)b * block, m = len[a] - lo < block ? len[a] - lo : block;
-            if (add)
-                for (size_t k = lo; k < lo + m; k++) d[a][k] += s[a][k];
-            else
-                memcpy(d[a] + lo, s[a] + lo, m * sizeof(float));
-        }
-    }
-    if (!add) dst->sh_degree = src->sh_degree;
+    for (int a = 0; a < 5; a++) train_blend_floats(d[a], s[a], len[a], how, keep);
+    if (how != TRAIN_BLEND_ADD) dst->sh_degree = src->sh_degree;
 }
 
-static void copy_gaussians(pg_gaussians *dst, const pg_gaussians *src) { blend_gaussians(dst, src, 0); }
+static void copy_gaussians(pg_gaussians *dst, const pg_gaussians *src)
+{
+    train_blend_gaussians(dst, src, TRAIN_BLEND_COPY, 0.0f);
+}
 
 /* Moving pixels of each real view (colour off the temporal median by > 0.1, dilated 2 px):
  * they get 1 + moving_weight times the loss weight, because they are a few percent of the frame
@@ -771,7 +781,7 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
     /* through the 3D filter, then the identity path and the deformation path for the deformed rows */
     splat_filter3d_backward(s->filter_saved, s->filter_var, s->dg.count, s->dg.log_scales, s->dg.opacity);
     if (first) copy_gaussians(&s->gg, &s->dg);
-    else blend_gaussians(&s->gg, &s->dg, 1);
+    else train_blend_gaussians(&s->gg, &s->dg, TRAIN_BLEND_ADD, 0.0f);
     if (s->fine && nd > 0) PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, &s->dg, &s->gg));
     s->timing.deform_backward += (pg_time_seconds() - t0) * 1e3;
     *loss_out = loss;

@@ -77,6 +77,11 @@ enum { TRAIN_NET_GRID, TRAIN_NET_MLP, TRAIN_NET_GROUPS };
 
 /* train.c */
 void train_update_filter(train_session *s);
+/* dst = src, dst += src, or dst = keep * dst + (1 - keep) * src (the parameters' average) */
+typedef enum { TRAIN_BLEND_COPY, TRAIN_BLEND_ADD, TRAIN_BLEND_AVERAGE } train_blend;
+void train_blend_floats(float *dst, const float *src, size_t n, train_blend how, float keep);
+/* over every parameter array of src's rows (copy and average also take its SH degree) */
+void train_blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, train_blend how, float keep);
 /* train_adam.c */
 pg_status train_adam_resize_gaussians(train_session *s, int n);
 pg_status train_adam_create_net(train_session *s);
