@@ -122,7 +122,9 @@ typedef struct {
     float max_angle;                 /* hemisphere cap angle in degrees (20) */
     float fov;                       /* single video: horizontal field of view in degrees (60) */
     float pad;                       /* outpainted margin, fraction of the larger side (< 0: default 0.3) */
-    float pose_scale;                /* pose units per depth unit (0: fitted on a dataset, 1 otherwise) */
+    float pose_scale;                /* pose units per user depth unit (0: fitted on a dataset, 1 otherwise) */
+    double depth_unit;               /* the user's length per value of the depth file (0: prepare.json's
+                                        source.depth_unit beside it, else 1) */
     const char *render;              /* proxy renderer: "mesh" (NULL: default) or "splat" (the paper's
                                         per-frame Gaussians, fitted with fit_steps / fit_block) */
     int fit_steps, fit_block;        /* splat: per-frame fit Adam steps (50), pixel block (1) */

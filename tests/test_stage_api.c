@@ -1,7 +1,8 @@
 /* test_stage_api.c - the pipeline in-process through the public stage API (include/prodygs.h):
  * stage markers skip current stages and rerun stale ones (new depth content under the same path
  * retrains), every stage runs with the thread count asked for, the seed reaches training, a bad
- * size fails before any stage, and docs/example_pipeline.c runs the stages one by one. */
+ * size fails before any stage, --depth-scale is a unit (same training, lengths scaled), and
+ * docs/example_pipeline.c runs the stages one by one. */
 #include "testlib.h"
 #include "core/fileutil.h"
 #include "io/json.h"
@@ -10,6 +11,7 @@
 
 #include <prodygs.h>
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -55,6 +57,79 @@ static void check_threads(const char *out, int threads)
     const cJSON *ev = cJSON_GetObjectItem(cJSON_GetObjectItem(m, "stages"), "evaluate");
     CHECK(io_json_number_or(ev, "threads", -1) == threads, "evaluate recorded %g threads", io_json_number_or(ev, "threads", -1));
     cJSON_Delete(m);
+}
+
+/* Proxy 0's camera centre's distance from the real one (at the origin) in OUT/model/cameras.json. */
+static double proxy_distance(const char *out)
+{
+    char path[4200];
+    snprintf(path, sizeof path, "%s/model/cameras.json", out);
+    cJSON *m = NULL;
+    if (io_json_load(path, &m) != PG_OK) return -1;
+    const cJSON *cams = cJSON_GetObjectItem(m, "cameras");
+    double dist = -1;
+    for (int k = 0; k < cJSON_GetArraySize(cams); k++) {
+        const cJSON *cam = cJSON_GetArrayItem(cams, k);
+        if (strcmp(io_json_string_or(cam, "name", ""), "proxy00") != 0) continue;
+        pg_camera pc;
+        if (io_json_to_camera(cam, path, &pc, NULL, 0) == PG_OK)
+            dist = sqrt((double)pc.t[0] * pc.t[0] + (double)pc.t[1] * pc.t[1] + (double)pc.t[2] * pc.t[2]);
+    }
+    cJSON_Delete(m);
+    return dist;
+}
+
+static int same_file(const char *a, const char *b)
+{
+    char *x = NULL, *y = NULL;
+    size_t nx = 0, ny = 0;
+    int same = pg_read_file(a, 1u << 26, &x, &nx) == PG_OK && pg_read_file(b, 1u << 26, &y, &ny) == PG_OK && nx == ny &&
+               memcmp(x, y, nx) == 0;
+    free(x);
+    free(y);
+    return same;
+}
+
+/* A single video's depth given in other units through --depth-scale trains the same model: every
+ * stage computes on the same numbers (prepare brings depth to the clip's own unit and the factor
+ * travels beside it), so the training camera's scores are equal to the bit and only the lengths
+ * the model reports (cameras.json) are K times larger. */
+static void check_depth_scale_is_a_unit(const char *frames_dir, const char *depth, const char *dir)
+{
+    static const float scales[3] = { 1.0f, 0.01f, 100.0f };
+    pg_train_report t[3];
+    double dist[3];
+    char out[3][1300], a[1500], b[1500];
+    for (int k = 0; k < 3; k++) {
+        pg_pipeline_config c;
+        pg_pipeline_defaults(&c);
+        c.input = frames_dir;
+        c.depth = depth;
+        c.depth_scale = scales[k];
+        snprintf(out[k], sizeof out[k], "%s/scale_%g", dir, scales[k]);
+        c.out = out[k];
+        c.iters = 30;
+        c.proxies = 3;
+        c.threads = 2;
+        c.render_videos = 0;
+        pg_pipeline_report r;
+        CHECK(pg_pipeline_run(&c, &r) == PG_OK, "--depth-scale %g: %s", scales[k], pg_last_error());
+        t[k] = r.train;
+        dist[k] = proxy_distance(out[k]);
+    }
+    CHECK(t[0].train_psnr > 10 && dist[0] > 0, "depth scale 1: PSNR %.2f, proxy 0 at %g", t[0].train_psnr, dist[0]);
+    for (int k = 1; k < 3; k++) {
+        CHECK(t[k].train_psnr == t[0].train_psnr && t[k].train_psnr_moving == t[0].train_psnr_moving &&
+                  t[k].train_psnr_static == t[0].train_psnr_static && t[k].gaussians == t[0].gaussians,
+              "--depth-scale %g: PSNR %.6f / moving %.6f / static %.6f, %d Gaussians; x1: %.6f / %.6f / %.6f, %d",
+              scales[k], t[k].train_psnr, t[k].train_psnr_moving, t[k].train_psnr_static, t[k].gaussians, t[0].train_psnr,
+              t[0].train_psnr_moving, t[0].train_psnr_static, t[0].gaussians);
+        snprintf(a, sizeof a, "%s/proxies/proxy01/depth.npy", out[0]);
+        snprintf(b, sizeof b, "%s/proxies/proxy01/depth.npy", out[k]);
+        CHECK(same_file(a, b), "--depth-scale %g: proxy depth differs from x1's (%s)", scales[k], b);
+        CHECK(fabs(dist[k] / (dist[0] * scales[k]) - 1) < 1e-5, "--depth-scale %g: proxy 0 at %g, x1 at %g", scales[k],
+              dist[k], dist[0]);
+    }
 }
 
 int main(void)
@@ -140,6 +215,8 @@ int main(void)
     c.proxies = 2;
     c.render_videos = 1;
     CHECK(pg_pipeline_run(&c, &r) == PG_OK && r.ran[4], "1-frame video: %s", pg_last_error());
+
+    check_depth_scale_is_a_unit(frames_dir, depth, dir);
 
     /* the documented example: the four stages one by one */
     snprintf(out, sizeof out, "%s/example", dir);

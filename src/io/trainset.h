@@ -31,7 +31,8 @@ typedef struct {
     double fps;
     float center[3], radius, near, far; /* "scene" */
     const char *input, *depth;          /* "source" paths (may be NULL) */
-    float pose_scale;
+    float pose_scale;                   /* pose units per value of the source depth file */
+    double unit;                        /* the user's length per length of the set (0 or 1: the same) */
 } io_trainset_info;
 
 const char *io_view_role_name(io_view_role role);

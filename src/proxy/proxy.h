@@ -39,6 +39,7 @@ typedef struct {
     void *frame_ctx;
     const float *depth; /* (F, H, W) aligned depth in depth units, 0 = invalid */
     float pose_scale;   /* pose units per depth unit (1 for hemisphere poses) */
+    double unit;        /* the user's length per pose unit (hemisphere: the depth's unit; 1 for dataset poses) */
     const char *real_name;
     pg_camera real;
     int num_proxies; /* may be 0: only the real (and test) cameras are written */

@@ -59,6 +59,16 @@ pg_status scene_cameras_load(const char *path, scene_cameras *sc)
         float Xc[3] = { 0, 0, d };
         pg_camera_cam_to_world(r, Xc, sc->center);
     }
+    /* a training set's lengths times source.unit are the user's (the model's) */
+    const cJSON *src = cJSON_GetObjectItem(root, "source");
+    double unit = src ? io_json_number_or(src, "unit", 1) : 1;
+    if (!(unit >= 1e-30 && unit <= 1e30)) {
+        st = pg_fail(PG_ERR_FORMAT, "%s: source.unit must be a positive number", file);
+        goto done;
+    }
+    for (int k = 0; k < sc->count; k++)
+        for (int i = 0; i < 3; i++) sc->cams[k].t[i] = (float)(sc->cams[k].t[i] * unit);
+    for (int i = 0; i < 3; i++) sc->center[i] = (float)(sc->center[i] * unit);
 done:
     cJSON_Delete(root);
     return st;

@@ -369,6 +369,7 @@ static pg_status run_proxies(pipeline_run *p, const pipeline_plan *plan, const c
     xc.fit_steps = plan->fit_steps;
     xc.render = c->proxy_render;
     xc.pose_scale = c->pose_scale;
+    PG_TRY(stage_depth_unit(depth, &xc.depth_unit)); /* in the config: a new --depth-scale reruns proxies */
     xc.frames = c->frames;
     xc.width = plan->width;
     xc.height = plan->height;

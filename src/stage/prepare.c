@@ -2,13 +2,14 @@
  * (paper 3.1); writes OUT/depth_aligned.npy, static_masks.npy, prepare.json, vis/. */
 #include "stage/stage_internal.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "core/fileutil.h"
+#include "core/mathx.h"
 #include "core/parallel.h"
-#include "core/fileutil.h"
 #include "core/status.h"
 #include "depth/depth_check.h"
 #include "depth/prepare.h"
@@ -81,6 +82,36 @@ static void warn_if_inverted(const char *path, io_depth_kind kind, const io_dept
                 "if larger values mean farther, pass --depth-kind depth", path, 100 * share);
 }
 
+/* Brings the depth to a unit of its own (the clip's median valid depth = 1), whatever the file's
+ * units and --depth-scale, so every stage after this one computes on the same numbers for the same
+ * scene: a unit change cannot move a rounding, a threshold or a densification decision. The
+ * factor back to the user's units (K m for depth, m / K for disparity, K = --depth-scale) is
+ * returned and travels beside the data (prepare.json's source.depth_unit). */
+static pg_status normalize_depth_unit(const char *path, io_depth *d, io_depth_kind kind, float scale, double *unit)
+{
+    size_t total = (size_t)d->frames * d->width * d->height, stride = total / 65536 + 1, n = 0;
+    float *sample = pg_malloc((total / stride + 1) * sizeof(float), "depth median");
+    if (!sample) return PG_ERR_NOMEM;
+    for (size_t i = 0; i < total; i += stride)
+        if (d->data[i] > 0) sample[n++] = d->data[i];
+    float median = 0;
+    if (n > 0) {
+        qsort(sample, n, sizeof(float), pg_cmp_float);
+        median = sample[n / 2];
+    }
+    free(sample);
+    if (!(median > 0) || !isfinite(median)) {
+        /* too sparse for the sample: the largest value is still a length of the scene */
+        median = d->max;
+        if (!(median > 0)) return pg_fail(PG_ERR_FORMAT, "%s: no valid depth in any frame", path);
+    }
+    for (size_t i = 0; i < total; i++) d->data[i] /= median;
+    d->min /= median;
+    d->max /= median;
+    *unit = kind == IO_DEPTH_KIND_DISPARITY ? (double)median / scale : (double)median * scale;
+    return PG_OK;
+}
+
 /* depth_model: the depth stage writes OUT/depth.npy (resumable, skipped when current), then
  * prepare runs on it as on any depth file. */
 static pg_status prepare_with_model(const pg_prepare_config *c, pg_prepare_report *r)
@@ -145,13 +176,14 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
     memset(&depth, 0, sizeof depth);
     depth_prepare_result res;
     memset(&res, 0, sizeof res);
+    double depth_unit = 1;
     pg_status st = frames ? PG_OK : pg_fail(PG_ERR_NOMEM, "prepare: out of memory for %d frames", F);
     for (int t = 0; t < F && !st; t++) st = io_dataset_frame(ds, cam, t, &frames[t]);
     io_dataset_release(ds, -1);
     if (!st) {
         io_depth_options o = io_depth_defaults();
         o.kind = dkind;
-        o.scale = c->depth_scale;
+        o.scale = 1; /* --depth-scale is a unit: it travels as source.depth_unit */
         o.width = W;
         o.height = H;
         o.count = c->frames; /* the first N depth frames go with the first N video frames */
@@ -160,6 +192,7 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
         if (!st && !(depth.max > 0))
             st = pg_fail(PG_ERR_FORMAT, "%s: no valid depth in any frame (every value is NaN, inf or <= 0)", c->depth);
         if (!st) warn_if_inverted(c->depth, dkind, &depth);
+        if (!st) st = normalize_depth_unit(c->depth, &depth, dkind, c->depth_scale, &depth_unit);
     }
     /* Flow fields are kept only for the pictures; skip them when they would be large. */
     if (popt.keep_flow && (double)F * W * H * 2 * sizeof(float) > 1024.0 * 1024 * 1024) popt.keep_flow = 0;
@@ -171,6 +204,7 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
         cJSON_AddStringToObject(src, "depth", c->depth);
         cJSON_AddStringToObject(src, "depth_kind", c->depth_kind ? c->depth_kind : "depth");
         cJSON_AddNumberToObject(src, "depth_scale", c->depth_scale);
+        cJSON_AddNumberToObject(src, "depth_unit", depth_unit);
         cJSON_AddNumberToObject(src, "depth_invalid_input_pixels", (double)depth.invalid);
         cJSON_AddNumberToObject(src, "fps", io_dataset_fps(ds));
         char *text = cJSON_PrintUnformatted(src);

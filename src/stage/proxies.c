@@ -122,6 +122,7 @@ cJSON *stage_proxies_config_json(const pg_proxies_config *c)
     cJSON_AddNumberToObject(j, "fov", c->fov);
     cJSON_AddNumberToObject(j, "pad", c->pad);
     cJSON_AddNumberToObject(j, "pose_scale", c->pose_scale);
+    cJSON_AddNumberToObject(j, "depth_unit", c->depth_unit);
     cJSON_AddStringToObject(j, "render", c->render ? c->render : "mesh");
     cJSON_AddNumberToObject(j, "fit_steps", c->fit_steps);
     cJSON_AddNumberToObject(j, "fit_block", c->fit_block);
@@ -149,6 +150,7 @@ static pg_status check_config(const pg_proxies_config *c, int *dataset_poses)
     if (c->pad > 1 || (c->pad < 0 && c->pad != -1)) return pg_fail(PG_ERR_ARG, "proxies: --pad %g not in [0, 1]", c->pad);
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "proxies: --frames %d is negative", c->frames);
     if (c->pose_scale < 0 || !isfinite(c->pose_scale)) return pg_fail(PG_ERR_ARG, "proxies: --pose-scale must be positive");
+    if (c->depth_unit < 0 || !isfinite(c->depth_unit)) return pg_fail(PG_ERR_ARG, "proxies: depth unit must be positive");
     PG_TRY(stage_check_size("proxies", c->width, c->height));
     PG_TRY(stage_check_threads("proxies", c->threads));
     *dataset_poses = -1;
@@ -239,6 +241,12 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
                        "multi-camera input): nothing was recorded where hemisphere proxies look from", input);
     }
 
+    double depth_unit = c->depth_unit;
+    if (!(depth_unit > 0)) st = stage_depth_unit(depth_path, &depth_unit);
+    if (st) {
+        io_dataset_close(ds);
+        return st;
+    }
     io_depth_options zo = io_depth_defaults();
     zo.width = W;
     zo.height = H;
@@ -285,12 +293,18 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
      * the depth's scale). Either way the scale is fitted on the other cameras' frame 0. */
     const int use_others = use_dataset_poses || ntest > 0;
     if (use_others) other_cameras(ds, ncam, train_cam, tests, ntest, cams, names, idx);
+    /* Hemisphere poses keep the depth file's numbers (the same for any --depth-scale) and carry
+     * the user's unit beside them; a given pose scale is per user depth unit. */
+    double length_unit = 1;
     if (pose_scale == 0 && use_others && nother > 0) {
         st = fit_scale(ds, train_cam, &real, depth.data, nother, idx, cams, &pose_scale, &rep);
         if (st) { free(tcams); goto done; }
         fitted = 1;
     } else if (pose_scale == 0) {
         pose_scale = 1;
+        length_unit = depth_unit;
+    } else {
+        pose_scale = (float)(pose_scale * depth_unit);
     }
     if (use_dataset_poses && num >= 0 && num < M) {
         /* keep the num cameras closest in viewing direction to the real one (stable order) */
@@ -313,7 +327,7 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
     if (st) { free(tcams); goto done; }
     job.frames = F; job.width = W; job.height = H; job.fps = io_dataset_fps(ds);
     job.get_frame = source_frame; job.frame_ctx = &src;
-    job.depth = depth.data; job.pose_scale = pose_scale;
+    job.depth = depth.data; job.pose_scale = pose_scale; job.unit = length_unit;
     job.real_name = io_dataset_camera_name(ds, train_cam); job.real = real;
     job.num_proxies = M; job.proxy_names = names; job.proxies = cams;
     job.num_tests = ntest; job.test_names = tnames; job.tests = tcams;
@@ -344,7 +358,7 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
     r->reused = res.frames_skipped;
     r->proxies = M;
     snprintf(r->poses, sizeof r->poses, "%s", use_dataset_poses ? "dataset" : "hemisphere");
-    r->pose_scale = pose_scale;
+    r->pose_scale = pose_scale / depth_unit; /* per user depth unit, as --pose-scale */
     r->pose_scale_fitted = fitted;
     r->pose_scale_cost = rep.cost;
     r->mean_valid_fraction = res.mean_valid_fraction;

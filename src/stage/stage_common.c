@@ -1,8 +1,12 @@
 /* stage_common.c - thread setup and size checks shared by the stages. */
 #include "stage/stage_internal.h"
 
+#include <math.h>
+
+#include "core/fileutil.h"
 #include "core/parallel.h"
 #include "core/status.h"
+#include "io/json.h"
 #include "deform/hexplane.h"
 #include "train/train.h"
 
@@ -44,4 +48,23 @@ pg_status stage_check_trainer_options(const char *stage, int deform_width, int d
     if (proxy_moving_weight != -1 && !(proxy_moving_weight >= 0 && proxy_moving_weight <= 1))
         return pg_fail(PG_ERR_ARG, "%s: --proxy-moving-weight must be in [0, 1] (got %g)", stage, proxy_moving_weight);
     return PG_OK;
+}
+
+pg_status stage_depth_unit(const char *depth_path, double *unit)
+{
+    char path[4200];
+    *unit = 1;
+    PG_TRY(pg_path_join_beside(path, sizeof path, depth_path, "prepare.json"));
+    if (!pg_path_exists(path)) return PG_OK;
+    cJSON *root;
+    PG_TRY(io_json_load(path, &root));
+    const cJSON *src = cJSON_GetObjectItemCaseSensitive(root, "source");
+    const cJSON *u = cJSON_IsObject(src) ? cJSON_GetObjectItemCaseSensitive(src, "depth_unit") : NULL;
+    pg_status st = PG_OK;
+    if (u && !(cJSON_IsNumber(u) && isfinite(u->valuedouble) && u->valuedouble >= 1e-30 && u->valuedouble <= 1e30))
+        st = pg_fail(PG_ERR_FORMAT, "%s: source.depth_unit must be a positive number", path);
+    else if (u)
+        *unit = u->valuedouble;
+    cJSON_Delete(root);
+    return st;
 }

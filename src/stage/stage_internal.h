@@ -23,6 +23,11 @@ pg_status stage_check_size(const char *stage, int width, int height);
 pg_status stage_check_trainer_options(const char *stage, int deform_width, int deform_head_width,
                                       int deform_time_coarsen, int motion_crops, float proxy_moving_weight);
 
+/* The user's length per value of a depth file: prepare.json beside a prepare stage's
+ * depth_aligned.npy records it (source.depth_unit: the clip's own unit times --depth-scale); 1
+ * for a depth file from elsewhere. */
+pg_status stage_depth_unit(const char *depth_path, double *unit);
+
 /* The settings that decide a stage's result, as JSON (threads and output paths left out), so
  * a marker can tell whether a finished stage is still current. */
 cJSON *stage_prepare_config_json(const pg_prepare_config *c);

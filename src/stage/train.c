@@ -185,7 +185,8 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
 }
 
 /* OUT/cameras.json: the set's cameras and scene box in the trainset.json layout (no image
- * paths), which renders and evaluations read next to the checkpoint. */
+ * paths) and in the user's units (the model's), which renders and evaluations read next to the
+ * checkpoint. */
 static pg_status write_cameras(const char *dir, const train_set *ts)
 {
     io_trainset_camera *cams = pg_calloc((size_t)ts->num_views, sizeof *cams, "model cameras");
@@ -193,7 +194,7 @@ static pg_status write_cameras(const char *dir, const train_set *ts)
     int real = -1;
     for (int i = 0; i < ts->num_views; i++) {
         snprintf(cams[i].name, sizeof cams[i].name, "%s", ts->views[i].name);
-        cams[i].cam = ts->views[i].cam;
+        cams[i].cam = train_set_user_camera(ts, i);
         cams[i].role = ts->views[i].role;
         if (real < 0 && cams[i].role == IO_ROLE_REAL) real = i;
     }
@@ -202,14 +203,15 @@ static pg_status write_cameras(const char *dir, const train_set *ts)
     info.width = ts->width;
     info.height = ts->height;
     info.fps = ts->fps;
-    info.near = ts->near_z;
-    info.far = ts->far_z;
+    const float unit = train_set_unit(ts);
+    info.near = ts->near_z * unit;
+    info.far = ts->far_z * unit;
     if (ts->has_scene) {
-        memcpy(info.center, ts->center, sizeof info.center);
-        info.radius = ts->radius;
+        for (int k = 0; k < 3; k++) info.center[k] = ts->center[k] * unit;
+        info.radius = ts->radius * unit;
     } else if (real >= 0) {
         /* no scene box: look at the middle of the depth range (1 unit ahead without one) */
-        float d = ts->far_z > ts->near_z && ts->near_z > 0 ? 0.5f * (ts->near_z + ts->far_z) : 1.0f;
+        float d = info.far > info.near && info.near > 0 ? 0.5f * (info.near + info.far) : unit;
         float ahead[3] = { 0, 0, d };
         pg_camera_cam_to_world(&cams[real].cam, ahead, info.center);
         info.radius = d;
