@@ -65,6 +65,18 @@ pg_status io_json_get_number(const cJSON *obj, const char *key, const char *what
     return PG_OK;
 }
 
+pg_status io_json_get_source_unit(const cJSON *root, const char *key, const char *what, double *out)
+{
+    const cJSON *src = cJSON_GetObjectItemCaseSensitive(root, "source");
+    const cJSON *u = cJSON_IsObject(src) ? cJSON_GetObjectItemCaseSensitive(src, key) : NULL;
+    *out = 1;
+    if (!u) return PG_OK;
+    if (!cJSON_IsNumber(u) || !(u->valuedouble >= 1e-30 && u->valuedouble <= 1e30))
+        return pg_fail(PG_ERR_FORMAT, "%s: source.%s must be a positive number", what, key);
+    *out = u->valuedouble;
+    return PG_OK;
+}
+
 pg_status io_json_get_int(const cJSON *obj, const char *key, const char *what, int lo, int hi, int *out)
 {
     double d;

@@ -32,6 +32,9 @@ pg_status io_json_get_floats(const cJSON *obj, const char *key, const char *what
 /* Optional number/string with a default when the key is absent or has another type. */
 double io_json_number_or(const cJSON *obj, const char *key, double def);
 const char *io_json_string_or(const cJSON *obj, const char *key, const char *def);
+/* Optional length factor at root.source.key (prepare.json's depth_unit, a training set's unit):
+ * 1 when absent, else a number in [1e-30, 1e30]. */
+pg_status io_json_get_source_unit(const cJSON *root, const char *key, const char *what, double *out);
 /* Adds a float array (NULL on allocation failure). */
 cJSON *io_json_float_array(const float *v, int n);
 

@@ -60,12 +60,8 @@ pg_status scene_cameras_load(const char *path, scene_cameras *sc)
         pg_camera_cam_to_world(r, Xc, sc->center);
     }
     /* a training set's lengths times source.unit are the user's (the model's) */
-    const cJSON *src = cJSON_GetObjectItem(root, "source");
-    double unit = src ? io_json_number_or(src, "unit", 1) : 1;
-    if (!(unit >= 1e-30 && unit <= 1e30)) {
-        st = pg_fail(PG_ERR_FORMAT, "%s: source.unit must be a positive number", file);
-        goto done;
-    }
+    double unit;
+    if ((st = io_json_get_source_unit(root, "unit", file, &unit))) goto done;
     for (int k = 0; k < sc->count; k++)
         for (int i = 0; i < 3; i++) sc->cams[k].t[i] = (float)(sc->cams[k].t[i] * unit);
     for (int i = 0; i < 3; i++) sc->center[i] = (float)(sc->center[i] * unit);

@@ -1,8 +1,6 @@
 /* stage_common.c - thread setup and size checks shared by the stages. */
 #include "stage/stage_internal.h"
 
-#include <math.h>
-
 #include "core/fileutil.h"
 #include "core/parallel.h"
 #include "core/status.h"
@@ -58,13 +56,7 @@ pg_status stage_depth_unit(const char *depth_path, double *unit)
     if (!pg_path_exists(path)) return PG_OK;
     cJSON *root;
     PG_TRY(io_json_load(path, &root));
-    const cJSON *src = cJSON_GetObjectItemCaseSensitive(root, "source");
-    const cJSON *u = cJSON_IsObject(src) ? cJSON_GetObjectItemCaseSensitive(src, "depth_unit") : NULL;
-    pg_status st = PG_OK;
-    if (u && !(cJSON_IsNumber(u) && isfinite(u->valuedouble) && u->valuedouble >= 1e-30 && u->valuedouble <= 1e30))
-        st = pg_fail(PG_ERR_FORMAT, "%s: source.depth_unit must be a positive number", path);
-    else if (u)
-        *unit = u->valuedouble;
+    pg_status st = io_json_get_source_unit(root, "depth_unit", path, unit);
     cJSON_Delete(root);
     return st;
 }

@@ -256,20 +256,6 @@ static const char *json_str_or_null(const cJSON *obj, const char *key)
     return cJSON_IsString(it) ? it->valuestring : NULL;
 }
 
-/* source.unit: the user's length per length of the set (hemisphere proxies keep the depth file's
- * numbers and carry --depth-scale here); 1 when absent. */
-static pg_status read_source_unit(const cJSON *root, const char *path, float *unit)
-{
-    const cJSON *src = cJSON_GetObjectItemCaseSensitive(root, "source");
-    const cJSON *u = cJSON_IsObject(src) ? cJSON_GetObjectItemCaseSensitive(src, "unit") : NULL;
-    *unit = 1;
-    if (!u) return PG_OK;
-    if (!cJSON_IsNumber(u) || !(u->valuedouble >= 1e-30 && u->valuedouble <= 1e30))
-        return pg_fail(PG_ERR_FORMAT, "%s: source.unit must be a positive number", path);
-    *unit = (float)u->valuedouble;
-    return PG_OK;
-}
-
 pg_status train_set_load(const char *dir, train_set *ts)
 {
     memset(ts, 0, sizeof *ts);
@@ -306,7 +292,10 @@ pg_status train_set_load(const char *dir, train_set *ts)
             if (!io_json_get_number(scene, "far", path, &fz)) ts->far_z = (float)fz;
         }
     }
-    if ((st = read_source_unit(root, path, &ts->unit))) goto done;
+    /* source.unit: hemisphere proxies keep the depth file's numbers and carry --depth-scale here */
+    double unit;
+    if ((st = io_json_get_source_unit(root, "unit", path, &unit))) goto done;
+    ts->unit = (float)unit;
     const cJSON *cams = cJSON_GetObjectItemCaseSensitive(root, "cameras");
     if (!cJSON_IsArray(cams) || cJSON_GetArraySize(cams) < 1) {
         st = pg_fail(PG_ERR_FORMAT, "%s: \"cameras\" must be a non-empty array", path);
