@@ -304,6 +304,7 @@ typedef struct {
     int deform_time_coarsen;          /* -1: the trainer's default (2) */
     int motion_crops;                 /* motion crops per fine step (-1: the trainer's default) */
     float proxy_moving_weight;        /* loss weight of proxy pixels showing the movers (-1: the trainer's, 1) */
+    float real_weight;                /* share of a step's loss on the real view (-1: the trainer's, 0.5) */
     int threads;                      /* 0: all cores; every stage uses this count */
     int seed;                         /* (1) */
     int evaluate;                     /* score the test cameras into OUT/metrics.json, report.md */

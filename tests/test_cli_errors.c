@@ -297,6 +297,7 @@ int main(void)
     /* train and run/eval share one check and one wording for the trainer's options */
     expect_error("train @/ds --out @/t --motion-crops 99", "train: --motion-crops must be in 0..16 (got 99)");
     expect_error("train @/ds --out @/t --proxy-moving-weight 2", "train: --proxy-moving-weight must be in [0, 1] (got 2)");
+    expect_error("train @/ds --out @/t --real-weight 1.5", "train: --real-weight must be in [0, 1] (got 1.5)");
     expect_error("train @/ds --out @/t --depth @/trunc.npy", "trunc.npy");
     expect_error("train @/ds --out @/t --iters 2 --depth @/wrongshape.npy", "wrongshape.npy: depth is (3, 5, 5) but the frames are (3, 12, 16)");
     expect_error("train @/ds --out @/t --iters 2 --depth @/nan.npy", "nan.npy: no valid depth");
@@ -341,6 +342,8 @@ int main(void)
     expect_error(a, "--max-angle");
     snprintf(a, sizeof a, "eval @/ds %s --out @/v --proxy-moving-weight 2", dep);
     expect_error(a, "--proxy-moving-weight must be in [0, 1] (got 2)");
+    snprintf(a, sizeof a, "eval @/ds %s --out @/v --real-weight -0.5", dep);
+    expect_error(a, "pipeline: --real-weight must be in [0, 1] (got -0.5)");
     snprintf(a, sizeof a, "eval @/ds %s --out @/v --motion-crops 99", dep);
     expect_error(a, "pipeline: --motion-crops must be in 0..16 (got 99)");
     snprintf(a, sizeof a, "eval @/ds %s --out @/v --proxy-render foo", dep);
