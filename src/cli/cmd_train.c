@@ -35,7 +35,7 @@ int cmd_train(int argc, char **argv)
         {"--times-per-step", CLI_INT, &c.times_per_step, "times (each its own deformation and views) per optimiser step (1)"},
         {"--views-per-step", CLI_INT, &c.views_per_step, "views trained per deformation: the real view + proxies of one time (4)"},
         {"--proxy-moving-weight", CLI_FLOAT, &c.proxy_moving_weight, "loss weight of proxy pixels that show the real view's moving pixels (1)"},
-        {"--real-weight", CLI_FLOAT, &c.real_weight, "share of a step's loss on the real view when proxies are in it (0.5)"},
+        {"--real-weight", CLI_FLOAT, &c.real_weight, "share of a step's loss on the real view when proxies are in it (0.75)"},
         {"--moving-weight", CLI_FLOAT, &c.moving_weight, "extra loss weight on the real view's moving pixels (9)"},
         {"--lambda-depth", CLI_FLOAT, &c.lambda_depth, "weight of the SSI depth loss (0.05)"},
         {"--lambda-dssim", CLI_FLOAT, &c.lambda_dssim, "weight of D-SSIM (0.2)"},

@@ -38,7 +38,7 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
         { "--deform-time-coarsen", CLI_INT, &c->deform_time_coarsen, "coarse HexPlane scale: one time texel per 2^K of the fine scale's (default 2; 0 = same)" },
         { "--motion-crops", CLI_INT, &c->motion_crops, "extra renders per fine step over the box around the movers, the real view and a proxy in turn (default 2; 0 = off)" },
         { "--proxy-moving-weight", CLI_FLOAT, &c->proxy_moving_weight, "loss weight of proxy pixels that show the real view's movers (default 1)" },
-        { "--real-weight", CLI_FLOAT, &c->real_weight, "share of each step's loss on the real view when proxies are in it (default 0.5)" },
+        { "--real-weight", CLI_FLOAT, &c->real_weight, "share of each step's loss on the real view when proxies are in it (default 0.75)" },
         { "--pose-scale", CLI_FLOAT, &c->pose_scale, "depth-to-pose scale instead of fitting it (dataset poses)" },
         { "--threads", CLI_INT, &c->threads, "worker threads for every stage (default: all cores)" },
         { "--seed", CLI_INT, &c->seed, "random seed (default 1)" },
