@@ -1,6 +1,7 @@
 /* test_deform.c - HexPlane sampling, Linear layers and the whole deformation network:
  * float analytic gradients vs central finite differences of double-precision references,
- * t-invariance at init, identity at init, chunking/storage/thread determinism, blob round trip.
+ * t-invariance at init, identity at init, chunking/storage/thread determinism, blob round trip,
+ * zeroed packing padding and the same bytes whatever the heap held.
  *
  * Tolerance: |g - fd| / max(|g|, |fd|, 1e-2 * max|fd|) < 1e-3 (see test_loss.c). FD steps: 1e-6
  * in double, small enough that no ReLU kink or bilinear cell edge is crossed for the random inputs
@@ -16,6 +17,9 @@
 #include "deform/mlp.h"
 #include "optim/loss_reg.h"
 
+#if defined(__GLIBC__)
+#include <malloc.h> /* mallopt(M_PERTURB) */
+#endif
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -674,6 +678,102 @@ static void test_gemm_f32(void)
     printf("gemm f32 (37x45x50): max err %.2e, epilogue %.2e, dots %.2e\n", e, eb, ed);
 }
 
+/* The packers write zeros into every padding element whatever the destination held (uninitialised
+ * bf16 padding could be NaN, and NaN * 0 is NaN in the tile products): destinations filled with
+ * 0xFFFF (a NaN) first, ragged sizes, the plain, strided and (with a bf16 backend) transposing
+ * paths of pack_a, and pack_b. */
+static void test_pack_padding(const char *name)
+{
+    enum { M = 37, K = 50, MP = 64, KP = 64, LD = 72, BN = 45 };
+    pg_rng rng;
+    pg_rng_seed(&rng, 14);
+    static float src[M * K], wide[M * 2 * K], tr[K * M]; /* a (M, K); every other column of (M, 2K); a^T */
+    static uint16_t dst[MP * LD], bp[KP * MP];
+    for (int i = 0; i < M; i++)
+        for (int k = 0; k < K; k++) {
+            src[i * K + k] = wide[i * 2 * K + 2 * k] = tr[k * M + i] = (float)pg_rng_range(&rng, -1, 1);
+            wide[i * 2 * K + 2 * k + 1] = 0.0f;
+        }
+    const float *in[3] = { src, wide, tr };
+    const long rs[3] = { K, 2 * K, 1 }, cs[3] = { 1, 2, M };
+    int bad = 0;
+    for (int v = 0; v < 3; v++) {
+        memset(dst, 0xFF, sizeof dst);
+        gemm_amx_pack_a(dst, LD, MP, KP, in[v], rs[v], cs[v], M, K);
+        for (int i = 0; i < MP; i++)
+            for (int k = 0; k < LD; k++) {
+                /* columns from Kp to the row stride are not the packer's: left as they were */
+                uint16_t want = k >= KP ? 0xFFFF : i < M && k < K ? gemm_amx_bf16(src[i * K + k]) : 0;
+                bad += dst[i * LD + k] != want;
+            }
+    }
+    /* B (37, 45) row-major -> VNNI pairs (round(37)/2, round(45), 2) */
+    const int KB = gemm_amx_round(M), NB = gemm_amx_round(BN);
+    memset(bp, 0xFF, sizeof bp);
+    gemm_amx_pack_b(bp, src, BN, 1, M, BN);
+    for (int k = 0; k < KB; k++)
+        for (int n = 0; n < NB; n++)
+            bad += bp[(k / 2) * 2 * NB + 2 * n + k % 2] != (k < M && n < BN ? gemm_amx_bf16(src[k * BN + n]) : 0);
+    CHECK(bad == 0, "%s: %d packed elements wrong (padding must be 0 whatever the buffer held)", name, bad);
+}
+
+/* Issue 27 item 3: the network's outputs and gradients must not depend on what the heap held
+ * (padding or scratch a kernel reads but nobody wrote). glibc's M_PERTURB fills every later
+ * allocation with a chosen byte; the workspace is made under three fills (off, 0x7F: bf16 and f32
+ * ~3.4e38, whose products overflow to Inf and NaN; 0xC0: -6.0) and a forward and backward with 2
+ * threads must give the same bytes. A guard: the issue's cause was the video encoder
+ * (test_io_video); the network, AMX path included (run once on a scalar tile emulator), passed. */
+static void test_heap_independent(const char *name, int bf16)
+{
+#if defined(__GLIBC__) && defined(M_PERTURB) && !defined(__SANITIZE_ADDRESS__)
+    deform_config cfg;
+    small_config(&cfg); /* ragged sizes: F = 6, W = 40, 5Wh = 60, all padded to 32 or 64 */
+    cfg.channels = 3;
+    cfg.width = 40;
+    cfg.head_width = 12;
+    cfg.bf16 = bf16;
+    const float aabb[6] = { -1, -1, -1, 1, 1, 1 };
+    deform_network *net = NULL;
+    CHECK_OK(deform_network_create(&net, &cfg, aabb));
+    if (!net) return;
+    enum { N = 300 }; /* chunks of 64: the last one holds 44 points */
+    pg_rng rng;
+    pg_rng_seed(&rng, 41);
+    randomize_planes(net, &rng);
+    const size_t P = net->num_params, NO = (size_t)N * DEFORM_OUT_DIM;
+    float *means = malloc(N * 3 * sizeof(float)), *dout = malloc(NO * sizeof(float));
+    float *ref = malloc((NO + P + N * 3) * sizeof(float)), *got = malloc((NO + P + N * 3) * sizeof(float));
+    for (int i = 0; i < N * 3; i++) means[i] = (float)pg_rng_range(&rng, -1, 1);
+    for (size_t i = 0; i < NO; i++) dout[i] = (float)pg_rng_range(&rng, -1, 1);
+    static const int fills[3] = { 0, 0x80, 0x3F }; /* M_PERTURB b fills allocations with ~b */
+    pg_set_threads(2);
+    for (int k = 0; k < 3; k++) {
+        float *o = k ? got : ref;
+        memset(o + NO + P, 0, N * 3 * sizeof(float));
+        deform_ws *ws = NULL;
+        mallopt(M_PERTURB, fills[k]);
+        pg_status st = deform_ws_create_chunked(&ws, net, N, 64);
+        if (!st) {
+            deform_network_zero_grad(net);
+            st = deform_network_forward(net, ws, means, NULL, N, 0.4f, o);
+            if (!st) st = deform_network_backward(net, ws, dout, o + NO + P);
+            memcpy(o + NO, net->grads, P * sizeof(float));
+        }
+        deform_ws_destroy(ws);
+        mallopt(M_PERTURB, 0);
+        CHECK_OK(st);
+        if (k) CHECK(memcmp(ref, got, (NO + P + N * 3) * sizeof(float)) == 0,
+                     "%s: outputs or gradients depend on the heap's contents (fill 0x%02X)", name, ~fills[k] & 0xFF);
+    }
+    pg_set_threads(1);
+    free(means); free(dout); free(ref); free(got);
+    deform_network_destroy(net);
+#else
+    (void)bf16;
+    printf("%s: heap-independence check skipped (needs glibc's M_PERTURB, not under the sanitizers)\n", name);
+#endif
+}
+
 /* The bf16 network path (backend `name`) agrees with the f32 path to bf16 accuracy, with heads of
  * head_width hidden units (0: the width, 48). */
 static void test_network_bf16(const char *name, int head_width)
@@ -843,6 +943,7 @@ int main(void)
     test_network_fd(4);
     test_network_fd(12);
     test_identity_blob_reg();
+    test_heap_independent("f32", 0);
     /* every bf16 backend this CPU can run, each forced in turn */
     /* the f32 kernels of the bf16 path need AVX-512F, which every bf16 backend implies */
     if (gemm_bf16_supported(GEMM_BF16_AVX512) || gemm_bf16_supported(GEMM_BF16_AMX)) test_gemm_f32();
@@ -854,6 +955,8 @@ int main(void)
             continue;
         }
         test_gemm_bf16(name);
+        test_pack_padding(name);
+        test_heap_independent(name, 1);
         test_network_bf16(name, 0);
         test_network_bf16(name, 24);
 #ifndef __SANITIZE_ADDRESS__ /* a training-quality check; the sanitizer pass covers the same code above */
