@@ -8,6 +8,7 @@
 #include "nn/nn_ops.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -216,9 +217,38 @@ static void test_exp_erf(void)
     CHECK(isnan(nn_exp(NAN)) && nn_exp(-1000.0f) >= 0 && nn_exp(-1000.0f) < 1e-37f, "nn_exp edge cases");
 }
 
+/* The CLI runs OpenBLAS's kernels for this CPU: Debian 12's OpenBLAS took a CPU newer than itself
+ * for an SSE3 "Prescott" (3.6x slower depth network); with AVX2 + FMA the version line must name
+ * a current core, and a user's OPENBLAS_CORETYPE is kept (no re-run loop either way). */
+static void blas_core_of_cli(const char *env, char *core, size_t size)
+{
+    char cmd[4200], line[1024] = "";
+    snprintf(cmd, sizeof cmd, "%s '%s' --version", env, PG_CLI_PATH);
+    FILE *p = popen(cmd, "r");
+    if (p && !fgets(line, sizeof line, p)) line[0] = '\0';
+    if (p) pclose(p);
+    const char *at = strstr(line, "OpenBLAS ");
+    snprintf(core, size, "%s", at ? at + 9 : "?");
+    core[strcspn(core, ";,) \n")] = '\0';
+}
+
+static void test_blas_core(void)
+{
+    char core[64];
+    blas_core_of_cli("env -u OPENBLAS_CORETYPE", core, sizeof core);
+    if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma"))
+        CHECK(strcmp(core, "Haswell") == 0 || strcmp(core, "SkylakeX") == 0 || strcmp(core, "Cooperlake") == 0 ||
+                  strcmp(core, "SapphireRapids") == 0 || strcmp(core, "Zen") == 0,
+              "CLI runs OpenBLAS core '%s' on a CPU with AVX2 + FMA", core);
+    blas_core_of_cli("OPENBLAS_CORETYPE=Prescott", core, sizeof core);
+    CHECK(strcmp(core, "Prescott") == 0, "the user's OPENBLAS_CORETYPE=Prescott gave core '%s'", core);
+    printf("OpenBLAS core of the CLI: ok\n");
+}
+
 int main(void)
 {
     pg_rng_seed(&rng, 5);
+    test_blas_core();
     test_exp_erf();
     test_conv(1, 3, 17, 13, 8, 3, 1, 1, 1, 1, 0);
     test_conv(2, 8, 15, 18, 12, 3, 2, 2, 2, 4, 1);

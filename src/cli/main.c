@@ -52,10 +52,11 @@ int main(int argc, char **argv)
         usage(stdout);
         return 0;
     }
+    cli_blas_use_cpu_kernels(argv);
     if (strcmp(argv[1], "--version") == 0 || strcmp(argv[1], "version") == 0) {
-        printf("prodygs %s (kernels: deformation network %s, rasterizer %s; force with "
-               "PG_KERNELS=amx|avx512bf16|f32, PG_RASTER=avx512|avx2|scalar)\n", PRODYGS_VERSION,
-               gemm_bf16_name(gemm_bf16_backend()), splat_kernel_name(splat_kernel_default()));
+        printf("prodygs %s (kernels: deformation network %s, rasterizer %s, OpenBLAS %s; force with "
+               "PG_KERNELS=amx|avx512bf16|f32, PG_RASTER=avx512|avx2|scalar, OPENBLAS_CORETYPE)\n", PRODYGS_VERSION,
+               gemm_bf16_name(gemm_bf16_backend()), splat_kernel_name(splat_kernel_default()), cli_blas_core());
         return 0;
     }
     cli_install_progress();
