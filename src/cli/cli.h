@@ -37,9 +37,9 @@ int cli_fail(pg_status st);
 int cli_usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 /* Installs the progress printer: a live line on a terminal, key=value lines otherwise. */
 void cli_install_progress(void);
-/* OpenBLAS with the kernels the CPU can run: when the library took an old core for a CPU it does
- * not know, runs the process again (argv) with OPENBLAS_CORETYPE set (blas_kernels.c). */
-void cli_blas_use_cpu_kernels(char **argv);
+/* Environment that OpenBLAS and libgomp read when they load (the CPU's BLAS kernels, passive
+ * OpenMP waiting): when a setting is missing, runs the process again (argv) with it (load_env.c). */
+void cli_set_load_env(char **argv);
 /* The core OpenBLAS runs (for --version and the benchmarks' JSON). */
 const char *cli_blas_core(void);
 /* Parses "a,b,c" integers into out (max n); returns the count or -1 on a bad list. */

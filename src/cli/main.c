@@ -52,7 +52,7 @@ int main(int argc, char **argv)
         usage(stdout);
         return 0;
     }
-    cli_blas_use_cpu_kernels(argv);
+    cli_set_load_env(argv);
     if (strcmp(argv[1], "--version") == 0 || strcmp(argv[1], "version") == 0) {
         printf("prodygs %s (kernels: deformation network %s, rasterizer %s, OpenBLAS %s; force with "
                "PG_KERNELS=amx|avx512bf16|f32, PG_RASTER=avx512|avx2|scalar, OPENBLAS_CORETYPE)\n", PRODYGS_VERSION,

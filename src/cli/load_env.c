@@ -1,12 +1,19 @@
-/* blas_kernels.c - makes OpenBLAS run the kernels this CPU can run.
+/* load_env.c - settings two libraries read only when they are loaded, made before they are.
  *
  * OpenBLAS as Debian builds it (DYNAMIC_ARCH) picks its kernels once, when the library is loaded,
  * from the CPU's family and model numbers. A CPU newer than the library is not in its table and
  * gets the SSE3 "Prescott" kernels: Debian 12's 0.3.21 on a 5th-generation Xeon (family 6, model
- * 207) ran the depth network 3.6x slower than with its AVX-512 kernels (docs/nn.md). The choice
- * can only be made before the library loads (OPENBLAS_CORETYPE), so when the library fell back to
- * an old core and the CPU has AVX2 + FMA or AVX-512, the process runs itself again with the
- * variable set to the best core its features allow. A user's own OPENBLAS_CORETYPE is kept.
+ * 207) ran the depth network 3.0x slower than with its AVX-512 kernels (docs/nn.md). When the
+ * library fell back to an old core and the CPU has AVX2 + FMA or AVX-512, OPENBLAS_CORETYPE is set
+ * to the best core its features allow.
+ *
+ * libgomp spins at every barrier for a while before it sleeps (OMP_WAIT_POLICY unset). When
+ * another program holds a core, a thread then spins through the time slice its partner needs: a
+ * training iteration took 1.8x as long next to one other job (docs/train.md). OMP_WAIT_POLICY is
+ * set to passive.
+ *
+ * Both are read from the environment at load time, so when either is missing the process runs
+ * itself again with them set (once: the second run finds them). A user's own values are kept.
  */
 #include "cli/cli.h"
 
@@ -40,12 +47,12 @@ const char *cli_blas_core(void)
     return core ? core : "unknown";
 }
 
-void cli_blas_use_cpu_kernels(char **argv)
+void cli_set_load_env(char **argv)
 {
-    if (getenv("OPENBLAS_CORETYPE")) return;
+    int again = 0;
     const char *want = core_for_cpu();
-    if (!want || core_is_current(cli_blas_core())) return;
-    if (setenv("OPENBLAS_CORETYPE", want, 1) != 0) return;
-    execv("/proc/self/exe", argv);
-    unsetenv("OPENBLAS_CORETYPE"); /* no exec (no /proc): carry on with the library's choice */
+    if (!getenv("OPENBLAS_CORETYPE") && want && !core_is_current(cli_blas_core()))
+        again |= setenv("OPENBLAS_CORETYPE", want, 1) == 0;
+    if (!getenv("OMP_WAIT_POLICY")) again |= setenv("OMP_WAIT_POLICY", "passive", 1) == 0;
+    if (again) execv("/proc/self/exe", argv); /* returns only when it fails (no /proc): carry on */
 }
