@@ -245,8 +245,13 @@ void nn_run_requantize(const nn_ctx *c, const nn_node *n)
     /* per-channel doubles, once, in the first thread's scratch (64-byte aligned): mult = q *
      * 2^(left - 31) (exact: q has 31 bits), post = 2^-right, exact_below = 2^21 / 2^left (below
      * it x * mult, 21 integer + 31 fraction bits, and x * mult + 0.5 fit a double's 53 bits) */
-    double *mult = (double *)c->scratch, *post = mult + C;
-    float *exact_below = (float *)(post + C);
+    double *mult = NULL, *post = NULL;
+    float *exact_below = NULL;
+    if (fixed) { /* the float path has no scratch (its size is 0: c->scratch may be NULL) */
+        mult = (double *)c->scratch;
+        post = mult + C;
+        exact_below = (float *)(post + C);
+    }
     for (int64_t ch = 0; fixed && ch < C; ch++) {
         int shift = (int)fixed[2 * ch + 1], left = shift > 0 ? shift : 0;
         mult[ch] = ldexp((double)fixed[2 * ch], left - 31);
