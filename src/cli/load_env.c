@@ -9,8 +9,8 @@
  *
  * libgomp spins at every barrier for a while before it sleeps (OMP_WAIT_POLICY unset). When
  * another program holds a core, a thread then spins through the time slice its partner needs: a
- * training iteration took 1.8x as long next to one other job (docs/train.md). OMP_WAIT_POLICY is
- * set to passive.
+ * training iteration took 1.2-1.6x as long next to other jobs, and no less on an idle machine
+ * (docs/train.md). OMP_WAIT_POLICY is set to passive.
  *
  * Both are read from the environment at load time, so when either is missing the process runs
  * itself again with them set (once: the second run finds them). A user's own values are kept.
