@@ -37,8 +37,9 @@ int cli_fail(pg_status st);
 int cli_usage_error(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 /* Installs the progress printer: a live line on a terminal, key=value lines otherwise. */
 void cli_install_progress(void);
-/* Environment that OpenBLAS and libgomp read when they load (the CPU's BLAS kernels, passive
- * OpenMP waiting): when a setting is missing, runs the process again (argv) with it (load_env.c). */
+/* Environment that OpenBLAS and libgomp read when they load (the CPU's BLAS kernels; passive
+ * OpenMP waiting on a busy machine): when a setting is missing, runs the process again (argv) with
+ * it (load_env.c). */
 void cli_set_load_env(char **argv);
 /* The core OpenBLAS runs (for --version and the benchmarks' JSON). */
 const char *cli_blas_core(void);
