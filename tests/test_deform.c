@@ -130,6 +130,19 @@ static void randomize_planes(deform_network *net, pg_rng *rng)
     for (size_t i = 0; i < net->num_plane_params; i++) net->params[i] = (float)pg_rng_range(rng, 0.5, 1.5);
 }
 
+/* A network of cfg over the cube [-1, 1]^3 with planes drawn from rng, seeded with seed first
+ * (NULL, after a failed check, if it cannot be made). */
+static deform_network *random_network(const deform_config *cfg, pg_rng *rng, uint64_t seed)
+{
+    const float aabb[6] = { -1, -1, -1, 1, 1, 1 };
+    deform_network *net = NULL;
+    CHECK_OK(deform_network_create(&net, cfg, aabb));
+    if (!net) return NULL;
+    pg_rng_seed(rng, seed);
+    randomize_planes(net, rng);
+    return net;
+}
+
 /* One point through the slice API: slice at t, sample (and, with d_planes, the backward with the
  * slice gradient spread onto the time rows). */
 static void hex_point_forward(float *feat, const hex_grid *g, const float *pos, float t)
@@ -323,13 +336,9 @@ static void test_network_fd(int head_width)
     deform_config cfg;
     small_config(&cfg);
     cfg.head_width = head_width;
-    const float aabb[6] = { -1, -1, -1, 1, 1, 1 };
-    deform_network *net = NULL;
-    CHECK_OK(deform_network_create(&net, &cfg, aabb));
-    if (!net) return;
     pg_rng rng;
-    pg_rng_seed(&rng, 23);
-    randomize_planes(net, &rng);
+    deform_network *net = random_network(&cfg, &rng, 23);
+    if (!net) return;
     enum { N = 9, M = 7 };
     float means[N * 3];
     for (int i = 0; i < N; i++) random_pos(&rng, &net->grid, means + 3 * i);
@@ -732,14 +741,10 @@ static void test_heap_independent(const char *name, int bf16)
     cfg.width = 40;
     cfg.head_width = 12;
     cfg.bf16 = bf16;
-    const float aabb[6] = { -1, -1, -1, 1, 1, 1 };
-    deform_network *net = NULL;
-    CHECK_OK(deform_network_create(&net, &cfg, aabb));
-    if (!net) return;
     enum { N = 300 }; /* chunks of 64: the last one holds 44 points */
     pg_rng rng;
-    pg_rng_seed(&rng, 41);
-    randomize_planes(net, &rng);
+    deform_network *net = random_network(&cfg, &rng, 41);
+    if (!net) return;
     const size_t P = net->num_params, NO = (size_t)N * DEFORM_OUT_DIM;
     float *means = malloc(N * 3 * sizeof(float)), *dout = malloc(NO * sizeof(float));
     float *ref = malloc((NO + P + N * 3) * sizeof(float)), *got = malloc((NO + P + N * 3) * sizeof(float));
@@ -784,13 +789,9 @@ static void test_network_bf16(const char *name, int head_width)
     cfg.res_space = 8;
     cfg.width = 48;
     cfg.head_width = head_width;
-    const float aabb[6] = { -1, -1, -1, 1, 1, 1 };
-    deform_network *net = NULL;
-    CHECK_OK(deform_network_create(&net, &cfg, aabb));
-    if (!net) return;
     pg_rng rng;
-    pg_rng_seed(&rng, 31);
-    randomize_planes(net, &rng);
+    deform_network *net = random_network(&cfg, &rng, 31);
+    if (!net) return;
     enum { N = 300 };
     float *means = malloc(N * 3 * sizeof(float)), *dout = malloc(N * DEFORM_OUT_DIM * sizeof(float));
     float *o32 = malloc(N * DEFORM_OUT_DIM * sizeof(float)), *o16 = malloc(N * DEFORM_OUT_DIM * sizeof(float));
