@@ -95,9 +95,14 @@ static void test_projection(void)
     CHECK(worst[2] < 1e-3, "quaternion gradient rel err %g", worst[2]);
 }
 
-/* The 16-wide projection forward/backward (AVX-512 CPUs) against the scalar functions,
+typedef int (*project16_fwd)(const float *, const float *, const float *, int, const pg_camera *, const float *, float,
+                             float[9][16], unsigned *);
+typedef int (*project16_bwd)(const float *, const float *, const float *, int, const pg_camera *, const float *,
+                             const float[2][16], const float[3][16], const float *, unsigned, float *, float *, float *);
+
+/* A 16-wide projection forward/backward (AVX-512 or AVX2 CPUs) against the scalar functions,
  * which the test above checks against finite differences. */
-static void test_projection16(void)
+static void test_projection16(const char *name, splat_kernel_kind kind, project16_fwd forward16, project16_bwd backward16)
 {
     pg_rng rng;
     pg_rng_seed(&rng, 21);
@@ -117,8 +122,8 @@ static void test_projection16(void)
     splat_project_limits(&cam, SPLAT_LOWPASS, lim);
     float out[9][16], dxy[2][16], dcon[3][16], dz[16];
     unsigned valid;
-    if (!splat_kernel_supported(SPLAT_KERNEL_AVX512) || !splat_project_forward16(means, ls, q, 0, &cam, lim, 0.01f, out, &valid)) {
-        printf("projection16: no AVX-512 on this CPU, skipped\n");
+    if (!splat_kernel_supported(kind) || !forward16(means, ls, q, 0, &cam, lim, 0.01f, out, &valid)) {
+        printf("projection16 %s: not on this CPU, skipped\n", name);
         return;
     }
     double ef = 0, eb = 0;
@@ -126,7 +131,7 @@ static void test_projection16(void)
     float hm[3 * 64] = { 0 }, hs[3 * 64] = { 0 }, hq[4 * 64] = { 0 };
     int kept = 0;
     for (int b = 0; b < n; b += 16) {
-        splat_project_forward16(means, ls, q, b, &cam, lim, 0.01f, out, &valid);
+        forward16(means, ls, q, b, &cam, lim, 0.01f, out, &valid);
         for (int l = 0; l < 16; l++) {
             int i = b + l;
             splat_proj p;
@@ -142,17 +147,50 @@ static void test_projection16(void)
             float d1[2] = { dxy[0][l], dxy[1][l] }, d2[3] = { dcon[0][l], dcon[1][l], dcon[2][l] };
             splat_project_backward_lim(means + 3*i, ls + 3*i, q + 4*i, &cam, lim, d1, d2, dz[l], hm + 3*i, hs + 3*i, hq + 4*i);
         }
-        splat_project_backward16(means, ls, q, b, &cam, lim, dxy, dcon, dz, valid, gm, gs, gq);
+        backward16(means, ls, q, b, &cam, lim, dxy, dcon, dz, valid, gm, gs, gq);
     }
     double scale[3] = { 1e-9, 1e-9, 1e-9 };
     for (int i = 0; i < 3 * n; i++) { scale[0] = fmax(scale[0], fabs(hm[i])); scale[1] = fmax(scale[1], fabs(hs[i])); }
     for (int i = 0; i < 4 * n; i++) scale[2] = fmax(scale[2], fabs(hq[i]));
     for (int i = 0; i < 3 * n; i++) { eb = fmax(eb, rel(gm[i], hm[i], 1e-3 * scale[0])); eb = fmax(eb, rel(gs[i], hs[i], 1e-3 * scale[1])); }
     for (int i = 0; i < 4 * n; i++) eb = fmax(eb, rel(gq[i], hq[i], 1e-3 * scale[2]));
-    printf("projection16 vs scalar (%d of %d kept): forward %.2e, backward %.2e\n", kept, n, ef, eb);
+    printf("projection16 %s vs scalar (%d of %d kept): forward %.2e, backward %.2e\n", name, kept, n, ef, eb);
     CHECK(kept > 20 && kept < n, "test data should keep some and cull some (%d)", kept);
     CHECK(ef < 1e-4, "16-wide projection differs by %g", ef);
     CHECK(eb < 1e-3, "16-wide projection backward differs by %g", eb);
+}
+
+/* The AVX2 pair does per lane what the AVX-512 pair does, so a model renders to the same floats on
+ * either kind of CPU (checked where both run). */
+static void test_projection16_families_agree(void)
+{
+    if (!splat_kernel_supported(SPLAT_KERNEL_AVX512) || !splat_kernel_supported(SPLAT_KERNEL_AVX2)) {
+        printf("projection16 avx2 = avx512: needs both on this CPU, skipped\n");
+        return;
+    }
+    pg_rng rng;
+    pg_rng_seed(&rng, 23);
+    pg_camera cam;
+    camera_for_test(&cam, 64, 48, 1);
+    float means[48], ls[48], q[64], lim[SPLAT_LIM_COUNT], a[9][16], b[9][16], dxy[2][16], dcon[3][16], dz[16];
+    for (int i = 0; i < 16; i++) {
+        for (int k = 0; k < 3; k++) means[3*i+k] = (float)pg_rng_range(&rng, k == 2 ? 1 : -2, k == 2 ? 6 : 2);
+        for (int k = 0; k < 3; k++) ls[3*i+k] = (float)pg_rng_range(&rng, -3, -1);
+        for (int k = 0; k < 4; k++) q[4*i+k] = (float)pg_rng_normal(&rng);
+        for (int k = 0; k < 2; k++) dxy[k][i] = (float)pg_rng_normal(&rng);
+        for (int k = 0; k < 3; k++) dcon[k][i] = (float)pg_rng_normal(&rng);
+        dz[i] = (float)pg_rng_normal(&rng);
+    }
+    splat_project_limits(&cam, SPLAT_LOWPASS, lim);
+    unsigned va, vb;
+    splat_project_forward16(means, ls, q, 0, &cam, lim, 0.01f, a, &va);
+    splat_project_forward16_avx2(means, ls, q, 0, &cam, lim, 0.01f, b, &vb);
+    float ga[10 * 16] = { 0 }, gb[10 * 16] = { 0 };
+    splat_project_backward16(means, ls, q, 0, &cam, lim, dxy, dcon, dz, va, ga, ga + 48, ga + 96);
+    splat_project_backward16_avx2(means, ls, q, 0, &cam, lim, dxy, dcon, dz, vb, gb, gb + 48, gb + 96);
+    CHECK(va == vb && memcmp(a, b, sizeof a) == 0, "AVX2 and AVX-512 projections differ (valid %x vs %x)", va, vb);
+    CHECK(memcmp(ga, gb, sizeof ga) == 0, "AVX2 and AVX-512 projection gradients differ");
+    printf("projection16 avx2 = avx512: %s\n", memcmp(a, b, sizeof a) == 0 && memcmp(ga, gb, sizeof ga) == 0 ? "same floats" : "differ");
 }
 
 /* SH: every degree, loss = w . rgb, gradient to the coefficients and the view direction. */
@@ -428,7 +466,9 @@ static void test_filter3d(void)
 int main(void)
 {
     test_projection();
-    test_projection16();
+    test_projection16("avx512", SPLAT_KERNEL_AVX512, splat_project_forward16, splat_project_backward16);
+    test_projection16("avx2", SPLAT_KERNEL_AVX2, splat_project_forward16_avx2, splat_project_backward16_avx2);
+    test_projection16_families_agree();
     test_sh();
     test_filter3d();
     for (int output = 0; output < 3; output++) test_raster(output);

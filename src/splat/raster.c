@@ -92,13 +92,22 @@ void splat_raster_destroy(splat_raster *r)
     free(r);
 }
 
+typedef int (*project16_forward_fn)(const float *, const float *, const float *, int, const pg_camera *,
+                                    const float *, float, float[9][16], unsigned *);
+typedef int (*project16_backward_fn)(const float *, const float *, const float *, int, const pg_camera *, const float *,
+                                     const float[2][16], const float[3][16], const float *, unsigned, float *, float *,
+                                     float *);
+
+/* Per kernel family: the tile kernels and the 16-wide projection (NULL: the scalar one per Gaussian). */
 static const struct {
     void (*forward)(const splat_tile_job *), (*backward)(const splat_tile_job *);
+    project16_forward_fn project_forward;
+    project16_backward_fn project_backward;
 } tile_kernels[SPLAT_KERNELS] = {
-    { splat_tile_forward_scalar, splat_tile_backward_scalar },
+    { splat_tile_forward_scalar, splat_tile_backward_scalar, NULL, NULL },
 #if defined(__x86_64__) && defined(__GNUC__)
-    { splat_tile_forward_avx2, splat_tile_backward_avx2 },
-    { splat_tile_forward_avx512, splat_tile_backward_avx512 },
+    { splat_tile_forward_avx2, splat_tile_backward_avx2, splat_project_forward16_avx2, splat_project_backward16_avx2 },
+    { splat_tile_forward_avx512, splat_tile_backward_avx512, splat_project_forward16, splat_project_backward16 },
 #endif
 };
 
@@ -246,15 +255,16 @@ static void finish_one(splat_raster *r, const pg_gaussians *g, const pg_camera *
     bx[2] = (uint16_t)(xmax / SPLAT_TILE); bx[3] = (uint16_t)(ymax / SPLAT_TILE);
 }
 
-/* Preprocesses Gaussians i0 .. i1-1: projection 16 at a time with the AVX-512 kernels. */
+/* Preprocesses Gaussians i0 .. i1-1: projection 16 at a time with the kernel family's vector code. */
 static void preprocess_range(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
                              const pg_render_settings *s, int deg, int i0, int i1)
 {
     int i = i0;
     float pr[9][16];
     unsigned valid;
-    for (; r->kernel == SPLAT_KERNEL_AVX512 && i + 16 <= i1; i += 16) {
-        if (!splat_project_forward16(g->means, g->log_scales, g->quats, i, cam, r->lim, s->near_clip, pr, &valid))
+    project16_forward_fn project16 = tile_kernels[r->kernel].project_forward;
+    for (; project16 && i + 16 <= i1; i += 16) {
+        if (!project16(g->means, g->log_scales, g->quats, i, cam, r->lim, s->near_clip, pr, &valid))
             break;
         for (int l = 0; l < 16; l++) {
             if (!(valid >> l & 1)) { r->ntiles[i + l] = 0; continue; }
@@ -484,6 +494,7 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
     /* Blocks of 16 Gaussians: slot sums, opacity and SH per Gaussian, then the projection
      * backward 16 at a time (same blocks for any thread count, so results stay identical). */
     int nblk = (n + 15) / 16;
+    project16_backward_fn project16 = tile_kernels[r->kernel].project_backward;
     #pragma omp parallel for schedule(static, 16)
     for (int b = 0; b < nblk; b++) {
         int i0 = 16 * b, cnt = n - i0 < 16 ? n - i0 : 16;
@@ -517,7 +528,7 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
             }
         }
         if (!mask) continue;
-        if (cnt == 16 && r->kernel == SPLAT_KERNEL_AVX512 && splat_project_backward16(g->means, g->log_scales, g->quats, i0, cam, lim, d_xy, d_conic, d_z,
+        if (cnt == 16 && project16 && project16(g->means, g->log_scales, g->quats, i0, cam, lim, d_xy, d_conic, d_z,
                                                   mask, grad->means, grad->log_scales, grad->quats))
             continue;
         for (int l = 0; l < cnt; l++) {
