@@ -160,8 +160,8 @@ static void test_projection16(const char *name, splat_kernel_kind kind, project1
     CHECK(eb < 1e-3, "16-wide projection backward differs by %g", eb);
 }
 
-/* The AVX2 pair does per lane what the AVX-512 pair does, so a model renders to the same floats on
- * either kind of CPU (checked where both run). */
+/* The AVX2 pair does per lane what the AVX-512 pair does, so a model renders alike on either kind of
+ * CPU (checked where both run). */
 static void test_projection16_families_agree(void)
 {
     if (!splat_kernel_supported(SPLAT_KERNEL_AVX512) || !splat_kernel_supported(SPLAT_KERNEL_AVX2)) {
@@ -188,9 +188,17 @@ static void test_projection16_families_agree(void)
     float ga[10 * 16] = { 0 }, gb[10 * 16] = { 0 };
     splat_project_backward16(means, ls, q, 0, &cam, lim, dxy, dcon, dz, va, ga, ga + 48, ga + 96);
     splat_project_backward16_avx2(means, ls, q, 0, &cam, lim, dxy, dcon, dz, vb, gb, gb + 48, gb + 96);
-    CHECK(va == vb && memcmp(a, b, sizeof a) == 0, "AVX2 and AVX-512 projections differ (valid %x vs %x)", va, vb);
-    CHECK(memcmp(ga, gb, sizeof ga) == 0, "AVX2 and AVX-512 projection gradients differ");
-    printf("projection16 avx2 = avx512: %s\n", memcmp(a, b, sizeof a) == 0 && memcmp(ga, gb, sizeof ga) == 0 ? "same floats" : "differ");
+    double ef = 0, eb = 0;
+    for (int k = 0; k < 9; k++)
+        for (int l = 0; l < 16; l++)
+            if (va >> l & 1) ef = fmax(ef, rel(a[k][l], b[k][l], 1e-6));
+    for (int i = 0; i < 160; i++) eb = fmax(eb, rel(ga[i], gb[i], 1e-6));
+    /* the same operations in the same order give the same floats; the check allows 1e-6 in case a
+     * compiler schedules a fused multiply-add differently in one of the two files */
+    CHECK(va == vb, "AVX2 and AVX-512 projections keep other Gaussians (valid %x vs %x)", va, vb);
+    CHECK(ef < 1e-6 && eb < 1e-6, "AVX2 and AVX-512 projections differ: forward %g, backward %g", ef, eb);
+    printf("projection16 avx2 vs avx512: forward %.2e, backward %.2e (%s)\n", ef, eb,
+           memcmp(a, b, sizeof a) == 0 && memcmp(ga, gb, sizeof ga) == 0 ? "same floats" : "not bit-identical");
 }
 
 /* SH: every degree, loss = w . rgb, gradient to the coefficients and the view direction. */

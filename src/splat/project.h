@@ -58,7 +58,7 @@ int splat_project_backward16(const float *means, const float *log_scales, const 
                              const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], const float d_xy[2][16],
                              const float d_conic[3][16], const float d_z[16], unsigned mask,
                              float *d_means, float *d_log_scales, float *d_quats);
-/* The same two on AVX2 + FMA (two 8-lane halves; the same floats as the AVX-512 pair). They
+/* The same two on AVX2 + FMA (two 8-lane halves; per lane the AVX-512 pair's operations). They
  * return 0 and do nothing in builds without AVX2 kernels. */
 int splat_project_forward16_avx2(const float *means, const float *log_scales, const float *quats, int i0,
                                  const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], float near_clip, float out[9][16],
