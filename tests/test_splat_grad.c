@@ -95,14 +95,10 @@ static void test_projection(void)
     CHECK(worst[2] < 1e-3, "quaternion gradient rel err %g", worst[2]);
 }
 
-typedef int (*project16_fwd)(const float *, const float *, const float *, int, const pg_camera *, const float *, float,
-                             float[9][16], unsigned *);
-typedef int (*project16_bwd)(const float *, const float *, const float *, int, const pg_camera *, const float *,
-                             const float[2][16], const float[3][16], const float *, unsigned, float *, float *, float *);
-
 /* A 16-wide projection forward/backward (AVX-512 or AVX2 CPUs) against the scalar functions,
  * which the test above checks against finite differences. */
-static void test_projection16(const char *name, splat_kernel_kind kind, project16_fwd forward16, project16_bwd backward16)
+static void test_projection16(const char *name, splat_kernel_kind kind, splat_project16_forward_fn forward16,
+                              splat_project16_backward_fn backward16)
 {
     pg_rng rng;
     pg_rng_seed(&rng, 21);

@@ -58,6 +58,12 @@ int splat_project_backward16(const float *means, const float *log_scales, const 
                              const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], const float d_xy[2][16],
                              const float d_conic[3][16], const float d_z[16], unsigned mask,
                              float *d_means, float *d_log_scales, float *d_quats);
+/* The signatures of the 16-wide pairs, for tables of kernel families. */
+typedef int (*splat_project16_forward_fn)(const float *, const float *, const float *, int, const pg_camera *,
+                                          const float *, float, float[9][16], unsigned *);
+typedef int (*splat_project16_backward_fn)(const float *, const float *, const float *, int, const pg_camera *,
+                                           const float *, const float[2][16], const float[3][16], const float *,
+                                           unsigned, float *, float *, float *);
 /* The same two on AVX2 + FMA (two 8-lane halves; per lane the AVX-512 pair's operations). They
  * return 0 and do nothing in builds without AVX2 kernels. */
 int splat_project_forward16_avx2(const float *means, const float *log_scales, const float *quats, int i0,

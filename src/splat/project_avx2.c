@@ -2,7 +2,8 @@
  * without AVX-512 (compiled with AVX2 flags and without AVX-512 whatever the build's target; the
  * rasterizer calls it only when the CPU has AVX2 and its AVX2 kernels were chosen). Per lane the
  * operations are those of project_avx512.c (the same fused multiply-adds in the same order), so
- * both give the same floats; against the scalar path they differ by rounding only. Without the
+ * both should give the same floats (test_splat_grad compares them where a CPU runs both); against
+ * the scalar path they differ by rounding only. Without the
  * vector kernels the scalar projection was ~10 % of a training step on an AVX2-only CPU. */
 #include "splat/project.h"
 #include "splat/raster_kernels.h"
@@ -98,12 +99,18 @@ static inline void sigma2d8(const pg_camera *cam, const float lim[SPLAT_LIM_COUN
     S->syy = ADD(FMA(TC1[0], T1[0], FMA(TC1[1], T1[1], MUL(TC1[2], T1[2]))), lp);
 }
 
+/* all-ones in lane l where bit l of mask is set */
+static inline V lanes_of(int mask)
+{
+    const __m256i bits = _mm256_and_si256(_mm256_set1_epi32(mask), _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128));
+    return _mm256_castsi256_ps(_mm256_cmpgt_epi32(bits, _mm256_setzero_si256()));
+}
+
 /* Loads rows i0 .. i0+7 of a (N, stride) array, one vector per column (lanes off mask read fill). */
 static inline void load_rows8(const float *base, int stride, int cols, int mask, float fill, V *out)
 {
     const __m256i idx = _mm256_mullo_epi32(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7), _mm256_set1_epi32(stride));
-    const __m256i lanes = _mm256_and_si256(_mm256_set1_epi32(mask), _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128));
-    const V m = _mm256_castsi256_ps(_mm256_cmpgt_epi32(lanes, _mm256_setzero_si256()));
+    const V m = lanes_of(mask);
     for (int c = 0; c < cols; c++) out[c] = _mm256_mask_i32gather_ps(SET(fill), base + c, idx, m, 4);
 }
 
@@ -165,8 +172,7 @@ static void backward8(const float *means, const float *log_scales, const float *
     load_rows8(means + 3 * (size_t)i0, 3, 3, km, 0.0f, m);
     load_rows8(log_scales + 3 * (size_t)i0, 3, 3, km, 0.0f, ls);
     load_rows8(quats + 4 * (size_t)i0, 4, 4, km, 1.0f, q);
-    const __m256i lanes = _mm256_and_si256(_mm256_set1_epi32(km), _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128));
-    const V kmv = _mm256_castsi256_ps(_mm256_cmpgt_epi32(lanes, _mm256_setzero_si256()));
+    const V kmv = lanes_of(km);
     const float *W = cam->R;
     cam_point8(cam, m, t);
     t[2] = BLEND(one, t[2], kmv); /* unused lanes: keep the arithmetic tame */

@@ -92,17 +92,11 @@ void splat_raster_destroy(splat_raster *r)
     free(r);
 }
 
-typedef int (*project16_forward_fn)(const float *, const float *, const float *, int, const pg_camera *,
-                                    const float *, float, float[9][16], unsigned *);
-typedef int (*project16_backward_fn)(const float *, const float *, const float *, int, const pg_camera *, const float *,
-                                     const float[2][16], const float[3][16], const float *, unsigned, float *, float *,
-                                     float *);
-
 /* Per kernel family: the tile kernels and the 16-wide projection (NULL: the scalar one per Gaussian). */
 static const struct {
     void (*forward)(const splat_tile_job *), (*backward)(const splat_tile_job *);
-    project16_forward_fn project_forward;
-    project16_backward_fn project_backward;
+    splat_project16_forward_fn project_forward;
+    splat_project16_backward_fn project_backward;
 } tile_kernels[SPLAT_KERNELS] = {
     { splat_tile_forward_scalar, splat_tile_backward_scalar, NULL, NULL },
 #if defined(__x86_64__) && defined(__GNUC__)
@@ -262,7 +256,7 @@ static void preprocess_range(splat_raster *r, const pg_gaussians *g, const pg_ca
     int i = i0;
     float pr[9][16];
     unsigned valid;
-    project16_forward_fn project16 = tile_kernels[r->kernel].project_forward;
+    splat_project16_forward_fn project16 = tile_kernels[r->kernel].project_forward;
     for (; project16 && i + 16 <= i1; i += 16) {
         if (!project16(g->means, g->log_scales, g->quats, i, cam, r->lim, s->near_clip, pr, &valid))
             break;
@@ -494,7 +488,7 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
     /* Blocks of 16 Gaussians: slot sums, opacity and SH per Gaussian, then the projection
      * backward 16 at a time (same blocks for any thread count, so results stay identical). */
     int nblk = (n + 15) / 16;
-    project16_backward_fn project16 = tile_kernels[r->kernel].project_backward;
+    splat_project16_backward_fn project16 = tile_kernels[r->kernel].project_backward;
     #pragma omp parallel for schedule(static, 16)
     for (int b = 0; b < nblk; b++) {
         int i0 = 16 * b, cnt = n - i0 < 16 ? n - i0 : 16;
