@@ -222,10 +222,28 @@ static void test_iterations_for_clip(void)
     CHECK(b.iters == 1500 && b.densify_until == 1050, "30 frames: the preset's 1500, densify until 1050");
 }
 
+/* The network's rates: full for a short fine stage (heavy_train's toy), half for a preset's, and
+ * never rising with the budget. */
+static void test_net_lr_scale(void)
+{
+    CHECK(train_net_lr_scale(110) == 1.0f, "110 fine steps keep the full rates, got %g", train_net_lr_scale(110));
+    CHECK(train_net_lr_scale(TRAIN_NET_LR_FULL_STEPS) == 1.0f, "the full rates up to %d steps", TRAIN_NET_LR_FULL_STEPS);
+    CHECK(train_net_lr_scale(1250) == TRAIN_NET_LR_MIN_SCALE, "the fast preset's 1250 fine steps: %g, got %g",
+          TRAIN_NET_LR_MIN_SCALE, train_net_lr_scale(1250));
+    CHECK(train_net_lr_scale(100000) == TRAIN_NET_LR_MIN_SCALE, "the floor holds for long budgets");
+    float last = 2.0f;
+    for (int n = 0; n <= 4000; n += 50) {
+        float k = train_net_lr_scale(n);
+        CHECK(k <= last && k >= TRAIN_NET_LR_MIN_SCALE && k <= 1.0f, "%d fine steps: %g after %g", n, k, last);
+        last = k;
+    }
+}
+
 int main(void)
 {
     test_depth_storage();
     test_iterations_for_clip();
+    test_net_lr_scale();
     char dir[1024], data[1100], a[1200], b[1200], cmd[8192], err[4096];
     test_tmpdir("test_train", dir, sizeof dir);
     snprintf(data, sizeof data, "%s/set", dir);

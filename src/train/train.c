@@ -246,6 +246,12 @@ train_budget train_budget_for_clip(int preset_iters, int frames, int motion_crop
                        train_default_coarse_iters(preset_iters), train_default_densify_until(preset_iters) };
     return b;
 }
+float train_net_lr_scale(int fine_iters)
+{
+    if (fine_iters <= TRAIN_NET_LR_FULL_STEPS) return 1.0f;
+    float k = (float)TRAIN_NET_LR_FULL_STEPS / (float)fine_iters;
+    return k > TRAIN_NET_LR_MIN_SCALE ? k : TRAIN_NET_LR_MIN_SCALE;
+}
 int train_fits_per_step(int motion_crops) { return 1 + (motion_crops > 0 ? motion_crops : 0); }
 
 int train_iterations_for_clip(int iters, int frames, int motion_crops)

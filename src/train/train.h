@@ -96,6 +96,15 @@ typedef struct {
     int iters, coarse_iters, densify_until;
 } train_budget;
 train_budget train_budget_for_clip(int preset_iters, int frames, int motion_crops);
+/* The factor on the deformation network's learning rates (HexPlane and MLP) for a fine stage of
+ * `fine_iters` steps: 1 up to TRAIN_NET_LR_FULL_STEPS steps, falling as FULL / fine_iters to
+ * TRAIN_NET_LR_MIN_SCALE. A full budget at the full rates learns the motion through the rates'
+ * noise (half of them: +0.9 dB on the movers of the classroom clip, the sample scene at 30 and 300
+ * frames, tabletop_dev held out), while a short schedule at half of them never reaches the motion
+ * (heavy_train's 110 fine steps: 31 -> 16 dB on the movers); docs/train.md. */
+#define TRAIN_NET_LR_FULL_STEPS 500
+#define TRAIN_NET_LR_MIN_SCALE 0.5f
+float train_net_lr_scale(int fine_iters);
 /* Times one fine step fits: the step's own time and each motion crop (negative crops: none). */
 int train_fits_per_step(int motion_crops);
 

@@ -84,11 +84,13 @@ static pg_status step_gaussians(train_session *s)
     return optim_adam_step_groups(s->gopt, run, n);
 }
 
+/* The network's rates follow the fine stage's length (train_net_lr_scale). */
 static pg_status step_network(train_session *s)
 {
     const train_config *c = &s->cfg;
-    float lr[TRAIN_NET_GROUPS] = {stage_lr(s, c->lr_grid, c->lr_grid_final) * s->extent,
-                                  stage_lr(s, c->lr_net, c->lr_net_final) * s->extent};
+    float k = train_net_lr_scale(c->iters - c->coarse_iters) * s->extent;
+    float lr[TRAIN_NET_GROUPS] = {stage_lr(s, c->lr_grid, c->lr_grid_final) * k,
+                                  stage_lr(s, c->lr_net, c->lr_net_final) * k};
     float *p = train_net_params(s->net);
     const float *g = train_net_grads(s->net);
     for (int i = 0; i < TRAIN_NET_GROUPS; i++)
