@@ -159,7 +159,7 @@ typedef struct {
     int proxies;            /* training set: use N of the proxy views, evenly spaced (-1: all) */
     const char *real_cameras, *test_cameras, *depth; /* DyNeRF input only */
     int frames, width;      /* DyNeRF input: first N frames, resize to this width (0: all / keep) */
-    int views_per_step;     /* real view + proxies of one time per deformation (4) */
+    int views_per_step;     /* real view + proxies of one time per deformation (2) */
     int times_per_step;     /* times (deformations) per optimiser step (0: the trainer's default) */
     int motion_crops;       /* motion crops per fine step (-1: the trainer's default) */
     float real_weight, moving_weight, lambda_depth, lambda_dssim; /* < 0: defaults */
@@ -303,7 +303,7 @@ typedef struct {
     int deform_head_width;            /* 0: the trainer's default (32) */
     int deform_time_coarsen;          /* -1: the trainer's default (2) */
     int motion_crops;                 /* motion crops per fine step (-1: the trainer's default) */
-    int views_per_step;               /* views trained per deformation (0: the trainer's default, 4) */
+    int views_per_step;               /* views trained per deformation (0: the trainer's default, 2) */
     float proxy_moving_weight;        /* loss weight of proxy pixels showing the movers (-1: the trainer's, 1) */
     float real_weight;                /* share of a step's loss on the real view (-1: the trainer's, 0.75) */
     int threads;                      /* 0: all cores; every stage uses this count */

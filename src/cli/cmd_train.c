@@ -33,7 +33,7 @@ int cmd_train(int argc, char **argv)
         {"--sh-degree", CLI_INT, &c.sh_degree, "largest SH degree (3)"},
         {"--motion-crops", CLI_INT, &c.motion_crops, "extra times per fine step over the box around the movers only, the real view and a proxy in turn (2; 0 = off)"},
         {"--times-per-step", CLI_INT, &c.times_per_step, "times (each its own deformation and views) per optimiser step (1)"},
-        {"--views-per-step", CLI_INT, &c.views_per_step, "views trained per deformation: the real view + proxies of one time (4)"},
+        {"--views-per-step", CLI_INT, &c.views_per_step, "views trained per deformation: the real view + proxies of one time (2)"},
         {"--proxy-moving-weight", CLI_FLOAT, &c.proxy_moving_weight, "loss weight of proxy pixels that show the real view's moving pixels (1)"},
         {"--real-weight", CLI_FLOAT, &c.real_weight, "share of a step's loss on the real view when proxies are in it (0.75)"},
         {"--moving-weight", CLI_FLOAT, &c.moving_weight, "extra loss weight on the real view's moving pixels (9)"},

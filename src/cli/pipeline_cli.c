@@ -37,7 +37,7 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
         { "--deform-head-width", CLI_INT, &c->deform_head_width, "hidden width of each deformation head (default 32)" },
         { "--deform-time-coarsen", CLI_INT, &c->deform_time_coarsen, "coarse HexPlane scale: one time texel per 2^K of the fine scale's (default 2; 0 = same)" },
         { "--motion-crops", CLI_INT, &c->motion_crops, "extra renders per fine step over the box around the movers, the real view and a proxy in turn (default 2; 0 = off)" },
-        { "--views-per-step", CLI_INT, &c->views_per_step, "views trained per deformation: the real view + proxies of one time (default 4)" },
+        { "--views-per-step", CLI_INT, &c->views_per_step, "views trained per deformation: the real view + proxies of one time (default 2)" },
         { "--proxy-moving-weight", CLI_FLOAT, &c->proxy_moving_weight, "loss weight of proxy pixels that show the real view's movers (default 1)" },
         { "--real-weight", CLI_FLOAT, &c->real_weight, "share of each step's loss on the real view when proxies are in it (default 0.75)" },
         { "--pose-scale", CLI_FLOAT, &c->pose_scale, "depth-to-pose scale instead of fitting it (dataset poses)" },

@@ -29,7 +29,7 @@ void pg_train_defaults(pg_train_config *c)
     c->checkpoint_every = 500;
     c->sh_degree = 3;
     c->proxies = -1;
-    c->views_per_step = 4;
+    c->views_per_step = train_default_config().views_per_step;
     c->real_weight = c->moving_weight = c->lambda_depth = c->lambda_dssim = c->proxy_moving_weight = -1;
     c->use_static = c->use_cull = 1;
     c->motion_crops = -1;
