@@ -303,7 +303,7 @@ typedef struct {
     int deform_head_width;            /* 0: the trainer's default (32) */
     int deform_time_coarsen;          /* -1: the trainer's default (2) */
     int motion_crops;                 /* motion crops per fine step (-1: the trainer's default) */
-    int views_per_step;               /* views trained per deformation (0: the trainer's default, 2) */
+    int views_per_step;               /* views trained per deformation (the trainer's default, 2) */
     float proxy_moving_weight;        /* loss weight of proxy pixels showing the movers (-1: the trainer's, 1) */
     float real_weight;                /* share of a step's loss on the real view (-1: the trainer's, 0.75) */
     int threads;                      /* 0: all cores; every stage uses this count */

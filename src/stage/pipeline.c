@@ -54,6 +54,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
     c->refine = c->align = c->fuse = c->planes = 1;
     c->seed = 1;
     c->motion_crops = -1;
+    c->views_per_step = train_default_config().views_per_step;
     c->deform_time_coarsen = -1;
     c->proxy_moving_weight = -1;
     c->real_weight = -1;
@@ -76,10 +77,8 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "--frames must be >= 1 (got %d)", c->frames);
     PG_TRY(stage_check_threads("pipeline", c->threads));
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "--seed must be >= 0 (got %d)", c->seed);
-    if (c->views_per_step < 0 || c->views_per_step > TRAIN_MAX_BATCH)
-        return pg_fail(PG_ERR_ARG, "--views-per-step must be in 1..%d (got %d)", TRAIN_MAX_BATCH, c->views_per_step);
     PG_TRY(stage_check_trainer_options("pipeline", c->deform_width, c->deform_head_width, c->deform_time_coarsen,
-                                       c->motion_crops, c->proxy_moving_weight, c->real_weight));
+                                       c->motion_crops, c->views_per_step, c->proxy_moving_weight, c->real_weight));
     if (c->depth_scale < 0) return pg_fail(PG_ERR_ARG, "--depth-scale must be > 0 (got %g)", c->depth_scale);
     if (c->pose_scale < 0) return pg_fail(PG_ERR_ARG, "--pose-scale must be > 0 (got %g)", c->pose_scale);
     if (c->proxy_render && strcmp(c->proxy_render, "mesh") != 0 && strcmp(c->proxy_render, "splat") != 0)
@@ -425,7 +424,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.deform_width = c->deform_width;
     tc.deform_head_width = c->deform_head_width;
     tc.motion_crops = c->motion_crops;
-    if (c->views_per_step > 0) tc.views_per_step = c->views_per_step;
+    tc.views_per_step = c->views_per_step;
     tc.deform_time_coarsen = c->deform_time_coarsen;
     tc.proxy_moving_weight = c->proxy_moving_weight;
     tc.real_weight = c->real_weight;

@@ -69,8 +69,6 @@ static pg_status check_config(const pg_train_config *c)
     if (c->init_points < 1) return pg_fail(PG_ERR_ARG, "train: --init-points %d must be >= 1", c->init_points);
     if (c->times_per_step < 0 || c->times_per_step > TRAIN_MAX_BATCH)
         return pg_fail(PG_ERR_ARG, "train: --times-per-step %d must be in 1..%d", c->times_per_step, TRAIN_MAX_BATCH);
-    if (c->views_per_step < 1 || c->views_per_step > TRAIN_MAX_BATCH)
-        return pg_fail(PG_ERR_ARG, "train: --views-per-step %d must be in 1..%d", c->views_per_step, TRAIN_MAX_BATCH);
     if (c->moving_weight != -1 && !(c->moving_weight >= 0 && c->moving_weight <= 100))
         return pg_fail(PG_ERR_ARG, "train: --moving-weight %g must be in [0, 100]", c->moving_weight);
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "train: --frames %d must be >= 1 (0 = all)", c->frames);
@@ -84,7 +82,7 @@ static pg_status check_config(const pg_train_config *c)
     if (c->deform_res < 0 || c->deform_res > 1024)
         return pg_fail(PG_ERR_ARG, "train: --deform-res %d out of range 0..1024", c->deform_res);
     PG_TRY(stage_check_trainer_options("train", c->deform_width, c->deform_head_width, c->deform_time_coarsen,
-                                       c->motion_crops, c->proxy_moving_weight, c->real_weight));
+                                       c->motion_crops, c->views_per_step, c->proxy_moving_weight, c->real_weight));
     if (c->deform_tres < 0 || c->deform_tres == 1 || c->deform_tres > 100000)
         return pg_fail(PG_ERR_ARG, "train: --deform-time-res %d out of range 2..100000 (0 = the trainer's rule)", c->deform_tres);
     if (c->checkpoint_every < 0) return pg_fail(PG_ERR_ARG, "train: --checkpoint-every must be >= 0");
