@@ -155,7 +155,8 @@ typedef struct {
     int resume;             /* continue from OUT/model.ckpt when it exists */
     int threads;            /* 0: all cores */
     int seed;               /* (1) */
-    int max_gaussians, init_points, checkpoint_every, sh_degree;
+    int max_gaussians, init_points, checkpoint_every;
+    int sh_degree;          /* largest SH degree of the colours (-1: 3 with several real cameras, 0 with one) */
     int proxies;            /* training set: use N of the proxy views, evenly spaced (-1: all) */
     const char *real_cameras, *test_cameras, *depth; /* DyNeRF input only */
     int frames, width;      /* DyNeRF input: first N frames, resize to this width (0: all / keep) */
@@ -306,6 +307,7 @@ typedef struct {
     int views_per_step;               /* views trained per deformation (the trainer's default, 2) */
     float proxy_moving_weight;        /* loss weight of proxy pixels showing the movers (-1: the trainer's, 1) */
     float real_weight;                /* share of a step's loss on the real view (-1: the trainer's, 0.75) */
+    int sh_degree;                    /* largest SH degree of the colours (-1: the trainer's: 0 with one real camera) */
     int threads;                      /* 0: all cores; every stage uses this count */
     int seed;                         /* (1) */
     int evaluate;                     /* score the test cameras into OUT/metrics.json, report.md */

@@ -350,6 +350,8 @@ int main(void)
     expect_error(a, "--views-per-step must be in 1..16 (got 17)");
     snprintf(a, sizeof a, "eval @/ds %s --out @/v --views-per-step 0", dep);
     expect_error(a, "pipeline: --views-per-step must be in 1..16 (got 0)");
+    snprintf(a, sizeof a, "eval @/ds %s --out @/v --sh-degree 9", dep);
+    expect_error(a, "--sh-degree must be in 0..3 (got 9)");
     snprintf(a, sizeof a, "eval @/ds %s --out @/v --proxy-render foo", dep);
     expect_error(a, "--proxy-render must be mesh or splat, not 'foo'");
     expect_error("eval @/ds --depth @/trunc.npy --out @/v --test-cams 1", "trunc.npy");

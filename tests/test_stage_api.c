@@ -167,6 +167,8 @@ int main(void)
     cJSON *tj = NULL;
     CHECK_OK(io_json_load(path, &tj));
     CHECK(io_json_number_or(tj, "seed", -1) == 7, "train.json seed %g", io_json_number_or(tj, "seed", -1));
+    CHECK(io_json_number_or(tj, "sh_degree", -1) == 0, "one real camera trains SH degree 0, train.json says %g",
+          io_json_number_or(tj, "sh_degree", -1));
     cJSON_Delete(tj);
     double psnr = r.evaluation.psnr;
     CHECK(psnr > 5 && psnr < 60, "test PSNR %.2f", psnr);

@@ -268,6 +268,16 @@ int main(void)
         train_set_destroy(&t2);
     }
 
+    /* one real camera: no view-dependent colour to learn (its proxies carry its colours); two: SH 3 */
+    {
+        CHECK(train_default_sh_degree(&ts) == 0, "one real view: SH degree %d, want 0", train_default_sh_degree(&ts));
+        train_set t2;
+        CHECK_OK(train_set_load(data, &t2));
+        t2.views[1].role = IO_ROLE_REAL;
+        CHECK(train_default_sh_degree(&t2) == 3, "two real views: SH degree %d, want 3", train_default_sh_degree(&t2));
+        train_set_destroy(&t2);
+    }
+
     /* depth flickering by +-20 % per frame (as monocular networks give) must not make every
      * Gaussian movable: movers are found from colour, so the still scene stays static */
     {
@@ -355,6 +365,14 @@ int main(void)
     if (s) CHECK_OK(train_session_run(s));
     CHECK(s && train_session_iteration(s) == c2.iters, "continued to %d", c2.iters);
     train_session_destroy(s);
+
+    /* SH degree 1: the checkpoint stores 12 of each Gaussian's 48 SH floats, and a resume from it
+     * still gives the same bytes */
+    {
+        train_config tc = small_config();
+        tc.sh_max_degree = 1;
+        check_learns_and_resumes(&ts, tc, dir, "SH degree 1");
+    }
 
     /* two times per step (each its own deformation, one optimiser step): learns, and a resume
      * still gives the same bytes */

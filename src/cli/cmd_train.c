@@ -30,7 +30,7 @@ int cmd_train(int argc, char **argv)
         {"--depth", CLI_STR, &c.depth, "DyNeRF input: depth .npy (F,H,W) of the first training camera"},
         {"--frames", CLI_INT, &c.frames, "DyNeRF input: use only the first N frames"},
         {"--width", CLI_INT, &c.width, "DyNeRF input: resize to this width"},
-        {"--sh-degree", CLI_INT, &c.sh_degree, "largest SH degree (3)"},
+        {"--sh-degree", CLI_INT, &c.sh_degree, "largest SH degree 0..3 (default: 3 with several real cameras, 0 with one)"},
         {"--motion-crops", CLI_INT, &c.motion_crops, "extra times per fine step over the box around the movers only, the real view and a proxy in turn (2; 0 = off)"},
         {"--times-per-step", CLI_INT, &c.times_per_step, "times (each its own deformation and views) per optimiser step (1)"},
         {"--views-per-step", CLI_INT, &c.views_per_step, "views trained per deformation: the real view + proxies of one time (2)"},

@@ -40,6 +40,7 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
         { "--views-per-step", CLI_INT, &c->views_per_step, "views trained per deformation: the real view + proxies of one time (default 2)" },
         { "--proxy-moving-weight", CLI_FLOAT, &c->proxy_moving_weight, "loss weight of proxy pixels that show the real view's movers (default 1)" },
         { "--real-weight", CLI_FLOAT, &c->real_weight, "share of each step's loss on the real view when proxies are in it (default 0.75)" },
+        { "--sh-degree", CLI_INT, &c->sh_degree, "largest spherical-harmonics degree of the colours, 0..3 (default: 0 with one real camera)" },
         { "--pose-scale", CLI_FLOAT, &c->pose_scale, "depth-to-pose scale instead of fitting it (dataset poses)" },
         { "--threads", CLI_INT, &c->threads, "worker threads for every stage (default: all cores)" },
         { "--seed", CLI_INT, &c->seed, "random seed (default 1)" },

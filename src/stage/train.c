@@ -27,7 +27,7 @@ void pg_train_defaults(pg_train_config *c)
     c->max_gaussians = 200000;
     c->init_points = 30000;
     c->checkpoint_every = 500;
-    c->sh_degree = 3;
+    c->sh_degree = -1;
     c->proxies = -1;
     c->views_per_step = train_default_config().views_per_step;
     c->real_weight = c->moving_weight = c->lambda_depth = c->lambda_dssim = c->proxy_moving_weight = -1;
@@ -78,7 +78,7 @@ static pg_status check_config(const pg_train_config *c)
     if (c->max_gaussians < 16) return pg_fail(PG_ERR_ARG, "train: --max-gaussians must be >= 16");
     PG_TRY(stage_check_threads("train", c->threads));
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "train: --seed %d must be >= 0", c->seed);
-    if (c->sh_degree < 0 || c->sh_degree > 3) return pg_fail(PG_ERR_ARG, "train: --sh-degree must be 0..3");
+    if (c->sh_degree < -1 || c->sh_degree > 3) return pg_fail(PG_ERR_ARG, "train: --sh-degree must be 0..3");
     if (c->deform_res < 0 || c->deform_res > 1024)
         return pg_fail(PG_ERR_ARG, "train: --deform-res %d out of range 0..1024", c->deform_res);
     PG_TRY(stage_check_trainer_options("train", c->deform_width, c->deform_head_width, c->deform_time_coarsen,
@@ -159,12 +159,21 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
     cJSON_AddNumberToObject(root, "seed", (double)cfg->seed);
     cJSON_AddNumberToObject(root, "threads", r->threads);
     cJSON_AddNumberToObject(root, "coarse_iters", cfg->coarse_iters);
+    cJSON_AddNumberToObject(root, "sh_degree", cfg->sh_max_degree);
     const double scores[] = { r->test_psnr, r->train_psnr, r->train_psnr_moving, r->train_psnr_static };
     static const char *names[] = { "test_psnr", "train_real_psnr", "train_real_psnr_moving", "train_real_psnr_static" };
     for (int k = 0; k < 4; k++)
         if (isfinite(scores[k])) cJSON_AddNumberToObject(root, names[k], scores[k]);
         else cJSON_AddNullToObject(root, names[k]);
     cJSON_AddNumberToObject(root, "seconds", r->seconds);
+    train_timing tt;
+    train_session_timing_total(s, &tt);
+    cJSON *ph = cJSON_AddObjectToObject(root, "phase_seconds"); /* this process's steps, where the time went */
+    const double phases[] = { tt.deform_forward, tt.deform_backward, tt.regularize, tt.raster_forward,
+                              tt.raster_backward, tt.loss, tt.optimizer, tt.other };
+    static const char *phase_names[] = { "deform_forward", "deform_backward", "regularize", "raster_forward",
+                                         "raster_backward", "loss", "optimizer", "other" };
+    for (int k = 0; k < 8; k++) cJSON_AddNumberToObject(ph, phase_names[k], phases[k] * 1e-3);
     cJSON *cams = cJSON_AddArrayToObject(root, "cameras");
     for (int i = 0; i < ts->num_views; i++) {
         pg_camera user = train_set_user_camera(ts, i);
@@ -239,7 +248,7 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
     cfg.max_gaussians = c->max_gaussians;
     cfg.init_points = c->init_points;
     cfg.checkpoint_every = c->checkpoint_every;
-    cfg.sh_max_degree = c->sh_degree;
+    cfg.sh_max_degree = c->sh_degree >= 0 ? c->sh_degree : train_default_sh_degree(&ts);
     cfg.views_per_step = c->views_per_step;
     if (c->times_per_step > 0) cfg.times_per_step = c->times_per_step;
     if (c->motion_crops >= 0) cfg.motion_crops = c->motion_crops;

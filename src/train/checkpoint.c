@@ -7,7 +7,9 @@
  *   config text length, config text ("key=value\n" lines)
  *   i32 iter, fine, frames, width, height, num_views; u64 rng[4]
  *   f32 extent, unit, center[3], max_disp, bg[3]    (unit: the user's length per trainer length)
- *   i32 N, sh_degree; Gaussians (means, log_scales, quats, opacity, sh for N rows)
+ *   i32 N, sh_degree; Gaussians (means, log_scales, quats, opacity, sh for N rows; of each row's 48
+ *       SH floats only the (sh_max_degree + 1)^2 x 3 up to the config's largest degree: the others are
+ *       never rendered nor stepped, and read back as zero)
  *   with optimiser state: Adam of the Gaussians: i32 step[6], then per group f32 m[N x cols],
  *       v[N x cols] (groups means, log_scales, quats, opacity, sh_dc, sh_rest of 3, 3, 4, 1, 3, 45 cols)
  *   u8 is_static[N]; f32 filter_var[N] (the 3D filter, splat/filter3d.h); with optimiser state:
@@ -23,7 +25,8 @@
  * machine-dependent is stored, so equal training gives equal bytes. Only the current version is
  * read (1: one step count for all Gaussian groups, moments stored like Gaussians; 3: no head
  * width in the network config; 4: no unit, trained in the depth's own units; 5: no flags, always
- * optimiser state; 6: no 3D filter; 7: no time_coarsen in the network config). The checkpoint written when training ends leaves the optimiser state out (it
+ * optimiser state; 6: no 3D filter; 7: no time_coarsen in the network config; 8: all 48 SH floats
+ * per Gaussian whatever the degree). The checkpoint written when training ends leaves the optimiser state out (it
  * is two thirds of the bytes and only a continuation needs it): continuing a finished model
  * starts Adam afresh, while an interrupted run resumes bit-exactly from a periodic checkpoint.
  */
@@ -42,12 +45,17 @@
 
 #define CKPT_MAGIC "PGDYCKP1"
 #define CKPT_END "PGEND\0\0\0"
-#define CKPT_VERSION 8u
+#define CKPT_VERSION 9u
 #define CKPT_HAS_OPTIMIZER 1u
 #define CKPT_HAS_AVERAGE 2u /* only with the optimiser state */
 #define CKPT_MAX_STEP 100000000 /* iterations and Adam steps beyond this are corruption */
 #define SH_ROW (PG_SH_COEFFS * 3)
 #define GAUSS_FLOATS (3 + 3 + 4 + 1 + SH_ROW) /* per Gaussian, also the Adam columns per row */
+#define GAUSS_NON_SH (3 + 3 + 4 + 1)
+
+/* SH floats stored per Gaussian for a run of this largest degree: a degree-0 model (one real
+ * camera, the default there) stores 3 of the 48, 40 % of a checkpoint's size. */
+static int sh_stored(int sh_max_degree) { return (sh_max_degree + 1) * (sh_max_degree + 1) * 3; }
 
 /* The checkpoint streams into its temporary file with the CRC kept as the bytes go: a copy of
  * the model and its optimiser state in memory (growing by doubling) was up to twice the file. */
@@ -67,13 +75,24 @@ static void put_i32(buf *b, int32_t x) { put(b, &x, 4); }
 static void put_u64(buf *b, uint64_t x) { put(b, &x, 8); }
 static void put_f32(buf *b, float x) { put(b, &x, 4); }
 
-static void put_gaussians(buf *b, const pg_gaussians *g, int n)
+static void put_gaussians(buf *b, const pg_gaussians *g, int n, int sh_cols)
 {
     put(b, g->means, (size_t)n * 3 * 4);
     put(b, g->log_scales, (size_t)n * 3 * 4);
     put(b, g->quats, (size_t)n * 4 * 4);
     put(b, g->opacity, (size_t)n * 4);
-    put(b, g->sh, (size_t)n * SH_ROW * 4);
+    if (sh_cols == SH_ROW) {
+        put(b, g->sh, (size_t)n * SH_ROW * 4);
+        return;
+    }
+    enum { ROWS = 256 }; /* gathered in blocks: one write (and CRC update) per row would be slow */
+    float block[ROWS * SH_ROW];
+    for (int i0 = 0; i0 < n; i0 += ROWS) {
+        int m = n - i0 < ROWS ? n - i0 : ROWS;
+        for (int k = 0; k < m; k++)
+            memcpy(block + (size_t)k * sh_cols, g->sh + (size_t)(i0 + k) * SH_ROW, (size_t)sh_cols * 4);
+        put(b, block, (size_t)m * sh_cols * 4);
+    }
 }
 
 /* An optimiser's state: every group's step count, then every group's m and v. */
@@ -174,7 +193,8 @@ pg_status train_checkpoint_write(train_session *s, const char *path, int with_op
     int n = s->g.count;
     put_i32(&b, n);
     put_i32(&b, s->g.sh_degree);
-    put_gaussians(&b, &s->g, n);
+    const int sh_cols = sh_stored(s->cfg.sh_max_degree);
+    put_gaussians(&b, &s->g, n, sh_cols);
     if (with_optimizer) put_adam(&b, s->gopt);
     put(&b, s->is_static, (size_t)n);
     put(&b, s->filter_var, (size_t)n * 4);
@@ -199,7 +219,7 @@ pg_status train_checkpoint_write(train_session *s, const char *path, int with_op
         if (with_optimizer) put_adam(&b, s->nopt);
     }
     if (with_average) {
-        put_gaussians(&b, &s->avg_g, n);
+        put_gaussians(&b, &s->avg_g, n, sh_cols);
         if (s->fine) put(&b, s->avg_net, train_net_num_params(s->net) * 4);
     }
     put(&b, CKPT_END, 8);
@@ -264,13 +284,16 @@ static pg_status check_filter(const float *var, int n, const char *path)
     return PG_OK;
 }
 
-static void get_gaussians(rd *r, pg_gaussians *g, int n)
+static void get_gaussians(rd *r, pg_gaussians *g, int n, int sh_cols)
 {
     get(r, g->means, (size_t)n * 3 * 4);
     get(r, g->log_scales, (size_t)n * 3 * 4);
     get(r, g->quats, (size_t)n * 4 * 4);
     get(r, g->opacity, (size_t)n * 4);
-    get(r, g->sh, (size_t)n * SH_ROW * 4);
+    for (size_t i = 0; i < (size_t)n; i++) {
+        get(r, g->sh + i * SH_ROW, (size_t)sh_cols * 4);
+        memset(g->sh + i * SH_ROW + sh_cols, 0, (size_t)(SH_ROW - sh_cols) * 4);
+    }
 }
 
 /* Reads an optimiser's state written by put_adam into opt (created with the right groups and
@@ -358,9 +381,13 @@ static pg_status read_header(rd *r, const char *path, ckpt_header *h)
                        h->sh_degree, h->iter);
     const char *bad = train_config_invalid(&h->cfg);
     if (bad) return pg_fail(PG_ERR_FORMAT, "%s: corrupt checkpoint config (%s)", path, bad);
+    if (h->sh_degree > h->cfg.sh_max_degree)
+        return pg_fail(PG_ERR_FORMAT, "%s: corrupt checkpoint header (SH degree %d above the run's largest, %d)", path,
+                       h->sh_degree, h->cfg.sh_max_degree);
     /* the rest must fit: the Gaussians, their Adam state, flags and statistics */
-    size_t need = h->optimizer ? (size_t)h->n * (GAUSS_FLOATS * 4 * 3 + 1 + 8) + OPTIM_GAUSS_GROUPS * 4
-                               : (size_t)h->n * (GAUSS_FLOATS * 4 + 1);
+    const size_t row = (size_t)(GAUSS_NON_SH + sh_stored(h->cfg.sh_max_degree)) * 4;
+    size_t need = h->optimizer ? (size_t)h->n * (row + GAUSS_FLOATS * 4 * 2 + 1 + 8) + OPTIM_GAUSS_GROUPS * 4
+                               : (size_t)h->n * (row + 1);
     if (r->size - r->off < need) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (Gaussians)", path);
     return PG_OK;
 }
@@ -413,10 +440,11 @@ static pg_status read_average(rd *r, const char *path, train_session *s, const c
     s->avg_on = 0;
     if (!h->average) return PG_OK;
     size_t P = h->fine ? train_net_num_params(s->net) : 0;
-    if ((r->size - r->off) / 4 < (size_t)h->n * GAUSS_FLOATS + P)
+    const int sh_cols = sh_stored(h->cfg.sh_max_degree);
+    if ((r->size - r->off) / 4 < (size_t)h->n * (GAUSS_NON_SH + sh_cols) + P)
         return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (parameter average)", path);
     PG_TRY(splat_gaussians_copy(&s->g, &s->avg_g)); /* sized like the Gaussians, then overwritten */
-    get_gaussians(r, &s->avg_g, h->n);
+    get_gaussians(r, &s->avg_g, h->n, sh_cols);
     PG_TRY(check_finite(&s->avg_g, h->n, path));
     if (P) {
         free(s->avg_net);
@@ -467,7 +495,7 @@ pg_status train_checkpoint_read(train_session *s, const char *path)
     s->max_disp = h.max_disp;
     memcpy(s->cfg.bg, h.bg, sizeof h.bg);
     if ((st = train_resize_all(s, h.n))) goto done;
-    get_gaussians(&r, &s->g, h.n);
+    get_gaussians(&r, &s->g, h.n, sh_stored(h.cfg.sh_max_degree));
     if ((st = check_finite(&s->g, h.n, path))) goto done;
     if (h.optimizer) get_adam(&r, s->gopt);
     else /* a finished model continued: Adam starts afresh */
@@ -524,7 +552,7 @@ pg_status train_model_load(const char *path, train_model *m)
     if (!st) st = read_header(&r, path, &h);
     if (st) goto done;
     if ((st = splat_gaussians_create(&m->g_net, h.n)) || (st = splat_gaussians_resize(&m->g_net, h.n))) goto done;
-    get_gaussians(&r, &m->g_net, h.n);
+    get_gaussians(&r, &m->g_net, h.n, sh_stored(h.cfg.sh_max_degree));
     if ((st = check_finite(&m->g_net, h.n, path))) goto done;
     m->g_net.sh_degree = h.sh_degree;
     m->unit = h.unit;

@@ -103,6 +103,7 @@ void train_session_deform_stats(const train_session *s, double *mean_deformed, d
 }
 
 void train_session_timing(const train_session *s, train_timing *t) { *t = s->timing; }
+void train_session_timing_total(const train_session *s, train_timing *t) { *t = s->timing_total; }
 
 void train_session_destroy(train_session *s)
 {
@@ -238,6 +239,7 @@ int train_time_texels(int frames, int fine_iters)
 }
 
 int train_default_coarse_iters(int iters) { return iters / 6; }
+int train_default_sh_degree(const train_set *ts) { return train_set_count_role(ts, IO_ROLE_REAL) >= 2 ? 3 : 0; }
 int train_default_densify_until(int iters) { return (int)(0.7 * iters); }
 
 train_budget train_budget_for_clip(int preset_iters, int frames, int motion_crops)
@@ -871,6 +873,16 @@ pg_status train_session_step(train_session *s)
         PG_TRY(check_static(s));
     if (c->opacity_reset_every > 0 && it < c->densify_until && it % c->opacity_reset_every == 0) train_reset_opacity(s);
     s->timing.other = (pg_time_seconds() - t0) * 1e3;
+    train_timing *a = &s->timing_total, *b = &s->timing;
+    a->deform_forward += b->deform_forward;
+    a->deform_backward += b->deform_backward;
+    a->regularize += b->regularize;
+    a->raster_forward += b->raster_forward;
+    a->raster_backward += b->raster_backward;
+    a->loss += b->loss;
+    a->optimizer += b->optimizer;
+    a->other += b->other;
+    a->deformed += b->deformed;
     return PG_OK;
 }
 

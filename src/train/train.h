@@ -84,6 +84,11 @@ int train_time_texels(int frames, int fine_times); /* fine_times: fine iteration
 #define TRAIN_FITS_PER_FRAME 40
 #define TRAIN_MAX_BUDGET_SCALE 2
 int train_iterations_for_clip(int iters, int frames, int motion_crops);
+/* The largest SH degree when none is asked for: 3 with two or more real cameras, 0 with one. With
+ * one camera every proxy carries that camera's colours to its viewpoint, so a colour that changes
+ * with the direction has nothing true to learn, only where the proxies disagree (tabletop_dev
+ * held out: degree 0 as good as 3, a step ~8 % cheaper; docs/train.md). */
+int train_default_sh_degree(const train_set *ts);
 /* The coarse (still) stage's iterations when none are asked for: a sixth of the budget. */
 int train_default_coarse_iters(int iters);
 /* The iteration densification stops at when none is asked for: 70 % of the budget. A long clip's
@@ -146,6 +151,8 @@ typedef struct {
     int deformed; /* Gaussians sent through the network */
 } train_timing;
 void train_session_timing(const train_session *s, train_timing *t);
+/* The same summed over every step of this process (train.json's phase_seconds). */
+void train_session_timing_total(const train_session *s, train_timing *t);
 /* Benchmarks: start the fine stage now (creates the network). */
 pg_status train_session_force_fine(train_session *s);
 /* Replaces the canonical Gaussians (moments and density statistics zeroed); is_static (N) may

@@ -65,6 +65,7 @@ struct train_session {
     double last_loss, last_psnr, t_start;
     int it_start;
     train_timing timing;
+    train_timing timing_total; /* summed over this process's steps, in train.json */
     double sum_deformed, sum_movable; /* per fine iteration, for the speed report */
     long fine_steps;
 };
