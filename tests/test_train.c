@@ -372,6 +372,16 @@ int main(void)
         train_config tc = small_config();
         tc.sh_max_degree = 1;
         check_learns_and_resumes(&ts, tc, dir, "SH degree 1");
+        /* smaller than the Gaussians alone would be with all 48 SH floats per row */
+        char path[1200];
+        snprintf(path, sizeof path, "%s/SH degree 1_a.ckpt", dir);
+        train_model m;
+        memset(&m, 0, sizeof m);
+        CHECK_OK(train_model_load(path, &m));
+        long full = (long)m.g.count * (3 + 3 + 4 + 1 + 48) * 4, bytes = file_bytes(path);
+        CHECK(m.g.count > 0 && bytes > 0 && bytes < full, "SH degree 1: checkpoint %ld bytes for %d Gaussians, "
+              "the rows alone at 48 SH floats would be %ld", bytes, m.g.count, full);
+        train_model_destroy(&m);
     }
 
     /* two times per step (each its own deformation, one optimiser step): learns, and a resume
