@@ -79,8 +79,8 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
     PG_TRY(stage_check_threads("pipeline", c->threads));
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "--seed must be >= 0 (got %d)", c->seed);
     PG_TRY(stage_check_trainer_options("pipeline", c->deform_width, c->deform_head_width, c->deform_time_coarsen,
-                                       c->motion_crops, c->views_per_step, c->proxy_moving_weight, c->real_weight));
-    if (c->sh_degree < -1 || c->sh_degree > 3) return pg_fail(PG_ERR_ARG, "--sh-degree must be in 0..3 (got %d)", c->sh_degree);
+                                       c->motion_crops, c->views_per_step, c->proxy_moving_weight, c->real_weight,
+                                       c->sh_degree));
     if (c->depth_scale < 0) return pg_fail(PG_ERR_ARG, "--depth-scale must be > 0 (got %g)", c->depth_scale);
     if (c->pose_scale < 0) return pg_fail(PG_ERR_ARG, "--pose-scale must be > 0 (got %g)", c->pose_scale);
     if (c->proxy_render && strcmp(c->proxy_render, "mesh") != 0 && strcmp(c->proxy_render, "splat") != 0)
@@ -430,7 +430,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.deform_time_coarsen = c->deform_time_coarsen;
     tc.proxy_moving_weight = c->proxy_moving_weight;
     tc.real_weight = c->real_weight;
-    if (c->sh_degree >= 0) tc.sh_degree = c->sh_degree;
+    tc.sh_degree = c->sh_degree;
     tc.seed = c->seed;
     tc.threads = plan->threads;
     tc.eval_train = 1; /* the training camera's moving/static PSNR: whether the motion was captured */

@@ -33,7 +33,7 @@ pg_status stage_check_threads(const char *stage, int threads)
 
 pg_status stage_check_trainer_options(const char *stage, int deform_width, int deform_head_width,
                                       int deform_time_coarsen, int motion_crops, int views_per_step, float proxy_moving_weight,
-                                      float real_weight)
+                                      float real_weight, int sh_degree)
 {
     if (deform_width < 0 || deform_width > 1024)
         return pg_fail(PG_ERR_ARG, "%s: --deform-width must be in 1..1024 (got %d)", stage, deform_width);
@@ -47,6 +47,8 @@ pg_status stage_check_trainer_options(const char *stage, int deform_width, int d
     if (views_per_step < 1 || views_per_step > TRAIN_MAX_BATCH)
         return pg_fail(PG_ERR_ARG, "%s: --views-per-step must be in 1..%d (got %d)", stage, TRAIN_MAX_BATCH,
                        views_per_step);
+    if (sh_degree < -1 || sh_degree > 3)
+        return pg_fail(PG_ERR_ARG, "%s: --sh-degree must be in 0..3 (got %d)", stage, sh_degree);
     if (proxy_moving_weight != -1 && !(proxy_moving_weight >= 0 && proxy_moving_weight <= 1))
         return pg_fail(PG_ERR_ARG, "%s: --proxy-moving-weight must be in [0, 1] (got %g)", stage, proxy_moving_weight);
     if (real_weight != -1 && !(real_weight >= 0 && real_weight <= 1))

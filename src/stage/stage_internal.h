@@ -22,7 +22,7 @@ pg_status stage_check_size(const char *stage, int width, int height);
  * (-1 = the trainer's default; widths 0 = the trainer's default too). */
 pg_status stage_check_trainer_options(const char *stage, int deform_width, int deform_head_width,
                                       int deform_time_coarsen, int motion_crops, int views_per_step, float proxy_moving_weight,
-                                      float real_weight);
+                                      float real_weight, int sh_degree);
 
 /* The user's length per value of a depth file: prepare.json beside a prepare stage's
  * depth_aligned.npy records it (source.depth_unit: the clip's own unit times --depth-scale); 1

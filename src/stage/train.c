@@ -78,11 +78,11 @@ static pg_status check_config(const pg_train_config *c)
     if (c->max_gaussians < 16) return pg_fail(PG_ERR_ARG, "train: --max-gaussians must be >= 16");
     PG_TRY(stage_check_threads("train", c->threads));
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "train: --seed %d must be >= 0", c->seed);
-    if (c->sh_degree < -1 || c->sh_degree > 3) return pg_fail(PG_ERR_ARG, "train: --sh-degree must be 0..3");
     if (c->deform_res < 0 || c->deform_res > 1024)
         return pg_fail(PG_ERR_ARG, "train: --deform-res %d out of range 0..1024", c->deform_res);
     PG_TRY(stage_check_trainer_options("train", c->deform_width, c->deform_head_width, c->deform_time_coarsen,
-                                       c->motion_crops, c->views_per_step, c->proxy_moving_weight, c->real_weight));
+                                       c->motion_crops, c->views_per_step, c->proxy_moving_weight, c->real_weight,
+                                       c->sh_degree));
     if (c->deform_tres < 0 || c->deform_tres == 1 || c->deform_tres > 100000)
         return pg_fail(PG_ERR_ARG, "train: --deform-time-res %d out of range 2..100000 (0 = the trainer's rule)", c->deform_tres);
     if (c->checkpoint_every < 0) return pg_fail(PG_ERR_ARG, "train: --checkpoint-every must be >= 0");
