@@ -935,6 +935,47 @@ static void test_fit_bf16(const char *name)
            t32, t16);
 }
 
+/* Time refinement (deform_params_resample_time): a network whose time rows are resampled from 5 to
+ * 17 (every old row interval split in four; the coarse scale 3 -> 9) gives the same outputs at any
+ * t, since the field is linear in t between rows; moments resampled the same way keep their size. */
+static void test_time_refinement(void)
+{
+    deform_config cfg;
+    small_config(&cfg);
+    const float aabb[6] = { -1, -1, -1, 1, 1, 1 };
+    deform_network *a = NULL, *b = NULL;
+    CHECK_OK(deform_network_create(&a, &cfg, aabb));
+    cfg.res_time = 17;
+    CHECK_OK(deform_network_create(&b, &cfg, aabb));
+    if (!a || !b) return;
+    pg_rng rng;
+    pg_rng_seed(&rng, 11);
+    for (size_t i = 0; i < a->num_params; i++) a->params[i] += 0.3f * (float)(pg_rng_uniform(&rng) - 0.5);
+    deform_params_resample_time(a, a->params, b, b->params);
+    CHECK(b->num_params > a->num_params && hex_time_res(&b->grid, 0) == 9, "refined network has %zu params, coarse rows %d",
+          b->num_params, hex_time_res(&b->grid, 0));
+    deform_ws *wa = NULL, *wb = NULL;
+    CHECK_OK(deform_ws_create(&wa, a, 16));
+    CHECK_OK(deform_ws_create(&wb, b, 16));
+    float means[48], oa[16 * DEFORM_OUT_DIM], ob[16 * DEFORM_OUT_DIM];
+    for (int i = 0; i < 48; i++) means[i] = (float)(1.8 * pg_rng_uniform(&rng) - 0.9);
+    const float times[5] = { 0.0f, 0.13f, 0.5f, 0.77f, 1.0f };
+    double worst = 0, scale = 0;
+    for (int k = 0; k < 5; k++) {
+        CHECK_OK(deform_network_forward(a, wa, means, NULL, 16, times[k], oa));
+        CHECK_OK(deform_network_forward(b, wb, means, NULL, 16, times[k], ob));
+        for (int i = 0; i < 16 * DEFORM_OUT_DIM; i++) {
+            worst = fmax(worst, fabs((double)oa[i] - ob[i]));
+            scale = fmax(scale, fabs((double)oa[i]));
+        }
+    }
+    CHECK(scale > 1e-3 && worst <= 1e-5 * scale, "refined field differs by %.3g (outputs up to %.3g)", worst, scale);
+    deform_ws_destroy(wa);
+    deform_ws_destroy(wb);
+    deform_network_destroy(a);
+    deform_network_destroy(b);
+}
+
 int main(void)
 {
     pg_set_threads(1);
@@ -944,6 +985,7 @@ int main(void)
     test_network_fd(4);
     test_network_fd(12);
     test_identity_blob_reg();
+    test_time_refinement();
     test_heap_independent("f32", 0);
     /* every bf16 backend this CPU can run, each forced in turn */
     /* the f32 kernels of the bf16 path need AVX-512F, which every bf16 backend implies */

@@ -357,6 +357,27 @@ int main(void)
     if (s) CHECK_OK(train_session_run(s));
     train_session_destroy(s);
     CHECK(test_files_equal(a, b), "resumed final checkpoint differs from the uninterrupted one");
+    /* the time rows' warm-up: killed inside it (iteration 30, the switch is at 20 + 0.4 x 40 = 36), and
+     * after it, resumed from the checkpoint at 20 (before the network exists): same bytes */
+    for (int stop = 30; stop <= 39; stop += 9) {
+        c2.stop_at_iter = stop;
+        remove(b);
+        s = NULL;
+        CHECK_OK(train_session_create(&s, &ts, &c2, b, 0));
+        if (s) CHECK_OK(train_session_run(s));
+        int rows = 0, warm = 0;
+        if (s) train_session_time_rows(s, &rows, &warm);
+        CHECK(warm == 2 && rows == (stop < 36 ? 2 : 4), "stopped at %d: %d time rows (warm-up %d; want %d of 2 -> 4)", stop,
+              rows, warm, stop < 36 ? 2 : 4);
+        train_session_destroy(s);
+    }
+    c2.stop_at_iter = 0;
+    s = NULL;
+    CHECK_OK(train_session_create(&s, &ts, &c2, b, 1));
+    CHECK(s && train_session_iteration(s) == 20, "resumed from the checkpoint at 20, got %d", s ? train_session_iteration(s) : -1);
+    if (s) CHECK_OK(train_session_run(s));
+    train_session_destroy(s);
+    CHECK(test_files_equal(a, b), "resumed across the time refinement: final checkpoint differs from the uninterrupted one");
     /* a finished model continued with more iterations: Adam starts afresh, training goes on */
     c2.iters += 20;
     s = NULL;

@@ -640,6 +640,32 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
 /* One parallel region over the planes (each plane's regularisers then run serially inside it):
  * the per-function row parallelism would fork/join ~50 times per call, which is slow on busy
  * cores. Per-plane totals are summed in plane order, so the result is thread-count independent. */
+void deform_params_resample_time(const deform_network *from, const float *src, const deform_network *to, float *dst)
+{
+    const int C = from->cfg.channels;
+    for (int s = 0; s < from->cfg.num_scales; s++)
+        for (int p = 0; p < HEX_PLANES; p++) {
+            const float *a = src + from->plane_off[s][p];
+            float *b = dst + to->plane_off[s][p];
+            if (hex_plane_axes[p][1] != 3) { /* spatial: same size */
+                memcpy(b, a, hex_plane_size(&from->grid, s, p) * sizeof(float));
+                continue;
+            }
+            const int cols = hex_axis_res(&from->grid, s, hex_plane_axes[p][0]);
+            const int tf = hex_time_res(&from->grid, s), tt = hex_time_res(&to->grid, s);
+            const size_t row = (size_t)cols * C;
+            for (int r = 0; r < tt; r++) {
+                double g = (double)r * (tf - 1) / (tt - 1);
+                int i0 = (int)g < tf - 1 ? (int)g : tf - 2;
+                float w = (float)(g - i0);
+                const float *r0 = a + (size_t)i0 * row, *r1 = r0 + row;
+                for (size_t k = 0; k < row; k++) b[(size_t)r * row + k] = (1.0f - w) * r0[k] + w * r1[k];
+            }
+        }
+    memcpy(dst + to->num_plane_params, src + from->num_plane_params,
+           (from->num_params - from->num_plane_params) * sizeof(float));
+}
+
 float deform_network_regularize(deform_network *net, float w_tv, float w_time, float w_l1)
 {
     const int np = net->cfg.num_scales * HEX_PLANES;

@@ -145,6 +145,13 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
  * net->grads and returns the weighted total. */
 float deform_network_regularize(deform_network *net, float w_tv, float w_time, float w_l1);
 
+/* Copies a parameter-shaped array (the parameters, or an optimiser moment laid out like them) of
+ * `from` into the layout of `to`, a network that differs only in its time resolution: the MLP and
+ * the spatial planes verbatim, each time plane's rows resampled linearly in t (align-corners).
+ * With (T_to - 1) a multiple of (T_from - 1) the field is the same at every t (a refinement).
+ * Used to start a long clip's motion on few, often-visited time rows and refine them later. */
+void deform_params_resample_time(const deform_network *from, const float *src, const deform_network *to, float *dst);
+
 /* Parameter blobs for checkpoints: a small header (magic, config, aabb, count) + params (float32). */
 size_t deform_network_blob_size(const deform_network *net);
 pg_status deform_network_write_blob(const deform_network *net, void *buf, size_t size);

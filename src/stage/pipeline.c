@@ -56,6 +56,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
     c->motion_crops = -1;
     c->views_per_step = train_default_config().views_per_step;
     c->deform_time_coarsen = -1;
+    c->deform_time_warmup = -1;
     c->proxy_moving_weight = -1;
     c->real_weight = -1;
     c->sh_degree = -1;
@@ -78,7 +79,7 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "--frames must be >= 1 (got %d)", c->frames);
     PG_TRY(stage_check_threads("pipeline", c->threads));
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "--seed must be >= 0 (got %d)", c->seed);
-    PG_TRY(stage_check_trainer_options("pipeline", c->deform_width, c->deform_head_width, c->deform_time_coarsen,
+    PG_TRY(stage_check_trainer_options("pipeline", c->deform_width, c->deform_head_width, c->deform_time_coarsen, c->deform_time_warmup,
                                        c->motion_crops, c->views_per_step, c->proxy_moving_weight, c->real_weight,
                                        c->sh_degree));
     if (c->depth_scale < 0) return pg_fail(PG_ERR_ARG, "--depth-scale must be > 0 (got %g)", c->depth_scale);
@@ -428,6 +429,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.motion_crops = c->motion_crops;
     tc.views_per_step = c->views_per_step;
     tc.deform_time_coarsen = c->deform_time_coarsen;
+    tc.deform_time_warmup = c->deform_time_warmup;
     tc.proxy_moving_weight = c->proxy_moving_weight;
     tc.real_weight = c->real_weight;
     tc.sh_degree = c->sh_degree;

@@ -34,6 +34,7 @@ void pg_train_defaults(pg_train_config *c)
     c->use_static = c->use_cull = 1;
     c->motion_crops = -1;
     c->deform_time_coarsen = -1;
+    c->deform_time_warmup = -1;
 }
 
 cJSON *stage_train_config_json(const pg_train_config *c)
@@ -49,9 +50,10 @@ cJSON *stage_train_config_json(const pg_train_config *c)
                                        "times_per_step", "motion_crops", "deform_time_coarsen",
                                        "densify_until" };
     for (size_t k = 0; k < sizeof ints / sizeof ints[0]; k++) cJSON_AddNumberToObject(j, int_names[k], ints[k]);
-    const float floats[] = { c->real_weight, c->moving_weight, c->lambda_depth, c->lambda_dssim, c->proxy_moving_weight };
+    const float floats[] = { c->real_weight, c->moving_weight, c->lambda_depth, c->lambda_dssim, c->proxy_moving_weight,
+                             c->deform_time_warmup };
     static const char *float_names[] = { "real_weight", "moving_weight", "lambda_depth", "lambda_dssim",
-                                         "proxy_moving_weight" };
+                                         "proxy_moving_weight", "deform_time_warmup" };
     for (size_t k = 0; k < sizeof floats / sizeof floats[0]; k++) cJSON_AddNumberToObject(j, float_names[k], floats[k]);
     cJSON_AddStringToObject(j, "real_cameras", c->real_cameras ? c->real_cameras : "");
     cJSON_AddStringToObject(j, "test_cameras", c->test_cameras ? c->test_cameras : "");
@@ -80,7 +82,7 @@ static pg_status check_config(const pg_train_config *c)
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "train: --seed %d must be >= 0", c->seed);
     if (c->deform_res < 0 || c->deform_res > 1024)
         return pg_fail(PG_ERR_ARG, "train: --deform-res %d out of range 0..1024", c->deform_res);
-    PG_TRY(stage_check_trainer_options("train", c->deform_width, c->deform_head_width, c->deform_time_coarsen,
+    PG_TRY(stage_check_trainer_options("train", c->deform_width, c->deform_head_width, c->deform_time_coarsen, c->deform_time_warmup,
                                        c->motion_crops, c->views_per_step, c->proxy_moving_weight, c->real_weight,
                                        c->sh_degree));
     if (c->deform_tres < 0 || c->deform_tres == 1 || c->deform_tres > 100000)
@@ -160,6 +162,10 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
     cJSON_AddNumberToObject(root, "threads", r->threads);
     cJSON_AddNumberToObject(root, "coarse_iters", cfg->coarse_iters);
     cJSON_AddNumberToObject(root, "sh_degree", cfg->sh_max_degree);
+    int rows, warm_rows;
+    train_session_time_rows(s, &rows, &warm_rows);
+    cJSON_AddNumberToObject(root, "time_rows", rows);
+    cJSON_AddNumberToObject(root, "time_rows_warmup", warm_rows);
     const double scores[] = { r->test_psnr, r->train_psnr, r->train_psnr_moving, r->train_psnr_static };
     static const char *names[] = { "test_psnr", "train_real_psnr", "train_real_psnr_moving", "train_real_psnr_static" };
     for (int k = 0; k < 4; k++)
@@ -261,6 +267,7 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
     cfg.deform_width = c->deform_width;
     cfg.deform_tres = c->deform_tres;
     if (c->deform_time_coarsen >= 0) cfg.deform_time_coarsen = c->deform_time_coarsen;
+    if (c->deform_time_warmup >= 0) cfg.deform_time_warmup = c->deform_time_warmup;
     if (c->deform_head_width > 0) cfg.deform_head_width = c->deform_head_width;
     cfg.use_static_flags = c->use_static;
     cfg.static_check_every = c->static_check_every;

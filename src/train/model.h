@@ -49,6 +49,11 @@ pg_status train_net_backward(train_net *net, const pg_gaussians *g, const int *i
                              const pg_gaussians *d_out, pg_gaussians *d_canon);
 /* K-Planes regularisers: adds their gradients, returns the loss value. */
 float train_net_regularize(train_net *net, float w_tv, float w_time, float w_l1);
+/* A network like `from` but with tres time rows, its parameters resampled in time (the same
+ * motion where the rows refine); *to must be destroyed by the caller. */
+pg_status train_net_resample_time(const train_net *from, int tres, train_net **to);
+/* The same resampling for any parameter-shaped array (an optimiser moment, an average). */
+void train_net_resample_array(const train_net *from, const float *src, const train_net *to, float *dst);
 
 /* ---- the model ---- */
 typedef struct {

@@ -73,6 +73,7 @@ train_config train_default_config(void)
     c.prune_opacity = 0.005f;
     c.prune_big_scale = 0.2f;
     c.deform_time_coarsen = 2; /* issue 24: +1.4 dB moving on a 300-frame clip (docs/deform.md) */
+    c.deform_time_warmup = 0.4f; /* issue 24: +1.2 dB moving on a 300-frame clip (docs/train.md) */
     c.deform_head_width = 32; /* half the width: as good as 64 on tabletop_dev, the network ~28 % cheaper (docs/deform.md) */
     c.use_static_flags = 1;
     c.use_frustum_cull = 1;
@@ -287,6 +288,74 @@ int train_iterations_for_clip(int iters, int frames, int motion_crops)
     return (int)(raised < cap ? raised : cap);
 }
 
+/* The time rows the network ends with: --deform-time-res, else one per frame within the budget. */
+static int final_time_rows(const train_session *s)
+{
+    if (s->cfg.deform_tres > 0) return s->cfg.deform_tres;
+    return train_time_texels(s->ts->frames, (s->cfg.iters - s->cfg.coarse_iters) * (times_per_step(&s->cfg) + motion_crops(s)));
+}
+/* The time rows of the warm-up: a quarter, each refined into four at the switch (exactly when
+ * 4 divides T - 1). */
+static int warmup_time_rows(int final_rows)
+{
+    int r = ((final_rows - 1) >> 2) + 1;
+    return r > 2 ? r : 2;
+}
+/* Fine steps on the warm-up's time rows (0: none). Only a clip whose rows are each fitted fewer
+ * than TRAIN_FITS_PER_FRAME times warms up: the 300-frame sample clip (~27 fits per row) gained
+ * 1.2 dB on its movers, the 30-frame one (~125) lost 3.3 (docs/train.md). */
+static int time_warmup_steps(const train_session *s)
+{
+    const long fine = s->cfg.iters - s->cfg.coarse_iters;
+    const long fits = fine * (times_per_step(&s->cfg) + motion_crops(s));
+    int rows = final_time_rows(s);
+    if (!(s->cfg.deform_time_warmup > 0) || warmup_time_rows(rows) >= rows || fits >= (long)rows * TRAIN_FITS_PER_FRAME)
+        return 0;
+    return (int)(s->cfg.deform_time_warmup * (float)fine);
+}
+
+/* Ends the warm-up: the network, its Adam moments and its running average move to the final
+ * time rows, each resampled in time, so the motion learnt so far carries over unchanged. */
+static pg_status refine_time_rows(train_session *s, int tres)
+{
+    train_net *old = s->net, *nn = NULL;
+    PG_TRY(train_net_resample_time(old, tres, &nn));
+    const size_t P0 = train_net_num_params(old), P1 = train_net_num_params(nn);
+    const size_t ge0 = train_net_grid_end(old), ge1 = train_net_grid_end(nn);
+    float *a = pg_malloc(P0 * sizeof(float), "time refinement"), *b = pg_malloc(P1 * sizeof(float), "time refinement");
+    optim_adam *old_opt = s->nopt;
+    s->nopt = NULL;
+    s->net = nn;
+    pg_status st = a && b ? train_adam_create_net(s) : PG_ERR_NOMEM;
+    for (int which = 0; which < 2 && !st; which++) {
+        memcpy(a, optim_adam_moment(old_opt, 0, which), ge0 * sizeof(float));
+        memcpy(a + ge0, optim_adam_moment(old_opt, 1, which), (P0 - ge0) * sizeof(float));
+        train_net_resample_array(old, a, nn, b);
+        memcpy(optim_adam_moment(s->nopt, 0, which), b, ge1 * sizeof(float));
+        memcpy(optim_adam_moment(s->nopt, 1, which), b + ge1, (P1 - ge1) * sizeof(float));
+    }
+    for (int gi = 0; gi < TRAIN_NET_GROUPS && !st; gi++) optim_adam_set_group_step(s->nopt, gi, optim_adam_group_step(old_opt, gi));
+    if (!st && s->avg_net) {
+        train_net_resample_array(old, s->avg_net, nn, b);
+        free(s->avg_net);
+        s->avg_net = b;
+        b = NULL;
+    }
+    if (!st) s->net_cfg.tres = tres;
+    free(a);
+    free(b);
+    if (st) { /* keep the old network */
+        optim_adam_destroy(s->nopt);
+        s->nopt = old_opt;
+        s->net = old;
+        train_net_destroy(nn);
+        return st;
+    }
+    optim_adam_destroy(old_opt);
+    train_net_destroy(old);
+    return PG_OK;
+}
+
 /* Creates the network (fine stage) over the box of the canonical means that go through it (the
  * movable ones; all when static flags are off or none is movable): the HexPlane's texels then
  * sit where the motion is instead of spreading over the whole room. Points outside the box
@@ -314,9 +383,8 @@ static pg_status start_fine(train_session *s)
     nc.head_width = s->cfg.deform_head_width;
     nc.time_coarsen = s->cfg.deform_time_coarsen;
     nc.res = s->cfg.deform_res;
-    nc.tres = s->cfg.deform_tres > 0 ? s->cfg.deform_tres
-                                      : train_time_texels(s->ts->frames, (s->cfg.iters - s->cfg.coarse_iters) *
-                                                                             (times_per_step(&s->cfg) + motion_crops(s)));
+    nc.tres = final_time_rows(s);
+    if (time_warmup_steps(s) > 0) nc.tres = warmup_time_rows(nc.tres);
     nc.channels = s->cfg.deform_channels;
     nc.seed = s->cfg.seed * 7919u + 17u;
     s->net_cfg = nc;
@@ -324,6 +392,12 @@ static pg_status start_fine(train_session *s)
     PG_TRY(train_adam_create_net(s));
     s->fine = 1;
     return PG_OK;
+}
+
+void train_session_time_rows(const train_session *s, int *rows, int *warmup_rows)
+{
+    *rows = s->net ? s->net_cfg.tres : final_time_rows(s);
+    *warmup_rows = time_warmup_steps(s) > 0 ? warmup_time_rows(*rows) : 0;
 }
 
 pg_status train_session_force_fine(train_session *s)
@@ -856,6 +930,9 @@ pg_status train_session_step(train_session *s)
 {
     const train_config *c = &s->cfg;
     if (!s->fine && s->iter >= c->coarse_iters) PG_TRY(start_fine(s));
+    if (s->fine && s->net_cfg.tres != final_time_rows(s) && time_warmup_steps(s) > 0 &&
+        s->iter - c->coarse_iters >= time_warmup_steps(s))
+        PG_TRY(refine_time_rows(s, final_time_rows(s)));
     if (s->cfg.views_per_step > TRAIN_MAX_BATCH) s->cfg.views_per_step = TRAIN_MAX_BATCH;
     memset(&s->timing, 0, sizeof s->timing);
     const int times = times_per_step(c);

@@ -59,6 +59,7 @@ typedef struct {
     int deform_width, deform_res, deform_tres, deform_channels; /* 0 = library defaults */
     int deform_head_width;   /* hidden width of each of the network's five heads (32; 0 = deform_width) */
     int deform_time_coarsen; /* the coarse spatial scale's time rows: one per 2^k of the fine scale's (2) */
+    float deform_time_warmup; /* share of the fine steps on a quarter of the time rows, refined then (0.4; 0 = off) */
 } train_config;
 
 /* Most views trained against one deformation (views_per_step is clamped to it). */
@@ -142,6 +143,9 @@ void train_session_deform_stats(const train_session *s, double *mean_deformed, d
  * regions' mean share of the frame, and the proxies with a moving region (crops alternate the real
  * view with them). */
 void train_session_motion_regions(const train_session *s, int *frames, double *mean_area, int *proxies);
+/* The network's time rows now (before the fine stage: those it ends with) and during its warm-up
+ * (0: no warm-up). */
+void train_session_time_rows(const train_session *s, int *rows, int *warmup_rows);
 /* Gaussians flagged static (never sent through the network). */
 int train_session_static_count(const train_session *s);
 

@@ -136,4 +136,16 @@ float train_net_regularize(train_net *t, float w_tv, float w_time, float w_l1)
     return deform_network_regularize(t->net, w_tv, w_time, w_l1);
 }
 
+pg_status train_net_resample_time(const train_net *from, int tres, train_net **to)
+{
+    train_net_config c = from->cfg;
+    c.tres = tres;
+    PG_TRY(train_net_create(to, &c));
+    train_net_resample_array(from, from->net->params, *to, (*to)->net->params);
+    return PG_OK;
+}
 
+void train_net_resample_array(const train_net *from, const float *src, const train_net *to, float *dst)
+{
+    deform_params_resample_time(from->net, src, to->net, dst);
+}
