@@ -937,7 +937,7 @@ static void test_fit_bf16(const char *name)
 
 /* Time refinement (deform_params_resample_time): a network whose time rows are resampled from 5 to
  * 17 (every old row interval split in four; the coarse scale 3 -> 9) gives the same outputs at any
- * t, since the field is linear in t between rows; moments resampled the same way keep their size. */
+ * t, since the field is linear in t between rows. */
 static void test_time_refinement(void)
 {
     deform_config cfg;

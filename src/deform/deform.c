@@ -635,11 +635,8 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
 }
 
 /* ---------------------------------------------------------------------------------------------- */
-/* regularisers                                                                                    */
+/* time refinement                                                                                 */
 
-/* One parallel region over the planes (each plane's regularisers then run serially inside it):
- * the per-function row parallelism would fork/join ~50 times per call, which is slow on busy
- * cores. Per-plane totals are summed in plane order, so the result is thread-count independent. */
 void deform_params_resample_time(const deform_network *from, const float *src, const deform_network *to, float *dst)
 {
     const int C = from->cfg.channels;
@@ -666,6 +663,12 @@ void deform_params_resample_time(const deform_network *from, const float *src, c
            (from->num_params - from->num_plane_params) * sizeof(float));
 }
 
+/* ---------------------------------------------------------------------------------------------- */
+/* regularisers                                                                                    */
+
+/* One parallel region over the planes (each plane's regularisers then run serially inside it):
+ * the per-function row parallelism would fork/join ~50 times per call, which is slow on busy
+ * cores. Per-plane totals are summed in plane order, so the result is thread-count independent. */
 float deform_network_regularize(deform_network *net, float w_tv, float w_time, float w_l1)
 {
     const int np = net->cfg.num_scales * HEX_PLANES;

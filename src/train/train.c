@@ -141,24 +141,30 @@ void train_session_destroy(train_session *s)
     free(s);
 }
 
+/* One span of a blend (serial; the callers split the work over the threads). */
+static void blend_span(float *dst, const float *src, size_t m, train_blend how, float keep)
+{
+    const float take = 1.0f - keep;
+    if (how == TRAIN_BLEND_COPY)
+        memcpy(dst, src, m * sizeof(float));
+    else if (how == TRAIN_BLEND_ZERO)
+        memset(dst, 0, m * sizeof(float));
+    else if (how == TRAIN_BLEND_ADD)
+        for (size_t k = 0; k < m; k++) dst[k] += src[k];
+    else
+        for (size_t k = 0; k < m; k++) dst[k] = keep * dst[k] + take * src[k];
+}
+
 /* Every parameter pass is 24 MB at 100k Gaussians and runs several times per iteration, so it
  * is split over the threads in blocks. */
 void train_blend_floats(float *dst, const float *src, size_t n, train_blend how, float keep)
 {
     const size_t block = (size_t)1 << 14;
     const long nb = (long)((n + block - 1) / block);
-    const float take = 1.0f - keep;
 #pragma omp parallel for schedule(static)
     for (long b = 0; b < nb; b++) {
         size_t lo = (size_t)b * block, m = n - lo < block ? n - lo : block;
-        if (how == TRAIN_BLEND_COPY)
-            memcpy(dst + lo, src + lo, m * sizeof(float));
-        else if (how == TRAIN_BLEND_ZERO)
-            memset(dst + lo, 0, m * sizeof(float));
-        else if (how == TRAIN_BLEND_ADD)
-            for (size_t k = lo; k < lo + m; k++) dst[k] += src[k];
-        else
-            for (size_t k = lo; k < lo + m; k++) dst[k] = keep * dst[k] + take * src[k];
+        blend_span(dst + lo, src + lo, m, how, keep);
     }
 }
 
@@ -168,15 +174,7 @@ static void blend_sh_rows(float *dst, const float *src, int n, int used, train_b
 {
     const size_t row = PG_SH_COEFFS * 3;
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        float *d = dst + (size_t)i * row;
-        const float *s = src + (size_t)i * row;
-        for (int k = 0; k < used; k++)
-            d[k] = how == TRAIN_BLEND_COPY ? s[k]
-                 : how == TRAIN_BLEND_ZERO ? 0.0f
-                 : how == TRAIN_BLEND_ADD  ? d[k] + s[k]
-                                           : keep * d[k] + (1.0f - keep) * s[k];
-    }
+    for (int i = 0; i < n; i++) blend_span(dst + (size_t)i * row, src + (size_t)i * row, (size_t)used, how, keep);
 }
 
 void train_blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, train_blend how, float keep, int sh_floats)
@@ -191,10 +189,10 @@ void train_blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, train_ble
     if (how == TRAIN_BLEND_COPY || how == TRAIN_BLEND_AVERAGE) dst->sh_degree = src->sh_degree;
 }
 
-/* dst = src over the SH floats the run uses */
-static void copy_gaussians(train_session *s, pg_gaussians *dst, const pg_gaussians *src)
+/* A blend of the session's rows over the SH floats the run uses (copy, zero with src = dst, add). */
+static void blend_used(train_session *s, pg_gaussians *dst, const pg_gaussians *src, train_blend how)
 {
-    train_blend_gaussians(dst, src, TRAIN_BLEND_COPY, 0.0f, train_sh_floats(s->cfg.sh_max_degree));
+    train_blend_gaussians(dst, src, how, 0.0f, train_sh_floats(s->cfg.sh_max_degree));
 }
 
 /* Moving pixels of each real view (colour off the temporal median by > 0.1, dilated 2 px):
@@ -320,30 +318,19 @@ static pg_status refine_time_rows(train_session *s, int tres)
 {
     train_net *old = s->net, *nn = NULL;
     PG_TRY(train_net_resample_time(old, tres, &nn));
-    const size_t P0 = train_net_num_params(old), P1 = train_net_num_params(nn);
-    const size_t ge0 = train_net_grid_end(old), ge1 = train_net_grid_end(nn);
-    float *a = pg_malloc(P0 * sizeof(float), "time refinement"), *b = pg_malloc(P1 * sizeof(float), "time refinement");
+    float *avg = s->avg_net ? pg_malloc(train_net_num_params(nn) * sizeof(float), "time refinement") : NULL;
     optim_adam *old_opt = s->nopt;
     s->nopt = NULL;
     s->net = nn;
-    pg_status st = a && b ? train_adam_create_net(s) : PG_ERR_NOMEM;
-    for (int which = 0; which < 2 && !st; which++) {
-        memcpy(a, optim_adam_moment(old_opt, 0, which), ge0 * sizeof(float));
-        memcpy(a + ge0, optim_adam_moment(old_opt, 1, which), (P0 - ge0) * sizeof(float));
-        train_net_resample_array(old, a, nn, b);
-        memcpy(optim_adam_moment(s->nopt, 0, which), b, ge1 * sizeof(float));
-        memcpy(optim_adam_moment(s->nopt, 1, which), b + ge1, (P1 - ge1) * sizeof(float));
-    }
-    for (int gi = 0; gi < TRAIN_NET_GROUPS && !st; gi++) optim_adam_set_group_step(s->nopt, gi, optim_adam_group_step(old_opt, gi));
-    if (!st && s->avg_net) {
-        train_net_resample_array(old, s->avg_net, nn, b);
+    pg_status st = !s->avg_net || avg ? train_adam_resample_net(s, old, old_opt) : PG_ERR_NOMEM;
+    if (!st && avg) {
+        train_net_resample_array(old, s->avg_net, nn, avg);
         free(s->avg_net);
-        s->avg_net = b;
-        b = NULL;
+        s->avg_net = avg;
+        avg = NULL;
     }
     if (!st) s->net_cfg.tres = tres;
-    free(a);
-    free(b);
+    free(avg);
     if (st) { /* keep the old network */
         optim_adam_destroy(s->nopt);
         s->nopt = old_opt;
@@ -397,7 +384,7 @@ static pg_status start_fine(train_session *s)
 void train_session_time_rows(const train_session *s, int *rows, int *warmup_rows)
 {
     *rows = s->net ? s->net_cfg.tres : final_time_rows(s);
-    *warmup_rows = time_warmup_steps(s) > 0 ? warmup_time_rows(*rows) : 0;
+    *warmup_rows = time_warmup_steps(s) > 0 ? warmup_time_rows(final_time_rows(s)) : 0;
 }
 
 pg_status train_session_force_fine(train_session *s)
@@ -631,7 +618,7 @@ void train_update_filter(train_session *s)
  * filter_saved for the backward). */
 static pg_status deform_all(train_session *s, const pg_camera *const *cams, int ncam, float t, int *n_deformed)
 {
-    copy_gaussians(s, &s->d, &s->g);
+    blend_used(s, &s->d, &s->g, TRAIN_BLEND_COPY);
     *n_deformed = 0;
     if (s->fine) {
         int n = build_subset(s, cams, s->cfg.use_frustum_cull ? ncam : 0);
@@ -684,7 +671,7 @@ static pg_status check_static(train_session *s)
     float *mean = pg_calloc((size_t)n * 59, sizeof(float), "static check");
     pg_status st = (lo && hi && mean) ? PG_OK : PG_ERR_NOMEM;
     for (int k = 0; k < K && !st; k++) {
-        copy_gaussians(s, &s->d, &s->g);
+        blend_used(s, &s->d, &s->g, TRAIN_BLEND_COPY);
         if ((st = train_net_forward(s->net, &s->g, s->idx, n, (float)k / (K - 1), &s->d))) break;
         for (int j = 0; j < n; j++) {
             int i = s->idx[j];
@@ -873,7 +860,7 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
     s->timing.deform_forward += (t1 - t0) * 1e3;
 
     /* every view's gradient sums into dg in batch order (deterministic) */
-    train_blend_gaussians(&s->dg, &s->dg, TRAIN_BLEND_ZERO, 0.0f, train_sh_floats(s->cfg.sh_max_degree));
+    blend_used(s, &s->dg, &s->dg, TRAIN_BLEND_ZERO);
     double loss = 0;
     for (int b = 0; b < nb; b++) {
         double lv;
@@ -884,8 +871,7 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
 
     /* through the 3D filter, then the identity path and the deformation path for the deformed rows */
     splat_filter3d_backward(s->filter_saved, s->filter_var, s->dg.count, s->dg.log_scales, s->dg.opacity);
-    if (first) copy_gaussians(s, &s->gg, &s->dg);
-    else train_blend_gaussians(&s->gg, &s->dg, TRAIN_BLEND_ADD, 0.0f, train_sh_floats(s->cfg.sh_max_degree));
+    blend_used(s, &s->gg, &s->dg, first ? TRAIN_BLEND_COPY : TRAIN_BLEND_ADD);
     if (s->fine && nd > 0) PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, &s->dg, &s->gg));
     s->timing.deform_backward += (pg_time_seconds() - t0) * 1e3;
     *loss_out = loss;
@@ -930,9 +916,11 @@ pg_status train_session_step(train_session *s)
 {
     const train_config *c = &s->cfg;
     if (!s->fine && s->iter >= c->coarse_iters) PG_TRY(start_fine(s));
-    if (s->fine && s->net_cfg.tres != final_time_rows(s) && time_warmup_steps(s) > 0 &&
-        s->iter - c->coarse_iters >= time_warmup_steps(s))
-        PG_TRY(refine_time_rows(s, final_time_rows(s)));
+    if (s->fine) {
+        const int rows = final_time_rows(s), warm_steps = time_warmup_steps(s);
+        if (s->net_cfg.tres != rows && warm_steps > 0 && s->iter - c->coarse_iters >= warm_steps)
+            PG_TRY(refine_time_rows(s, rows));
+    }
     if (s->cfg.views_per_step > TRAIN_MAX_BATCH) s->cfg.views_per_step = TRAIN_MAX_BATCH;
     memset(&s->timing, 0, sizeof s->timing);
     const int times = times_per_step(c);

@@ -10,6 +10,7 @@
 
 #include <limits.h>
 #include <stdlib.h>
+#include <string.h>
 
 #define TRAIN_ADAM_EPS 1e-15f
 
@@ -41,6 +42,25 @@ pg_status train_adam_create_net(train_session *s)
     optim_adam_destroy(s->nopt);
     s->nopt = NULL;
     return optim_adam_create(&s->nopt, groups, TRAIN_NET_GROUPS, 1, TRAIN_ADAM_EPS);
+}
+
+pg_status train_adam_resample_net(train_session *s, const train_net *from, optim_adam *old_opt)
+{
+    const size_t P0 = train_net_num_params(from), P1 = train_net_num_params(s->net);
+    const size_t ge0 = train_net_grid_end(from), ge1 = train_net_grid_end(s->net);
+    float *a = pg_malloc(P0 * sizeof(float), "Adam time refinement"), *b = pg_malloc(P1 * sizeof(float), "Adam time refinement");
+    pg_status st = a && b ? train_adam_create_net(s) : PG_ERR_NOMEM;
+    for (int which = 0; which < 2 && !st; which++) { /* each moment as one parameter-shaped row */
+        memcpy(a, optim_adam_moment(old_opt, TRAIN_NET_GRID, which), ge0 * sizeof(float));
+        memcpy(a + ge0, optim_adam_moment(old_opt, TRAIN_NET_MLP, which), (P0 - ge0) * sizeof(float));
+        train_net_resample_array(from, a, s->net, b);
+        memcpy(optim_adam_moment(s->nopt, TRAIN_NET_GRID, which), b, ge1 * sizeof(float));
+        memcpy(optim_adam_moment(s->nopt, TRAIN_NET_MLP, which), b + ge1, (P1 - ge1) * sizeof(float));
+    }
+    for (int gi = 0; gi < TRAIN_NET_GROUPS && !st; gi++) optim_adam_set_group_step(s->nopt, gi, optim_adam_group_step(old_opt, gi));
+    free(a);
+    free(b);
+    return st;
 }
 
 /* Learning rate decaying exponentially from lr0 to lr1 over the current stage (coarse:

@@ -90,6 +90,9 @@ void train_blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, train_ble
 /* train_adam.c */
 pg_status train_adam_resize_gaussians(train_session *s, int n);
 pg_status train_adam_create_net(train_session *s);
+/* The network's optimiser for s->net, moments resampled from old_opt of `from` (same network but
+ * its time rows, train_net_resample_array), step counts kept; old_opt is left to the caller. */
+pg_status train_adam_resample_net(train_session *s, const train_net *from, optim_adam *old_opt);
 pg_status train_adam_step(train_session *s);
 /* init.c */
 pg_status train_init_gaussians(train_session *s);
