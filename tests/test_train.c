@@ -112,6 +112,33 @@ static void test_parameter_average(const train_set *ts)
     train_session_destroy(s);
 }
 
+/* The movers' 10x loss weight inflates their view-space gradients: with densify_movable K a
+ * movable Gaussian densifies only at K times the still ones' statistic. Every Gaussian gets twice
+ * the threshold here, so K = 1 doubles both kinds and K = 3 only the still ones. */
+static void test_densify_movable(const train_set *ts)
+{
+    for (int k = 0; k < 2; k++) {
+        train_config tc = small_config();
+        tc.max_gaussians = 100000;
+        tc.densify_movable = k ? 3.0f : 1.0f;
+        train_session *s = NULL;
+        CHECK_OK(train_session_create(&s, ts, &tc, NULL, 0));
+        if (!s) return;
+        int n0 = s->g.count, st0 = train_session_static_count(s);
+        for (int i = 0; i < n0; i++) {
+            s->grad_accum[i] = 2 * tc.densify_grad;
+            s->grad_denom[i] = 1;
+        }
+        CHECK_OK(train_densify_and_prune(s, 1));
+        int n1 = s->g.count, st1 = train_session_static_count(s);
+        int mov0 = n0 - st0, mov1 = n1 - st1;
+        CHECK(st0 > 0 && mov0 > 0, "the toy has still (%d) and movable (%d) Gaussians", st0, mov0);
+        CHECK(st1 == 2 * st0 && mov1 == (k ? mov0 : 2 * mov0),
+              "densify_movable %g: still %d -> %d, movable %d -> %d", tc.densify_movable, st0, st1, mov0, mov1);
+        train_session_destroy(s);
+    }
+}
+
 /* A config trains (real-view PSNR up by > 3 dB) and a run killed at iteration 33 and resumed
  * writes the same final checkpoint as the uninterrupted run. */
 static void check_learns_and_resumes(const train_set *ts, train_config tc, const char *dir, const char *what)
@@ -300,6 +327,8 @@ int main(void)
         train_session_destroy(sf);
         train_set_destroy(&tf);
     }
+
+    test_densify_movable(&ts);
 
     /* uninterrupted run */
     train_config cfg = small_config();

@@ -57,6 +57,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
     c->views_per_step = train_default_config().views_per_step;
     c->deform_time_coarsen = -1;
     c->deform_time_warmup = -1;
+    c->densify_movable = -1;
     c->proxy_moving_weight = -1;
     c->real_weight = -1;
     c->sh_degree = -1;
@@ -80,6 +81,7 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
     PG_TRY(stage_check_threads("pipeline", c->threads));
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "--seed must be >= 0 (got %d)", c->seed);
     PG_TRY(stage_check_trainer_options("pipeline", c->deform_width, c->deform_head_width, c->deform_time_coarsen, c->deform_time_warmup,
+                                       c->densify_movable,
                                        c->motion_crops, c->views_per_step, c->proxy_moving_weight, c->real_weight,
                                        c->sh_degree));
     if (c->depth_scale < 0) return pg_fail(PG_ERR_ARG, "--depth-scale must be > 0 (got %g)", c->depth_scale);
@@ -430,6 +432,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.views_per_step = c->views_per_step;
     tc.deform_time_coarsen = c->deform_time_coarsen;
     tc.deform_time_warmup = c->deform_time_warmup;
+    tc.densify_movable = c->densify_movable;
     tc.proxy_moving_weight = c->proxy_moving_weight;
     tc.real_weight = c->real_weight;
     tc.sh_degree = c->sh_degree;

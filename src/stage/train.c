@@ -35,6 +35,7 @@ void pg_train_defaults(pg_train_config *c)
     c->motion_crops = -1;
     c->deform_time_coarsen = -1;
     c->deform_time_warmup = -1;
+    c->densify_movable = -1;
 }
 
 cJSON *stage_train_config_json(const pg_train_config *c)
@@ -51,9 +52,9 @@ cJSON *stage_train_config_json(const pg_train_config *c)
                                        "densify_until" };
     for (size_t k = 0; k < sizeof ints / sizeof ints[0]; k++) cJSON_AddNumberToObject(j, int_names[k], ints[k]);
     const float floats[] = { c->real_weight, c->moving_weight, c->lambda_depth, c->lambda_dssim, c->proxy_moving_weight,
-                             c->deform_time_warmup };
+                             c->deform_time_warmup, c->densify_movable };
     static const char *float_names[] = { "real_weight", "moving_weight", "lambda_depth", "lambda_dssim",
-                                         "proxy_moving_weight", "deform_time_warmup" };
+                                         "proxy_moving_weight", "deform_time_warmup", "densify_movable" };
     for (size_t k = 0; k < sizeof floats / sizeof floats[0]; k++) cJSON_AddNumberToObject(j, float_names[k], floats[k]);
     cJSON_AddStringToObject(j, "real_cameras", c->real_cameras ? c->real_cameras : "");
     cJSON_AddStringToObject(j, "test_cameras", c->test_cameras ? c->test_cameras : "");
@@ -83,6 +84,7 @@ static pg_status check_config(const pg_train_config *c)
     if (c->deform_res < 0 || c->deform_res > 1024)
         return pg_fail(PG_ERR_ARG, "train: --deform-res %d out of range 0..1024", c->deform_res);
     PG_TRY(stage_check_trainer_options("train", c->deform_width, c->deform_head_width, c->deform_time_coarsen, c->deform_time_warmup,
+                                       c->densify_movable,
                                        c->motion_crops, c->views_per_step, c->proxy_moving_weight, c->real_weight,
                                        c->sh_degree));
     if (c->deform_tres < 0 || c->deform_tres == 1 || c->deform_tres > 100000)
@@ -268,6 +270,7 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
     cfg.deform_tres = c->deform_tres;
     if (c->deform_time_coarsen >= 0) cfg.deform_time_coarsen = c->deform_time_coarsen;
     if (c->deform_time_warmup >= 0) cfg.deform_time_warmup = c->deform_time_warmup;
+    if (c->densify_movable > 0) cfg.densify_movable = c->densify_movable;
     if (c->deform_head_width > 0) cfg.deform_head_width = c->deform_head_width;
     cfg.use_static_flags = c->use_static;
     cfg.static_check_every = c->static_check_every;

@@ -130,7 +130,7 @@ pg_status train_densify_and_prune(train_session *s, int densify)
     if (densify) {
         for (int i = 0; i < n0; i++) {
             float g = s->grad_denom[i] > 0 ? s->grad_accum[i] / s->grad_denom[i] : 0;
-            if (g >= c->densify_grad) cs[nc++] = (cand){g, i};
+            if (g >= (s->is_static[i] ? c->densify_grad : c->densify_grad * c->densify_movable)) cs[nc++] = (cand){g, i};
         }
         int budget = c->max_gaussians - n0;
         if (budget < 0) budget = 0;

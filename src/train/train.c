@@ -69,6 +69,7 @@ train_config train_default_config(void)
     c.densify_every = 100;
     c.opacity_reset_every = 0;
     c.densify_grad = 2e-4f;
+    c.densify_movable = 1.0f;
     c.percent_dense = 0.01f;
     c.prune_opacity = 0.005f;
     c.prune_big_scale = 0.2f;

@@ -52,6 +52,7 @@ typedef struct {
     /* density control */
     int densify_from, densify_until, densify_every, opacity_reset_every;
     float densify_grad, percent_dense, prune_opacity, prune_big_scale;
+    float densify_movable;   /* the movable Gaussians' densification threshold: this times densify_grad */
     /* deformation-network speed tricks */
     int use_static_flags, use_frustum_cull;
     int static_check_every;  /* learned static flags: re-check every k fine iterations (0 = off) */
