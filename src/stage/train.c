@@ -168,6 +168,7 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
     train_session_time_rows(s, &rows, &warm_rows);
     cJSON_AddNumberToObject(root, "time_rows", rows);
     cJSON_AddNumberToObject(root, "time_rows_warmup", warm_rows);
+    cJSON_AddNumberToObject(root, "densify_movable", train_session_densify_movable(s));
     const double scores[] = { r->test_psnr, r->train_psnr, r->train_psnr_moving, r->train_psnr_static };
     static const char *names[] = { "test_psnr", "train_real_psnr", "train_real_psnr_moving", "train_real_psnr_static" };
     for (int k = 0; k < 4; k++)

@@ -641,7 +641,7 @@ const char *train_config_invalid(const train_config *c)
                         c->lr_means_final, c->lr_scales, c->lr_quats, c->lr_opacity, c->lr_sh_dc, c->lr_sh_rest,
                         c->lr_net, c->lr_net_final, c->lr_grid, c->lr_grid_final, c->densify_grad, c->percent_dense,
                         c->prune_opacity, c->prune_big_scale, c->static_eps, c->real_weight, c->moving_weight,
-                        c->proxy_moving_weight, c->lr_static_scale, c->bg[0], c->bg[1], c->bg[2] };
+                        c->proxy_moving_weight, c->lr_static_scale, c->densify_movable, c->bg[0], c->bg[1], c->bg[2] };
     for (size_t k = 0; k < sizeof f / sizeof f[0]; k++)
         if (!isfinite(f[k]) || f[k] < 0) return "a weight or learning rate";
     return NULL;
@@ -657,6 +657,7 @@ pg_status train_checkpoint_check_config(const train_config *stored, const train_
     a.checkpoint_every = b.checkpoint_every = 0;
     a.stop_at_iter = b.stop_at_iter = 0;
     a.threads = b.threads = 0;
+    if (!(b.densify_movable > 0)) a.densify_movable = b.densify_movable = 0; /* the rule: what the run started with */
     char ta[8192], tb[8192];
     config_text(&a, ta, sizeof ta);
     config_text(&b, tb, sizeof tb);

@@ -69,7 +69,7 @@ train_config train_default_config(void)
     c.densify_every = 100;
     c.opacity_reset_every = 0;
     c.densify_grad = 2e-4f;
-    c.densify_movable = 1.0f;
+    c.densify_movable = 0; /* the trainer's rule: TRAIN_LONG_CLIP_DENSIFY_MOVABLE for a long clip, else 1 */
     c.percent_dense = 0.01f;
     c.prune_opacity = 0.005f;
     c.prune_big_scale = 0.2f;
@@ -283,7 +283,7 @@ int train_iterations_for_clip(int iters, int frames, int motion_crops)
     long coarse = train_default_coarse_iters(iters), fits_per_step = train_fits_per_step(motion_crops);
     long need = ((long)frames * TRAIN_FITS_PER_FRAME + fits_per_step - 1) / fits_per_step;
     if (need <= iters - coarse) return iters;
-    long raised = coarse + need, cap = (long)iters * TRAIN_MAX_BUDGET_SCALE;
+    long raised = coarse + need, cap = (long)iters * TRAIN_MAX_BUDGET_PERCENT / 100;
     return (int)(raised < cap ? raised : cap);
 }
 
@@ -300,17 +300,22 @@ static int warmup_time_rows(int final_rows)
     int r = ((final_rows - 1) >> 2) + 1;
     return r > 2 ? r : 2;
 }
-/* Fine steps on the warm-up's time rows (0: none). Only a clip whose rows are each fitted fewer
- * than TRAIN_FITS_PER_FRAME times warms up: the 300-frame sample clip (~27 fits per row) gained
- * 1.2 dB on its movers, the 30-frame one (~125) lost 3.3 (docs/train.md). */
+/* Whether each final time row is fitted fewer than TRAIN_FITS_PER_FRAME times in the fine stage:
+ * a long clip whose raised budget hit the cap. Such a clip warms its time rows up and trades its
+ * movers' density for steps (TRAIN_LONG_CLIP_DENSIFY_MOVABLE). */
+static int time_rows_underfitted(const train_session *s)
+{
+    const long fits = (long)(s->cfg.iters - s->cfg.coarse_iters) * (times_per_step(&s->cfg) + motion_crops(s));
+    return fits < (long)final_time_rows(s) * TRAIN_FITS_PER_FRAME;
+}
+/* Fine steps on the warm-up's time rows (0: none). Only an underfitted clip warms up: the
+ * 300-frame sample clip (~27 fits per row) gained 1.2 dB on its movers, the 30-frame one (~125)
+ * lost 3.3 (docs/train.md). */
 static int time_warmup_steps(const train_session *s)
 {
-    const long fine = s->cfg.iters - s->cfg.coarse_iters;
-    const long fits = fine * (times_per_step(&s->cfg) + motion_crops(s));
     int rows = final_time_rows(s);
-    if (!(s->cfg.deform_time_warmup > 0) || warmup_time_rows(rows) >= rows || fits >= (long)rows * TRAIN_FITS_PER_FRAME)
-        return 0;
-    return (int)(s->cfg.deform_time_warmup * (float)fine);
+    if (!(s->cfg.deform_time_warmup > 0) || warmup_time_rows(rows) >= rows || !time_rows_underfitted(s)) return 0;
+    return (int)(s->cfg.deform_time_warmup * (float)(s->cfg.iters - s->cfg.coarse_iters));
 }
 
 /* Ends the warm-up: the network, its Adam moments and its running average move to the final
@@ -382,6 +387,8 @@ static pg_status start_fine(train_session *s)
     return PG_OK;
 }
 
+float train_session_densify_movable(const train_session *s) { return s->cfg.densify_movable; }
+
 void train_session_time_rows(const train_session *s, int *rows, int *warmup_rows)
 {
     *rows = s->net ? s->net_cfg.tres : final_time_rows(s);
@@ -447,6 +454,8 @@ pg_status train_session_create(train_session **out, const train_set *ts, const t
         s->cfg.checkpoint_every = cfg->checkpoint_every;
         s->cfg.stop_at_iter = cfg->stop_at_iter;
     } else {
+        if (!(s->cfg.densify_movable > 0)) /* the rule; a resumed run keeps the value it started with */
+            s->cfg.densify_movable = time_rows_underfitted(s) ? TRAIN_LONG_CLIP_DENSIFY_MOVABLE : 1.0f;
         pg_rng_seed(&s->rng, cfg->seed);
         if ((st = train_init_gaussians(s))) goto fail;
         train_update_filter(s);

@@ -52,7 +52,7 @@ typedef struct {
     /* density control */
     int densify_from, densify_until, densify_every, opacity_reset_every;
     float densify_grad, percent_dense, prune_opacity, prune_big_scale;
-    float densify_movable;   /* the movable Gaussians' densification threshold: this times densify_grad */
+    float densify_movable;   /* the movable Gaussians' densification threshold: this times densify_grad (0: the rule below) */
     /* deformation-network speed tricks */
     int use_static_flags, use_frustum_cull;
     int static_check_every;  /* learned static flags: re-check every k fine iterations (0 = off) */
@@ -81,10 +81,17 @@ int train_time_texels(int frames, int fine_times); /* fine_times: fine iteration
  * 300 a fifth as often (the 300-frame sample scene lost 6 dB of moving PSNR against 30 frames at
  * 1,500 iterations; 3,000 won back 3.1). So the fine stage (5/6 of the budget) gets at least
  * TRAIN_FITS_PER_FRAME times per frame, each step fitting 1 + motion_crops times, up to
- * TRAIN_MAX_BUDGET_SCALE times the preset's budget (the first doubling buys the most; docs/train.md).
+ * TRAIN_MAX_BUDGET_PERCENT % of the preset's budget (the first doubling buys the most; docs/train.md).
  * Short clips keep `iters`. */
 #define TRAIN_FITS_PER_FRAME 40
-#define TRAIN_MAX_BUDGET_SCALE 2
+#define TRAIN_MAX_BUDGET_PERCENT 250
+/* A clip whose time rows are each fitted fewer than TRAIN_FITS_PER_FRAME times (its raised budget
+ * hit the cap) is short of steps, not of Gaussians: its movable Gaussians densify at this multiple
+ * of the still ones' threshold unless densify_movable says otherwise. The moving pixels' 10x loss
+ * weight inflates their view-space gradients; at a third of them a step costs ~30 % less and the
+ * cap's extra steps give the movers back what the density took (docs/train.md). A short clip,
+ * fitted ~125 times per frame, keeps its density: it lost 1.9 dB on its movers at 3. */
+#define TRAIN_LONG_CLIP_DENSIFY_MOVABLE 3.0f
 int train_iterations_for_clip(int iters, int frames, int motion_crops);
 /* The largest SH degree when none is asked for: 3 with two or more real cameras, 0 with one. With
  * one camera every proxy carries that camera's colours to its viewpoint, so a colour that changes
@@ -147,6 +154,8 @@ void train_session_motion_regions(const train_session *s, int *frames, double *m
 /* The network's time rows now (before the fine stage: those it ends with) and during its warm-up
  * (0: no warm-up). */
 void train_session_time_rows(const train_session *s, int *rows, int *warmup_rows);
+/* The movable Gaussians' densification threshold over the still ones' (densify_movable resolved). */
+float train_session_densify_movable(const train_session *s);
 /* Gaussians flagged static (never sent through the network). */
 int train_session_static_count(const train_session *s);
 
