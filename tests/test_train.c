@@ -240,7 +240,7 @@ static void test_margin_past_frame(const char *dir)
 }
 
 /* The preset's budget on a long clip: short clips keep it, a 300-frame clip gets ~40 fits of each
- * frame in the fine stage, and no clip gets more than TRAIN_MAX_BUDGET_PERCENT % of it. */
+ * frame in the fine stage, and no clip gets more than TRAIN_MAX_BUDGET_THIRDS / 3 times it. */
 static void test_iterations_for_clip(void)
 {
     CHECK(train_iterations_for_clip(1500, 30, 2) == 1500, "30 frames keep 1500, got %d", train_iterations_for_clip(1500, 30, 2));
@@ -249,13 +249,13 @@ static void test_iterations_for_clip(void)
     CHECK(it == 250 + 1600, "120 frames, 3 fits per step: 250 coarse + 1600 fine, got %d", it);
     CHECK((it - 250) * 3 >= 120 * TRAIN_FITS_PER_FRAME, "each frame fitted %d times", TRAIN_FITS_PER_FRAME);
     CHECK(train_iterations_for_clip(1500, 60, 0) == 250 + 2400, "no crops: one fit per step");
-    CHECK(train_iterations_for_clip(1500, 300, 2) == 1500 * TRAIN_MAX_BUDGET_PERCENT / 100, "300 frames: the cap, got %d",
+    CHECK(train_iterations_for_clip(1500, 300, 2) == 1500 * TRAIN_MAX_BUDGET_THIRDS / 3, "300 frames: the cap, got %d",
           train_iterations_for_clip(1500, 300, 2));
     CHECK(train_iterations_for_clip(8000, 300, 2) == 8000, "the quality preset covers 300 frames");
     /* the raised budget fits longer; it does not densify longer (memory and checkpoint size) */
     train_budget b = train_budget_for_clip(1500, 300, 2);
-    CHECK(b.iters == 3750 && b.coarse_iters == 250 && b.densify_until == 1050,
-          "300 frames: 3750 iterations, coarse 250, densify until 1050; got %d, %d, %d", b.iters, b.coarse_iters,
+    CHECK(b.iters == 4000 && b.coarse_iters == 250 && b.densify_until == 1050,
+          "300 frames: 4000 iterations, coarse 250, densify until 1050; got %d, %d, %d", b.iters, b.coarse_iters,
           b.densify_until);
     b = train_budget_for_clip(1500, 30, 2);
     CHECK(b.iters == 1500 && b.densify_until == 1050, "30 frames: the preset's 1500, densify until 1050");

@@ -32,7 +32,7 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
         { "--depth-scale", CLI_FLOAT, &c->depth_scale, "multiply raw depth by S" },
         { "--frames", CLI_INT, &c->frames, "use only the first N frames (default: all)" },
         { "--size", CLI_STR, &t->size, "resize to WxH (default: the preset's longest side)" },
-        { "--iters", CLI_INT, &c->iters, "training iterations (default: the preset's 1500 or 8000, raised for clips over ~90 or ~500 frames, at most 2.5x)" },
+        { "--iters", CLI_INT, &c->iters, "training iterations (default: the preset's 1500 or 8000, raised for clips over ~90 or ~500 frames, at most 8/3 of it)" },
         { "--deform-width", CLI_INT, &c->deform_width, "deformation MLP width (default: the trainer's)" },
         { "--deform-head-width", CLI_INT, &c->deform_head_width, "hidden width of each deformation head (default 32)" },
         { "--deform-time-coarsen", CLI_INT, &c->deform_time_coarsen, "coarse HexPlane scale: one time texel per 2^K of the fine scale's (default 2; 0 = same)" },

@@ -283,7 +283,7 @@ int train_iterations_for_clip(int iters, int frames, int motion_crops)
     long coarse = train_default_coarse_iters(iters), fits_per_step = train_fits_per_step(motion_crops);
     long need = ((long)frames * TRAIN_FITS_PER_FRAME + fits_per_step - 1) / fits_per_step;
     if (need <= iters - coarse) return iters;
-    long raised = coarse + need, cap = (long)iters * TRAIN_MAX_BUDGET_PERCENT / 100;
+    long raised = coarse + need, cap = (long)iters * TRAIN_MAX_BUDGET_THIRDS / 3;
     return (int)(raised < cap ? raised : cap);
 }
 

@@ -81,10 +81,10 @@ int train_time_texels(int frames, int fine_times); /* fine_times: fine iteration
  * 300 a fifth as often (the 300-frame sample scene lost 6 dB of moving PSNR against 30 frames at
  * 1,500 iterations; 3,000 won back 3.1). So the fine stage (5/6 of the budget) gets at least
  * TRAIN_FITS_PER_FRAME times per frame, each step fitting 1 + motion_crops times, up to
- * TRAIN_MAX_BUDGET_PERCENT % of the preset's budget (the first doubling buys the most; docs/train.md).
+ * TRAIN_MAX_BUDGET_THIRDS / 3 times the preset's budget (the first doubling buys the most; docs/train.md).
  * Short clips keep `iters`. */
 #define TRAIN_FITS_PER_FRAME 40
-#define TRAIN_MAX_BUDGET_PERCENT 250
+#define TRAIN_MAX_BUDGET_THIRDS 8 /* the cap: 8/3 of the preset's budget (4,000 for the fast preset's 1,500) */
 /* A clip whose time rows are each fitted fewer than TRAIN_FITS_PER_FRAME times (its raised budget
  * hit the cap) is short of steps, not of Gaussians: its movable Gaussians densify at this multiple
  * of the still ones' threshold unless densify_movable says otherwise. The moving pixels' 10x loss
