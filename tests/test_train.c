@@ -608,6 +608,18 @@ int main(void)
             pg_write_file_atomic(c, crafted, n);
             CHECK(train_model_load(c, &m) == PG_ERR_FORMAT && strstr(pg_last_error(), "iteration -1000000"),
                   "negative iteration: %s", pg_last_error());
+            /* densify_movable 0 (the unresolved rule) in the config text: every mover would densify */
+            memcpy(crafted, blob, n);
+            char *dm = memmem(crafted, n, "densify_movable=", 16);
+            CHECK(dm && dm[16] >= '1' && dm[16] <= '9', "the config text holds a resolved densify_movable");
+            if (dm) {
+                dm[16] = '0';
+                crc = (uint32_t)crc32(crc32(0L, Z_NULL, 0), (const unsigned char *)crafted, (uInt)(n - 4));
+                memcpy(crafted + n - 4, &crc, 4);
+                pg_write_file_atomic(c, crafted, n);
+                CHECK(train_model_load(c, &m) == PG_ERR_FORMAT && strstr(pg_last_error(), "(densify_movable)"),
+                      "densify_movable 0: %s", pg_last_error());
+            }
             /* cut short anywhere with a valid CRC (fuzz_checkpoint found reads past the end when the
              * cut fell inside a section the loader skips) */
             for (int part = 1; part < 10; part++) {

@@ -630,6 +630,7 @@ const char *train_config_invalid(const train_config *c)
     if (c->init_points < 1 || c->init_points > CKPT_MAX_GAUSSIANS) return "init_points";
     if (c->sh_max_degree < 0 || c->sh_max_degree > 3) return "sh_max_degree";
     if (!(c->average_decay >= 0 && c->average_decay < 1)) return "average_decay";
+    if (!(c->densify_movable > 0)) return "densify_movable"; /* written resolved: 0 (the rule) would densify every mover */
     if (c->sh_ramp_every < 0 || c->densify_every < 0 || c->opacity_reset_every < 0 || c->static_check_every < 0)
         return "an interval";
     if (c->deform_width < 0 || c->deform_width > 4096 || c->deform_res < 0 || c->deform_res > 4096 ||
