@@ -59,49 +59,69 @@ static inline void softplus_sigmoid(float x, float *sp, float *sig)
  * 1 - a and 1 - a rho = (1 - a) + a (1 - rho) are formed without cancellation, so opacities near 1
  * keep their precision. What the backward needs is saved (w_k, (1 - a) / (1 - a rho),
  * 1 / (1 - a rho)), so it runs without a transcendental. */
+static inline void filter_row_forward(float *log_scales, float *opacity, const float *var, int i, float *saved)
+{
+    if (!(var[i] > 0)) return;
+    float *ls = log_scales + 3 * (size_t)i, w[3], log_keep = 0.0f;
+    const float lv = logf(var[i]);
+    for (int k = 0; k < 3; k++) {
+        float sp;
+        softplus_sigmoid(lv - 2.0f * ls[k], &sp, &w[k]);
+        ls[k] += 0.5f * sp;
+        log_keep -= sp;
+    }
+    const float log_rho = 0.5f * log_keep, rho = expf(log_rho);
+    /* 1 - rho = (1 - keep) / (1 + rho), 1 - keep = 1 - prod (1 - w_k) nested */
+    const float lost = w[0] + (1.0f - w[0]) * (w[1] + (1.0f - w[1]) * w[2]);
+    const float o = opacity[i], eo = expf(-fabsf(o)), inv = 1.0f / (1.0f + eo);
+    const float a = o >= 0.0f ? inv : eo * inv, na = o >= 0.0f ? eo * inv : inv;
+    const float na_filtered = na + a * (lost / (1.0f + rho));
+    /* a rho far below 1 (a needle the deformation squeezed to e^-36 on two axes): a rho under
+     * float made the opacity -inf; logit(a rho) = log a + log rho to float precision there */
+    const float log_a_rho = log_rho - (fmaxf(-o, 0.0f) + log1pf(eo));
+    opacity[i] = log_a_rho > -30.0f ? logf(a * rho / na_filtered) : log_a_rho;
+    if (saved) {
+        float *sv = saved + SPLAT_FILTER3D_SAVED * (size_t)i;
+        sv[0] = w[0], sv[1] = w[1], sv[2] = w[2];
+        sv[3] = na / na_filtered;
+        sv[4] = 1.0f / na_filtered;
+    }
+}
+
 void splat_filter3d_forward(float *log_scales, float *opacity, const float *var, int n, float *saved)
 {
     #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        if (!(var[i] > 0)) continue;
-        float *ls = log_scales + 3 * (size_t)i, w[3], log_keep = 0.0f;
-        const float lv = logf(var[i]);
-        for (int k = 0; k < 3; k++) {
-            float sp;
-            softplus_sigmoid(lv - 2.0f * ls[k], &sp, &w[k]);
-            ls[k] += 0.5f * sp;
-            log_keep -= sp;
-        }
-        const float log_rho = 0.5f * log_keep, rho = expf(log_rho);
-        /* 1 - rho = (1 - keep) / (1 + rho), 1 - keep = 1 - prod (1 - w_k) nested */
-        const float lost = w[0] + (1.0f - w[0]) * (w[1] + (1.0f - w[1]) * w[2]);
-        const float o = opacity[i], eo = expf(-fabsf(o)), inv = 1.0f / (1.0f + eo);
-        const float a = o >= 0.0f ? inv : eo * inv, na = o >= 0.0f ? eo * inv : inv;
-        const float na_filtered = na + a * (lost / (1.0f + rho));
-        /* a rho far below 1 (a needle the deformation squeezed to e^-36 on two axes): a rho under
-         * float made the opacity -inf; logit(a rho) = log a + log rho to float precision there */
-        const float log_a_rho = log_rho - (fmaxf(-o, 0.0f) + log1pf(eo));
-        opacity[i] = log_a_rho > -30.0f ? logf(a * rho / na_filtered) : log_a_rho;
-        if (saved) {
-            float *sv = saved + SPLAT_FILTER3D_SAVED * (size_t)i;
-            sv[0] = w[0], sv[1] = w[1], sv[2] = w[2];
-            sv[3] = na / na_filtered;
-            sv[4] = 1.0f / na_filtered;
-        }
-    }
+    for (int i = 0; i < n; i++) filter_row_forward(log_scales, opacity, var, i, saved);
+}
+
+void splat_filter3d_forward_rows(float *log_scales, float *opacity, const float *var, const int *rows, int nrows,
+                                 float *saved)
+{
+    #pragma omp parallel for schedule(static)
+    for (int k = 0; k < nrows; k++) filter_row_forward(log_scales, opacity, var, rows[k], saved);
 }
 
 /* With a' = a rho the filtered opacity: d log s'_k / d log s_k = 1 - w_k, d log rho / d log s_k =
  * w_k, d o' / d log rho = 1 / (1 - a'), d o' / d o = (1 - a) / (1 - a'). */
+static inline void filter_row_backward(const float *saved, const float *var, int i, float *d_log_scales, float *d_opacity)
+{
+    if (!(var[i] > 0)) return;
+    const float *sv = saved + SPLAT_FILTER3D_SAVED * (size_t)i;
+    const float g_o = d_opacity[i];
+    float *g = d_log_scales + 3 * (size_t)i;
+    for (int k = 0; k < 3; k++) g[k] = g[k] * (1.0f - sv[k]) + g_o * sv[k] * sv[4];
+    d_opacity[i] = g_o * sv[3];
+}
+
 void splat_filter3d_backward(const float *saved, const float *var, int n, float *d_log_scales, float *d_opacity)
 {
     #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) {
-        if (!(var[i] > 0)) continue;
-        const float *sv = saved + SPLAT_FILTER3D_SAVED * (size_t)i;
-        const float g_o = d_opacity[i];
-        float *g = d_log_scales + 3 * (size_t)i;
-        for (int k = 0; k < 3; k++) g[k] = g[k] * (1.0f - sv[k]) + g_o * sv[k] * sv[4];
-        d_opacity[i] = g_o * sv[3];
-    }
+    for (int i = 0; i < n; i++) filter_row_backward(saved, var, i, d_log_scales, d_opacity);
+}
+
+void splat_filter3d_backward_rows(const float *saved, const float *var, const int *rows, int nrows,
+                                  float *d_log_scales, float *d_opacity)
+{
+    #pragma omp parallel for schedule(static)
+    for (int k = 0; k < nrows; k++) filter_row_backward(saved, var, rows[k], d_log_scales, d_opacity);
 }

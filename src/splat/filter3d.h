@@ -40,5 +40,10 @@ void splat_filter3d_forward(float *log_scales, float *opacity, const float *var,
 /* In place: the gradients d_log_scales (n, 3) and d_opacity (n) of the filtered values become
  * those of the unfiltered ones, from what the forward saved. */
 void splat_filter3d_backward(const float *saved, const float *var, int n, float *d_log_scales, float *d_opacity);
+/* The same over the listed rows only (training filters the rows the deformation changed). */
+void splat_filter3d_forward_rows(float *log_scales, float *opacity, const float *var, const int *rows, int nrows,
+                                 float *saved);
+void splat_filter3d_backward_rows(const float *saved, const float *var, const int *rows, int nrows,
+                                  float *d_log_scales, float *d_opacity);
 
 #endif

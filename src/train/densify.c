@@ -36,6 +36,12 @@ pg_status train_ensure_side(train_session *s, int n)
     int *e = realloc(s->idx, (size_t)nc * sizeof(int));
     if (!e) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
     s->idx = e;
+    int *r = realloc(s->step_rows, (size_t)nc * sizeof(int));
+    if (!r) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
+    s->step_rows = r;
+    uint8_t *rf = realloc(s->row_flags, (size_t)nc);
+    if (!rf) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
+    s->row_flags = rf;
     float *f = realloc(s->filter_var, (size_t)nc * sizeof(float));
     if (!f) return pg_fail(PG_ERR_NOMEM, "train: out of memory for %d Gaussians", nc);
     s->filter_var = f;

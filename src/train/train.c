@@ -119,6 +119,8 @@ void train_session_destroy(train_session *s)
     free(s->grad_denom);
     free(s->vs_grad);
     free(s->idx);
+    free(s->step_rows);
+    free(s->row_flags);
     free(s->filter_var);
     free(s->filter_saved);
     if (s->moving)
@@ -194,6 +196,40 @@ void train_blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, train_ble
 static void blend_used(train_session *s, pg_gaussians *dst, const pg_gaussians *src, train_blend how)
 {
     train_blend_gaussians(dst, src, how, 0.0f, train_sh_floats(s->cfg.sh_max_degree));
+}
+
+/* blend_used over the listed rows only. */
+static void blend_rows(train_session *s, pg_gaussians *dst, const pg_gaussians *src, const int *rows, int n,
+                       train_blend how)
+{
+    const size_t sh_floats = (size_t)train_sh_floats(s->cfg.sh_max_degree), sh_row = PG_SH_COEFFS * 3;
+    #pragma omp parallel for schedule(static)
+    for (int k = 0; k < n; k++) {
+        const size_t i = (size_t)rows[k];
+        blend_span(dst->means + 3 * i, src->means + 3 * i, 3, how, 0.0f);
+        blend_span(dst->log_scales + 3 * i, src->log_scales + 3 * i, 3, how, 0.0f);
+        blend_span(dst->quats + 4 * i, src->quats + 4 * i, 4, how, 0.0f);
+        blend_span(dst->opacity + i, src->opacity + i, 1, how, 0.0f);
+        blend_span(dst->sh + sh_row * i, src->sh + sh_row * i, sh_floats, how, 0.0f);
+    }
+}
+
+/* The step's rows the network may move (every non-static one in the fine stage, none in the
+ * coarse one) and the fixed rest. The fixed rows are the same at every time a step renders (~3/4
+ * of a long clip's Gaussians), so the deformed copy and the 3D filter of them are made once per
+ * step, and their gradients are summed over the step's times and taken through the (linear)
+ * filter backward once at its end. */
+static void list_step_rows(train_session *s)
+{
+    const int n = s->g.count;
+    int nm = 0, nf = 0;
+    for (int i = 0; i < n; i++) {
+        const int moves = s->fine && !(s->cfg.use_static_flags && s->is_static[i]);
+        if (moves) s->step_rows[nm++] = i;
+        else s->idx[nf++] = i;
+    }
+    memcpy(s->step_rows + nm, s->idx, (size_t)nf * sizeof(int));
+    s->n_moving_rows = nm, s->n_fixed_rows = nf;
 }
 
 /* Moving pixels of each real view (colour off the temporal median by > 0.1, dilated 2 px):
@@ -543,24 +579,31 @@ static int may_be_visible(const pg_camera *cam, const float *x, float m)
     return !(u < -mx || u > cam->width + mx || v < -my || v > cam->height + my);
 }
 
-/* Selects the Gaussians to send through the network: not static and (if culling) within the
- * frustum of one of the ncam cameras, enlarged by the largest displacement seen plus the
- * Gaussian's own size. */
+/* Selects the Gaussians to send through the network: the step's moving rows (list_step_rows)
+ * that are, if culling, within the frustum of one of the ncam cameras, enlarged by the largest
+ * displacement seen plus the Gaussian's own size. */
 static int build_subset(train_session *s, const pg_camera *const *cams, int ncam)
 {
-    int n = 0;
     const pg_gaussians *g = &s->g;
-    for (int i = 0; i < g->count; i++) {
-        if (s->cfg.use_static_flags && s->is_static[i]) continue;
-        if (ncam > 0) {
-            const float *ls = g->log_scales + 3 * i;
-            float m = s->max_disp + 3.0f * expf(fmaxf(ls[0], fmaxf(ls[1], ls[2])));
-            int vis = 0;
-            for (int c = 0; c < ncam && !vis; c++) vis = may_be_visible(cams[c], g->means + 3 * i, m);
-            if (!vis) continue;
-        }
-        s->idx[n++] = i;
+    const int nm = s->n_moving_rows;
+    if (ncam == 0) {
+        memcpy(s->idx, s->step_rows, (size_t)nm * sizeof(int));
+        return nm;
     }
+    /* the test in parallel (an exponential and a projection per row), the list in row order */
+    uint8_t *vis = s->row_flags;
+    #pragma omp parallel for schedule(static)
+    for (int k = 0; k < nm; k++) {
+        const int i = s->step_rows[k];
+        const float *ls = g->log_scales + 3 * (size_t)i;
+        float m = s->max_disp + 3.0f * expf(fmaxf(ls[0], fmaxf(ls[1], ls[2])));
+        int v = 0;
+        for (int c = 0; c < ncam && !v; c++) v = may_be_visible(cams[c], g->means + 3 * (size_t)i, m);
+        vis[k] = (uint8_t)v;
+    }
+    int n = 0;
+    for (int k = 0; k < nm; k++)
+        if (vis[k]) s->idx[n++] = s->step_rows[k];
     return n;
 }
 
@@ -625,18 +668,31 @@ void train_update_filter(train_session *s)
 
 /* Deformed copy d of the canonical set at time t for the ncam cameras (culling to their frusta
  * when enabled; ncam 0: no culling), with the 3D filter applied (the unfiltered values kept in
- * filter_saved for the backward). */
-static pg_status deform_all(train_session *s, const pg_camera *const *cams, int ncam, float t, int *n_deformed)
+ * filter_saved for the backward). whole 0: only the step's moving rows are redone (the fixed
+ * ones are as the step's first time left them, list_step_rows). */
+static pg_status deform_all(train_session *s, const pg_camera *const *cams, int ncam, float t, int whole, int *n_deformed)
 {
-    blend_used(s, &s->d, &s->g, TRAIN_BLEND_COPY);
+    if (whole) blend_used(s, &s->d, &s->g, TRAIN_BLEND_COPY);
+    else blend_rows(s, &s->d, &s->g, s->step_rows, s->n_moving_rows, TRAIN_BLEND_COPY);
     *n_deformed = 0;
     if (s->fine) {
         int n = build_subset(s, cams, s->cfg.use_frustum_cull ? ncam : 0);
         *n_deformed = n;
         if (n > 0) PG_TRY(train_net_forward(s->net, &s->g, s->idx, n, t, &s->d));
     }
-    splat_filter3d_forward(s->d.log_scales, s->d.opacity, s->filter_var, s->d.count, s->filter_saved);
+    if (whole) splat_filter3d_forward(s->d.log_scales, s->d.opacity, s->filter_var, s->d.count, s->filter_saved);
+    else splat_filter3d_forward_rows(s->d.log_scales, s->d.opacity, s->filter_var, s->step_rows, s->n_moving_rows,
+                                     s->filter_saved);
     return PG_OK;
+}
+
+/* The fixed rows' gradients, summed over the step's times in dg, through the 3D filter into gg
+ * (list_step_rows). */
+static void finish_fixed_rows(train_session *s)
+{
+    const int *fixed = s->step_rows + s->n_moving_rows;
+    splat_filter3d_backward_rows(s->filter_saved, s->filter_var, fixed, s->n_fixed_rows, s->dg.log_scales, s->dg.opacity);
+    blend_rows(s, &s->gg, &s->dg, fixed, s->n_fixed_rows, TRAIN_BLEND_COPY);
 }
 
 /* lambda_d * scale-and-shift-invariant L2 of the rendered depth against the target, divided by
@@ -816,6 +872,7 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, const 
     s->timing.raster_backward += (t1 - t0) * 1e3;
 
     const float unit = weight > 0 ? 1.0f / weight : 0.0f;
+    #pragma omp parallel for schedule(static)
     for (int i = 0; i < s->d.count; i++) {
         float uv[2];
         float z = pg_camera_project(&cam, s->d.means + 3 * i, uv);
@@ -846,13 +903,11 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
     float t = train_frame_time(f, ts->frames);
 
     int nd = 0;
-    PG_TRY(deform_all(s, cams, nb, t, &nd));
+    PG_TRY(deform_all(s, cams, nb, t, first, &nd));
     s->timing.deformed += nd;
     if (s->fine) {
-        int movable = 0;
-        for (int i = 0; i < s->g.count; i++) movable += !s->is_static[i];
         s->sum_deformed += nd;
-        s->sum_movable += movable;
+        s->sum_movable += s->n_moving_rows;
         s->fine_steps++;
     }
     if (s->fine && nd > 0) {
@@ -869,8 +924,10 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
     t1 = pg_time_seconds();
     s->timing.deform_forward += (t1 - t0) * 1e3;
 
-    /* every view's gradient sums into dg in batch order (deterministic) */
-    blend_used(s, &s->dg, &s->dg, TRAIN_BLEND_ZERO);
+    /* every view's gradient sums into dg in batch order (deterministic); the fixed rows' sum over
+     * the step's times */
+    if (first) blend_used(s, &s->dg, &s->dg, TRAIN_BLEND_ZERO);
+    else blend_rows(s, &s->dg, &s->dg, s->step_rows, s->n_moving_rows, TRAIN_BLEND_ZERO);
     double loss = 0;
     for (int b = 0; b < nb; b++) {
         double lv;
@@ -879,9 +936,11 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
     }
     t0 = pg_time_seconds();
 
-    /* through the 3D filter, then the identity path and the deformation path for the deformed rows */
-    splat_filter3d_backward(s->filter_saved, s->filter_var, s->dg.count, s->dg.log_scales, s->dg.opacity);
-    blend_used(s, &s->gg, &s->dg, first ? TRAIN_BLEND_COPY : TRAIN_BLEND_ADD);
+    /* the moving rows through the 3D filter, then the identity path and the deformation path for
+     * the deformed rows (the fixed rows at the step's end, finish_fixed_rows) */
+    splat_filter3d_backward_rows(s->filter_saved, s->filter_var, s->step_rows, s->n_moving_rows, s->dg.log_scales,
+                                 s->dg.opacity);
+    blend_rows(s, &s->gg, &s->dg, s->step_rows, s->n_moving_rows, first ? TRAIN_BLEND_COPY : TRAIN_BLEND_ADD);
     if (s->fine && nd > 0) PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, &s->dg, &s->gg));
     s->timing.deform_backward += (pg_time_seconds() - t0) * 1e3;
     *loss_out = loss;
@@ -933,6 +992,7 @@ pg_status train_session_step(train_session *s)
     }
     if (s->cfg.views_per_step > TRAIN_MAX_BATCH) s->cfg.views_per_step = TRAIN_MAX_BATCH;
     memset(&s->timing, 0, sizeof s->timing);
+    list_step_rows(s);
     const int times = times_per_step(c);
     if (s->fine) train_net_zero_grad(s->net);
     double loss = 0;
@@ -945,6 +1005,9 @@ pg_status train_session_step(train_session *s)
         double lk;
         PG_TRY(step_motion_crop(s, k, &lk));
     }
+    double tf = pg_time_seconds();
+    finish_fixed_rows(s);
+    s->timing.deform_backward += (pg_time_seconds() - tf) * 1e3;
     if (s->fine) {
         double tr = pg_time_seconds();
         loss += train_net_regularize(s->net, c->reg_tv, c->reg_time, c->reg_l1);
@@ -1028,6 +1091,7 @@ pg_status train_session_evaluate_parts(train_session *s, io_view_role role, trai
     memcpy(rs.background, s->cfg.bg, sizeof rs.background);
     uint8_t *moving = pg_malloc((size_t)ts->frames * px, "evaluation moving masks");
     if (!moving) return PG_ERR_NOMEM;
+    list_step_rows(s);
     pg_status st = PG_OK;
     for (int vi = 0; vi < ts->num_views && !st; vi++) {
         if (ts->views[vi].role != role) continue;
@@ -1036,7 +1100,7 @@ pg_status train_session_evaluate_parts(train_session *s, io_view_role role, trai
             int nd;
             load_target(s, vi, f, 0);
             const pg_camera *cam = &ts->views[vi].cam;
-            if ((st = deform_all(s, &cam, 1, train_frame_time(f, ts->frames), &nd))) break;
+            if ((st = deform_all(s, &cam, 1, train_frame_time(f, ts->frames), 1, &nd))) break;
             pg_render_output out;
             if ((st = splat_render_forward(s->raster, &s->d, cam, &rs, &out))) break;
             pg_image rendered = {ts->width, ts->height, 3, out.rgb};

@@ -35,6 +35,11 @@ struct train_session {
     float *grad_denom;   /* (side_cap) times visible */
     float *vs_grad;      /* (side_cap) this iteration's view-space gradient norm */
     int *idx;            /* (side_cap) Gaussians sent through the network */
+    int *step_rows;      /* (side_cap) this step's rows the network may move (n_moving_rows of them),
+                          * then the fixed rest: only the moving ones are copied, filtered and
+                          * back-propagated per rendered time; the fixed ones once per step */
+    int n_moving_rows, n_fixed_rows;
+    uint8_t *row_flags;  /* (side_cap) scratch: which of the moving rows the network gets */
     float *filter_var;   /* (side_cap) 3D smoothing filter variance (splat/filter3d.h), from the
                           * canonical means every TRAIN_FILTER_EVERY steps and after densification */
     float *filter_saved; /* (side_cap, SPLAT_FILTER3D_SAVED) what the 3D filter's backward needs */
