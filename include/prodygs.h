@@ -171,6 +171,7 @@ typedef struct {
     int deform_time_coarsen; /* coarse scale's time rows: 1 per 2^k of the fine scale's (-1: the trainer's, 2) */
     float deform_time_warmup; /* share of the fine stage on a quarter of the time rows (< 0: the trainer's, 0.4) */
     float densify_movable;  /* movable Gaussians' densification threshold / the still ones' (< 0: the trainer's) */
+    int proxy_downscale;    /* proxies train at 1/this of the working size per side, 1 or 2 (0: the trainer's, 2) */
     int use_static, use_cull; /* static Gaussians skip the network; frustum culling (1, 1) */
     int eval_train;         /* also score the real views, moving and static pixels apart */
     int stop_at_iter;       /* tests: stop after this iteration as if killed (0: off) */
@@ -307,6 +308,7 @@ typedef struct {
     int deform_time_coarsen;          /* -1: the trainer's default (2) */
     float deform_time_warmup;         /* -1: the trainer's default (0.4) */
     float densify_movable;            /* movable Gaussians' densification threshold / the still ones' (-1: the trainer's) */
+    int proxy_downscale;              /* proxies train at 1/this of the working size per side, 1 or 2 (0: the trainer's, 2) */
     int motion_crops;                 /* motion crops per fine step (-1: the trainer's default) */
     int views_per_step;               /* views trained per deformation (the trainer's default, 2) */
     float proxy_moving_weight;        /* loss weight of proxy pixels showing the movers (-1: the trainer's, 1) */

@@ -295,6 +295,7 @@ int main(void)
     expect_error("train @/ds --out @/t --sh-degree 9", "--sh-degree");
     expect_error("train @/ds --out @/t --deform-time-warmup 1", "--deform-time-warmup must be in [0, 1) (got 1)");
     expect_error("train @/ds --out @/t --densify-movable 0.5", "--densify-movable must be in [1, 100] (got 0.5)");
+    expect_error("train @/ds --out @/t --proxy-downscale 3", "--proxy-downscale must be 1 or 2 (got 3)");
     expect_error("train @/ds --out @/t --threads -1", "--threads");
     /* train and run/eval share one check and one wording for the trainer's options */
     expect_error("train @/ds --out @/t --motion-crops 99", "train: --motion-crops must be in 0..16 (got 99)");
@@ -358,6 +359,8 @@ int main(void)
     expect_error(a, "--deform-time-warmup must be in [0, 1) (got -0.5)");
     snprintf(a, sizeof a, "run @/ds %s --out @/v --densify-movable 200", dep);
     expect_error(a, "--densify-movable must be in [1, 100] (got 200)");
+    snprintf(a, sizeof a, "run @/ds %s --out @/v --proxy-downscale 4", dep);
+    expect_error(a, "--proxy-downscale must be 1 or 2 (got 4)");
     snprintf(a, sizeof a, "eval @/ds %s --out @/v --proxy-render foo", dep);
     expect_error(a, "--proxy-render must be mesh or splat, not 'foo'");
     expect_error("eval @/ds --depth @/trunc.npy --out @/v --test-cams 1", "trunc.npy");

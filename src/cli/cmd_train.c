@@ -45,6 +45,7 @@ int cmd_train(int argc, char **argv)
         {"--deform-time-coarsen", CLI_INT, &c.deform_time_coarsen, "coarse HexPlane scale: one time texel per 2^K of the fine scale's (default 2; 0 = same)"},
         {"--deform-time-warmup", CLI_FLOAT, &c.deform_time_warmup, "share of the fine stage trained on a quarter of the HexPlane time rows, then refined (default 0.4; 0 = off)"},
         {"--densify-movable", CLI_FLOAT, &c.densify_movable, "the movable Gaussians' densification threshold, a multiple of the still ones' (default: 3 for a long clip, whose time rows get < 40 fits each; else 1)"},
+        {"--proxy-downscale", CLI_INT, &c.proxy_downscale, "proxies train at 1/S of the working size per side: 1 or 2 (default 2; the real view keeps every pixel)"},
         {"--deform-head-width", CLI_INT, &c.deform_head_width, "hidden width of each deformation head (default 32)"},
         {"--static-check-every", CLI_INT, &c.static_check_every, "learn static flags every K fine iterations (0 = off)"},
         {"--no-static", CLI_FLAG, &no_static, "send every Gaussian through the network"},

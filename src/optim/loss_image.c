@@ -20,6 +20,7 @@
 struct optim_ssim_ws {
     int H, W, C;
     size_t n;        /* H*W*C */
+    int cap_H, cap_W; /* the size the buffers were made for (optim_ssim_reshape) */
     float *hblur;    /* (5, H, W, C) horizontal pass of x, y, x^2, y^2, xy */
     float *partial;  /* (3, H, W, C) w * dS/dm1, w * dS/de11, w * dS/de12 of the last forward */
     double *rowsum;  /* (H) per-row SSIM sums, summed in fixed order => thread-count independent */
@@ -121,6 +122,7 @@ pg_status optim_ssim_create(optim_ssim_ws **out, int H, int W, int C)
     optim_ssim_ws *ws = pg_calloc(1, sizeof(*ws), "ssim workspace");
     if (!ws) return PG_ERR_NOMEM;
     ws->H = H; ws->W = W; ws->C = C; ws->n = n;
+    ws->cap_H = H; ws->cap_W = W;
     ws->hblur = pg_malloc(5 * n * sizeof(float), "ssim blur buffers");
     ws->partial = pg_calloc(3 * n, sizeof(float), "ssim partials");
     ws->rowsum = pg_calloc((size_t)H, sizeof(double), "ssim row sums");
@@ -130,6 +132,15 @@ pg_status optim_ssim_create(optim_ssim_ws **out, int H, int W, int C)
     }
     optim_ssim_window(ws->win);
     *out = ws;
+    return PG_OK;
+}
+
+pg_status optim_ssim_reshape(optim_ssim_ws *ws, int H, int W)
+{
+    if (H <= 0 || W <= 0 || H > ws->cap_H || W > ws->cap_W)
+        return pg_fail(PG_ERR_ARG, "optim_ssim_reshape: %dx%d does not fit the %dx%d workspace", H, W, ws->cap_H, ws->cap_W);
+    ws->H = H; ws->W = W;
+    ws->n = (size_t)H * W * ws->C;
     return PG_OK;
 }
 
@@ -204,7 +215,7 @@ static int ensure_rows(optim_ssim_ws *ws)
 {
     int nt = omp_get_max_threads();
     if (nt <= ws->nthreads) return 0;
-    float *r = malloc((size_t)nt * 5 * ws->W * ws->C * sizeof(float));
+    float *r = malloc((size_t)nt * 5 * ws->cap_W * ws->C * sizeof(float));
     if (!r) return -1;
     free(ws->rows);
     ws->rows = r;

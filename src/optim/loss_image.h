@@ -40,6 +40,9 @@ typedef struct optim_ssim_ws optim_ssim_ws;
 pg_status optim_ssim_create(optim_ssim_ws **ws, int H, int W, int C);
 /* Frees the workspace; accepts NULL. */
 void optim_ssim_destroy(optim_ssim_ws *ws);
+/* Makes ws the workspace of an H x W image (same channels) inside the size it was created for, so
+ * images of changing sizes (training crops) share one set of buffers. */
+pg_status optim_ssim_reshape(optim_ssim_ws *ws, int H, int W);
 
 /* Mean SSIM between pred and target: separable 11-tap Gaussian (sigma 1.5) with zero padding
  * ('same' size, like conv2d(padding=5) in the 3DGS reference), per channel, averaged over pixels and

@@ -276,21 +276,55 @@ static void preprocess_range(splat_raster *r, const pg_gaussians *g, const pg_ca
     }
 }
 
-/* Stable LSD radix sort of (key, value) pairs by 32-bit key, 8 bits per pass. */
-static void radix_sort(uint32_t *keys, int *vals, uint32_t *ktmp, int *vtmp, int n)
+/* Stable LSD radix sort of (key, value) pairs by 32-bit key, 8 bits per pass. Each thread
+ * counts and scatters a contiguous part; a digit's entries from earlier parts go first, so the
+ * result is the serial one for any thread count (the depth order of ~100k Gaussians per view
+ * was a serial pass the other threads waited on). */
+static void radix_sort(uint32_t *keys, int *vals, uint32_t *ktmp, int *vtmp, int n, int nth)
 {
-    for (int shift = 0; shift < 32; shift += 8) {
-        int count[257] = { 0 };
-        for (int i = 0; i < n; i++) count[((keys[i] >> shift) & 255) + 1]++;
-        if (count[1 + ((keys[0] >> shift) & 255)] == n) continue; /* all equal in this byte */
-        for (int b = 0; b < 256; b++) count[b + 1] += count[b];
-        for (int i = 0; i < n; i++) {
-            int d = count[(keys[i] >> shift) & 255]++;
-            ktmp[d] = keys[i];
-            vtmp[d] = vals[i];
+    int count[nth][256]; /* nth <= SPLAT_MAX_THREADS */
+    int skip = 0;
+    #pragma omp parallel num_threads(nth)
+    {
+        const int t = omp_get_thread_num(), T = omp_get_num_threads();
+        const int i0 = (int)((long)n * t / T), i1 = (int)((long)n * (t + 1) / T);
+        uint32_t *src_k = keys, *dst_k = ktmp;
+        int *src_v = vals, *dst_v = vtmp;
+        for (int shift = 0; shift < 32; shift += 8) {
+            int *c = count[t];
+            memset(c, 0, sizeof count[t]);
+            for (int i = i0; i < i1; i++) c[(src_k[i] >> shift) & 255]++;
+            #pragma omp barrier
+            #pragma omp single
+            {
+                /* every digit's start, thread parts in order; a byte all keys share changes nothing */
+                skip = 0;
+                for (int d = 0, total = 0; d < 256; d++) {
+                    int digit_total = 0;
+                    for (int q = 0; q < T; q++) digit_total += count[q][d];
+                    if (digit_total == n) skip = 1;
+                    for (int q = 0; q < T; q++) {
+                        int cq = count[q][d];
+                        count[q][d] = total;
+                        total += cq;
+                    }
+                }
+            } /* implicit barrier */
+            if (skip) continue;
+            for (int i = i0; i < i1; i++) {
+                const int d = c[(src_k[i] >> shift) & 255]++;
+                dst_k[d] = src_k[i];
+                dst_v[d] = src_v[i];
+            }
+            uint32_t *tk = src_k; src_k = dst_k; dst_k = tk;
+            int *tv = src_v; src_v = dst_v; dst_v = tv;
+            #pragma omp barrier
         }
-        memcpy(keys, ktmp, (size_t)n * sizeof(uint32_t));
-        memcpy(vals, vtmp, (size_t)n * sizeof(int));
+        /* an odd number of scatters left the result in the scratch arrays */
+        if (src_k != keys) {
+            memcpy(keys + i0, src_k + i0, (size_t)(i1 - i0) * sizeof(uint32_t));
+            memcpy(vals + i0, src_v + i0, (size_t)(i1 - i0) * sizeof(int));
+        }
     }
 }
 
@@ -391,7 +425,7 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     if (m > INT_MAX) return pg_fail(PG_ERR_SIZE, "rasterizer: %zu tile intersections (limit %d)", m, INT_MAX);
     r->m = m;
     r->visible = vis;
-    if (vis > 0) radix_sort(r->keys, r->order, r->keys_tmp, r->order_tmp, vis);
+    if (vis > 0) radix_sort(r->keys, r->order, r->keys_tmp, r->order_tmp, vis, vis >= 4096 ? nth : 1);
 
     /* Bin: counting sort by tile of the depth-sorted list keeps depth order inside each tile.
      * Each thread counts a contiguous part of the list; a thread's entries of a tile go after

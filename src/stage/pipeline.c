@@ -81,7 +81,7 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
     PG_TRY(stage_check_threads("pipeline", c->threads));
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "--seed must be >= 0 (got %d)", c->seed);
     PG_TRY(stage_check_trainer_options("pipeline", c->deform_width, c->deform_head_width, c->deform_time_coarsen, c->deform_time_warmup,
-                                       c->densify_movable,
+                                       c->densify_movable, c->proxy_downscale,
                                        c->motion_crops, c->views_per_step, c->proxy_moving_weight, c->real_weight,
                                        c->sh_degree));
     if (c->depth_scale < 0) return pg_fail(PG_ERR_ARG, "--depth-scale must be > 0 (got %g)", c->depth_scale);
@@ -433,6 +433,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.deform_time_coarsen = c->deform_time_coarsen;
     tc.deform_time_warmup = c->deform_time_warmup;
     tc.densify_movable = c->densify_movable;
+    tc.proxy_downscale = c->proxy_downscale;
     tc.proxy_moving_weight = c->proxy_moving_weight;
     tc.real_weight = c->real_weight;
     tc.sh_degree = c->sh_degree;

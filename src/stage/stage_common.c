@@ -32,7 +32,8 @@ pg_status stage_check_threads(const char *stage, int threads)
 }
 
 pg_status stage_check_trainer_options(const char *stage, int deform_width, int deform_head_width,
-                                      int deform_time_coarsen, float deform_time_warmup, float densify_movable, int motion_crops, int views_per_step, float proxy_moving_weight,
+                                      int deform_time_coarsen, float deform_time_warmup, float densify_movable,
+                                      int proxy_downscale, int motion_crops, int views_per_step, float proxy_moving_weight,
                                       float real_weight, int sh_degree)
 {
     if (deform_width < 0 || deform_width > 1024)
@@ -46,6 +47,8 @@ pg_status stage_check_trainer_options(const char *stage, int deform_width, int d
         return pg_fail(PG_ERR_ARG, "%s: --deform-time-warmup must be in [0, 1) (got %g)", stage, deform_time_warmup);
     if (densify_movable != -1 && !(densify_movable >= 1 && densify_movable <= 100))
         return pg_fail(PG_ERR_ARG, "%s: --densify-movable must be in [1, 100] (got %g)", stage, densify_movable);
+    if (proxy_downscale != 0 && proxy_downscale != 1 && proxy_downscale != 2)
+        return pg_fail(PG_ERR_ARG, "%s: --proxy-downscale must be 1 or 2 (got %d)", stage, proxy_downscale);
     if (motion_crops < -1 || motion_crops > TRAIN_MAX_BATCH)
         return pg_fail(PG_ERR_ARG, "%s: --motion-crops must be in 0..%d (got %d)", stage, TRAIN_MAX_BATCH, motion_crops);
     if (views_per_step < 1 || views_per_step > TRAIN_MAX_BATCH)

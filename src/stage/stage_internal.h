@@ -21,7 +21,8 @@ pg_status stage_check_size(const char *stage, int width, int height);
 /* Checks the trainer options that both `train` and `run`/`eval` take, with one wording for both
  * (-1 = the trainer's default; widths 0 = the trainer's default too). */
 pg_status stage_check_trainer_options(const char *stage, int deform_width, int deform_head_width,
-                                      int deform_time_coarsen, float deform_time_warmup, float densify_movable, int motion_crops, int views_per_step, float proxy_moving_weight,
+                                      int deform_time_coarsen, float deform_time_warmup, float densify_movable,
+                                      int proxy_downscale, int motion_crops, int views_per_step, float proxy_moving_weight,
                                       float real_weight, int sh_degree);
 
 /* The user's length per value of a depth file: prepare.json beside a prepare stage's

@@ -44,12 +44,13 @@ cJSON *stage_train_config_json(const pg_train_config *c)
     const int ints[] = { c->iters, c->coarse_iters, c->seed, c->max_gaussians, c->init_points, c->sh_degree,
                          c->proxies, c->frames, c->width, c->views_per_step, c->deform_res, c->deform_width,
                          c->deform_head_width, c->static_check_every, c->use_static, c->use_cull, c->deform_tres,
-                         c->times_per_step, c->motion_crops, c->deform_time_coarsen, c->densify_until };
+                         c->times_per_step, c->motion_crops, c->deform_time_coarsen, c->densify_until,
+                         c->proxy_downscale };
     static const char *int_names[] = { "iters", "coarse_iters", "seed", "max_gaussians", "init_points", "sh_degree",
                                        "proxies", "frames", "width", "views_per_step", "deform_res", "deform_width",
                                        "deform_head_width", "static_check_every", "use_static", "use_cull", "deform_tres",
                                        "times_per_step", "motion_crops", "deform_time_coarsen",
-                                       "densify_until" };
+                                       "densify_until", "proxy_downscale" };
     for (size_t k = 0; k < sizeof ints / sizeof ints[0]; k++) cJSON_AddNumberToObject(j, int_names[k], ints[k]);
     const float floats[] = { c->real_weight, c->moving_weight, c->lambda_depth, c->lambda_dssim, c->proxy_moving_weight,
                              c->deform_time_warmup, c->densify_movable };
@@ -84,7 +85,7 @@ static pg_status check_config(const pg_train_config *c)
     if (c->deform_res < 0 || c->deform_res > 1024)
         return pg_fail(PG_ERR_ARG, "train: --deform-res %d out of range 0..1024", c->deform_res);
     PG_TRY(stage_check_trainer_options("train", c->deform_width, c->deform_head_width, c->deform_time_coarsen, c->deform_time_warmup,
-                                       c->densify_movable,
+                                       c->densify_movable, c->proxy_downscale,
                                        c->motion_crops, c->views_per_step, c->proxy_moving_weight, c->real_weight,
                                        c->sh_degree));
     if (c->deform_tres < 0 || c->deform_tres == 1 || c->deform_tres > 100000)
@@ -169,6 +170,7 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
     cJSON_AddNumberToObject(root, "time_rows", rows);
     cJSON_AddNumberToObject(root, "time_rows_warmup", warm_rows);
     cJSON_AddNumberToObject(root, "densify_movable", train_session_densify_movable(s));
+    cJSON_AddNumberToObject(root, "proxy_downscale", cfg->proxy_downscale);
     const double scores[] = { r->test_psnr, r->train_psnr, r->train_psnr_moving, r->train_psnr_static };
     static const char *names[] = { "test_psnr", "train_real_psnr", "train_real_psnr_moving", "train_real_psnr_static" };
     for (int k = 0; k < 4; k++)
@@ -272,6 +274,7 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
     if (c->deform_time_coarsen >= 0) cfg.deform_time_coarsen = c->deform_time_coarsen;
     if (c->deform_time_warmup >= 0) cfg.deform_time_warmup = c->deform_time_warmup;
     if (c->densify_movable > 0) cfg.densify_movable = c->densify_movable;
+    if (c->proxy_downscale > 0) cfg.proxy_downscale = c->proxy_downscale;
     if (c->deform_head_width > 0) cfg.deform_head_width = c->deform_head_width;
     cfg.use_static_flags = c->use_static;
     cfg.static_check_every = c->static_check_every;

@@ -70,6 +70,7 @@ train_config train_default_config(void)
     c.opacity_reset_every = 0;
     c.densify_grad = 2e-4f;
     c.densify_movable = 0; /* the trainer's rule: TRAIN_LONG_CLIP_DENSIFY_MOVABLE for a long clip, else 1 */
+    c.proxy_downscale = TRAIN_PROXY_DOWNSCALE;
     c.percent_dense = 0.01f;
     c.prune_opacity = 0.005f;
     c.prune_big_scale = 0.2f;
@@ -646,11 +647,13 @@ static int load_target(train_session *s, int vi, int f, int moving)
     const train_view *v = &ts->views[vi];
     size_t px = (size_t)ts->width * ts->height;
     train_set_frame_rgb(ts, vi, f, &s->target);
-    for (size_t i = 0; i < px; i++)
-        s->mask[i] = v->mask ? v->mask[(size_t)f * px + i] * (1.0f / TRAIN_MASK_FULL) : 1.0f;
-    const uint8_t *mv = moving && s->moving ? s->moving[vi] : NULL;
-    if (mv)
-        for (size_t i = 0; i < px; i++) s->mask[i] *= 1.0f + s->cfg.moving_weight * mv[(size_t)f * px + i];
+    const uint8_t *mv = moving && s->moving && s->moving[vi] ? s->moving[vi] + (size_t)f * px : NULL;
+    const uint8_t *vm = v->mask ? v->mask + (size_t)f * px : NULL;
+    #pragma omp parallel for schedule(static)
+    for (size_t i = 0; i < px; i++) {
+        float m = vm ? vm[i] * (1.0f / TRAIN_MASK_FULL) : 1.0f;
+        s->mask[i] = mv ? m * (1.0f + s->cfg.moving_weight * mv[i]) : m;
+    }
     if (v->depth) train_view_depth_frame(v, f, px, s->depth_t);
     if (moving && v->role == IO_ROLE_PROXY) weigh_proxy_moving(s, v, f);
     return v->depth != NULL;
@@ -795,19 +798,40 @@ static pg_camera crop_camera(const pg_camera *cam, const int *rect)
     return c;
 }
 
-/* The SSIM workspace for a w x h image: the full-size one, or one kept for the last crop size. */
+/* Output pixels only read input rows at or after their own index, so in place is safe. */
+void train_halve_in_place(float *buf, int w, int h, int c, int skip_zero)
+{
+    const int w2 = w / 2, h2 = h / 2;
+    for (int y = 0; y < h2; y++)
+        for (int x = 0; x < w2; x++)
+            for (int k = 0; k < c; k++) {
+                const float *p = buf + ((size_t)(2 * y) * w + 2 * x) * c + k;
+                const float v[4] = { p[0], p[c], p[(size_t)w * c], p[(size_t)w * c + c] };
+                float sum = 0, n = 0;
+                for (int q = 0; q < 4; q++)
+                    if (!skip_zero || v[q] > 0) sum += v[q], n += 1;
+                buf[((size_t)y * w2 + x) * c + k] = n > 0 ? sum / n : 0.0f;
+            }
+}
+
+pg_camera train_half_camera(const pg_camera *cam)
+{
+    pg_camera c = *cam;
+    c.width = cam->width / 2, c.height = cam->height / 2;
+    c.fx *= 0.5f, c.fy *= 0.5f, c.cx *= 0.5f, c.cy *= 0.5f;
+    return c;
+}
+
+/* The SSIM workspace for a w x h image: the full-size one, or the one every smaller image (crops)
+ * shares, reshaped to it. */
 static pg_status ssim_workspace(train_session *s, int w, int h, optim_ssim_ws **ws)
 {
     if (w == s->ts->width && h == s->ts->height) {
         *ws = s->ssim;
         return PG_OK;
     }
-    if (!s->ssim_crop || s->ssim_crop_w != w || s->ssim_crop_h != h) {
-        optim_ssim_destroy(s->ssim_crop);
-        s->ssim_crop = NULL;
-        PG_TRY(optim_ssim_create(&s->ssim_crop, h, w, 3));
-        s->ssim_crop_w = w, s->ssim_crop_h = h;
-    }
+    if (!s->ssim_crop) PG_TRY(optim_ssim_create(&s->ssim_crop, s->ts->height, s->ts->width, 3));
+    PG_TRY(optim_ssim_reshape(s->ssim_crop, h, w));
     *ws = s->ssim_crop;
     return PG_OK;
 }
@@ -820,7 +844,7 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, const 
 {
     const train_set *ts = s->ts;
     const train_config *c = &s->cfg;
-    pg_camera cam = ts->views[vi].cam;
+    pg_camera cam = ts->views[vi].cam, whole = cam;
     int real = ts->views[vi].role == IO_ROLE_REAL;
     int has_depth = load_target(s, vi, f, 1);
     if (rect) {
@@ -829,6 +853,13 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, const 
         if (has_depth) crop_in_place(s->depth_t, ts->width, 1, rect);
         cam = crop_camera(&cam, rect);
     }
+    if (c->proxy_downscale == 2 && ts->views[vi].role == IO_ROLE_PROXY && cam.width >= 32 && cam.height >= 32) {
+        train_halve_in_place(s->target.data, cam.width, cam.height, 3, 0);
+        train_halve_in_place(s->mask, cam.width, cam.height, 1, 0);
+        if (has_depth) train_halve_in_place(s->depth_t, cam.width, cam.height, 1, 1);
+        cam = train_half_camera(&cam);
+        whole = train_half_camera(&whole);
+    }
     const int W = cam.width, H = cam.height;
     const size_t px = (size_t)W * H;
     optim_ssim_ws *ssim;
@@ -836,7 +867,7 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, const 
     double t0 = pg_time_seconds(), t1;
     pg_render_settings rs = splat_default_settings();
     memcpy(rs.background, c->bg, sizeof rs.background);
-    if (rect) rs.whole = &ts->views[vi].cam;
+    if (rect) rs.whole = &whole;
     pg_render_output out;
     PG_TRY(splat_render_forward(s->raster, &s->d, &cam, &rs, &out));
     t1 = pg_time_seconds();

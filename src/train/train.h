@@ -53,6 +53,7 @@ typedef struct {
     int densify_from, densify_until, densify_every, opacity_reset_every;
     float densify_grad, percent_dense, prune_opacity, prune_big_scale;
     float densify_movable;   /* the movable Gaussians' densification threshold: this times densify_grad (0: the rule below) */
+    int proxy_downscale;     /* proxies train at 1/this of the working size per side: 1 or 2 (TRAIN_PROXY_DOWNSCALE) */
     /* deformation-network speed tricks */
     int use_static_flags, use_frustum_cull;
     int static_check_every;  /* learned static flags: re-check every k fine iterations (0 = off) */
@@ -93,6 +94,12 @@ int train_time_texels(int frames, int fine_times); /* fine_times: fine iteration
  * fitted ~125 times per frame, keeps its density: it lost 1.9 dB on its movers at 3. */
 #define TRAIN_LONG_CLIP_DENSIFY_MOVABLE 3.0f
 int train_iterations_for_clip(int iters, int frames, int motion_crops);
+/* Proxies train at half the working size per side. A proxy is the real frame carried to another
+ * viewpoint through a blurred monocular depth: its pixel-level detail is the real view's, resampled,
+ * and what it adds is where things are, which half the pixels show as well. The real view keeps
+ * every pixel. A proxy render then costs about a third (classroom_cam3: training 11 % faster,
+ * moving pixels within the run-to-run floor; docs/train.md). */
+#define TRAIN_PROXY_DOWNSCALE 2
 /* The largest SH degree when none is asked for: 3 with two or more real cameras, 0 with one. With
  * one camera every proxy carries that camera's colours to its viewpoint, so a colour that changes
  * with the direction has nothing true to learn, only where the proxies disagree (tabletop_dev

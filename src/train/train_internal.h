@@ -61,8 +61,7 @@ struct train_session {
     float *depth_t;      /* (H, W) */
     float *depth_mask;   /* (H, W) valid target depth */
     optim_ssim_ws *ssim;
-    optim_ssim_ws *ssim_crop; /* for the last crop size */
-    int ssim_crop_w, ssim_crop_h;
+    optim_ssim_ws *ssim_crop; /* for any smaller image (crops), optim_ssim_reshape'd */
     float *d_rgb;        /* (H, W, 3) */
     float *d_depth;      /* (H, W) */
 
@@ -92,6 +91,11 @@ static inline int train_sh_floats(int sh_max_degree) { return (sh_max_degree + 1
 /* Over every parameter array of src's rows, the SH rows up to their first sh_floats (copy and
  * average also take src's SH degree). */
 void train_blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, train_blend how, float keep, int sh_floats);
+/* Proxies at half size (TRAIN_PROXY_DOWNSCALE): the (w, h) c-channel image buf becomes, in place,
+ * its (w / 2, h / 2) 2x2 box average (with skip_zero, zeros - invalid depth - are left out), and
+ * the camera of that image (pixel centres at (x + 0.5) x 2 of the full one). */
+void train_halve_in_place(float *buf, int w, int h, int c, int skip_zero);
+pg_camera train_half_camera(const pg_camera *cam);
 /* train_adam.c */
 pg_status train_adam_resize_gaussians(train_session *s, int n);
 pg_status train_adam_create_net(train_session *s);

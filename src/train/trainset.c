@@ -40,6 +40,7 @@ void train_set_frame_rgb(const train_set *ts, int v, int f, pg_image *img)
 {
     size_t px = (size_t)ts->width * ts->height;
     const uint8_t *src = ts->views[v].rgb + (size_t)f * px * 3;
+    #pragma omp parallel for schedule(static)
     for (size_t i = 0; i < px * 3; i++) img->data[i] = src[i] * (1.0f / 255.0f);
 }
 
@@ -48,6 +49,7 @@ float train_view_depth(const train_view *v, size_t i) { return io_half_to_float(
 void train_view_depth_frame(const train_view *v, int f, size_t px, float *out)
 {
     const uint16_t *h = v->depth + (size_t)f * px;
+    #pragma omp parallel for schedule(static)
     for (size_t i = 0; i < px; i++) out[i] = io_half_to_float(h[i]) * v->depth_scale;
 }
 
