@@ -186,8 +186,12 @@ pg_status io_npy_load(const char *path, pg_array *arr)
     if (!raw || !arr->data) { st = PG_ERR_NOMEM; goto done; }
     if (fread(raw, 1, bytes, fp) != bytes) { st = pg_fail(PG_ERR_FORMAT, "%s: truncated data", path); goto done; }
     if (dt.kind == 'f' && dt.bytes == 4 && !dt.big_endian) memcpy(arr->data, raw, bytes);
-    else
-        for (size_t i = 0; i < arr->count; i++) arr->data[i] = convert_one(raw + i * dt.bytes, &dt);
+    else {
+        /* whole-clip depth (hundreds of millions of values) converts on every thread */
+        const long count = (long)arr->count;
+        #pragma omp parallel for schedule(static)
+        for (long i = 0; i < count; i++) arr->data[i] = convert_one(raw + (size_t)i * dt.bytes, &dt);
+    }
 done:
     fclose(fp);
     free(header);

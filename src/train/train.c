@@ -199,7 +199,18 @@ static void blend_used(train_session *s, pg_gaussians *dst, const pg_gaussians *
     train_blend_gaussians(dst, src, how, 0.0f, train_sh_floats(s->cfg.sh_max_degree));
 }
 
-/* blend_used over the listed rows only. */
+/* One row's span of a copy, zero or add (the rows' spans are 1-4 floats: plain loops, no calls). */
+static inline void blend_row_span(float *restrict dst, const float *restrict src, size_t m, train_blend how)
+{
+    if (how == TRAIN_BLEND_COPY)
+        for (size_t k = 0; k < m; k++) dst[k] = src[k];
+    else if (how == TRAIN_BLEND_ZERO)
+        for (size_t k = 0; k < m; k++) dst[k] = 0.0f;
+    else
+        for (size_t k = 0; k < m; k++) dst[k] += src[k];
+}
+
+/* blend_used (copy, zero with src = dst, add) over the listed rows only. */
 static void blend_rows(train_session *s, pg_gaussians *dst, const pg_gaussians *src, const int *rows, int n,
                        train_blend how)
 {
@@ -207,11 +218,11 @@ static void blend_rows(train_session *s, pg_gaussians *dst, const pg_gaussians *
     #pragma omp parallel for schedule(static)
     for (int k = 0; k < n; k++) {
         const size_t i = (size_t)rows[k];
-        blend_span(dst->means + 3 * i, src->means + 3 * i, 3, how, 0.0f);
-        blend_span(dst->log_scales + 3 * i, src->log_scales + 3 * i, 3, how, 0.0f);
-        blend_span(dst->quats + 4 * i, src->quats + 4 * i, 4, how, 0.0f);
-        blend_span(dst->opacity + i, src->opacity + i, 1, how, 0.0f);
-        blend_span(dst->sh + sh_row * i, src->sh + sh_row * i, sh_floats, how, 0.0f);
+        blend_row_span(dst->means + 3 * i, src->means + 3 * i, 3, how);
+        blend_row_span(dst->log_scales + 3 * i, src->log_scales + 3 * i, 3, how);
+        blend_row_span(dst->quats + 4 * i, src->quats + 4 * i, 4, how);
+        blend_row_span(dst->opacity + i, src->opacity + i, 1, how);
+        blend_row_span(dst->sh + sh_row * i, src->sh + sh_row * i, sh_floats, how);
     }
 }
 

@@ -67,6 +67,7 @@ size_t train_view_set_depth(train_view *v, const float *d, size_t n)
     }
     v->depth_scale = scale;
     float inv = 1.0f / scale;
+    #pragma omp parallel for schedule(static) reduction(+ : valid)
     for (size_t i = 0; i < n; i++) {
         int ok = isfinite(d[i]) && d[i] > 0;
         uint16_t h = ok ? io_float_to_half(d[i] * inv) : 0;
