@@ -979,10 +979,16 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
     t0 = pg_time_seconds();
 
     /* the moving rows through the 3D filter, then the identity path and the deformation path for
-     * the deformed rows (the fixed rows at the step's end, finish_fixed_rows) */
-    splat_filter3d_backward_rows(s->filter_saved, s->filter_var, s->step_rows, s->n_moving_rows, s->dg.log_scales,
-                                 s->dg.opacity);
-    blend_rows(s, &s->gg, &s->dg, s->step_rows, s->n_moving_rows, first ? TRAIN_BLEND_COPY : TRAIN_BLEND_ADD);
+     * the deformed rows (the fixed rows at the step's end, finish_fixed_rows); a step of one time
+     * does every row at once, in order */
+    if (s->single_pass) {
+        splat_filter3d_backward(s->filter_saved, s->filter_var, s->dg.count, s->dg.log_scales, s->dg.opacity);
+        blend_used(s, &s->gg, &s->dg, TRAIN_BLEND_COPY);
+    } else {
+        splat_filter3d_backward_rows(s->filter_saved, s->filter_var, s->step_rows, s->n_moving_rows, s->dg.log_scales,
+                                     s->dg.opacity);
+        blend_rows(s, &s->gg, &s->dg, s->step_rows, s->n_moving_rows, first ? TRAIN_BLEND_COPY : TRAIN_BLEND_ADD);
+    }
     if (s->fine && nd > 0) PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, &s->dg, &s->gg));
     s->timing.deform_backward += (pg_time_seconds() - t0) * 1e3;
     *loss_out = loss;
@@ -1036,6 +1042,7 @@ pg_status train_session_step(train_session *s)
     memset(&s->timing, 0, sizeof s->timing);
     list_step_rows(s);
     const int times = times_per_step(c);
+    s->single_pass = times == 1 && (!s->fine || motion_crops(s) == 0);
     if (s->fine) train_net_zero_grad(s->net);
     double loss = 0;
     for (int k = 0; k < times; k++) {
@@ -1048,7 +1055,7 @@ pg_status train_session_step(train_session *s)
         PG_TRY(step_motion_crop(s, k, &lk));
     }
     double tf = pg_time_seconds();
-    finish_fixed_rows(s);
+    if (!s->single_pass) finish_fixed_rows(s);
     s->timing.deform_backward += (pg_time_seconds() - tf) * 1e3;
     if (s->fine) {
         double tr = pg_time_seconds();
