@@ -145,8 +145,9 @@ void train_session_destroy(train_session *s)
     free(s);
 }
 
-/* One span of a blend (serial; the callers split the work over the threads). */
-static void blend_span(float *dst, const float *src, size_t m, train_blend how, float keep)
+/* One span of a blend (serial; the callers split the work over the threads). Inline: the per-row
+ * blends call it for spans of 1-4 floats. */
+static inline void blend_span(float *dst, const float *src, size_t m, train_blend how, float keep)
 {
     const float take = 1.0f - keep;
     if (how == TRAIN_BLEND_COPY)
@@ -199,17 +200,6 @@ static void blend_used(train_session *s, pg_gaussians *dst, const pg_gaussians *
     train_blend_gaussians(dst, src, how, 0.0f, train_sh_floats(s->cfg.sh_max_degree));
 }
 
-/* One row's span of a copy, zero or add (the rows' spans are 1-4 floats: plain loops, no calls). */
-static inline void blend_row_span(float *restrict dst, const float *restrict src, size_t m, train_blend how)
-{
-    if (how == TRAIN_BLEND_COPY)
-        for (size_t k = 0; k < m; k++) dst[k] = src[k];
-    else if (how == TRAIN_BLEND_ZERO)
-        for (size_t k = 0; k < m; k++) dst[k] = 0.0f;
-    else
-        for (size_t k = 0; k < m; k++) dst[k] += src[k];
-}
-
 /* blend_used (copy, zero with src = dst, add) over the listed rows only. */
 static void blend_rows(train_session *s, pg_gaussians *dst, const pg_gaussians *src, const int *rows, int n,
                        train_blend how)
@@ -218,11 +208,11 @@ static void blend_rows(train_session *s, pg_gaussians *dst, const pg_gaussians *
     #pragma omp parallel for schedule(static)
     for (int k = 0; k < n; k++) {
         const size_t i = (size_t)rows[k];
-        blend_row_span(dst->means + 3 * i, src->means + 3 * i, 3, how);
-        blend_row_span(dst->log_scales + 3 * i, src->log_scales + 3 * i, 3, how);
-        blend_row_span(dst->quats + 4 * i, src->quats + 4 * i, 4, how);
-        blend_row_span(dst->opacity + i, src->opacity + i, 1, how);
-        blend_row_span(dst->sh + sh_row * i, src->sh + sh_row * i, sh_floats, how);
+        blend_span(dst->means + 3 * i, src->means + 3 * i, 3, how, 0.0f);
+        blend_span(dst->log_scales + 3 * i, src->log_scales + 3 * i, 3, how, 0.0f);
+        blend_span(dst->quats + 4 * i, src->quats + 4 * i, 4, how, 0.0f);
+        blend_span(dst->opacity + i, src->opacity + i, 1, how, 0.0f);
+        blend_span(dst->sh + sh_row * i, src->sh + sh_row * i, sh_floats, how, 0.0f);
     }
 }
 
@@ -233,15 +223,14 @@ static void blend_rows(train_session *s, pg_gaussians *dst, const pg_gaussians *
  * filter backward once at its end. */
 static void list_step_rows(train_session *s)
 {
-    const int n = s->g.count;
-    int nm = 0, nf = 0;
-    for (int i = 0; i < n; i++) {
-        const int moves = s->fine && !(s->cfg.use_static_flags && s->is_static[i]);
-        if (moves) s->step_rows[nm++] = i;
-        else s->idx[nf++] = i;
-    }
-    memcpy(s->step_rows + nm, s->idx, (size_t)nf * sizeof(int));
-    s->n_moving_rows = nm, s->n_fixed_rows = nf;
+    const int n = s->g.count, any = s->fine, flags = s->cfg.use_static_flags;
+    int k = 0;
+    for (int i = 0; i < n; i++)
+        if (any && !(flags && s->is_static[i])) s->step_rows[k++] = i;
+    s->n_moving_rows = k;
+    for (int i = 0; i < n; i++)
+        if (!(any && !(flags && s->is_static[i]))) s->step_rows[k++] = i;
+    s->n_fixed_rows = n - s->n_moving_rows;
 }
 
 /* Moving pixels of each real view (colour off the temporal median by > 0.1, dilated 2 px):
@@ -299,6 +288,13 @@ static int times_per_step(const train_config *c) { return c->times_per_step > 1 
 static int motion_crops(const train_session *s)
 {
     return s->crop_view >= 0 && s->regions[s->crop_view].frames_with_motion > 0 ? s->cfg.motion_crops : 0;
+}
+
+/* A step that renders one time only takes every row's backward at once, in order (no still rows
+ * to hold back for later times). */
+static int one_time_per_step(const train_session *s)
+{
+    return times_per_step(&s->cfg) == 1 && (!s->fine || motion_crops(s) == 0);
 }
 
 int train_time_texels(int frames, int fine_iters)
@@ -981,7 +977,7 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
     /* the moving rows through the 3D filter, then the identity path and the deformation path for
      * the deformed rows (the fixed rows at the step's end, finish_fixed_rows); a step of one time
      * does every row at once, in order */
-    if (s->single_pass) {
+    if (one_time_per_step(s)) {
         splat_filter3d_backward(s->filter_saved, s->filter_var, s->dg.count, s->dg.log_scales, s->dg.opacity);
         blend_used(s, &s->gg, &s->dg, TRAIN_BLEND_COPY);
     } else {
@@ -1042,7 +1038,6 @@ pg_status train_session_step(train_session *s)
     memset(&s->timing, 0, sizeof s->timing);
     list_step_rows(s);
     const int times = times_per_step(c);
-    s->single_pass = times == 1 && (!s->fine || motion_crops(s) == 0);
     if (s->fine) train_net_zero_grad(s->net);
     double loss = 0;
     for (int k = 0; k < times; k++) {
@@ -1055,7 +1050,7 @@ pg_status train_session_step(train_session *s)
         PG_TRY(step_motion_crop(s, k, &lk));
     }
     double tf = pg_time_seconds();
-    if (!s->single_pass) finish_fixed_rows(s);
+    if (!one_time_per_step(s)) finish_fixed_rows(s);
     s->timing.deform_backward += (pg_time_seconds() - tf) * 1e3;
     if (s->fine) {
         double tr = pg_time_seconds();

@@ -39,7 +39,6 @@ struct train_session {
                           * then the fixed rest: only the moving ones are copied, filtered and
                           * back-propagated per rendered time; the fixed ones once per step */
     int n_moving_rows, n_fixed_rows;
-    int single_pass;     /* this step renders one time only: every row's backward at once */
     uint8_t *row_flags;  /* (side_cap) scratch: which of the moving rows the network gets */
     float *filter_var;   /* (side_cap) 3D smoothing filter variance (splat/filter3d.h), from the
                           * canonical means every TRAIN_FILTER_EVERY steps and after densification */
