@@ -249,6 +249,19 @@ static void finish_one(splat_raster *r, const pg_gaussians *g, const pg_camera *
     bx[2] = (uint16_t)(xmax / SPLAT_TILE); bx[3] = (uint16_t)(ymax / SPLAT_TILE);
 }
 
+/* Starts loading the colour rows of Gaussians i .. i+15 (for writing when write is set). A row
+ * is 48 floats of which degree 0 reads 3, so the rows are a stride the hardware prefetcher does
+ * not follow: without this, the colour load of every Gaussian was a cache miss (~6 % of a
+ * training step in perf, the colour code itself being a few instructions). */
+static inline void prefetch_sh_rows(const float *sh, int i, int end, int write)
+{
+    int n = end - i < 16 ? end - i : 16;
+    for (int l = 0; l < n; l++) {
+        if (write) __builtin_prefetch(sh + (size_t)48 * (i + l), 1, 3);
+        else __builtin_prefetch(sh + (size_t)48 * (i + l), 0, 3);
+    }
+}
+
 /* Preprocesses Gaussians i0 .. i1-1: projection 16 at a time with the kernel family's vector code. */
 static void preprocess_range(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
                              const pg_render_settings *s, int deg, int i0, int i1)
@@ -260,6 +273,7 @@ static void preprocess_range(splat_raster *r, const pg_gaussians *g, const pg_ca
     for (; project16 && i + 16 <= i1; i += 16) {
         if (!project16(g->means, g->log_scales, g->quats, i, cam, r->lim, s->near_clip, pr, &valid))
             break;
+        prefetch_sh_rows(g->sh, i + 16, i1, 0);
         for (int l = 0; l < 16; l++) {
             if (!(valid >> l & 1)) { r->ntiles[i + l] = 0; continue; }
             splat_proj p = { { pr[0][l], pr[1][l] }, pr[2][l], { pr[3][l], pr[4][l], pr[5][l] },
@@ -527,6 +541,8 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
     for (int b = 0; b < nblk; b++) {
         int i0 = 16 * b, cnt = n - i0 < 16 ? n - i0 : 16;
         float d_xy[2][16], d_conic[3][16], d_z[16];
+        prefetch_sh_rows(grad->sh, i0 + 16, n, 1);
+        if (deg > 0) prefetch_sh_rows(g->sh, i0 + 16, n, 0);
         unsigned mask = 0;
         for (int l = 0; l < cnt; l++) {
             int i = i0 + l;
