@@ -113,10 +113,34 @@ pg_status depth_refine_band(const depth_refine_params *p, const float *depth, in
 
 typedef struct { float v, w; } vw_pair;
 
-static int cmp_vw(const void *a, const void *b)
+/* Stable sort of a[0..m) by v (tmp: m pairs): insertion sort on runs of 8, then bottom-up merges
+ * taking from the left run on ties. The order equals any stable sort's, glibc's qsort (a merge
+ * sort) included, so the refined depth stays the same to the bit; the comparisons are inline
+ * instead of through a callback (the sort was a quarter of the prepare stage in perf). */
+static void sort_vw_stable(vw_pair *a, vw_pair *tmp, int m)
 {
-    float x = ((const vw_pair *)a)->v, y = ((const vw_pair *)b)->v;
-    return (x > y) - (x < y);
+    enum { RUN = 8 };
+    for (int s = 0; s < m; s += RUN) {
+        int e = s + RUN < m ? s + RUN : m;
+        for (int i = s + 1; i < e; i++) {
+            vw_pair x = a[i];
+            int j = i;
+            while (j > s && a[j - 1].v > x.v) { a[j] = a[j - 1]; j--; }
+            a[j] = x;
+        }
+    }
+    vw_pair *src = a, *dst = tmp;
+    for (int width = RUN; width < m; width *= 2) {
+        for (int lo = 0; lo < m; lo += 2 * width) {
+            int mid = lo + width < m ? lo + width : m, hi = lo + 2 * width < m ? lo + 2 * width : m;
+            int i = lo, j = mid, k = lo;
+            while (i < mid && j < hi) dst[k++] = src[j].v < src[i].v ? src[j++] : src[i++];
+            while (i < mid) dst[k++] = src[i++];
+            while (j < hi) dst[k++] = src[j++];
+        }
+        vw_pair *t = src; src = dst; dst = t;
+    }
+    if (src != a) memcpy(a, src, sizeof(vw_pair) * (size_t)m);
 }
 
 /* Edge snapping: every band pixel takes the colour- and distance-weighted median of the depths
@@ -189,7 +213,7 @@ static pg_status refine_edge_snap(void *ctx, const pg_image *rgb, const float *d
     int failed = 0;
     #pragma omp parallel
     {
-        vw_pair *pairs = malloc(sizeof(vw_pair) * cap);
+        vw_pair *pairs = malloc(sizeof(vw_pair) * 2 * (size_t)cap); /* the pairs, then the sort's scratch */
         if (!pairs) {
             #pragma omp critical(refine_nomem)
             failed = 1;
@@ -226,7 +250,7 @@ static pg_status refine_edge_snap(void *ctx, const pg_image *rgb, const float *d
                     dout[k] = d;
                     continue;
                 }
-                qsort(pairs, m, sizeof(vw_pair), cmp_vw);
+                sort_vw_stable(pairs, pairs + cap, m);
                 /* Depth likelihood: the blurred value itself says which side of the step the pixel
                  * is on (the true edge is where the blur crosses the midpoint), so candidates close
                  * to it gain weight. Its width follows the local step height (10th-90th percentile
