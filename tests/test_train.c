@@ -286,16 +286,16 @@ static void test_margin_past_frame(const char *dir)
     train_set_destroy(&ts);
 }
 
-/* The preset's budget on a long clip: short clips keep it, a 300-frame clip gets ~40 fits of each
+/* The preset's budget on a long clip: short clips keep it, a 120-frame clip gets 64 fits of each
  * frame in the fine stage, and no clip gets more than TRAIN_MAX_BUDGET_THIRDS / 3 times it. */
 static void test_iterations_for_clip(void)
 {
     CHECK(train_iterations_for_clip(1500, 30, 2) == 1500, "30 frames keep 1500, got %d", train_iterations_for_clip(1500, 30, 2));
-    CHECK(train_iterations_for_clip(1500, 90, 2) == 1500, "90 frames keep 1500");
+    CHECK(train_iterations_for_clip(1500, 50, 2) == 1500, "50 frames keep 1500");
     int it = train_iterations_for_clip(1500, 120, 2);
-    CHECK(it == 250 + 1600, "120 frames, 3 fits per step: 250 coarse + 1600 fine, got %d", it);
+    CHECK(it == 250 + 2560, "120 frames, 3 fits per step: 250 coarse + 2560 fine, got %d", it);
     CHECK((it - 250) * 3 >= 120 * TRAIN_FITS_PER_FRAME, "each frame fitted %d times", TRAIN_FITS_PER_FRAME);
-    CHECK(train_iterations_for_clip(1500, 60, 0) == 250 + 2400, "no crops: one fit per step");
+    CHECK(train_iterations_for_clip(1500, 30, 0) == 250 + 1920, "no crops: one fit per step");
     CHECK(train_iterations_for_clip(1500, 300, 2) == 1500 * TRAIN_MAX_BUDGET_THIRDS / 3, "300 frames: the cap, got %d",
           train_iterations_for_clip(1500, 300, 2));
     CHECK(train_iterations_for_clip(8000, 300, 2) == 8000, "the quality preset covers 300 frames");

@@ -344,13 +344,13 @@ static int warmup_time_rows(int final_rows)
     int r = ((final_rows - 1) >> 2) + 1;
     return r > 2 ? r : 2;
 }
-/* Whether each final time row is fitted fewer than TRAIN_FITS_PER_FRAME times in the fine stage:
+/* Whether each final time row is fitted fewer than TRAIN_UNDERFITTED_FITS times in the fine stage:
  * a long clip whose raised budget hit the cap. Such a clip warms its time rows up and trades its
  * movers' density for steps (TRAIN_LONG_CLIP_DENSIFY_MOVABLE). */
 static int time_rows_underfitted(const train_session *s)
 {
     const long fits = (long)(s->cfg.iters - s->cfg.coarse_iters) * (times_per_step(&s->cfg) + motion_crops(s));
-    return fits < (long)final_time_rows(s) * TRAIN_FITS_PER_FRAME;
+    return fits < (long)final_time_rows(s) * TRAIN_UNDERFITTED_FITS;
 }
 /* Fine steps on the warm-up's time rows (0: none). Only an underfitted clip warms up: the
  * 300-frame sample clip (~27 fits per row) gained 1.2 dB on its movers, the 30-frame one (~125)
