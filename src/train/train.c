@@ -221,15 +221,19 @@ static void blend_rows(train_session *s, pg_gaussians *dst, const pg_gaussians *
  * of a long clip's Gaussians), so the deformed copy and the 3D filter of them are made once per
  * step, and their gradients are summed over the step's times and taken through the (linear)
  * filter backward once at its end. */
+static inline int row_may_move(const train_session *s, int i)
+{
+    return s->fine && !(s->cfg.use_static_flags && s->is_static[i]);
+}
 static void list_step_rows(train_session *s)
 {
-    const int n = s->g.count, any = s->fine, flags = s->cfg.use_static_flags;
+    const int n = s->g.count;
     int k = 0;
     for (int i = 0; i < n; i++)
-        if (any && !(flags && s->is_static[i])) s->step_rows[k++] = i;
+        if (row_may_move(s, i)) s->step_rows[k++] = i;
     s->n_moving_rows = k;
     for (int i = 0; i < n; i++)
-        if (!(any && !(flags && s->is_static[i]))) s->step_rows[k++] = i;
+        if (!row_may_move(s, i)) s->step_rows[k++] = i;
     s->n_fixed_rows = n - s->n_moving_rows;
 }
 
