@@ -532,13 +532,18 @@ done:
 }
 
 /* Trainer lengths -> the user's: positions times unit, log-scales plus log(unit). */
-static void to_user_units(pg_gaussians *g, float unit)
+/* Lengths from the trainer's units into the user's: rows rows[0..nrows) (rows NULL: all). */
+static void to_user_units(pg_gaussians *g, float unit, const int *rows, int nrows)
 {
     if (unit == 1.0f) return;
     const float log_unit = logf(unit);
-    for (size_t i = 0; i < (size_t)g->count * 3; i++) {
-        g->means[i] *= unit;
-        g->log_scales[i] += log_unit;
+    const int n = rows ? nrows : g->count;
+    for (int k = 0; k < n; k++) {
+        const size_t i = rows ? (size_t)rows[k] : (size_t)k;
+        for (int a = 0; a < 3; a++) {
+            g->means[3 * i + a] *= unit;
+            g->log_scales[3 * i + a] += log_unit;
+        }
     }
 }
 
@@ -559,7 +564,7 @@ pg_status train_model_load(const char *path, train_model *m)
     m->g_net.sh_degree = h.sh_degree;
     m->unit = h.unit;
     if ((st = splat_gaussians_copy(&m->g_net, &m->g))) goto done;
-    to_user_units(&m->g, m->unit);
+    to_user_units(&m->g, m->unit, NULL, 0);
     if (h.optimizer) skip(&r, OPTIM_GAUSS_GROUPS * 4 + (size_t)h.n * GAUSS_FLOATS * 4 * 2); /* Adam state */
     m->is_static = pg_malloc((size_t)h.n, "model static flags");
     m->filter_var = pg_malloc((size_t)h.n * sizeof(float) + 1, "model 3D filter");
@@ -602,10 +607,12 @@ void train_model_destroy(train_model *m)
     memset(m, 0, sizeof *m);
 }
 
+/* The still rows at any time are the loaded set's (m->g: the user's units, filtered), so a time
+ * copies them and redoes only the movers (a render's 3D filter over every row was a tenth of it). */
 pg_status train_model_deform(train_model *m, float t, pg_gaussians *out)
 {
-    if (!m->net) return splat_gaussians_copy(&m->g, out);
-    PG_TRY(splat_gaussians_copy(&m->g_net, out));
+    PG_TRY(splat_gaussians_copy(&m->g, out));
+    if (!m->net) return PG_OK;
     const int n = m->g_net.count;
     int *idx = pg_malloc((size_t)n * sizeof(int) + 1, "deform indices");
     if (!idx) return PG_ERR_NOMEM;
@@ -613,11 +620,12 @@ pg_status train_model_deform(train_model *m, float t, pg_gaussians *out)
     for (int i = 0; i < n; i++)
         if (!m->is_static[i]) idx[k++] = i;
     pg_status st = k ? train_net_forward(m->net, &m->g_net, idx, k, t, out) : PG_OK;
+    if (!st) {
+        to_user_units(out, m->unit, idx, k);
+        splat_filter3d_forward_rows(out->log_scales, out->opacity, m->filter_var, idx, k, NULL);
+    }
     free(idx);
-    if (st) return st;
-    to_user_units(out, m->unit);
-    splat_filter3d_forward(out->log_scales, out->opacity, m->filter_var, out->count, NULL);
-    return PG_OK;
+    return st;
 }
 
 const char *train_config_invalid(const train_config *c)
