@@ -95,6 +95,7 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
                 float *o1 = div1 + r, *o2 = div2 + r;
                 o1[0] = (w > 1 ? q11[0] : 0.0f) + ylast * q12[0] - u12[0];
                 o2[0] = (w > 1 ? q21[0] : 0.0f) + ylast * q22[0] - u22[0];
+                #pragma omp simd
                 for (int x = 1; x < w - 1; x++) {
                     o1[x] = q11[x] - q11[x - 1] + ylast * q12[x] - u12[x];
                     o2[x] = q21[x] - q21[x - 1] + ylast * q22[x] - u22[x];
@@ -108,6 +109,7 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
             #pragma omp parallel for schedule(static) if (PAR_OK)
             for (int y = 0; y < h; y++) {
                 const size_t r = (size_t)y * w;
+                #pragma omp simd
                 for (int x = 0; x < w; x++) {
                     const size_t k = r + x;
                     float rho = rhoc[k] + i1wx[k] * u1[k] + i1wy[k] * u2[k];
@@ -126,6 +128,7 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
                 const size_t rn = y < h - 1 ? r + w : r;
                 const float *a1 = u1 + r, *a2 = u2 + r, *b1 = u1 + rn, *b2 = u2 + rn;
                 float *q11 = p11 + r, *q12 = p12 + r, *q21 = p21 + r, *q22 = p22 + r;
+                #pragma omp simd
                 for (int x = 0; x < w - 1; x++) {
                     float u1x = a1[x + 1] - a1[x], u1y = b1[x] - a1[x];
                     float u2x = a2[x + 1] - a2[x], u2y = b2[x] - a2[x];
