@@ -81,7 +81,8 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
         }
         /* Border handling without per-pixel branches (so the loops vectorise): the row above
          * row 0 is a zero row, the row below the last row is the row itself (zero difference),
-         * and the last column is done separately. */
+         * and the last column is done separately; `omp simd` because GCC's -O2 left even these
+         * loops scalar, and vectorised they take half the time (bench flow). */
         float *zero_row = tmp;
         memset(zero_row, 0, sizeof(float) * w);
         for (int it = 0; it < prm->iterations; it++) {
