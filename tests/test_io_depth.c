@@ -14,6 +14,7 @@
 
 #include <math.h>
 #include <sys/stat.h>
+#include <unistd.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -609,11 +610,24 @@ static void test_npy_compact(const char *dir)
     CHECK(file_size(path) == 128 + 12 && a.count == 6, "float16 file: %ld bytes", file_size(path));
     for (int i = 0; a.data && i < 6; i++) CHECK(fabsf(a.data[i] - d[i]) <= d[i] / 2048, "value %d: %g vs %g", i, a.data[i], d[i]);
     pg_array_destroy(&a);
+    /* the raw halves as they are in the file: the same values io_npy_load converts */
+    uint16_t h[6] = { 0 };
+    int loaded = 0;
+    CHECK_OK(io_npy_load_half(path, h, 6, &loaded));
+    CHECK(loaded, "a float16 file of 6 values loads as halves");
+    for (int i = 0; i < 6; i++) CHECK(h[i] == io_float_to_half(d[i]), "half %d: 0x%04x", i, h[i]);
+    CHECK_OK(io_npy_load_half(path, h, 5, &loaded));
+    CHECK(!loaded, "a count that differs is left to io_npy_load");
     d[5] = 1e6f; /* millimetres of a far wall: no longer float16 */
     CHECK_OK(io_npy_save_compact(path, d, 2, shape));
     CHECK_OK(io_npy_load(path, &a));
     CHECK(file_size(path) == 128 + 24 && a.data && a.data[5] == 1e6f, "kept as float32 (%ld bytes)", file_size(path));
     pg_array_destroy(&a);
+    CHECK_OK(io_npy_load_half(path, h, 6, &loaded));
+    CHECK(!loaded, "a float32 file is left to io_npy_load");
+    CHECK(truncate(path, 128 + 4) == 0, "truncate"); /* truncated: the same error as io_npy_load's */
+    CHECK(io_npy_load_half(path, h, 6, &loaded) == PG_ERR_FORMAT && strstr(pg_last_error(), "truncated"),
+          "truncated file: %s", pg_last_error());
 }
 
 int main(void)

@@ -51,7 +51,54 @@ static void test_depth_storage(void)
         CHECK(valid == N - 3 && worst <= 1.0 / 2048, "unit %g: %zu valid, relative error %.3g", u, valid, worst);
         CHECK(h[3] == 0 && h[4] == 0 && h[5] == 0 && train_view_depth(&v, 6) > 1000 * train_view_depth(&v, 500),
               "unit %g: invalid kept invalid, the outlier far (%g)", u, train_view_depth(&v, 6));
+        /* a float16 file's raw halves, scaled in place (d NULL), store what their float values do */
+        uint16_t hr[N];
+        float dr[N];
+        train_view vr = v;
+        vr.depth = hr;
+        for (int i = 0; i < N; i++) {
+            hr[i] = io_float_to_half(d[i]);
+            dr[i] = io_half_to_float(hr[i]);
+        }
+        size_t valid_f = train_view_set_depth(&v, dr, N), valid_h = train_view_set_depth(&vr, NULL, N);
+        CHECK(valid_f == valid_h && vr.depth_scale == v.depth_scale && memcmp(h, hr, sizeof h) == 0,
+              "unit %g: in place from halves: %zu vs %zu valid, scale %g vs %g", u, valid_h, valid_f, vr.depth_scale,
+              v.depth_scale);
     }
+}
+
+/* A broken frame file stops the load with its own name: the first broken frame's, though the
+ * frames decode on several threads. */
+static void test_load_errors(const char *dir)
+{
+    char data[1100], path[1300];
+    snprintf(data, sizeof data, "%s/broken", dir);
+    CHECK_OK(toy_write_trainset(data, 64, 48, 12, 2, 0));
+    for (int f = 9; f >= 5; f -= 4) { /* frames 5 and 9 of proxy01: garbage */
+        snprintf(path, sizeof path, "%s/proxy01/rgb/%04d.png", data, f);
+        FILE *fp = fopen(path, "wb");
+        CHECK(fp != NULL, "open %s", path);
+        if (fp) {
+            fputs("not a png", fp);
+            fclose(fp);
+        }
+    }
+    train_set ts;
+    pg_status st = train_set_load(data, &ts);
+    CHECK(st != PG_OK && strstr(pg_last_error(), "proxy01/rgb/0005.png") != NULL, "broken frame: %s", pg_last_error());
+    if (st == PG_OK) train_set_destroy(&ts);
+    /* a mask of the wrong size */
+    snprintf(data, sizeof data, "%s/badmask", dir);
+    CHECK_OK(toy_write_trainset(data, 64, 48, 6, 2, 0));
+    snprintf(path, sizeof path, "%s/proxy02/mask/0003.png", data);
+    pg_image small;
+    CHECK_OK(pg_image_create(&small, 8, 8, 3));
+    CHECK_OK(io_image_save_png(path, &small));
+    pg_image_destroy(&small);
+    st = train_set_load(data, &ts);
+    CHECK(st == PG_ERR_SIZE && strstr(pg_last_error(), "proxy02/mask/0003.png: mask is 8x8, expected 64x48"),
+          "wrong-size mask: %s", pg_last_error());
+    if (st == PG_OK) train_set_destroy(&ts);
 }
 
 static train_config small_config(void)
@@ -335,6 +382,7 @@ int main(void)
     snprintf(data, sizeof data, "%s/set", dir);
     pg_set_threads(2);
     test_margin_past_frame(dir);
+    test_load_errors(dir);
     CHECK_OK(toy_write_trainset(data, 64, 48, 4, 3, 1));
 
     train_set ts;

@@ -135,15 +135,17 @@ static float convert_one(const uint8_t *src, const npy_dtype *dt)
     }
 }
 
-pg_status io_npy_load(const char *path, pg_array *arr)
+/* Opens path and reads its header: dtype and shape (arr->ndim, shape, count; no data); the file
+ * is left at the first data byte, with at least the data's size behind it. */
+static pg_status npy_open(const char *path, FILE **out, npy_dtype *dt, pg_array *arr)
 {
     memset(arr, 0, sizeof *arr);
+    *out = NULL;
     FILE *fp = fopen(path, "rb");
     if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open", path);
     uint8_t pre[12];
     pg_status st = PG_OK;
     char *header = NULL;
-    uint8_t *raw = NULL;
     if (fread(pre, 1, 10, fp) != 10 || memcmp(pre, "\x93NUMPY", 6) != 0) {
         st = pg_fail(PG_ERR_FORMAT, "%s: not a .npy file (bad magic)", path);
         goto done;
@@ -162,8 +164,7 @@ pg_status io_npy_load(const char *path, pg_array *arr)
     if (!header) { st = PG_ERR_NOMEM; goto done; }
     if (fread(header, 1, hlen, fp) != hlen) { st = pg_fail(PG_ERR_FORMAT, "%s: truncated header", path); goto done; }
     header[hlen] = '\0';
-    npy_dtype dt;
-    if (parse_descr(header, &dt)) { st = pg_fail(PG_ERR_FORMAT, "%s: unsupported or bad dtype in header", path); goto done; }
+    if (parse_descr(header, dt)) { st = pg_fail(PG_ERR_FORMAT, "%s: unsupported or bad dtype in header", path); goto done; }
     if (strstr(header, "'fortran_order': True")) {
         st = pg_fail(PG_ERR_FORMAT, "%s: Fortran-ordered arrays are not supported (save with C order)", path);
         goto done;
@@ -172,16 +173,28 @@ pg_status io_npy_load(const char *path, pg_array *arr)
     if (sr == -2) { st = pg_fail(PG_ERR_SIZE, "%s: more than %d dimensions", path, PG_NPY_MAX_DIMS); goto done; }
     if (sr == -3) { st = pg_fail(PG_ERR_SIZE, "%s: array shape in header is absurdly large", path); goto done; }
     if (sr) { st = pg_fail(PG_ERR_FORMAT, "%s: cannot parse shape in header", path); goto done; }
-    size_t bytes = arr->count * (size_t)dt.bytes;
+    size_t bytes = arr->count * (size_t)dt->bytes;
     long pos = ftell(fp);
     fseek(fp, 0, SEEK_END);
     long end = ftell(fp);
     fseek(fp, pos, SEEK_SET);
-    if (end - pos < (long)bytes) {
+    if (end - pos < (long)bytes)
         st = pg_fail(PG_ERR_FORMAT, "%s: truncated: header promises %zu bytes of data, file has %ld", path, bytes, end - pos);
-        goto done;
-    }
-    raw = pg_malloc(bytes, path);
+done:
+    free(header);
+    if (st) fclose(fp);
+    else *out = fp;
+    return st;
+}
+
+pg_status io_npy_load(const char *path, pg_array *arr)
+{
+    FILE *fp;
+    npy_dtype dt;
+    PG_TRY(npy_open(path, &fp, &dt, arr));
+    pg_status st = PG_OK;
+    size_t bytes = arr->count * (size_t)dt.bytes;
+    uint8_t *raw = pg_malloc(bytes, path);
     arr->data = pg_malloc(arr->count * sizeof(float), path);
     if (!raw || !arr->data) { st = PG_ERR_NOMEM; goto done; }
     if (fread(raw, 1, bytes, fp) != bytes) { st = pg_fail(PG_ERR_FORMAT, "%s: truncated data", path); goto done; }
@@ -194,9 +207,26 @@ pg_status io_npy_load(const char *path, pg_array *arr)
     }
 done:
     fclose(fp);
-    free(header);
     free(raw);
     if (st != PG_OK) pg_array_destroy(arr);
+    return st;
+}
+
+pg_status io_npy_load_half(const char *path, uint16_t *dst, size_t count, int *loaded)
+{
+    *loaded = 0;
+    FILE *fp;
+    npy_dtype dt;
+    pg_array shape;
+    PG_TRY(npy_open(path, &fp, &dt, &shape));
+    pg_status st = PG_OK;
+    const uint16_t one = 1;
+    const int little_endian_host = *(const uint8_t *)&one == 1;
+    if (dt.kind == 'f' && dt.bytes == 2 && !dt.big_endian && shape.count == count && little_endian_host) {
+        if (fread(dst, 2, count, fp) != count) st = pg_fail(PG_ERR_FORMAT, "%s: truncated data", path);
+        else *loaded = 1;
+    }
+    fclose(fp);
     return st;
 }
 

@@ -23,6 +23,10 @@ typedef struct {
 /* Loads path; fails with a message naming the file on truncation, bad header, unsupported
  * dtype, Fortran order or absurd sizes (limit: 2^31 elements). */
 pg_status io_npy_load(const char *path, pg_array *arr);
+/* Reads path's values straight into dst when they are little-endian float16 and count of them
+ * (*loaded = 1; a host of that byte order); else leaves dst and sets *loaded = 0 (io_npy_load then
+ * converts whatever they are). Errors as io_npy_load's. */
+pg_status io_npy_load_half(const char *path, uint16_t *dst, size_t count, int *loaded);
 /* Saves float32 data of the given shape atomically. */
 pg_status io_npy_save(const char *path, const float *data, int ndim, const size_t *shape);
 /* Saves float data as float16 ('<f2') when every value is 0 or within float16's normal range

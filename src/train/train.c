@@ -907,11 +907,18 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, const 
     s->timing.loss += (t1 - t0) * 1e3;
     t0 = t1;
 
-    memset(s->vs_grad, 0, (size_t)s->g.count * sizeof(float));
+    /* the densification's statistics, while a densification is still to come (a long clip's
+     * budget trains ~3/4 of its steps after the last one) */
+    const int densifying = s->iter + 1 < c->densify_until;
+    if (densifying) memset(s->vs_grad, 0, (size_t)s->g.count * sizeof(float));
     PG_TRY(splat_render_backward(s->raster, &s->d, &cam, &rs, s->d_rgb, has_depth ? s->d_depth : NULL, NULL, &s->dg,
-                                 s->vs_grad));
+                                 densifying ? s->vs_grad : NULL));
     t1 = pg_time_seconds();
     s->timing.raster_backward += (t1 - t0) * 1e3;
+    if (!densifying) {
+        *loss_out = loss;
+        return PG_OK;
+    }
 
     const float unit = weight > 0 ? 1.0f / weight : 0.0f;
     #pragma omp parallel for schedule(static)

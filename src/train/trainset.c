@@ -53,13 +53,18 @@ void train_view_depth_frame(const train_view *v, int f, size_t px, float *out)
     for (size_t i = 0; i < px; i++) out[i] = io_half_to_float(h[i]) * v->depth_scale;
 }
 
+/* Value i of the depth being stored: of the float array, or (d NULL) the raw half in the view. */
+static inline float depth_in(const train_view *v, const float *d, size_t i) { return d ? d[i] : io_half_to_float(v->depth[i]); }
+
 size_t train_view_set_depth(train_view *v, const float *d, size_t n)
 {
     /* the scale: the median of up to 4k strided valid values */
     size_t stride = n / 4096 + 1, m = 0, valid = 0;
     float sample[4200];
-    for (size_t i = 0; i < n; i += stride)
-        if (isfinite(d[i]) && d[i] > 0 && m < 4200) sample[m++] = d[i];
+    for (size_t i = 0; i < n; i += stride) {
+        float x = depth_in(v, d, i);
+        if (isfinite(x) && x > 0 && m < 4200) sample[m++] = x;
+    }
     float scale = 1.0f;
     if (m > 0) {
         qsort(sample, m, sizeof(float), pg_cmp_float);
@@ -69,8 +74,9 @@ size_t train_view_set_depth(train_view *v, const float *d, size_t n)
     float inv = 1.0f / scale;
     #pragma omp parallel for schedule(static) reduction(+ : valid)
     for (size_t i = 0; i < n; i++) {
-        int ok = isfinite(d[i]) && d[i] > 0;
-        uint16_t h = ok ? io_float_to_half(d[i] * inv) : 0;
+        float x = depth_in(v, d, i); /* in place when d is NULL: element i is read before it is written */
+        int ok = isfinite(x) && x > 0;
+        uint16_t h = ok ? io_float_to_half(x * inv) : 0;
         if (ok && (h & 0x7fff) >= 0x7c00) h = 0x7bff; /* beyond 65504 medians: the largest half */
         if (ok && h == 0) h = 1;                      /* below the smallest: still valid */
         v->depth[i] = h;
@@ -200,48 +206,87 @@ static void store_rgb(train_set *ts, int v, int f, const pg_image *img)
 
 /* ---------- trainset.json directory ---------- */
 
+/* One frame file of a view: its colours (a proxy's frames are JPEG) or its mask. */
+typedef struct {
+    train_set *ts;
+    int vi, is_mask;
+    const char *sub; /* the folder */
+} frame_files;
+
+static pg_status load_frame_file(const frame_files *ff, int f)
+{
+    train_set *ts = ff->ts;
+    char path[4200], name[32];
+    const size_t px = (size_t)ts->width * ts->height;
+    snprintf(name, sizeof name, "%04d.png", f);
+    PG_TRY(pg_path_join(path, sizeof path, ff->sub, name));
+    if (!ff->is_mask && !pg_path_exists(path)) {
+        snprintf(name, sizeof name, "%04d.jpg", f);
+        PG_TRY(pg_path_join(path, sizeof path, ff->sub, name));
+    }
+    pg_image img = {0};
+    PG_TRY(io_image_load(path, &img));
+    pg_status st = PG_OK;
+    if (img.width != ts->width || img.height != ts->height)
+        st = pg_fail(PG_ERR_SIZE, "%s: %s is %dx%d, %s %dx%d", path, ff->is_mask ? "mask" : "image", img.width,
+                     img.height, ff->is_mask ? "expected" : "trainset.json says", ts->width, ts->height);
+    else if (ff->is_mask)
+        for (size_t i = 0; i < px; i++)
+            ts->views[ff->vi].mask[(size_t)f * px + i] = (unsigned char)lroundf(clampf(img.data[i * 3], 0, 1) * TRAIN_MASK_FULL);
+    else
+        store_rgb(ts, ff->vi, f, &img);
+    pg_image_destroy(&img);
+    return st;
+}
+
+/* Every frame file of a folder, decoded on the run's threads (each frame is its own file: the
+ * loading was one core's PNG and JPEG decoding while the other waited). The error reported is the
+ * first failing frame's, as a serial loop would report it. */
+static pg_status load_frame_files(const frame_files *ff)
+{
+    int first_bad = ff->ts->frames;
+    pg_status bad = PG_OK;
+    char msg[1024] = "";
+    #pragma omp parallel for schedule(dynamic, 4)
+    for (int f = 0; f < ff->ts->frames; f++) {
+        pg_status st = load_frame_file(ff, f);
+        if (st) {
+            #pragma omp critical(trainset_frame_error)
+            if (f < first_bad) {
+                first_bad = f;
+                bad = st;
+                snprintf(msg, sizeof msg, "%s", pg_last_error());
+            }
+        }
+    }
+    return bad ? pg_fail(bad, "%s", msg) : PG_OK;
+}
+
 static pg_status load_view_files(train_set *ts, int vi, const char *dir, const char *rgb_rel, const char *mask_rel,
                                  const char *depth_rel)
 {
-    char sub[4096], path[4200], name[32];
-    pg_image img = {0};
+    char sub[4096], path[4200];
     size_t px = (size_t)ts->width * ts->height;
     pg_status st = PG_OK;
     PG_TRY(pg_path_join(sub, sizeof sub, dir, rgb_rel));
-    for (int f = 0; f < ts->frames && !st; f++) {
-        snprintf(name, sizeof name, "%04d.png", f);
-        if ((st = pg_path_join(path, sizeof path, sub, name))) break;
-        if (!pg_path_exists(path)) { /* a proxy's frames are JPEG */
-            snprintf(name, sizeof name, "%04d.jpg", f);
-            if ((st = pg_path_join(path, sizeof path, sub, name))) break;
-        }
-        if ((st = io_image_load(path, &img))) break;
-        if (img.width != ts->width || img.height != ts->height)
-            st = pg_fail(PG_ERR_SIZE, "%s: image is %dx%d, trainset.json says %dx%d", path, img.width, img.height,
-                         ts->width, ts->height);
-        else
-            store_rgb(ts, vi, f, &img);
-        pg_image_destroy(&img);
-    }
+    frame_files ff = { ts, vi, 0, sub };
+    st = load_frame_files(&ff);
     if (!st && mask_rel) {
         if ((st = pg_path_join(sub, sizeof sub, dir, mask_rel))) return st;
-        for (int f = 0; f < ts->frames && !st; f++) {
-            snprintf(name, sizeof name, "%04d.png", f);
-            if ((st = pg_path_join(path, sizeof path, sub, name))) break;
-            if ((st = io_image_load(path, &img))) break;
-            if (img.width != ts->width || img.height != ts->height)
-                st = pg_fail(PG_ERR_SIZE, "%s: mask is %dx%d, expected %dx%d", path, img.width, img.height, ts->width,
-                             ts->height);
-            else
-                for (size_t i = 0; i < px; i++)
-                    ts->views[vi].mask[(size_t)f * px + i] =
-                        (unsigned char)lroundf(clampf(img.data[i * 3], 0, 1) * TRAIN_MASK_FULL);
-            pg_image_destroy(&img);
-        }
+        ff.is_mask = 1;
+        st = load_frame_files(&ff);
     }
     if (!st && depth_rel) {
         pg_array arr = {0};
         if ((st = pg_path_join(path, sizeof path, dir, depth_rel))) return st;
+        /* a float16 file (what `proxies` writes) goes straight into the view's store and is scaled
+         * there: no float copy of the whole clip */
+        int halves = 0;
+        if ((st = io_npy_load_half(path, ts->views[vi].depth, px * (size_t)ts->frames, &halves))) return st;
+        if (halves) {
+            train_view_set_depth(&ts->views[vi], NULL, px * (size_t)ts->frames);
+            return PG_OK;
+        }
         if ((st = io_npy_load(path, &arr))) return st;
         if (arr.count != px * (size_t)ts->frames)
             st = pg_fail(PG_ERR_SIZE, "%s: depth has %zu values, expected (%d, %d, %d)", path, arr.count, ts->frames,

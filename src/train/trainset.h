@@ -42,7 +42,8 @@ float train_view_depth(const train_view *v, size_t i);
 /* Frame f's depth (px values) into out. */
 void train_view_depth_frame(const train_view *v, int f, size_t px, float *out);
 /* Stores n float depth values (NaN, inf and <= 0 become 0 = invalid) into a view made with depth;
- * returns how many are valid. */
+ * returns how many are valid. d NULL: the view's store already holds the n values as raw halves
+ * (io_npy_load_half), which are scaled in place. */
 size_t train_view_set_depth(train_view *v, const float *d, size_t n);
 
 typedef struct {
