@@ -70,8 +70,10 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
                     i1wx[k] = i1wy[k] = grad[k] = rhoc[k] = 0.0f;
                     continue;
                 }
-                float v = depth_plane_sample_bicubic(i1, w, h, xs, ys);
-                float gx = depth_plane_sample_bicubic(i1x, w, h, xs, ys), gy = depth_plane_sample_bicubic(i1y, w, h, xs, ys);
+                const float *warped[3] = { i1, i1x, i1y };
+                float sample[3];
+                depth_plane_sample_bicubic(warped, 3, w, h, xs, ys, sample);
+                float v = sample[0], gx = sample[1], gy = sample[2];
                 i1w[k] = v;
                 i1wx[k] = gx;
                 i1wy[k] = gy;

@@ -79,7 +79,7 @@ static inline void keys_weights(float t, float wt[4])
     wt[3] = 0.5f * t3 - 0.5f * t2;
 }
 
-float depth_plane_sample_bicubic(const float *p, int w, int h, float x, float y)
+void depth_plane_sample_bicubic(const float *const *planes, int n, int w, int h, float x, float y, float *out)
 {
     if (x < 0.0f) x = 0.0f;
     if (y < 0.0f) y = 0.0f;
@@ -94,12 +94,14 @@ float depth_plane_sample_bicubic(const float *p, int w, int h, float x, float y)
         xs[i] = clampi(ix - 1 + i, 0, w - 1);
         ys[i] = clampi(iy - 1 + i, 0, h - 1);
     }
-    float acc = 0.0f;
-    for (int j = 0; j < 4; j++) {
-        const float *row = p + (size_t)ys[j] * w;
-        acc += wy[j] * (wx[0] * row[xs[0]] + wx[1] * row[xs[1]] + wx[2] * row[xs[2]] + wx[3] * row[xs[3]]);
+    for (int k = 0; k < n; k++) {
+        float acc = 0.0f;
+        for (int j = 0; j < 4; j++) {
+            const float *row = planes[k] + (size_t)ys[j] * w;
+            acc += wy[j] * (wx[0] * row[xs[0]] + wx[1] * row[xs[1]] + wx[2] * row[xs[2]] + wx[3] * row[xs[3]]);
+        }
+        out[k] = acc;
     }
-    return acc;
 }
 
 void depth_plane_resize(const float *src, int w, int h, float *dst, int w2, int h2)

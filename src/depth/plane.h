@@ -19,8 +19,9 @@ void depth_plane_gaussian_blur(const float *src, int w, int h, float sigma, floa
 void depth_plane_resize(const float *src, int w, int h, float *dst, int w2, int h2);
 /* Bilinear sample at continuous coordinates in pixel-index units (centre of pixel i is i). */
 float depth_plane_sample_bilinear(const float *p, int w, int h, float x, float y);
-/* Bicubic (Keys, a = -0.5) sample, same coordinates as above. */
-float depth_plane_sample_bicubic(const float *p, int w, int h, float x, float y);
+/* Bicubic (Keys, a = -0.5) samples of n planes at one point (same coordinates as above) into
+ * out[0..n): the weights once for all (the flow warps an image and its two gradients together). */
+void depth_plane_sample_bicubic(const float *const *planes, int n, int w, int h, float x, float y, float *out);
 /* 3x3 median filter (borders replicate): a sorting network; _ref sorts (test oracle). */
 void depth_plane_median3(const float *src, int w, int h, float *dst);
 void depth_plane_median3_ref(const float *src, int w, int h, float *dst);
