@@ -10,6 +10,7 @@
 struct render_model {
     train_model model;
     pg_gaussians at_t; /* deformed copy */
+    int at_t_filled;   /* at_t holds the model at some time: a new time redoes only the movers */
     splat_raster *raster;
     float train_focal; /* the real view's focal length in pixels (0: no cameras beside the model) */
 };
@@ -67,7 +68,9 @@ void render_model_close(render_model *rm)
 pg_status render_model_gaussians_at(render_model *rm, float t, const pg_gaussians **g)
 {
     if (!(t >= 0.0f && t <= 1.0f)) return pg_fail(PG_ERR_ARG, "render: time %g is outside [0, 1]", t);
-    PG_TRY(train_model_deform(&rm->model, t, &rm->at_t));
+    if (rm->at_t_filled) PG_TRY(train_model_deform_movers(&rm->model, t, &rm->at_t));
+    else PG_TRY(train_model_deform(&rm->model, t, &rm->at_t));
+    rm->at_t_filled = 1;
     *g = &rm->at_t;
     return PG_OK;
 }

@@ -612,8 +612,14 @@ void train_model_destroy(train_model *m)
 pg_status train_model_deform(train_model *m, float t, pg_gaussians *out)
 {
     PG_TRY(splat_gaussians_copy(&m->g, out));
+    return train_model_deform_movers(m, t, out);
+}
+
+pg_status train_model_deform_movers(train_model *m, float t, pg_gaussians *out)
+{
     if (!m->net) return PG_OK;
     const int n = m->g_net.count;
+    if (out->count != n) return pg_fail(PG_ERR_ARG, "deform: %d Gaussians to update, the model has %d", out->count, n);
     int *idx = pg_malloc((size_t)n * sizeof(int) + 1, "deform indices");
     if (!idx) return PG_ERR_NOMEM;
     int k = 0;

@@ -74,5 +74,8 @@ float train_frame_time(int f, int frames);
 /* Every Gaussian at time t in the user's units (static ones copied from the canonical set), scales and
  * opacity through the 3D filter: what a renderer draws; out is resized. */
 pg_status train_model_deform(train_model *m, float t, pg_gaussians *out);
+/* The same for an out that holds this model's Gaussians at another time (train_model_deform's, not
+ * changed since): only the movers are redone (a video's frames skip copying the still scene). */
+pg_status train_model_deform_movers(train_model *m, float t, pg_gaussians *out);
 
 #endif
