@@ -222,9 +222,6 @@ pg_status io_image_save_png(const char *path, const pg_image *img)
     pi.width = (png_uint_32)img->width;
     pi.height = (png_uint_32)img->height;
     pi.format = img->channels == 3 ? PNG_FORMAT_RGB : PNG_FORMAT_GRAY;
-    /* libpng's fast deflate: the same pixels in a somewhat larger file, written several times
-     * faster (a clip's frames and masks are thousands of PNGs; zlib was a tenth of `proxies`) */
-    pi.flags = PNG_IMAGE_FLAG_FAST;
     pg_atomic_file f;
     pg_status st = pg_atomic_open(&f, path);
     if (st == PG_OK) {
