@@ -7,6 +7,7 @@
 #define PG_MATHX_H
 
 #include <math.h>
+#include <stddef.h>
 
 #define PG_PI 3.14159265358979323846
 
@@ -121,6 +122,29 @@ static inline int pg_cmp_double(const void *a, const void *b)
 {
     double x = *(const double *)a, y = *(const double *)b;
     return (x > y) - (x < y);
+}
+
+/* k-th smallest of v[0..m) by quickselect (reorders v); O(m) on average. */
+static inline double pg_select_kth(double *v, size_t m, size_t kk)
+{
+    long lo = 0, hi = (long)m - 1, k = (long)kk;
+    while (lo < hi) {
+        double pivot = v[lo + (hi - lo) / 2];
+        long i = lo, j = hi;
+        while (i <= j) {
+            while (v[i] < pivot) i++;
+            while (v[j] > pivot) j--;
+            if (i <= j) {
+                double t = v[i];
+                v[i++] = v[j];
+                v[j--] = t;
+            }
+        }
+        if (k <= j) hi = j;
+        else if (k >= i) lo = i;
+        else break;
+    }
+    return v[k];
 }
 
 static inline float clampf(float x, float lo, float hi) { return x < lo ? lo : (x > hi ? hi : x); }

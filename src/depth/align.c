@@ -1,5 +1,6 @@
 /* align.c - robust scale/shift alignment of one depth frame to the reference (see align.h). */
 #include "depth/align.h"
+#include "core/mathx.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -12,33 +13,10 @@ void depth_align_defaults(depth_align_params *p)
     p->min_pixels = 50;
 }
 
-/* k-th smallest of v[0..m) by quickselect (reorders v); O(m) on average. */
-static double select_kth(double *v, size_t m, size_t kk)
-{
-    long lo = 0, hi = (long)m - 1, k = (long)kk;
-    while (lo < hi) {
-        double pivot = v[lo + (hi - lo) / 2];
-        long i = lo, j = hi;
-        while (i <= j) {
-            while (v[i] < pivot) i++;
-            while (v[j] > pivot) j--;
-            if (i <= j) {
-                double t = v[i];
-                v[i++] = v[j];
-                v[j--] = t;
-            }
-        }
-        if (k <= j) hi = j;
-        else if (k >= i) lo = i;
-        else break;
-    }
-    return v[k];
-}
-
 /* Median of v[0..m) (reorders v). */
 static double median_inplace(double *v, size_t m)
 {
-    double hi = select_kth(v, m, m / 2);
+    double hi = pg_select_kth(v, m, m / 2);
     if (m % 2) return hi;
     double lo = v[0];
     for (size_t k = 1; k < m / 2; k++)

@@ -1,5 +1,6 @@
 /* colormap.c - a perceptually ordered blue-to-yellow ramp for depth maps. */
 #include "render/colormap.h"
+#include "core/mathx.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -9,42 +10,20 @@ static const float STOPS[5][3] = {
     { 0.05f, 0.03f, 0.35f }, { 0.45f, 0.10f, 0.55f }, { 0.85f, 0.30f, 0.35f }, { 0.98f, 0.65f, 0.15f }, { 0.99f, 0.98f, 0.60f },
 };
 
-/* k-th smallest of v[0..m) by quickselect (reorders v): two percentiles of every rendered depth
- * frame, where a full sort took a tenth of a render. */
-static float select_kth_float(float *v, size_t m, size_t kk)
-{
-    long lo = 0, hi = (long)m - 1, k = (long)kk;
-    while (lo < hi) {
-        const float pivot = v[lo + (hi - lo) / 2];
-        long i = lo, j = hi;
-        while (i <= j) {
-            while (v[i] < pivot) i++;
-            while (v[j] > pivot) j--;
-            if (i <= j) {
-                float t = v[i];
-                v[i++] = v[j];
-                v[j--] = t;
-            }
-        }
-        if (k <= j) hi = j;
-        else if (k >= i) lo = i;
-        else break;
-    }
-    return v[k];
-}
-
 pg_status render_depth_colormap(const float *depth, int width, int height, float lo, float hi, pg_image *rgb)
 {
     const size_t n = (size_t)width * height;
     if (lo <= 0 || hi <= lo) {
-        float *valid = pg_malloc(n * sizeof(float), "depth colour map");
+        /* the 2nd and 98th percentiles by quickselect (a full sort of every frame was a tenth of a
+         * render); in double, exact for floats */
+        double *valid = pg_malloc(n * sizeof(double), "depth colour map");
         if (!valid) return PG_ERR_NOMEM;
         size_t m = 0;
         for (size_t i = 0; i < n; i++)
             if (depth[i] > 0 && isfinite(depth[i])) valid[m++] = depth[i];
         if (m > 0) {
-            lo = select_kth_float(valid, m, m / 50);
-            hi = select_kth_float(valid, m, m - 1 - m / 50);
+            lo = (float)pg_select_kth(valid, m, m / 50);
+            hi = (float)pg_select_kth(valid, m, m - 1 - m / 50);
         }
         free(valid);
         if (m == 0 || hi <= lo) { lo = 0.0f; hi = lo + 1.0f; }

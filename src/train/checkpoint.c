@@ -531,8 +531,8 @@ done:
     return st;
 }
 
-/* Trainer lengths -> the user's: positions times unit, log-scales plus log(unit). */
-/* Lengths from the trainer's units into the user's: rows rows[0..nrows) (rows NULL: all). */
+/* Trainer lengths -> the user's: positions times unit, log-scales plus log(unit), for rows
+ * rows[0..nrows) (rows NULL: all). */
 static void to_user_units(pg_gaussians *g, float unit, const int *rows, int nrows)
 {
     if (unit == 1.0f) return;

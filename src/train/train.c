@@ -915,19 +915,17 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, const 
                                  densifying ? s->vs_grad : NULL));
     t1 = pg_time_seconds();
     s->timing.raster_backward += (t1 - t0) * 1e3;
-    if (!densifying) {
-        *loss_out = loss;
-        return PG_OK;
-    }
 
-    const float unit = weight > 0 ? 1.0f / weight : 0.0f;
-    #pragma omp parallel for schedule(static)
-    for (int i = 0; i < s->d.count; i++) {
-        float uv[2];
-        float z = pg_camera_project(&cam, s->d.means + 3 * i, uv);
-        if (z > 0.01f && uv[0] >= 0 && uv[0] < W && uv[1] >= 0 && uv[1] < H) {
-            s->grad_accum[i] += s->vs_grad[i] * unit;
-            s->grad_denom[i] += 1;
+    if (densifying) {
+        const float unit = weight > 0 ? 1.0f / weight : 0.0f;
+        #pragma omp parallel for schedule(static)
+        for (int i = 0; i < s->d.count; i++) {
+            float uv[2];
+            float z = pg_camera_project(&cam, s->d.means + 3 * i, uv);
+            if (z > 0.01f && uv[0] >= 0 && uv[0] < W && uv[1] >= 0 && uv[1] < H) {
+                s->grad_accum[i] += s->vs_grad[i] * unit;
+                s->grad_denom[i] += 1;
+            }
         }
     }
     *loss_out = loss;
