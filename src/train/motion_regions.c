@@ -86,6 +86,15 @@ const train_region *train_motion_regions_draw(const train_motion_regions *r, pg_
     return &r->boxes[i];
 }
 
+const train_region *train_motion_regions_at(const train_motion_regions *r, int f)
+{
+    if (!r->start || f < 0 || f >= r->frames) return NULL;
+    const train_region *best = NULL;
+    for (int i = r->start[f]; i < r->start[f + 1]; i++)
+        if (!best || r->boxes[i].moving > best->moving) best = &r->boxes[i];
+    return best;
+}
+
 double train_motion_regions_mean_area(const train_motion_regions *r)
 {
     double area = 0;

@@ -37,6 +37,8 @@ void train_motion_regions_destroy(train_motion_regions *r);
 /* A frame with motion (uniformly) and one of its boxes (in proportion to its moving pixels;
  * today one box per frame holds all its movers). */
 const train_region *train_motion_regions_draw(const train_motion_regions *r, pg_rng *rng, int *frame);
+/* Frame f's largest box (by moving pixels), NULL if nothing moves there. */
+const train_region *train_motion_regions_at(const train_motion_regions *r, int f);
 /* Mean share of a frame with motion that its boxes cover. */
 double train_motion_regions_mean_area(const train_motion_regions *r);
 

@@ -932,20 +932,22 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, const 
     return PG_OK;
 }
 
-/* Deforms once to frame f's time, renders and back-propagates each of the nb views (cropped to
- * rect when set), then sends the gradient through the network; the canonical gradient is summed
- * into gg (first = 1: gg starts from it). Returns the loss. */
+/* Deforms once to frame f's time, renders and back-propagates each of the nb views (view b cropped
+ * to rects[4 b ...] when rects is set), then sends the gradient through the network; the canonical
+ * gradient is summed into gg (first = 1: gg starts from it). Returns the loss. */
 static pg_status step_views(train_session *s, int f, const int *views, const float *weights, int nb,
-                            const int *rect, int first, double *loss_out)
+                            const int *rects, int first, double *loss_out)
 {
     const train_set *ts = s->ts;
     double t0 = pg_time_seconds(), t1;
-    pg_camera crop_cam;
+    pg_camera crop_cams[TRAIN_MAX_BATCH];
     const pg_camera *cams[TRAIN_MAX_BATCH];
-    for (int b = 0; b < nb; b++) cams[b] = &ts->views[views[b]].cam;
-    if (rect) { /* cull to the crop's frustum */
-        crop_cam = crop_camera(cams[0], rect);
-        cams[0] = &crop_cam;
+    for (int b = 0; b < nb; b++) {
+        cams[b] = &ts->views[views[b]].cam;
+        if (rects) { /* cull to the crops' frusta */
+            crop_cams[b] = crop_camera(cams[b], rects + 4 * b);
+            cams[b] = &crop_cams[b];
+        }
     }
     float t = train_frame_time(f, ts->frames);
 
@@ -978,7 +980,7 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
     double loss = 0;
     for (int b = 0; b < nb; b++) {
         double lv;
-        PG_TRY(step_view(s, views[b], f, weights[b], rect, &lv));
+        PG_TRY(step_view(s, views[b], f, weights[b], rects ? rects + 4 * b : NULL, &lv));
         loss += lv;
     }
     t0 = pg_time_seconds();
@@ -1010,28 +1012,39 @@ static pg_status step_time(train_session *s, int slot, int first, double *loss_o
     return step_views(s, f, views, weights, nb, NULL, first, loss_out);
 }
 
-/* Motion crop k of a step: a view at a random frame with motion, rendered over the box around its
- * movers alone. The moving part is a few percent of the frame and changes with every frame, while
- * the still scene is learnt from any frame; a crop costs a fraction of a full time (fewer pixels,
- * fewer Gaussians through the network), so a long clip's frames get their motion fitted more
- * often for the same CPU time. Even crops show the real view at its weight, odd ones a random
- * proxy at the proxies' share: real-view crops alone fit the motion to the one camera and blur
- * it from every other (tabletop_dev held-out moving -1.1 dB, docs/train.md). */
-static pg_status step_motion_crop(train_session *s, int k, double *loss_out)
+/* Motion crops k and k + 1 of a step: the real view and a proxy at one random frame with motion,
+ * each rendered over the box around its movers alone. The moving part is a few percent of the
+ * frame and changes with every frame, while the still scene is learnt from any frame; a crop costs
+ * a fraction of a full time (fewer pixels, fewer Gaussians through the network), so a long clip's
+ * frames get their motion fitted more often for the same CPU time. The real view's crop is at its
+ * weight, the proxy's at the proxies' share: real-view crops alone fit the motion to the one camera
+ * and blur it from every other (tabletop_dev held-out moving -1.1 dB, docs/train.md). The two share
+ * one deformation (the network's forward and backward once for both); the proxy is drawn among
+ * those whose own colours move at that frame. An odd last crop is the real view's alone. */
+static pg_status step_motion_crops(train_session *s, int k, double *loss_out)
 {
     *loss_out = 0;
-    int f, view = s->crop_view;
-    float w = s->cfg.real_weight;
-    if (k % 2 == 1 && s->proxy_crop_views > 0) {
-        int pick = (int)pg_rng_below(&s->rng, (uint32_t)s->proxy_crop_views);
-        for (int v = 0; v < s->ts->num_views; v++)
-            if (s->ts->views[v].role == IO_ROLE_PROXY && s->regions[v].frames_with_motion > 0 && pick-- == 0) view = v;
-        w = 1.0f - s->cfg.real_weight;
-    }
-    const train_region *b = train_motion_regions_draw(&s->regions[view], &s->rng, &f);
+    int f, views[2] = { s->crop_view, -1 }, rects[8];
+    float weights[2] = { s->cfg.real_weight, 1.0f - s->cfg.real_weight };
+    const train_region *b = train_motion_regions_draw(&s->regions[s->crop_view], &s->rng, &f);
     if (!b) return PG_OK;
-    const int rect[4] = { b->x, b->y, b->w, b->h };
-    return step_views(s, f, &view, &w, 1, rect, 0, loss_out);
+    rects[0] = b->x, rects[1] = b->y, rects[2] = b->w, rects[3] = b->h;
+    int nb = 1;
+    if (k + 1 < motion_crops(s) && s->proxy_crop_views > 0) {
+        int moving = 0;
+        for (int v = 0; v < s->ts->num_views; v++)
+            moving += s->ts->views[v].role == IO_ROLE_PROXY && train_motion_regions_at(&s->regions[v], f) != NULL;
+        int pick = moving > 0 ? (int)pg_rng_below(&s->rng, (uint32_t)moving) : -1;
+        for (int v = 0; v < s->ts->num_views && pick >= 0; v++) {
+            const train_region *pb = s->ts->views[v].role == IO_ROLE_PROXY ? train_motion_regions_at(&s->regions[v], f) : NULL;
+            if (pb && pick-- == 0) {
+                views[1] = v;
+                rects[4] = pb->x, rects[5] = pb->y, rects[6] = pb->w, rects[7] = pb->h;
+                nb = 2;
+            }
+        }
+    }
+    return step_views(s, f, views, weights, nb, rects, 0, loss_out);
 }
 
 pg_status train_session_step(train_session *s)
@@ -1054,9 +1067,9 @@ pg_status train_session_step(train_session *s)
         PG_TRY(step_time(s, s->iter * times + k, k == 0, &lk));
         loss += lk / times;
     }
-    for (int k = 0; s->fine && k < motion_crops(s); k++) {
+    for (int k = 0; s->fine && k < motion_crops(s); k += 2) {
         double lk;
-        PG_TRY(step_motion_crop(s, k, &lk));
+        PG_TRY(step_motion_crops(s, k, &lk));
     }
     double tf = pg_time_seconds();
     if (!one_time_per_step(s)) finish_fixed_rows(s);
