@@ -689,10 +689,14 @@ pg_status nn_graph_run(nn_graph *g, int threads)
         if (!g->scratch) return pg_fail(PG_ERR_NOMEM, "out of memory for %zu MiB of scratch", bytes >> 20);
         g->scratch_threads = threads;
     }
-    /* OpenMP threads split the work; OpenBLAS runs single-threaded inside them (both restored) */
-    int saved = omp_get_max_threads(), saved_blas = openblas_get_num_threads();
+    /* OpenMP threads split the work; OpenBLAS runs single-threaded inside them (both restored).
+     * OpenBLAS's thread count is process-wide: graphs run side by side in a parallel region would
+     * race saving and restoring it (one net's later products ran on 2 BLAS threads, its output
+     * off by a float16 step), so there the caller sets it once around the region. */
+    int nested = omp_in_parallel();
+    int saved = omp_get_max_threads(), saved_blas = nested ? 1 : openblas_get_num_threads();
     omp_set_num_threads(threads);
-    openblas_set_num_threads(1);
+    if (!nested) openblas_set_num_threads(1);
     nn_ctx c = { g, g->scratch, g->scratch_floats };
     for (int k = 0; k < g->num_nodes; k++) {
         double t0 = g->profile_ms ? omp_get_wtime() : 0;
@@ -700,6 +704,6 @@ pg_status nn_graph_run(nn_graph *g, int threads)
         if (g->profile_ms) g->profile_ms[g->nodes[k].op] += (omp_get_wtime() - t0) * 1e3;
     }
     omp_set_num_threads(saved);
-    openblas_set_num_threads(saved_blas);
+    if (!nested) openblas_set_num_threads(saved_blas);
     return PG_OK;
 }

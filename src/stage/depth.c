@@ -19,6 +19,8 @@
 #include <string.h>
 #include <unistd.h>
 
+#include <cblas.h>
+
 #include "core/fileutil.h"
 #include "core/parallel.h"
 #include "core/progress.h"
@@ -254,11 +256,14 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
         char msg[DEPTH_MAX_NETS][512];
         double ti = pg_time_seconds();
         int inner = nb > 1 ? 1 : r->threads;
+        int saved_blas = openblas_get_num_threads();
+        openblas_set_num_threads(1); /* process-wide: set here, not by the nets side by side */
         #pragma omp parallel for num_threads(nb > 1 ? nb : 1) schedule(static, 1)
         for (int b = 0; b < nb; b++) {
             bst[b] = depth_net_infer(net_of[b], &img[b], all + plane * (size_t)batch[b], r->width, r->height, inner);
             if (bst[b]) snprintf(msg[b], sizeof msg[b], "%s", pg_last_error()); /* messages are per thread */
         }
+        openblas_set_num_threads(saved_blas);
         infer_seconds += pg_time_seconds() - ti;
         for (int b = 0; b < nb; b++) {
             pg_image_destroy(&img[b]);
