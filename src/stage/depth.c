@@ -224,6 +224,8 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
             break; /* fewer copies */
     double infer_seconds = 0;
     int t = 0, stop = 0;
+    int saved_blas = openblas_get_num_threads();
+    openblas_set_num_threads(1); /* process-wide: set here, not by the nets side by side */
     while (!st && !stop && t < r->frames) {
         int batch[DEPTH_MAX_NETS], nb = 0;
         pg_image img[DEPTH_MAX_NETS];
@@ -256,14 +258,11 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
         char msg[DEPTH_MAX_NETS][512];
         double ti = pg_time_seconds();
         int inner = nb > 1 ? 1 : r->threads;
-        int saved_blas = openblas_get_num_threads();
-        openblas_set_num_threads(1); /* process-wide: set here, not by the nets side by side */
         #pragma omp parallel for num_threads(nb > 1 ? nb : 1) schedule(static, 1)
         for (int b = 0; b < nb; b++) {
             bst[b] = depth_net_infer(net_of[b], &img[b], all + plane * (size_t)batch[b], r->width, r->height, inner);
             if (bst[b]) snprintf(msg[b], sizeof msg[b], "%s", pg_last_error()); /* messages are per thread */
         }
-        openblas_set_num_threads(saved_blas);
         infer_seconds += pg_time_seconds() - ti;
         for (int b = 0; b < nb; b++) {
             pg_image_destroy(&img[b]);
@@ -286,6 +285,7 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
             pg_progress_report("depth", batch[b] + 1, r->frames, "%.0f ms/frame", 1e3 * infer_seconds / r->computed);
         }
     }
+    openblas_set_num_threads(saved_blas);
     for (int k = 1; k < nets; k++) depth_net_close(net_of[k]);
     r->ms_per_frame = r->computed ? 1e3 * infer_seconds / r->computed : 0;
     r->finished = !st && r->computed + r->reused == r->frames;

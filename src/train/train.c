@@ -1012,6 +1012,12 @@ static pg_status step_time(train_session *s, int slot, int first, double *loss_o
     return step_views(s, f, views, weights, nb, NULL, first, loss_out);
 }
 
+/* View v's movers at frame f when v is a proxy (NULL for the real views). */
+static const train_region *proxy_box_at(const train_session *s, int v, int f)
+{
+    return s->ts->views[v].role == IO_ROLE_PROXY ? train_motion_regions_at(&s->regions[v], f) : NULL;
+}
+
 /* Motion crops k and k + 1 of a step: the real view and a proxy at one random frame with motion,
  * each rendered over the box around its movers alone. The moving part is a few percent of the
  * frame and changes with every frame, while the still scene is learnt from any frame; a crop costs
@@ -1032,11 +1038,10 @@ static pg_status step_motion_crops(train_session *s, int k, double *loss_out)
     int nb = 1;
     if (k + 1 < motion_crops(s) && s->proxy_crop_views > 0) {
         int moving = 0;
-        for (int v = 0; v < s->ts->num_views; v++)
-            moving += s->ts->views[v].role == IO_ROLE_PROXY && train_motion_regions_at(&s->regions[v], f) != NULL;
+        for (int v = 0; v < s->ts->num_views; v++) moving += proxy_box_at(s, v, f) != NULL;
         int pick = moving > 0 ? (int)pg_rng_below(&s->rng, (uint32_t)moving) : -1;
         for (int v = 0; v < s->ts->num_views && pick >= 0; v++) {
-            const train_region *pb = s->ts->views[v].role == IO_ROLE_PROXY ? train_motion_regions_at(&s->regions[v], f) : NULL;
+            const train_region *pb = proxy_box_at(s, v, f);
             if (pb && pick-- == 0) {
                 views[1] = v;
                 rects[4] = pb->x, rects[5] = pb->y, rects[6] = pb->w, rects[7] = pb->h;
