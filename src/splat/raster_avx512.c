@@ -26,28 +26,30 @@ static inline __m512 exp_neg16(__m512 s)
 
 /* Lane sums of ten vectors at once (about a third of the shuffles of ten separate
  * reductions): pairs fold their 256-bit halves, quads fold 128-bit blocks, then each block
- * is summed in place. out[i] = sum of the lanes of v[i]. */
-static inline void hsum10(const __m512 v[10], float out[10])
+ * is summed in place. Returns lane i = sum of the lanes of v[i] (i < 10). The sums stay in a
+ * register: read back from memory one float at a time, they stalled the backward kernel on
+ * store forwarding at every (Gaussian, tile), about a third of its time on Zen 5. */
+static inline __m512 hsum10(const __m512 v[10])
 {
-    __m512 z = _mm512_setzero_ps();
     __m512 p[6];
     for (int i = 0; i < 5; i++) {
         __m512 a = v[2 * i], b = v[2 * i + 1];
         p[i] = _mm512_add_ps(_mm512_shuffle_f32x4(a, b, _MM_SHUFFLE(1, 0, 1, 0)),
                              _mm512_shuffle_f32x4(a, b, _MM_SHUFFLE(3, 2, 3, 2)));
     }
-    p[5] = z;
-    float tmp[48] __attribute__((aligned(64)));
+    p[5] = _mm512_setzero_ps();
+    __m512 q[3];
     for (int i = 0; i < 3; i++) {
         __m512 x = p[2 * i], y = p[2 * i + 1];
-        __m512 q = _mm512_add_ps(_mm512_shuffle_f32x4(x, y, _MM_SHUFFLE(2, 0, 2, 0)),
-                                 _mm512_shuffle_f32x4(x, y, _MM_SHUFFLE(3, 1, 3, 1)));
-        q = _mm512_add_ps(q, _mm512_permute_ps(q, _MM_SHUFFLE(1, 0, 3, 2)));
-        q = _mm512_add_ps(q, _mm512_permute_ps(q, _MM_SHUFFLE(2, 3, 0, 1)));
-        _mm512_store_ps(tmp + 16 * i, q);
+        q[i] = _mm512_add_ps(_mm512_shuffle_f32x4(x, y, _MM_SHUFFLE(2, 0, 2, 0)),
+                             _mm512_shuffle_f32x4(x, y, _MM_SHUFFLE(3, 1, 3, 1)));
+        q[i] = _mm512_add_ps(q[i], _mm512_permute_ps(q[i], _MM_SHUFFLE(1, 0, 3, 2)));
+        q[i] = _mm512_add_ps(q[i], _mm512_permute_ps(q[i], _MM_SHUFFLE(2, 3, 0, 1)));
     }
-    /* after the two folds, block b of fold g holds the sum of vector 4g + b */
-    for (int i = 0; i < 10; i++) out[i] = tmp[16 * (i / 4) + 4 * (i % 4)];
+    /* after the two folds, block b of q[g] holds the sum of vector 4g + b in each of its lanes */
+    const __m512i first8 = _mm512_set_epi32(0, 0, 0, 0, 0, 0, 0, 0, 28, 24, 20, 16, 12, 8, 4, 0);
+    const __m512i last2 = _mm512_set_epi32(0, 0, 0, 0, 0, 0, 20, 16, 7, 6, 5, 4, 3, 2, 1, 0);
+    return _mm512_permutex2var_ps(_mm512_permutex2var_ps(q[0], first8, q[1]), last2, q[2]);
 }
 
 static inline __m512 lane_centres(int x0)
@@ -322,16 +324,17 @@ void splat_tile_backward_avx512(const splat_tile_job *j)
              * -(ca dx + cb dy), dsigma/dy_mean = -(cb dx + cc dy); gs = -dL/dsigma. */
             __m512 acc[10] = { _mm512_mul_ps(dx, g0), g1, _mm512_mul_ps(dx2, g0), _mm512_mul_ps(dx, g1), g2, g0,
                                a_r, a_g, a_b, a_z };
-            float sum[10];
-            hsum10(acc, sum);
-            float *slot = j->grad_slots + (size_t)SPLAT_GRAD_STRIDE * splat_slot(r, j->tx, j->ty);
-            slot[0] = (2.0f * r->ha) * sum[0] + r->cb * sum[1];
-            slot[1] = r->cb * sum[0] + (2.0f * r->hc) * sum[1];
-            slot[2] = -0.5f * sum[2];
-            slot[3] = -sum[3];
-            slot[4] = -0.5f * sum[4];
-            slot[5] = sum[5] / r->o;
-            for (int c = 6; c < 10; c++) slot[c] = sum[c];
+            /* slot = { 2ha s0 + cb s1, cb s0 + 2hc s1, -s2/2, -s3, -s4/2, s5/o, s6 .. s9 } with the
+             * scalar kernel's roundings (separate multiply and add, a true division) */
+            __m512 sum = hsum10(acc);
+            __m512 swapped = _mm512_permutexvar_ps(_mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 0, 1), sum);
+            __m512 scale = _mm512_set_ps(1, 1, 1, 1, 1, 1, 1, 1, 1, 1, 1, -0.5f, -1.0f, -0.5f, 0, 0);
+            scale = _mm512_mask_mov_ps(scale, 0x1, _mm512_add_ps(ha, ha));
+            scale = _mm512_mask_mov_ps(scale, 0x2, _mm512_add_ps(hcv, hcv));
+            __m512 res = _mm512_mul_ps(scale, sum);
+            res = _mm512_mask_add_ps(res, 0x3, res, _mm512_mul_ps(cbv, swapped));
+            res = _mm512_mask_div_ps(res, 0x20, sum, op);
+            _mm512_mask_storeu_ps(j->grad_slots + (size_t)SPLAT_GRAD_STRIDE * splat_slot(r, j->tx, j->ty), 0x3ff, res);
         }
     }
 }
