@@ -216,13 +216,23 @@ static void finish_one(splat_raster *r, const pg_gaussians *g, const pg_camera *
                        const splat_proj *p)
 {
     r->ntiles[i] = 0;
+    /* The box at the largest reach (3.33 sigma) contains the opacity-aware one below: a Gaussian
+     * outside the image even so is culled before its opacity's exp and log (most of a motion
+     * crop's Gaussians are). */
+    const float sx = sqrtf(p->cov2d[0]), sy = sqrtf(p->cov2d[2]);
+    {
+        float rx = ceilf(3.33f * sx), ry = ceilf(3.33f * sy);
+        if (!(floorf(p->xy[0] + rx - 0.5f) >= 0 && floorf(p->xy[1] + ry - 0.5f) >= 0 &&
+              ceilf(p->xy[0] - rx - 0.5f) <= cam->width - 1 && ceilf(p->xy[1] - ry - 0.5f) <= cam->height - 1))
+            return;
+    }
     float o = sigmoidf(g->opacity[i]);
     if (!(o >= SPLAT_ALPHA_MIN)) return;
     /* alpha = o exp(-sigma) >= 1/255 inside sigma <= ln(255 o); along x that reaches
      * sqrt(2 ln(255 o) Sigma_xx). */
     float lim = logf(255.0f * o);
     float e = fminf(3.33f, sqrtf(2.0f * fmaxf(lim, 0.0f)));
-    float rx = ceilf(e * sqrtf(p->cov2d[0])), ry = ceilf(e * sqrtf(p->cov2d[2]));
+    float rx = ceilf(e * sx), ry = ceilf(e * sy);
     /* Pixel i is covered when |i + 0.5 - x| <= rx. Compare in float before any int cast. */
     float fxmin = ceilf(p->xy[0] - rx - 0.5f), fxmax = floorf(p->xy[0] + rx - 0.5f);
     float fymin = ceilf(p->xy[1] - ry - 0.5f), fymax = floorf(p->xy[1] + ry - 0.5f);
