@@ -27,8 +27,8 @@ static inline __m512 exp_neg16(__m512 s)
 /* Lane sums of ten vectors at once (about a third of the shuffles of ten separate
  * reductions): pairs fold their 256-bit halves, quads fold 128-bit blocks, then each block
  * is summed in place. Returns lane i = sum of the lanes of v[i] (i < 10). The sums stay in a
- * register: read back from memory one float at a time, they stalled the backward kernel on
- * store forwarding at every (Gaussian, tile), about a third of its time on Zen 5. */
+ * register: stored and read back one float at a time, they stalled the backward kernel on store
+ * forwarding at every (Gaussian, tile) (docs/splat.md). */
 static inline __m512 hsum10(const __m512 v[10])
 {
     __m512 p[6];
