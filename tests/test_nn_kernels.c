@@ -196,6 +196,36 @@ static void test_matmul_fused(void)
     free(a); free(bt); free(bias);
 }
 
+/* nn_sgemm1's A * B^T products on the AVX-512 kernel against OpenBLAS (forced), on shapes with
+ * ragged edges (M not a multiple of 8, N not of 16, leading dimensions wider than the operands):
+ * the same sums in another order, so agreement to float rounding. Skips on a CPU without AVX-512. */
+static void test_gemm_kernels(void)
+{
+    if (strcmp(nn_gemm_kernel(), "avx512") != 0) {
+        printf("  gemm: this CPU runs OpenBLAS only (no AVX-512F): skipped\n");
+        return;
+    }
+    const int shapes[][3] = { { 1, 1, 1 }, { 7, 5, 3 }, { 37, 23, 29 }, { 64, 48, 27 }, { 129, 50, 1152 }, { 9, 113, 64 } };
+    for (size_t s = 0; s < sizeof shapes / sizeof shapes[0]; s++) {
+        const int M = shapes[s][0], N = shapes[s][1], K = shapes[s][2], lda = K + 3, ldb = K + 1, ldc = N + 5;
+        float *a = randv((size_t)M * lda), *b = randv((size_t)N * ldb);
+        float *c_own = calloc((size_t)M * ldc, sizeof(float)), *c_blas = calloc((size_t)M * ldc, sizeof(float));
+        for (size_t i = 0; i < (size_t)M * ldc; i++) c_own[i] = c_blas[i] = 7.0f; /* the gaps must stay */
+        nn_sgemm1(0, 1, M, N, K, a, lda, b, ldb, 0.0f, c_own, ldc);
+        nn_gemm_force_openblas(1);
+        nn_sgemm1(0, 1, M, N, K, a, lda, b, ldb, 0.0f, c_blas, ldc);
+        nn_gemm_force_openblas(0);
+        double d = max_diff(c_own, c_blas, (size_t)M * ldc), scale = sqrt((double)K);
+        int gaps = 1;
+        for (int i = 0; i < M; i++)
+            for (int j = N; j < ldc; j++) gaps &= c_own[(size_t)i * ldc + j] == 7.0f;
+        printf("  gemm %dx%dx%d avx512 vs openblas: %.2g\n", M, N, K, d);
+        CHECK(d < 1e-5 * scale * 4, "gemm %dx%dx%d: avx512 and openblas differ by %g", M, N, K, d);
+        CHECK(gaps, "gemm %dx%dx%d wrote outside its %d columns", M, N, K, N);
+        free(a); free(b); free(c_own); free(c_blas);
+    }
+}
+
 /* The vectorisable exp and erf against libm (their scalar references). */
 static void test_exp_erf(void)
 {
@@ -250,6 +280,7 @@ int main(void)
     pg_rng_seed(&rng, 5);
     test_blas_core();
     test_exp_erf();
+    test_gemm_kernels();
     test_conv(1, 3, 17, 13, 8, 3, 1, 1, 1, 1, 0);
     test_conv(2, 8, 15, 18, 12, 3, 2, 2, 2, 4, 1);
     test_conv(1, 3, 56, 42, 16, 14, 14, 0, 1, 1, 0);

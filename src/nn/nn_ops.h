@@ -122,6 +122,11 @@ void nn_sgemm_epilogue(int trans_a, int trans_b, int M, int N, int K, const floa
 /* The same on one thread (inside a parallel region). */
 void nn_sgemm1(int trans_a, int trans_b, int M, int N, int K, const float *A, int lda, const float *B, int ldb,
                float beta, float *C, int ldc);
+/* The kernel nn_sgemm1 runs for A * B^T products with beta 0 (every convolution's): "avx512" (the
+ * deformation network's f32 GEMM) on CPUs with AVX-512F, else "openblas"; PG_NN_GEMM=openblas or
+ * nn_gemm_force_openblas(1) (tests) forces OpenBLAS. Other products always run on OpenBLAS. */
+const char *nn_gemm_kernel(void);
+void nn_gemm_force_openblas(int on);
 
 /* Per-op functions, one family per file. */
 #define NN_DECLARE_OP(x) pg_status nn_infer_##x(nn_graph *g, nn_node *n); void nn_run_##x(const nn_ctx *c, const nn_node *n);

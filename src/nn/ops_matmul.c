@@ -1,12 +1,56 @@
-/* ops_matmul.c - MatMul (numpy semantics, batch broadcast) and Gemm on cblas_sgemm.
+/* ops_matmul.c - MatMul (numpy semantics, batch broadcast) and Gemm on cblas_sgemm, or on the
+ * deformation network's AVX-512 f32 kernel for the A * B^T products of convolutions.
  * OpenBLAS runs single-threaded per call (nn_graph_run sets it); the threads split the work:
  * one big product along its rows, a batch of products (attention heads) one product per thread. */
 #include "nn/nn_ops.h"
 
 #include <omp.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include <cblas.h>
+
+#include "deform/gemm_amx.h"
+
+static int force_openblas = -1; /* -1: not decided yet (PG_NN_GEMM=openblas forces it) */
+
+void nn_gemm_force_openblas(int on) { force_openblas = on ? 1 : 0; }
+
+const char *nn_gemm_kernel(void)
+{
+    if (force_openblas < 0) {
+        const char *env = getenv("PG_NN_GEMM");
+        force_openblas = env && strcmp(env, "openblas") == 0;
+    }
+#if defined(__x86_64__) && defined(__GNUC__)
+    if (!force_openblas && __builtin_cpu_supports("avx512f")) return "avx512";
+#endif
+    return "openblas";
+}
+
+/* C = A * B^T (beta 0) on gemm_f32, which reads B as (K, N) rows padded to 16 columns: B is
+ * copied transposed (K x N, a 1/M share of the product's work). OpenBLAS picks its kernels from
+ * the CPU model or OPENBLAS_CORETYPE; an environment pinned to its AVX2 "Haswell" kernels ran
+ * PyDNet++ at 274-293 ms a frame on a Zen 5 that does it in 191-201 here (docs/nn.md). Returns 0
+ * when the copy cannot be allocated (the caller falls back to OpenBLAS). */
+static int own_gemm_nt(int M, int N, int K, const float *A, int lda, const float *B, int ldb, float *C, int ldc)
+{
+    const int ldt = (N + 15) & ~15;
+    float *bt = malloc((size_t)K * ldt * sizeof(float));
+    if (!bt) return 0;
+    for (int k = 0; k < K; k++) {
+        float *row = bt + (size_t)k * ldt;
+        for (int n = 0; n < N; n++) row[n] = B[(size_t)n * ldb + k];
+        for (int n = N; n < ldt; n++) row[n] = 0.0f;
+    }
+    gemm_amx_epilogue e;
+    memset(&e, 0, sizeof e);
+    e.c = C;
+    e.ldc = ldc;
+    gemm_f32(A, lda, bt, ldt, M, N, K, &e);
+    free(bt);
+    return 1;
+}
 
 void nn_sgemm1(int trans_a, int trans_b, int M, int N, int K, const float *A, int lda, const float *B, int ldb,
                float beta, float *C, int ldc)
@@ -16,6 +60,9 @@ void nn_sgemm1(int trans_a, int trans_b, int M, int N, int K, const float *A, in
         for (int i = 0; i < M; i++) for (int j = 0; j < N; j++) C[(size_t)i * ldc + j] *= beta;
         return;
     }
+    if (!trans_a && trans_b && beta == 0.0f && strcmp(nn_gemm_kernel(), "avx512") == 0 &&
+        own_gemm_nt(M, N, K, A, lda, B, ldb, C, ldc))
+        return;
     cblas_sgemm(CblasRowMajor, trans_a ? CblasTrans : CblasNoTrans, trans_b ? CblasTrans : CblasNoTrans, M, N, K, 1.0f,
                 A, lda, B, ldb, beta, C, ldc);
 }
