@@ -12,18 +12,18 @@
 
 #include "deform/gemm_amx.h"
 
-static int force_openblas = -1; /* -1: not decided yet (PG_NN_GEMM=openblas forces it) */
+static int forced_openblas; /* written by tests only, outside parallel regions */
 
-void nn_gemm_force_openblas(int on) { force_openblas = on ? 1 : 0; }
+void nn_gemm_force_openblas(int on) { forced_openblas = on; }
 
+/* Read on every call (from any thread: nothing is cached, so nothing races); a getenv per
+ * product is nothing next to the product. */
 const char *nn_gemm_kernel(void)
 {
-    if (force_openblas < 0) {
-        const char *env = getenv("PG_NN_GEMM");
-        force_openblas = env && strcmp(env, "openblas") == 0;
-    }
+    const char *env = getenv("PG_NN_GEMM");
+    if (forced_openblas || (env && strcmp(env, "openblas") == 0)) return "openblas";
 #if defined(__x86_64__) && defined(__GNUC__)
-    if (!force_openblas && __builtin_cpu_supports("avx512f")) return "avx512";
+    if (__builtin_cpu_supports("avx512f")) return "avx512";
 #endif
     return "openblas";
 }
