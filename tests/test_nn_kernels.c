@@ -1,7 +1,8 @@
 /* test_nn_kernels.c - the runtime's kernels through hand-built graphs (no torch needed): Conv
  * (NCHW and NHWC, groups, depthwise, dilation, stride, pads, fused ReLU) against the scalar
  * reference nn_conv_reference; ConvTranspose and Resize in NHWC against NCHW; MatMul with the
- * fused bias / trans_b / Relu against a naive loop. Prints the largest difference of each. */
+ * fused bias / trans_b / Relu against a naive loop; the AVX-512 GEMM of convolutions against
+ * OpenBLAS. Prints the largest difference of each. */
 #include "testlib.h"
 #include "core/rng.h"
 #include "nn/nn.h"
@@ -209,7 +210,7 @@ static void test_gemm_kernels(void)
     for (size_t s = 0; s < sizeof shapes / sizeof shapes[0]; s++) {
         const int M = shapes[s][0], N = shapes[s][1], K = shapes[s][2], lda = K + 3, ldb = K + 1, ldc = N + 5;
         float *a = randv((size_t)M * lda), *b = randv((size_t)N * ldb);
-        float *c_own = calloc((size_t)M * ldc, sizeof(float)), *c_blas = calloc((size_t)M * ldc, sizeof(float));
+        float *c_own = malloc((size_t)M * ldc * sizeof(float)), *c_blas = malloc((size_t)M * ldc * sizeof(float));
         for (size_t i = 0; i < (size_t)M * ldc; i++) c_own[i] = c_blas[i] = 7.0f; /* the gaps must stay */
         nn_sgemm1(0, 1, M, N, K, a, lda, b, ldb, 0.0f, c_own, ldc);
         nn_gemm_force_openblas(1);
