@@ -87,15 +87,29 @@ static void test_conv(int N, int C, int H, int W, int O, int k, int stride, int 
     to_nhwc(xh, x, N, C, H, W);
     to_nhwc(refh, ref, N, O, OH, OW);
     a.layout = NN_LAYOUT_NHWC;
+    nn_conv_force_f32(1);
     CHECK_OK(run_node(NN_OP_CONV, &a, xh, 4, (int64_t[]){ N, H, W, C }, w, 4, (int64_t[]){ O, C / group, k, k }, b, 1,
                       (int64_t[]){ O }, &y2, &n2));
+    nn_conv_force_f32(0);
     double d1 = y && n1 == ny ? max_diff(y, ref, ny) : 1e9, d2 = y2 && n2 == ny ? max_diff(y2, refh, ny) : 1e9;
-    printf("  conv N%d C%d %dx%d O%d k%d s%d p%d d%d g%d%s: NCHW %.2g, NHWC %.2g\n", N, C, H, W, O, k, stride, pad, dil,
+    printf("  conv N%d C%d %dx%d O%d k%d s%d p%d d%d g%d%s: NCHW %.2g, NHWC %.2g", N, C, H, W, O, k, stride, pad, dil,
            group, relu ? " relu" : "", d1, d2);
     double big = 1;
     for (size_t i = 0; i < ny; i++) big = fmax(big, fabs(ref[i]));
     CHECK(d1 < 1e-5 * big && d2 < 1e-5 * big, "conv vs reference: %g %g (max |y| %g)", d1, d2, big);
-    free(x); free(w); free(b); free(ref); free(y); free(y2); free(xh); free(refh);
+    /* the bf16 product (8 mantissa bits per operand, f32 sums): a fraction of a percent of the
+     * largest output; a wrong layout or padding would be off by the output's own size */
+    float *y3 = NULL;
+    size_t n3 = 0;
+    if (group == 1 && nn_conv_bf16()) {
+        CHECK_OK(run_node(NN_OP_CONV, &a, xh, 4, (int64_t[]){ N, H, W, C }, w, 4, (int64_t[]){ O, C / group, k, k }, b, 1,
+                          (int64_t[]){ O }, &y3, &n3));
+        double d3 = y3 && n3 == ny ? max_diff(y3, refh, ny) : 1e9;
+        printf(", NHWC %s %.2g", nn_conv_kernel(), d3);
+        CHECK(d3 < 1e-2 * big && d3 > 0, "bf16 conv vs reference: %g (max |y| %g)", d3, big);
+    }
+    printf("\n");
+    free(x); free(w); free(b); free(ref); free(y); free(y2); free(y3); free(xh); free(refh);
 }
 
 /* ConvTranspose and Resize: NHWC result = NCHW result transposed. */

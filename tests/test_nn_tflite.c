@@ -14,6 +14,7 @@
 #include "core/rng.h"
 #include "io/npy.h"
 #include "io/video.h"
+#include "nn/nn_ops.h"
 #include "nn/nn.h"
 #include "nn/tflite.h"
 
@@ -240,6 +241,13 @@ static void test_conv3x3(void)
         printf("3x3 convs (7x9x16 -> 20 SAME RELU6 -> 24 VALID), %d thread(s): %.2e vs reference\n", threads, d);
         CHECK(d < 1e-5, "3x3 convs vs reference %g", d);
     }
+    if (nn_conv_force_f32(0), nn_conv_bf16()) { /* the bf16 products: well inside a percent */
+        CHECK_OK(run_runtime(bytes, n, in, &pu, 1, 2));
+        double d = rel_diff(run, ref, 5 * 7 * 24);
+        printf("3x3 convs on %s: %.2e vs reference\n", nn_conv_kernel(), d);
+        CHECK(d < 1e-2 && d > 0, "bf16 3x3 convs vs reference %g", d);
+        nn_conv_force_f32(1);
+    }
     nn_tfl_destroy(&t);
     free(bytes);
 }
@@ -455,6 +463,21 @@ static void test_real_model(void)
     CHECK(pix < 1e-4, "per-pixel relative difference %g", pix);
     CHECK(finite, "output finite");
     CHECK(d < 1e-4, "runtime vs reference %g", d);
+    if (model && (nn_conv_force_f32(0), nn_conv_bf16())) {
+        /* the convolutions as bf16 products (AMX): within a percent of the reference over the
+         * image, a few percent at the worst pixel (measured 3.3e-3 and 2.9e-2) */
+        float *run16 = malloc(P * sizeof(float));
+        t0 = pg_time_seconds();
+        CHECK_OK(nn_model_run(model, in.data, run16, 2));
+        double t16 = pg_time_seconds() - t0, pix16 = 0, d16 = rel_diff(run16, ref, P);
+        for (size_t i = 0; i < P; i++)
+            if (fabs(ref[i]) > 0) pix16 = fmax(pix16, fabs((double)run16[i] - ref[i]) / fabs(ref[i]));
+        printf("PyDNet++ 640x448 on %s convolutions: %.2e of the largest value, %.2e worst per pixel, %.0f ms\n",
+               nn_conv_kernel(), d16, pix16, t16 * 1e3);
+        CHECK(d16 < 1e-2 && pix16 < 0.1 && d16 > 0, "bf16 PyDNet++ vs reference %g, worst pixel %g", d16, pix16);
+        free(run16);
+        nn_conv_force_f32(1);
+    }
     /* Spearman against the ground truth at the video's size */
     pg_image depth = { 640, 448, 1, run }, small = { 0 };
     CHECK_OK(pg_image_resize(&small, &depth, img.width, img.height));
@@ -516,6 +539,7 @@ int main(void)
     test_reference_refuses_broken_graph("crash-output-never-written.tflite");
     test_reference_refuses_broken_graph("crash-int-tensor-as-floats.tflite");
     test_tmpdir("nn_tflite", tmp, sizeof tmp);
+    nn_conv_force_f32(1); /* the f32 runtime against the f32 reference; bf16 checked on its own */
     fill_weights();
     test_parse_and_reference();
     test_reference_by_hand();

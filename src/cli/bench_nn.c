@@ -83,7 +83,7 @@ int bench_nn(int argc, char **argv)
         if (ni == 0) shape[0] = 0;
         printf("{\"bench\":\"nn\",\"model\":\"%s\",\"model_bytes\":%lld,\"input\":\"%s\",\"threads\":%d,\"omp_wait_policy\":\"%s\",\"blas_core\":\"%s\",\"gemm\":\"%s\",\"reps\":%d,"
                "\"ms_per_frame\":%.1f,\"min_ms\":%.1f,\"cpu_ms_per_frame\":%.1f,\"load_ms\":%.1f,\"runtime_bytes\":%zu,\"peak_memory_bytes\":%lld",
-               model_path, (long long)sb.st_size, shape, threads, getenv("OMP_WAIT_POLICY") ? getenv("OMP_WAIT_POLICY") : "default", cli_blas_core(), nn_gemm_kernel(), reps, med, min, cpu_ms, load_ms, nn_model_memory_bytes(m),
+               model_path, (long long)sb.st_size, shape, threads, getenv("OMP_WAIT_POLICY") ? getenv("OMP_WAIT_POLICY") : "default", cli_blas_core(), nn_conv_kernel(), reps, med, min, cpu_ms, load_ms, nn_model_memory_bytes(m),
                (long long)ru.ru_maxrss * 1024);
         if (profile) {
             printf(",\"profile_ms\":{");

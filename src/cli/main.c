@@ -56,9 +56,9 @@ int main(int argc, char **argv)
     cli_set_load_env(argv);
     if (strcmp(argv[1], "--version") == 0 || strcmp(argv[1], "version") == 0) {
         printf("prodygs %s (kernels: deformation network %s, rasterizer %s, depth network convolutions %s, OpenBLAS %s; "
-               "force with PG_KERNELS=amx|avx512bf16|f32, PG_RASTER=avx512|avx2|scalar, PG_NN_GEMM=openblas, "
+               "force with PG_KERNELS=amx|avx512bf16|f32, PG_RASTER=avx512|avx2|scalar, PG_NN_GEMM=f32|openblas, "
                "OPENBLAS_CORETYPE)\n", PRODYGS_VERSION, gemm_bf16_name(gemm_bf16_backend()),
-               splat_kernel_name(splat_kernel_default()), nn_gemm_kernel(), cli_blas_core());
+               splat_kernel_name(splat_kernel_default()), nn_conv_kernel(), cli_blas_core());
         return 0;
     }
     cli_install_progress();

@@ -127,6 +127,14 @@ void nn_sgemm1(int trans_a, int trans_b, int M, int N, int K, const float *A, in
  * nn_gemm_force_openblas(1) (tests) forces OpenBLAS. Other products always run on OpenBLAS. */
 const char *nn_gemm_kernel(void);
 void nn_gemm_force_openblas(int on);
+/* The NHWC convolutions (the TFLite graphs: PyDNet++, FastDepth) run as bf16 products with f32
+ * sums on AMX tiles (gemm_amx.h) when the CPU has them and the deformation network's backend is
+ * AMX: 1 here. PG_NN_GEMM=f32 (or openblas), PG_KERNELS=f32|avx512bf16, PG_NO_AMX=1 or
+ * nn_conv_force_f32(1) (tests) keep them f32. nn_conv_kernel() names what they run: "amx" or
+ * nn_gemm_kernel()'s name. */
+int nn_conv_bf16(void);
+const char *nn_conv_kernel(void);
+void nn_conv_force_f32(int on);
 
 /* Per-op functions, one family per file. */
 #define NN_DECLARE_OP(x) pg_status nn_infer_##x(nn_graph *g, nn_node *n); void nn_run_##x(const nn_ctx *c, const nn_node *n);

@@ -14,6 +14,8 @@
 #include <omp.h>
 #include <string.h>
 
+#include "deform/gemm_amx.h"
+
 #define NHWC_TILE_FLOATS ((size_t)1 << 18) /* col tile per thread: 1 MiB, about one core's L2 */
 
 typedef struct {
@@ -46,11 +48,26 @@ int nn_conv_nhwc_applies(const nn_graph *g, const nn_node *n)
     return n->attr.layout == NN_LAYOUT_NHWC && n->attr.group == 1 && g->tensors[n->inputs[0]].ndim == 4;
 }
 
+/* The bf16 product's operands per thread, in floats: the tile's patches as bf16 rows (Mp, Kp), its
+ * f32 product (Mp, Np), and the weights as bf16 VNNI pairs (Kp/2, Np, 2), packed once per run by
+ * one thread and read by all from thread 0's scratch. */
+static size_t bf16_floats(const nhwc_geom *q, size_t *a_off, size_t *c_off, size_t *w_off)
+{
+    size_t Mp = (size_t)gemm_amx_round(tile_pixels(q)), Kp = (size_t)gemm_amx_round((int)q->K);
+    size_t Np = (size_t)gemm_amx_round(q->O);
+    size_t base = q->K * (size_t)tile_pixels(q) + q->K * (size_t)q->O;
+    *a_off = base;
+    *c_off = *a_off + Mp * Kp / 2;
+    *w_off = *c_off + Mp * Np;
+    return *w_off + Kp * Np / 2 - base;
+}
+
 size_t nn_scratch_conv_nhwc(const nn_graph *g, const nn_node *n)
 {
     nhwc_geom q;
     geom(g, n, &q);
-    return q.K * (size_t)tile_pixels(&q) + q.K * (size_t)q.O;
+    size_t a, c, w;
+    return q.K * (size_t)tile_pixels(&q) + q.K * (size_t)q.O + bf16_floats(&q, &a, &c, &w);
 }
 
 /* col (len, K): output pixels [p0, p0 + len) of image ni, rows ordered (ky, kx, c). */
@@ -82,6 +99,47 @@ static void im2col_rows(float *col, const float *x, const nhwc_geom *q, int ni, 
     }
 }
 
+static inline void to_bf16(uint16_t *dst, const float *src, size_t n)
+{
+    #pragma omp simd
+    for (size_t i = 0; i < n; i++) dst[i] = gemm_amx_bf16(src[i]);
+}
+
+/* im2col_rows written straight as bf16 rows of Kp (zero past K) and Mp rows (zero past len): the
+ * A operand of gemm_bf16 in one pass. */
+static void im2col_rows_bf16(uint16_t *col, int Kp, int Mp, const float *x, const nhwc_geom *q, int ni, int p0, int len)
+{
+    size_t C = (size_t)q->C, run = (size_t)q->kw * C;
+    for (int p = 0; p < Mp; p++) {
+        uint16_t *row = col + (size_t)p * Kp, *dst = row;
+        if (p >= len) {
+            memset(row, 0, (size_t)Kp * sizeof(uint16_t));
+            continue;
+        }
+        int oy = (p0 + p) / q->OW, ox = (p0 + p) % q->OW;
+        int ix0 = ox * q->sw - q->pl;
+        int row_inside = ix0 >= 0 && ix0 + (q->kw - 1) * q->dw < q->W && q->dw == 1;
+        for (int i = 0; i < q->kh; i++, dst += run) {
+            int iy = oy * q->sh - q->pt + i * q->dh;
+            if (iy < 0 || iy >= q->H) {
+                memset(dst, 0, run * sizeof(uint16_t));
+                continue;
+            }
+            const float *xr = x + ((size_t)ni * q->H + iy) * q->W * C;
+            if (row_inside) {
+                to_bf16(dst, xr + (size_t)ix0 * C, run);
+                continue;
+            }
+            for (int j = 0; j < q->kw; j++) {
+                int ix = ix0 + j * q->dw;
+                if (ix < 0 || ix >= q->W) memset(dst + j * C, 0, C * sizeof(uint16_t));
+                else to_bf16(dst + j * C, xr + (size_t)ix * C, C);
+            }
+        }
+        memset(row + q->K, 0, (size_t)(Kp - (int)q->K) * sizeof(uint16_t));
+    }
+}
+
 void nn_run_conv_nhwc(const nn_ctx *c, const nn_node *n)
 {
     nhwc_geom q;
@@ -100,6 +158,11 @@ void nn_run_conv_nhwc(const nn_ctx *c, const nn_node *n)
     int64_t jobs = (int64_t)q.N * tiles;
     const nn_attrs *a = &n->attr;
     int kk = q.kh * q.kw;
+    const int bf16 = nn_conv_bf16();
+    size_t a_off, c_off, w_off;
+    bf16_floats(&q, &a_off, &c_off, &w_off);
+    const int Kp = gemm_amx_round((int)q.K), Np = gemm_amx_round(q.O);
+    const uint16_t *wv = (const uint16_t *)(c->scratch + w_off); /* thread 0's packed weights */
     #pragma omp parallel
     {
         float *col = c->scratch + (size_t)omp_get_thread_num() * c->scratch_floats;
@@ -107,13 +170,32 @@ void nn_run_conv_nhwc(const nn_ctx *c, const nn_node *n)
         for (int o = 0; o < q.O; o++)
             for (int ch = 0; ch < q.C; ch++)
                 for (int r = 0; r < kk; r++) wp[((size_t)o * kk + r) * q.C + ch] = w[((size_t)o * q.C + ch) * kk + r];
+        if (bf16) {
+            #pragma omp single
+            gemm_amx_pack_b((uint16_t *)wv, wp, 1, (long)q.K, (int)q.K, q.O); /* b(k, o) = wp[o][k] */
+        }
+        uint16_t *abf = (uint16_t *)(col + a_off);
+        float *cbuf = col + c_off;
         #pragma omp for schedule(dynamic, 1)
         for (int64_t job = 0; job < jobs; job++) {
             int t = (int)(job % tiles), ni = (int)(job / tiles);
             int p0 = t * pt, len = P - p0 < pt ? P - p0 : pt;
             float *yt = y + ((size_t)ni * P + p0) * q.O;
-            im2col_rows(col, x, &q, ni, p0, len);
-            nn_sgemm1(0, 1, len, q.O, (int)q.K, col, (int)q.K, wp, (int)q.K, 0.0f, yt, q.O);
+            if (bf16) {
+                /* bf16 patches times bf16 weights, summed in f32, into the padded product, then
+                 * its O columns into the output */
+                const int Mp = gemm_amx_round(len);
+                im2col_rows_bf16(abf, Kp, Mp, x, &q, ni, p0, len);
+                gemm_amx_epilogue e;
+                memset(&e, 0, sizeof e);
+                e.c = cbuf;
+                e.ldc = Np;
+                gemm_bf16(abf, Kp, wv, 2 * Np, Mp, Np, Kp, &e);
+                for (int p = 0; p < len; p++) memcpy(yt + (size_t)p * q.O, cbuf + (size_t)p * Np, (size_t)q.O * sizeof(float));
+            } else {
+                im2col_rows(col, x, &q, ni, p0, len);
+                nn_sgemm1(0, 1, len, q.O, (int)q.K, col, (int)q.K, wp, (int)q.K, 0.0f, yt, q.O);
+            }
             for (int p = 0; p < len; p++) {
                 float *row = yt + (size_t)p * q.O;
                 if (b)

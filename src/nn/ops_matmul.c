@@ -28,6 +28,23 @@ const char *nn_gemm_kernel(void)
     return "openblas";
 }
 
+static int forced_conv_f32; /* tests only, as above */
+
+void nn_conv_force_f32(int on) { forced_conv_f32 = on; }
+
+int nn_conv_bf16(void)
+{
+    const char *env = getenv("PG_NN_GEMM");
+    if (forced_conv_f32 || forced_openblas || (env && (strcmp(env, "openblas") == 0 || strcmp(env, "f32") == 0)))
+        return 0;
+    return gemm_bf16_backend() == GEMM_BF16_AMX; /* AVX512-BF16 measured slower than f32 (docs/nn.md) */
+}
+
+const char *nn_conv_kernel(void)
+{
+    return nn_conv_bf16() ? gemm_bf16_name(gemm_bf16_backend()) : nn_gemm_kernel();
+}
+
 /* C = A * B^T (beta 0) on gemm_f32, which reads B as (K, N) rows padded to 16 columns: B is
  * copied transposed (K x N, a 1/M share of the product's work). OpenBLAS picks its kernels from
  * the CPU model or OPENBLAS_CORETYPE; an environment pinned to its AVX2 "Haswell" kernels ran
