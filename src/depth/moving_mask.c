@@ -1,6 +1,7 @@
 /* moving_mask.c - moving pixels from the colour distance to the temporal median (moving_mask.h). */
 #include "depth/moving_mask.h"
 
+#include <omp.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -36,7 +37,8 @@ pg_status depth_moving_masks(const uint8_t *rgb, int F, int W, int H, float thre
     if (F < 1 || W < 1 || H < 1) return pg_fail(PG_ERR_ARG, "moving mask: empty video (%d frames of %dx%d)", F, W, H);
     const size_t px = (size_t)W * H;
     const float t = thresh * 255.0f; /* byte units: |difference| / 255 > thresh */
-    uint8_t *tmp = pg_malloc(px, "moving mask");
+    const int nth = omp_get_max_threads();
+    uint8_t *tmp = pg_malloc(px * (size_t)nth, "moving mask");
     if (!tmp) return PG_ERR_NOMEM;
 #pragma omp parallel for schedule(static)
     for (long p0 = 0; p0 < (long)px; p0 += MOVING_BLOCK) {
@@ -52,10 +54,14 @@ pg_status depth_moving_masks(const uint8_t *rgb, int F, int W, int H, float thre
             }
         }
     }
+    /* a frame per thread: a frame's own parallel rows were too short to pay for their forks (the
+     * dilation was a quarter of loading a long clip's training set) */
     if (dilate > 0)
+#pragma omp parallel for schedule(dynamic, 8) num_threads(nth)
         for (int f = 0; f < F; f++) {
-            depth_mask_dilate(out + (size_t)f * px, W, H, dilate, tmp);
-            memcpy(out + (size_t)f * px, tmp, px);
+            uint8_t *mine = tmp + px * (size_t)omp_get_thread_num();
+            depth_mask_dilate(out + (size_t)f * px, W, H, dilate, mine);
+            memcpy(out + (size_t)f * px, mine, px);
         }
     free(tmp);
     return PG_OK;
