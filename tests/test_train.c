@@ -337,22 +337,30 @@ static void test_margin_past_frame(const char *dir)
  * frame in the fine stage, and no clip gets more than TRAIN_MAX_BUDGET_THIRDS / 3 times it. */
 static void test_iterations_for_clip(void)
 {
-    CHECK(train_iterations_for_clip(1500, 30, 2) == 1500, "30 frames keep 1500, got %d", train_iterations_for_clip(1500, 30, 2));
-    CHECK(train_iterations_for_clip(1500, 50, 2) == 1500, "50 frames keep 1500");
-    int it = train_iterations_for_clip(1500, 120, 2);
+    CHECK(train_iterations_for_clip(1500, 30, 2, 320L * 180) == 1500, "30 frames keep 1500, got %d", train_iterations_for_clip(1500, 30, 2, 320L * 180));
+    CHECK(train_iterations_for_clip(1500, 50, 2, 320L * 180) == 1500, "50 frames keep 1500");
+    int it = train_iterations_for_clip(1500, 120, 2, 320L * 180);
     CHECK(it == 250 + 2560, "120 frames, 3 fits per step: 250 coarse + 2560 fine, got %d", it);
     CHECK((it - 250) * 3 >= 120 * TRAIN_FITS_PER_FRAME, "each frame fitted %d times", TRAIN_FITS_PER_FRAME);
-    CHECK(train_iterations_for_clip(1500, 30, 0) == 250 + 1920, "no crops: one fit per step");
-    CHECK(train_iterations_for_clip(1500, 300, 2) == 1500 * TRAIN_MAX_BUDGET_THIRDS / 3, "300 frames: the cap, got %d",
-          train_iterations_for_clip(1500, 300, 2));
-    CHECK(train_iterations_for_clip(8000, 300, 2) == 8000, "the quality preset covers 300 frames");
+    CHECK(train_iterations_for_clip(1500, 30, 0, 320L * 180) == 250 + 1920, "no crops: one fit per step");
+    CHECK(train_iterations_for_clip(1500, 300, 2, 320L * 180) == 1500 * TRAIN_MAX_BUDGET_THIRDS / 3, "300 frames: the cap, got %d",
+          train_iterations_for_clip(1500, 300, 2, 320L * 180));
+    CHECK(train_iterations_for_clip(8000, 300, 2, 320L * 180) == 8000, "the quality preset covers 300 frames");
     /* the raised budget fits longer; it does not densify longer (memory and checkpoint size) */
-    train_budget b = train_budget_for_clip(1500, 300, 2);
+    train_budget b = train_budget_for_clip(1500, 300, 2, 320L * 180);
     CHECK(b.iters == 4000 && b.coarse_iters == 250 && b.densify_until == 1050,
           "300 frames: 4000 iterations, coarse 250, densify until 1050; got %d, %d, %d", b.iters, b.coarse_iters,
           b.densify_until);
-    b = train_budget_for_clip(1500, 30, 2);
+    b = train_budget_for_clip(1500, 30, 2, 320L * 180);
     CHECK(b.iters == 1500 && b.densify_until == 1050, "30 frames: the preset's 1500, densify until 1050");
+    /* the cap in compute: a smaller working size buys more steps, at most 3x the cap */
+    int small = train_iterations_for_clip(1500, 300, 2, 160L * 120);
+    CHECK(small == 250 + 6400, "300 frames at 160x120: 64 fits of each frame, got %d", small);
+    CHECK(train_iterations_for_clip(1500, 10000, 2, 8L * 8) == 12000, "10,000 frames at 8x8: 3x the cap, got %d",
+          train_iterations_for_clip(1500, 10000, 2, 8L * 8));
+    CHECK(train_iterations_for_clip(1500, 300, 2, 640L * 360) == 4000, "a bigger size keeps the cap");
+    CHECK(train_time_texels(10000, 11750 * 3) == TRAIN_MAX_TIME_TEXELS, "time rows capped at %d, got %d",
+          TRAIN_MAX_TIME_TEXELS, train_time_texels(10000, 11750 * 3));
 }
 
 /* The network's rates: full for a short fine stage (heavy_train's toy), half for a preset's, and

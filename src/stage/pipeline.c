@@ -68,6 +68,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
 typedef struct {
     char train_camera[128], test_cameras[1024];
     int width, height, iters, coarse_iters, densify_until, proxies, threads, fit_steps;
+    float densify_movable; /* -1: the config's (or the trainer's rule) */
     const char *poses;
     char depth[4200];         /* the depth file prepare reads: c->depth or the depth stage's output */
 } pipeline_plan;
@@ -183,12 +184,19 @@ static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipelin
     plan->iters = c->iters;
     plan->coarse_iters = -1; /* the trainer's default */
     plan->densify_until = 0;
+    plan->densify_movable = c->densify_movable;
     if (c->iters <= 0) { /* the preset's, raised for a long clip; the coarse (still) stage stays the preset's */
         int crops = c->motion_crops >= 0 ? c->motion_crops : train_default_config().motion_crops;
-        train_budget b = train_budget_for_clip(p->iters, frames, crops);
+        train_budget b = train_budget_for_clip(p->iters, frames, crops, (long)fw * fh);
         plan->iters = b.iters;
         plan->coarse_iters = b.coarse_iters;
         plan->densify_until = b.densify_until;
+        /* a budget past the preset's cap (a long clip at a small working size) keeps a long
+         * clip's movers' density: its steps, not its Gaussians, fit the motion (the 300-frame
+         * sample clip: 37.28 dB on the movers in 638 s of training at 3x, 39.40 in 949 s at 1x;
+         * docs/train.md) */
+        if (plan->densify_movable == -1 && (long)b.iters * 3 > (long)p->iters * TRAIN_MAX_BUDGET_THIRDS)
+            plan->densify_movable = TRAIN_LONG_CLIP_DENSIFY_MOVABLE;
         if (plan->iters > p->iters)
             fprintf(stderr, "prodygs: %d training iterations (the %s preset's %d, raised for %d frames: each frame's "
                     "motion is fitted ~%d times; densification stops at the preset's %d; --iters to choose)\n",
@@ -432,7 +440,7 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.views_per_step = c->views_per_step;
     tc.deform_time_coarsen = c->deform_time_coarsen;
     tc.deform_time_warmup = c->deform_time_warmup;
-    tc.densify_movable = c->densify_movable;
+    tc.densify_movable = plan->densify_movable;
     tc.proxy_downscale = c->proxy_downscale;
     tc.proxy_moving_weight = c->proxy_moving_weight;
     tc.real_weight = c->real_weight;

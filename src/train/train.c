@@ -305,6 +305,7 @@ int train_time_texels(int frames, int fine_iters)
 {
     int by_budget = fine_iters / TRAIN_STEPS_PER_TIME_TEXEL;
     int t = frames < by_budget ? frames : by_budget;
+    if (t > TRAIN_MAX_TIME_TEXELS) t = TRAIN_MAX_TIME_TEXELS;
     return t > 2 ? t : 2;
 }
 
@@ -312,9 +313,9 @@ int train_default_coarse_iters(int iters) { return iters / 6; }
 int train_default_sh_degree(const train_set *ts) { return train_set_count_role(ts, IO_ROLE_REAL) >= 2 ? 3 : 0; }
 int train_default_densify_until(int iters) { return (int)(0.7 * iters); }
 
-train_budget train_budget_for_clip(int preset_iters, int frames, int motion_crops)
+train_budget train_budget_for_clip(int preset_iters, int frames, int motion_crops, long pixels)
 {
-    train_budget b = { train_iterations_for_clip(preset_iters, frames, motion_crops),
+    train_budget b = { train_iterations_for_clip(preset_iters, frames, motion_crops, pixels),
                        train_default_coarse_iters(preset_iters), train_default_densify_until(preset_iters) };
     return b;
 }
@@ -326,12 +327,14 @@ float train_net_lr_scale(int fine_iters)
 }
 int train_fits_per_step(int motion_crops) { return 1 + (motion_crops > 0 ? motion_crops : 0); }
 
-int train_iterations_for_clip(int iters, int frames, int motion_crops)
+int train_iterations_for_clip(int iters, int frames, int motion_crops, long pixels)
 {
     long coarse = train_default_coarse_iters(iters), fits_per_step = train_fits_per_step(motion_crops);
     long need = ((long)frames * TRAIN_FITS_PER_FRAME + fits_per_step - 1) / fits_per_step;
     if (need <= iters - coarse) return iters;
-    long raised = coarse + need, cap = (long)iters * TRAIN_MAX_BUDGET_THIRDS / 3;
+    double scale = pixels > 0 && pixels < TRAIN_BUDGET_PIXELS ? (double)TRAIN_BUDGET_PIXELS / (double)pixels : 1.0;
+    if (scale > TRAIN_MAX_PIXEL_SCALE) scale = TRAIN_MAX_PIXEL_SCALE;
+    long raised = coarse + need, cap = (long)((double)iters * TRAIN_MAX_BUDGET_THIRDS / 3 * scale);
     return (int)(raised < cap ? raised : cap);
 }
 

@@ -88,6 +88,15 @@ int train_time_texels(int frames, int fine_times); /* fine_times: fine iteration
  * at 3,000 iterations 38.21. 64 keeps the quality preset's 8,000 whole up to 300 frames. */
 #define TRAIN_FITS_PER_FRAME 64
 #define TRAIN_MAX_BUDGET_THIRDS 8 /* the cap: 8/3 of the preset's budget (4,000 for the fast preset's 1,500) */
+/* The cap is one of compute: a step costs about what its pixels cost, so a clip trained smaller than
+ * TRAIN_BUDGET_PIXELS (the fast preset's 320 x 180 of 16:9 footage) has its cap raised by the ratio,
+ * up to TRAIN_MAX_PIXEL_SCALE times. The 300-frame 160 x 120 sample clip then gets its 64 fits per
+ * frame (6,650 steps) in less train time than the classroom's 4,000 steps at 320 x 180 (docs/train.md). */
+#define TRAIN_BUDGET_PIXELS (320L * 180)
+#define TRAIN_MAX_PIXEL_SCALE 3
+/* The HexPlane's time rows stay at most this many whatever the budget (the checkpoint's size: an
+ * 8 x 8 clip of 10,000 frames had 1,406 rows and 43 MB at the fast preset's 4,000 steps). */
+#define TRAIN_MAX_TIME_TEXELS 1500
 /* A clip whose time rows are each fitted fewer than TRAIN_UNDERFITTED_FITS times (a clip the cap
  * leaves that short: over 281 frames at the fast preset) warms its time rows up (docs/train.md) and
  * densifies its movers less (below). 40, below the budget's 64, because that is where both were
@@ -99,7 +108,7 @@ int train_time_texels(int frames, int fine_times); /* fine_times: fine iteration
  * cap's extra steps give the movers back what the density took (docs/train.md). A short clip,
  * fitted ~125 times per frame, keeps its density: it lost 1.9 dB on its movers at 3. */
 #define TRAIN_LONG_CLIP_DENSIFY_MOVABLE 3.0f
-int train_iterations_for_clip(int iters, int frames, int motion_crops);
+int train_iterations_for_clip(int iters, int frames, int motion_crops, long pixels); /* pixels: the working size (<= 0: TRAIN_BUDGET_PIXELS) */
 /* Proxies train at half the working size per side. A proxy is the real frame carried to another
  * viewpoint through a blurred monocular depth: its pixel-level detail is the real view's, resampled,
  * and what it adds is where things are, which half the pixels show as well. The real view keeps
@@ -122,7 +131,7 @@ int train_default_densify_until(int iters);
 typedef struct {
     int iters, coarse_iters, densify_until;
 } train_budget;
-train_budget train_budget_for_clip(int preset_iters, int frames, int motion_crops);
+train_budget train_budget_for_clip(int preset_iters, int frames, int motion_crops, long pixels);
 /* The factor on the deformation network's learning rates (HexPlane and MLP) for a fine stage of
  * `fine_iters` steps: 1 up to TRAIN_NET_LR_FULL_STEPS steps, falling as FULL / fine_iters to
  * TRAIN_NET_LR_MIN_SCALE. A full budget at the full rates learns the motion through the rates'
