@@ -70,73 +70,58 @@ size_t nn_scratch_conv_nhwc(const nn_graph *g, const nn_node *n)
     return q.K * (size_t)tile_pixels(&q) + q.K * (size_t)q.O + bf16_floats(&q, &a, &c, &w);
 }
 
-/* col (len, K): output pixels [p0, p0 + len) of image ni, rows ordered (ky, kx, c). */
-static void im2col_rows(float *col, const float *x, const nhwc_geom *q, int ni, int p0, int len)
-{
-    size_t C = (size_t)q->C, run = (size_t)q->kw * C;
-    for (int p = 0; p < len; p++) {
-        int oy = (p0 + p) / q->OW, ox = (p0 + p) % q->OW;
-        float *dst = col + (size_t)p * q->K;
-        int ix0 = ox * q->sw - q->pl;
-        int row_inside = ix0 >= 0 && ix0 + (q->kw - 1) * q->dw < q->W && q->dw == 1;
-        for (int i = 0; i < q->kh; i++, dst += run) {
-            int iy = oy * q->sh - q->pt + i * q->dh;
-            if (iy < 0 || iy >= q->H) {
-                memset(dst, 0, run * sizeof(float));
-                continue;
-            }
-            const float *xr = x + ((size_t)ni * q->H + iy) * q->W * C;
-            if (row_inside) {
-                memcpy(dst, xr + (size_t)ix0 * C, run * sizeof(float));
-                continue;
-            }
-            for (int j = 0; j < q->kw; j++) {
-                int ix = ix0 + j * q->dw;
-                if (ix < 0 || ix >= q->W) memset(dst + j * C, 0, C * sizeof(float));
-                else memcpy(dst + j * C, xr + (size_t)ix * C, C * sizeof(float));
-            }
-        }
-    }
-}
-
 static inline void to_bf16(uint16_t *dst, const float *src, size_t n)
 {
     #pragma omp simd
     for (size_t i = 0; i < n; i++) dst[i] = gemm_amx_bf16(src[i]);
 }
 
-/* im2col_rows written straight as bf16 rows of Kp (zero past K) and Mp rows (zero past len): the
- * A operand of gemm_bf16 in one pass. */
-static void im2col_rows_bf16(uint16_t *col, int Kp, int Mp, const float *x, const nhwc_geom *q, int ni, int p0, int len)
+/* n values at element k of a patch row, f32 (colf) or bf16 (colh); src NULL: zeros. */
+static inline void put_run(float *colf, uint16_t *colh, size_t k, const float *src, size_t n)
+{
+    if (colh) {
+        if (src) to_bf16(colh + k, src, n);
+        else memset(colh + k, 0, n * sizeof(uint16_t));
+    } else {
+        if (src) memcpy(colf + k, src, n * sizeof(float));
+        else memset(colf + k, 0, n * sizeof(float));
+    }
+}
+
+/* Patch rows of output pixels [p0, p0 + len) of image ni, ordered (ky, kx, c), ld elements apart:
+ * f32 into colf (ld = K, rows = len), or bf16 into colh (the A operand of gemm_bf16: ld and rows
+ * padded to 32, zero past K and past len). */
+static void im2col_rows(float *colf, uint16_t *colh, int ld, int rows, const float *x, const nhwc_geom *q, int ni,
+                        int p0, int len)
 {
     size_t C = (size_t)q->C, run = (size_t)q->kw * C;
-    for (int p = 0; p < Mp; p++) {
-        uint16_t *row = col + (size_t)p * Kp, *dst = row;
+    for (int p = 0; p < rows; p++) {
+        size_t at = (size_t)p * ld;
         if (p >= len) {
-            memset(row, 0, (size_t)Kp * sizeof(uint16_t));
+            put_run(colf, colh, at, NULL, (size_t)ld);
             continue;
         }
         int oy = (p0 + p) / q->OW, ox = (p0 + p) % q->OW;
         int ix0 = ox * q->sw - q->pl;
         int row_inside = ix0 >= 0 && ix0 + (q->kw - 1) * q->dw < q->W && q->dw == 1;
-        for (int i = 0; i < q->kh; i++, dst += run) {
+        for (int i = 0; i < q->kh; i++) {
+            size_t k = at + (size_t)i * run;
             int iy = oy * q->sh - q->pt + i * q->dh;
             if (iy < 0 || iy >= q->H) {
-                memset(dst, 0, run * sizeof(uint16_t));
+                put_run(colf, colh, k, NULL, run);
                 continue;
             }
             const float *xr = x + ((size_t)ni * q->H + iy) * q->W * C;
             if (row_inside) {
-                to_bf16(dst, xr + (size_t)ix0 * C, run);
+                put_run(colf, colh, k, xr + (size_t)ix0 * C, run);
                 continue;
             }
             for (int j = 0; j < q->kw; j++) {
                 int ix = ix0 + j * q->dw;
-                if (ix < 0 || ix >= q->W) memset(dst + j * C, 0, C * sizeof(uint16_t));
-                else to_bf16(dst + j * C, xr + (size_t)ix * C, C);
+                put_run(colf, colh, k + j * C, ix < 0 || ix >= q->W ? NULL : xr + (size_t)ix * C, C);
             }
         }
-        memset(row + q->K, 0, (size_t)(Kp - (int)q->K) * sizeof(uint16_t));
+        if ((size_t)ld > q->K) put_run(colf, colh, at + q->K, NULL, (size_t)ld - q->K);
     }
 }
 
@@ -185,7 +170,7 @@ void nn_run_conv_nhwc(const nn_ctx *c, const nn_node *n)
                 /* bf16 patches times bf16 weights, summed in f32, into the padded product, then
                  * its O columns into the output */
                 const int Mp = gemm_amx_round(len);
-                im2col_rows_bf16(abf, Kp, Mp, x, &q, ni, p0, len);
+                im2col_rows(NULL, abf, Kp, Mp, x, &q, ni, p0, len);
                 gemm_amx_epilogue e;
                 memset(&e, 0, sizeof e);
                 e.c = cbuf;
@@ -193,7 +178,7 @@ void nn_run_conv_nhwc(const nn_ctx *c, const nn_node *n)
                 gemm_bf16(abf, Kp, wv, 2 * Np, Mp, Np, Kp, &e);
                 for (int p = 0; p < len; p++) memcpy(yt + (size_t)p * q.O, cbuf + (size_t)p * Np, (size_t)q.O * sizeof(float));
             } else {
-                im2col_rows(col, x, &q, ni, p0, len);
+                im2col_rows(col, NULL, (int)q.K, len, x, &q, ni, p0, len);
                 nn_sgemm1(0, 1, len, q.O, (int)q.K, col, (int)q.K, wp, (int)q.K, 0.0f, yt, q.O);
             }
             for (int p = 0; p < len; p++) {
