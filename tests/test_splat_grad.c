@@ -11,6 +11,7 @@
 #include "testlib.h"
 #include "splat_ref.h"
 #include "splat/filter3d.h"
+#include "splat/filter3d_kernels.h"
 #include "splat/project.h"
 #include "splat/raster.h"
 #include "splat/sh.h"
@@ -377,11 +378,16 @@ static void filter3d_ref(const double ls[3], double o, double var, double out[4]
     out[3] = log(a / (1 - a));
 }
 
-/* The 3D filter: its backward against central differences of the double reference (scales far
- * below, near and far above the filter; opacity logits from -100 to 12), and the variance it takes
- * from the cameras (the nearest camera that sees a point; none in front: 0). */
-static void test_filter3d(void)
+/* The 3D filter with kernel family k: its backward against central differences of the double
+ * reference (scales far below, near and far above the filter; opacity logits from -100 to 12), and
+ * the variance it takes from the cameras (the nearest camera that sees a point; none in front: 0). */
+static void test_filter3d(splat_kernel_kind kind)
 {
+    if (!splat_kernel_supported(kind)) {
+        printf("3D filter %s: not supported by this CPU, skipped\n", splat_kernel_name(kind));
+        return;
+    }
+    splat_filter3d_set_kernel(kind);
     enum { N = 60 };
     pg_rng rng;
     pg_rng_seed(&rng, 11);
@@ -429,8 +435,29 @@ static void test_filter3d(void)
             worst = fmax(worst, rel(an, fd, 1e-3));
         }
     }
-    CHECK(worst_fwd < 1e-5, "3D filter forward off the double reference by %.3g", worst_fwd);
-    CHECK(worst < 1e-3, "3D filter backward vs finite differences: worst relative error %.3g", worst);
+    printf("3D filter %s: forward off the double reference by %.2e, backward off finite differences by %.2e\n",
+           splat_kernel_name(kind), worst_fwd, worst);
+    CHECK(worst_fwd < 1e-5, "3D filter %s forward off the double reference by %.3g", splat_kernel_name(kind), worst_fwd);
+    CHECK(worst < 1e-3, "3D filter %s backward vs finite differences: worst relative error %.3g", splat_kernel_name(kind), worst);
+    /* the rows variant filters exactly the listed rows, as the whole-array one does */
+    {
+        int rows[N / 2];
+        float rl[N * 3], ro[N], rs[N * SPLAT_FILTER3D_SAVED];
+        memcpy(rl, ls, sizeof ls);
+        memcpy(ro, op, sizeof op);
+        for (int k = 0; k < N / 2; k++) rows[k] = 2 * k + 1;
+        splat_filter3d_forward_rows(rl, ro, var, rows, N / 2, rs);
+        int wrong = 0;
+        for (int i = 0; i < N; i++) {
+            const int listed = i % 2 == 1;
+            for (int k = 0; k < 3; k++) wrong += rl[3 * i + k] != (listed ? fl[3 * i + k] : ls[3 * i + k]);
+            wrong += ro[i] != (listed ? fo[i] : op[i]);
+            for (int k = 0; listed && var[i] > 0 && k < SPLAT_FILTER3D_SAVED; k++)
+                wrong += rs[SPLAT_FILTER3D_SAVED * i + k] != saved[SPLAT_FILTER3D_SAVED * i + k];
+        }
+        CHECK(wrong == 0, "3D filter %s: the rows variant differs from the whole-array one in %d values",
+              splat_kernel_name(kind), wrong);
+    }
 
     pg_camera cams[2];
     pg_camera_from_fov(&cams[0], 100, 80, 60);
@@ -465,6 +492,7 @@ static void test_filter3d(void)
     }
     CHECK(thin == 0, "%d scales under the filter's std after fit_init", thin);
     CHECK(worst_op < 1e-5, "filtered opacity after fit_init off the initial 0.3 by %.3g", worst_op);
+    splat_filter3d_set_kernel(SPLAT_KERNELS); /* back to the default */
 }
 
 int main(void)
@@ -474,7 +502,8 @@ int main(void)
     test_projection16("avx2", SPLAT_KERNEL_AVX2, splat_project_forward16_avx2, splat_project_backward16_avx2);
     test_projection16_families_agree();
     test_sh();
-    test_filter3d();
+    test_filter3d(SPLAT_KERNEL_SCALAR);
+    test_filter3d(SPLAT_KERNEL_AVX512);
     for (int output = 0; output < 3; output++) test_raster(output);
     return test_summary("test_splat_grad");
 }

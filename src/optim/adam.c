@@ -122,18 +122,28 @@ static adam_run prepare_run(optim_adam *opt, const optim_group_step *st)
     return r;
 }
 
-/* The Adam update of n contiguous values: the one place its arithmetic is written, shared by the
- * flat and the per-row (grouped) steps so both give the same bits. */
+/* The Adam update of n contiguous values with step size step(i): the one place its arithmetic is
+ * written, shared by the flat and the per-row (grouped) steps so both give the same bits. */
+#define ADAM_SPAN_BODY(step_of_i)                                                                   \
+    for (long i = 0; i < n; i++) {                                                                  \
+        float gv = gr[i];                                                                           \
+        m[i] = b1 * m[i] + (1.0f - b1) * gv;                                                        \
+        v[i] = b2 * v[i] + (1.0f - b2) * gv * gv;                                                   \
+        p[i] -= (step_of_i) * m[i] / (sqrtf(v[i]) * inv_sqrt_c2 + eps);                             \
+    }
+
 static inline void adam_span(float *restrict p, const float *restrict gr, float *restrict m, float *restrict v,
                              long n, float b1, float b2, float eps, float step_size, float inv_sqrt_c2)
 {
     #pragma omp simd
-    for (long i = 0; i < n; i++) {
-        float gv = gr[i];
-        m[i] = b1 * m[i] + (1.0f - b1) * gv;
-        v[i] = b2 * v[i] + (1.0f - b2) * gv * gv;
-        p[i] -= step_size * m[i] / (sqrtf(v[i]) * inv_sqrt_c2 + eps);
-    }
+    ADAM_SPAN_BODY(step_size)
+}
+
+static inline void adam_span_steps(float *restrict p, const float *restrict gr, float *restrict m, float *restrict v,
+                                   long n, float b1, float b2, float eps, const float *restrict step, float inv_sqrt_c2)
+{
+    #pragma omp simd
+    ADAM_SPAN_BODY(step[i])
 }
 
 pg_status optim_adam_step_group(optim_adam *opt, int gi, float *param, const float *grad, float lr)
@@ -155,6 +165,54 @@ pg_status optim_adam_step_group(optim_adam *opt, int gi, float *param, const flo
     return PG_OK;
 }
 
+/* Rows a grouped step takes at a time: their columns are made contiguous (parameters, gradients,
+ * moments, per-value step sizes) so the update runs as one vector loop. Row by row, a group's few
+ * columns (1 to 4) left the loop scalar: a division and a square root per value, ~3 % of a
+ * classroom training step. */
+#define ADAM_BLOCK_ROWS 64
+#define ADAM_MAX_COLS 48
+
+/* Rows r0 .. r0 + ADAM_BLOCK_ROWS - 1 (those below rows) of one group's step. */
+static void step_rows_block(const adam_run *u, int r0, int rows, float b1, float b2, float eps)
+{
+    const int stride = u->g->d.row_stride, cols = u->g->d.cols, nc = u->ncols;
+    const int nr = rows - r0 < ADAM_BLOCK_ROWS ? rows - r0 : ADAM_BLOCK_ROWS;
+    const long len = (long)nr * nc;
+    float *p = u->p + (size_t)r0 * stride, *m = u->g->m + (size_t)r0 * cols, *v = u->g->v + (size_t)r0 * cols;
+    const float *gr = u->gr + (size_t)r0 * stride;
+    if (nc > ADAM_MAX_COLS) { /* long rows vectorise on their own */
+        for (int r = 0; r < nr; r++) {
+            const float s = u->boost_rows && u->boost_rows[r0 + r] ? u->step_size * u->boost : u->step_size;
+            adam_span(p + (size_t)r * stride, gr + (size_t)r * stride, m + (size_t)r * cols, v + (size_t)r * cols, nc,
+                      b1, b2, eps, s, u->inv_sqrt_c2);
+        }
+        return;
+    }
+    float step[ADAM_BLOCK_ROWS * ADAM_MAX_COLS];
+    for (int r = 0; r < nr; r++) {
+        const float s = u->boost_rows && u->boost_rows[r0 + r] ? u->step_size * u->boost : u->step_size;
+        for (int j = 0; j < nc; j++) step[r * nc + j] = s;
+    }
+    if (stride == nc && cols == nc) { /* already contiguous */
+        adam_span_steps(p, gr, m, v, len, b1, b2, eps, step, u->inv_sqrt_c2);
+        return;
+    }
+    float tp[ADAM_BLOCK_ROWS * ADAM_MAX_COLS], tg[ADAM_BLOCK_ROWS * ADAM_MAX_COLS];
+    float tm[ADAM_BLOCK_ROWS * ADAM_MAX_COLS], tv[ADAM_BLOCK_ROWS * ADAM_MAX_COLS];
+    for (int r = 0; r < nr; r++) {
+        memcpy(tp + r * nc, p + (size_t)r * stride, nc * sizeof(float));
+        memcpy(tg + r * nc, gr + (size_t)r * stride, nc * sizeof(float));
+        memcpy(tm + r * nc, m + (size_t)r * cols, nc * sizeof(float));
+        memcpy(tv + r * nc, v + (size_t)r * cols, nc * sizeof(float));
+    }
+    adam_span_steps(tp, tg, tm, tv, len, b1, b2, eps, step, u->inv_sqrt_c2);
+    for (int r = 0; r < nr; r++) {
+        memcpy(p + (size_t)r * stride, tp + r * nc, nc * sizeof(float));
+        memcpy(m + (size_t)r * cols, tm + r * nc, nc * sizeof(float));
+        memcpy(v + (size_t)r * cols, tv + r * nc, nc * sizeof(float));
+    }
+}
+
 pg_status optim_adam_step_groups(optim_adam *opt, const optim_group_step *steps, int n)
 {
     if (n < 0 || n > OPTIM_MAX_GROUP_STEPS) return pg_fail(PG_ERR_ARG, "adam: %d groups in one step", n);
@@ -173,17 +231,10 @@ pg_status optim_adam_step_groups(optim_adam *opt, const optim_group_step *steps,
     adam_run run[OPTIM_MAX_GROUP_STEPS];
     for (int k = 0; k < n; k++) run[k] = prepare_run(opt, &steps[k]);
     float b1 = opt->beta1, b2 = opt->beta2, eps = opt->eps;
-    int rows = opt->rows;
+    int rows = opt->rows, nblocks = (rows + ADAM_BLOCK_ROWS - 1) / ADAM_BLOCK_ROWS;
     #pragma omp parallel for schedule(static) if ((long)rows * work > 65536)
-    for (int r = 0; r < rows; r++)
-        for (int k = 0; k < n; k++) {
-            const adam_run *u = &run[k];
-            int stride = u->g->d.row_stride, cols = u->g->d.cols, ncols = u->ncols;
-            float *p = u->p + (size_t)r * stride, *m = u->g->m + (size_t)r * cols, *v = u->g->v + (size_t)r * cols;
-            const float *gr = u->gr + (size_t)r * stride;
-            float step_size = u->boost_rows && u->boost_rows[r] ? u->step_size * u->boost : u->step_size;
-            adam_span(p, gr, m, v, ncols, b1, b2, eps, step_size, u->inv_sqrt_c2);
-        }
+    for (int b = 0; b < nblocks; b++)
+        for (int k = 0; k < n; k++) step_rows_block(&run[k], b * ADAM_BLOCK_ROWS, rows, b1, b2, eps);
     return PG_OK;
 }
 

@@ -5,6 +5,9 @@
 #include <math.h>
 #include <stddef.h>
 
+#include "splat/filter3d_kernels.h"
+#include "splat/raster.h"
+
 void splat_filter3d_compute(const float *means, int n, const pg_camera *cams, int ncam, float *var)
 {
     #pragma omp parallel for schedule(static)
@@ -88,17 +91,48 @@ static inline void filter_row_forward(float *log_scales, float *opacity, const f
     }
 }
 
+/* The kernel family the forward uses: the rasterizer's (PG_RASTER chooses), unless a test set one. */
+static int filter_kernel = -1;
+
+void splat_filter3d_set_kernel(splat_kernel_kind k) { filter_kernel = splat_kernel_supported(k) ? (int)k : -1; }
+
+static int use_avx512(void)
+{
+#if defined(__x86_64__) && defined(__GNUC__)
+    int k = filter_kernel >= 0 ? filter_kernel : (int)splat_kernel_default();
+    return k == SPLAT_KERNEL_AVX512;
+#else
+    return 0;
+#endif
+}
+
+/* Rows i0 .. i0+n-1, or rows[0 .. n-1] when rows is set, 16 at a time on AVX-512. */
+static void forward_rows(float *log_scales, float *opacity, const float *var, const int *rows, int n, float *saved)
+{
+#if defined(__x86_64__) && defined(__GNUC__)
+    if (use_avx512()) {
+        const int blocks = (n + 15) / 16;
+        #pragma omp parallel for schedule(static)
+        for (int b = 0; b < blocks; b++) {
+            const int k0 = 16 * b, m = n - k0 < 16 ? n - k0 : 16;
+            splat_filter3d_forward16_avx512(log_scales, opacity, var, rows ? rows + k0 : NULL, k0, m, saved);
+        }
+        return;
+    }
+#endif
+    #pragma omp parallel for schedule(static)
+    for (int k = 0; k < n; k++) filter_row_forward(log_scales, opacity, var, rows ? rows[k] : k, saved);
+}
+
 void splat_filter3d_forward(float *log_scales, float *opacity, const float *var, int n, float *saved)
 {
-    #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) filter_row_forward(log_scales, opacity, var, i, saved);
+    forward_rows(log_scales, opacity, var, NULL, n, saved);
 }
 
 void splat_filter3d_forward_rows(float *log_scales, float *opacity, const float *var, const int *rows, int nrows,
                                  float *saved)
 {
-    #pragma omp parallel for schedule(static)
-    for (int k = 0; k < nrows; k++) filter_row_forward(log_scales, opacity, var, rows[k], saved);
+    forward_rows(log_scales, opacity, var, rows, nrows, saved);
 }
 
 /* With a' = a rho the filtered opacity: d log s'_k / d log s_k = 1 - w_k, d log rho / d log s_k =
