@@ -512,6 +512,21 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     return PG_OK;
 }
 
+/* The sums over a Gaussian's ntiles gradient slots, in double. Ten named sums stay in registers:
+ * an array summed in place went through the stack at every add (store-forwarding stalls made the
+ * reduction ~half of the backward's per-Gaussian pass). */
+_Static_assert(SPLAT_GRAD_STRIDE == 10, "sum_slots names the ten slot sums");
+static inline void sum_slots(const float *sl, int ntiles, double acc[SPLAT_GRAD_STRIDE])
+{
+    double a0 = 0, a1 = 0, a2 = 0, a3 = 0, a4 = 0, a5 = 0, a6 = 0, a7 = 0, a8 = 0, a9 = 0;
+    for (int k = 0; k < ntiles; k++, sl += SPLAT_GRAD_STRIDE) {
+        a0 += sl[0]; a1 += sl[1]; a2 += sl[2]; a3 += sl[3]; a4 += sl[4];
+        a5 += sl[5]; a6 += sl[6]; a7 += sl[7]; a8 += sl[8]; a9 += sl[9];
+    }
+    acc[0] = a0; acc[1] = a1; acc[2] = a2; acc[3] = a3; acc[4] = a4;
+    acc[5] = a5; acc[6] = a6; acc[7] = a7; acc[8] = a8; acc[9] = a9;
+}
+
 pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg_camera *cam,
                                 const pg_render_settings *s, const float *d_rgb, const float *d_depth,
                                 const float *d_alpha, pg_gaussians *grad, float *viewspace_grad_norm)
@@ -560,10 +575,8 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
             if (r->ntiles[i] == 0) continue;
             mask |= 1u << l;
             const splat_rec *rc = &r->rec[i];
-            double acc[SPLAT_GRAD_STRIDE] = { 0 };
-            const float *sl = r->slots + (size_t)SPLAT_GRAD_STRIDE * rc->slot_base;
-            for (int k = 0; k < r->ntiles[i]; k++)
-                for (int c = 0; c < SPLAT_GRAD_STRIDE; c++) acc[c] += sl[SPLAT_GRAD_STRIDE * k + c];
+            double acc[SPLAT_GRAD_STRIDE];
+            sum_slots(r->slots + (size_t)SPLAT_GRAD_STRIDE * rc->slot_base, r->ntiles[i], acc);
             d_xy[0][l] = (float)acc[0]; d_xy[1][l] = (float)acc[1];
             d_conic[0][l] = (float)acc[2]; d_conic[1][l] = (float)acc[3]; d_conic[2][l] = (float)acc[4];
             d_z[l] = (float)acc[9];
