@@ -199,18 +199,18 @@ static void step_rows_block(const adam_run *u, int r0, int rows, float b1, float
     }
     float tp[ADAM_BLOCK_ROWS * ADAM_MAX_COLS], tg[ADAM_BLOCK_ROWS * ADAM_MAX_COLS];
     float tm[ADAM_BLOCK_ROWS * ADAM_MAX_COLS], tv[ADAM_BLOCK_ROWS * ADAM_MAX_COLS];
-    for (int r = 0; r < nr; r++) {
-        memcpy(tp + r * nc, p + (size_t)r * stride, nc * sizeof(float));
-        memcpy(tg + r * nc, gr + (size_t)r * stride, nc * sizeof(float));
-        memcpy(tm + r * nc, m + (size_t)r * cols, nc * sizeof(float));
-        memcpy(tv + r * nc, v + (size_t)r * cols, nc * sizeof(float));
-    }
+    /* element loops, not memcpy: a library call per row of 1-4 floats cost more than the update */
+    for (int r = 0; r < nr; r++)
+        for (int j = 0; j < nc; j++) {
+            tp[r * nc + j] = p[(size_t)r * stride + j], tg[r * nc + j] = gr[(size_t)r * stride + j];
+            tm[r * nc + j] = m[(size_t)r * cols + j], tv[r * nc + j] = v[(size_t)r * cols + j];
+        }
     adam_span_steps(tp, tg, tm, tv, len, b1, b2, eps, step, u->inv_sqrt_c2);
-    for (int r = 0; r < nr; r++) {
-        memcpy(p + (size_t)r * stride, tp + r * nc, nc * sizeof(float));
-        memcpy(m + (size_t)r * cols, tm + r * nc, nc * sizeof(float));
-        memcpy(v + (size_t)r * cols, tv + r * nc, nc * sizeof(float));
-    }
+    for (int r = 0; r < nr; r++)
+        for (int j = 0; j < nc; j++) {
+            p[(size_t)r * stride + j] = tp[r * nc + j];
+            m[(size_t)r * cols + j] = tm[r * nc + j], v[(size_t)r * cols + j] = tv[r * nc + j];
+        }
 }
 
 pg_status optim_adam_step_groups(optim_adam *opt, const optim_group_step *steps, int n)

@@ -230,8 +230,10 @@ static void finish_one(splat_raster *r, const pg_gaussians *g, const pg_camera *
     if (!(o >= SPLAT_ALPHA_MIN)) return;
     /* alpha = o exp(-sigma) >= 1/255 inside sigma <= ln(255 o); along x that reaches
      * sqrt(2 ln(255 o) Sigma_xx). */
-    float lim = logf(255.0f * o);
-    float e = fminf(3.33f, sqrtf(2.0f * fmaxf(lim, 0.0f)));
+    /* ternaries, not fminf / fmaxf: without -ffast-math those are library calls (NaN rules), and
+     * the call's register spills were ~10 % of this function; lim is a number here */
+    float lim = logf(255.0f * o), reach = sqrtf(2.0f * (lim > 0.0f ? lim : 0.0f));
+    float e = reach < 3.33f ? reach : 3.33f;
     float rx = ceilf(e * sx), ry = ceilf(e * sy);
     /* Pixel i is covered when |i + 0.5 - x| <= rx. Compare in float before any int cast. */
     float fxmin = ceilf(p->xy[0] - rx - 0.5f), fxmax = floorf(p->xy[0] + rx - 0.5f);

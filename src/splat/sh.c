@@ -58,16 +58,8 @@ static int sh_basis(int degree, float x, float y, float z, float Y[16], float gr
     return n;
 }
 
-void splat_sh_forward(int degree, const float *sh, const float dir[3], float rgb[3], int clamped[3])
+void splat_sh_forward_dir(int degree, const float *sh, const float dir[3], float rgb[3], int clamped[3])
 {
-    if (degree <= 0) { /* constant colour: no direction needed */
-        for (int c = 0; c < 3; c++) {
-            float v = 0.5f + SPLAT_SH_C0 * sh[c];
-            clamped[c] = v < 0;
-            rgb[c] = v < 0 ? 0 : v;
-        }
-        return;
-    }
     float inv = 1.0f / sqrtf(dir[0]*dir[0] + dir[1]*dir[1] + dir[2]*dir[2] + 1e-30f);
     float Y[16];
     int n = sh_basis(degree, dir[0]*inv, dir[1]*inv, dir[2]*inv, Y, NULL);
@@ -79,13 +71,9 @@ void splat_sh_forward(int degree, const float *sh, const float dir[3], float rgb
     }
 }
 
-void splat_sh_backward(int degree, const float *sh, const float dir[3], const int clamped[3],
-                       const float d_rgb[3], float *d_sh, float d_dir[3])
+void splat_sh_backward_dir(int degree, const float *sh, const float dir[3], const int clamped[3],
+                           const float d_rgb[3], float *d_sh, float d_dir[3])
 {
-    if (degree <= 0) {
-        for (int c = 0; c < 3; c++) d_sh[c] += clamped[c] ? 0.0f : SPLAT_SH_C0 * d_rgb[c];
-        return;
-    }
     float len = sqrtf(dir[0]*dir[0] + dir[1]*dir[1] + dir[2]*dir[2] + 1e-30f), inv = 1.0f / len;
     float n3[3] = { dir[0]*inv, dir[1]*inv, dir[2]*inv };
     float Y[16], G[48];
