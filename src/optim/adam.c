@@ -172,6 +172,26 @@ pg_status optim_adam_step_group(optim_adam *opt, int gi, float *param, const flo
 #define ADAM_BLOCK_ROWS 64
 #define ADAM_MAX_COLS 48
 
+/* nr rows of nc floats between a strided array and a packed one. A row of 3 (the colour's DC) has
+ * its own loop: with nc unknown the compiler made a library memcpy per row of 12 bytes. */
+static inline void gather_rows(float *restrict dst, const float *restrict src, int stride, int nr, int nc)
+{
+    if (nc == 3)
+        for (int r = 0; r < nr; r++)
+            for (int j = 0; j < 3; j++) dst[r * 3 + j] = src[(size_t)r * stride + j];
+    else
+        for (int r = 0; r < nr; r++) memcpy(dst + r * nc, src + (size_t)r * stride, nc * sizeof(float));
+}
+
+static inline void scatter_rows(float *restrict dst, int stride, const float *restrict src, int nr, int nc)
+{
+    if (nc == 3)
+        for (int r = 0; r < nr; r++)
+            for (int j = 0; j < 3; j++) dst[(size_t)r * stride + j] = src[r * 3 + j];
+    else
+        for (int r = 0; r < nr; r++) memcpy(dst + (size_t)r * stride, src + r * nc, nc * sizeof(float));
+}
+
 /* Rows r0 .. r0 + ADAM_BLOCK_ROWS - 1 (those below rows) of one group's step. */
 static void step_rows_block(const adam_run *u, int r0, int rows, float b1, float b2, float eps)
 {
@@ -199,18 +219,14 @@ static void step_rows_block(const adam_run *u, int r0, int rows, float b1, float
     }
     float tp[ADAM_BLOCK_ROWS * ADAM_MAX_COLS], tg[ADAM_BLOCK_ROWS * ADAM_MAX_COLS];
     float tm[ADAM_BLOCK_ROWS * ADAM_MAX_COLS], tv[ADAM_BLOCK_ROWS * ADAM_MAX_COLS];
-    /* element loops, not memcpy: a library call per row of 1-4 floats cost more than the update */
-    for (int r = 0; r < nr; r++)
-        for (int j = 0; j < nc; j++) {
-            tp[r * nc + j] = p[(size_t)r * stride + j], tg[r * nc + j] = gr[(size_t)r * stride + j];
-            tm[r * nc + j] = m[(size_t)r * cols + j], tv[r * nc + j] = v[(size_t)r * cols + j];
-        }
+    gather_rows(tp, p, stride, nr, nc);
+    gather_rows(tg, gr, stride, nr, nc);
+    gather_rows(tm, m, cols, nr, nc);
+    gather_rows(tv, v, cols, nr, nc);
     adam_span_steps(tp, tg, tm, tv, len, b1, b2, eps, step, u->inv_sqrt_c2);
-    for (int r = 0; r < nr; r++)
-        for (int j = 0; j < nc; j++) {
-            p[(size_t)r * stride + j] = tp[r * nc + j];
-            m[(size_t)r * cols + j] = tm[r * nc + j], v[(size_t)r * cols + j] = tv[r * nc + j];
-        }
+    scatter_rows(p, stride, tp, nr, nc);
+    scatter_rows(m, cols, tm, nr, nc);
+    scatter_rows(v, cols, tv, nr, nc);
 }
 
 pg_status optim_adam_step_groups(optim_adam *opt, const optim_group_step *steps, int n)
