@@ -12,6 +12,7 @@
 #include "splat_ref.h"
 #include "splat/filter3d.h"
 #include "splat/filter3d_kernels.h"
+#include "splat/raster_kernels.h"
 #include "splat/project.h"
 #include "splat/raster.h"
 #include "splat/sh.h"
@@ -495,6 +496,42 @@ static void test_filter3d(splat_kernel_kind kind)
     splat_filter3d_set_kernel(SPLAT_KERNELS); /* back to the default */
 }
 
+
+/* The rasterizer's polynomial log and sigmoid: within 2 ulp of the double ones over the range
+ * they see, and (with AVX-512) the 16-lane twins equal to the scalar ones bit for bit. */
+static void test_poly_log_sigmoid(void)
+{
+    double worst_log = 0, worst_sig = 0;
+    int lanes_differ = 0;
+    for (int k = 0; k < 20000; k++) {
+        float x = (float)exp(-80.0 + 160.0 * k / 20000.0), t = (float)(-90.0 + 180.0 * k / 20000.0);
+        double ulp_log = fabs(log((double)x)) * 1.2e-7 + 1e-45;
+        worst_log = fmax(worst_log, fabs(splat_log_poly(x) - log((double)x)) / fmax(ulp_log, 1.2e-7 * 1e-1));
+        double sig = 1.0 / (1.0 + exp(-(double)t));
+        if (sig > 1e-37) worst_sig = fmax(worst_sig, fabs(splat_sigmoid_poly(t) - sig) / (sig * 1.2e-7));
+#if defined(__AVX512F__)
+        if (splat_kernel_supported(SPLAT_KERNEL_AVX512) && k % 16 == 0) {
+            float xs[16], ts[16], lv[16], sv[16];
+            for (int l = 0; l < 16; l++) {
+                xs[l] = (float)exp(-80.0 + 160.0 * (k + l) / 20000.0);
+                ts[l] = (float)(-90.0 + 180.0 * (k + l) / 20000.0);
+            }
+            _mm512_storeu_ps(lv, splat_log_poly16(_mm512_loadu_ps(xs)));
+            _mm512_storeu_ps(sv, splat_sigmoid_poly16(_mm512_loadu_ps(ts)));
+            for (int l = 0; l < 16; l++)
+                lanes_differ += memcmp(&lv[l], &(float){ splat_log_poly(xs[l]) }, 4) != 0 ||
+                                memcmp(&sv[l], &(float){ splat_sigmoid_poly(ts[l]) }, 4) != 0;
+        }
+#endif
+    }
+    printf("polynomial log: worst %.2f ulp; sigmoid: worst %.2f ulp; 16-lane twins differ in %d lanes\n", worst_log,
+           worst_sig, lanes_differ);
+    CHECK(worst_log < 2.0, "splat_log_poly off log by %.2f ulp", worst_log);
+    CHECK(worst_sig < 4.0, "splat_sigmoid_poly off the sigmoid by %.2f ulp", worst_sig);
+    CHECK(lanes_differ == 0, "%d lanes of the 16-lane log / sigmoid differ from the scalar ones", lanes_differ);
+    CHECK(splat_sigmoid_poly(NAN) != splat_sigmoid_poly(NAN), "sigmoid of NaN is not NaN");
+}
+
 int main(void)
 {
     test_projection();
@@ -502,6 +539,7 @@ int main(void)
     test_projection16("avx2", SPLAT_KERNEL_AVX2, splat_project_forward16_avx2, splat_project_backward16_avx2);
     test_projection16_families_agree();
     test_sh();
+    test_poly_log_sigmoid();
     test_filter3d(SPLAT_KERNEL_SCALAR);
     test_filter3d(SPLAT_KERNEL_AVX512);
     for (int output = 0; output < 3; output++) test_raster(output);

@@ -4,8 +4,8 @@
  *
  * Every rendered time filters every Gaussian it deforms (and once per step the fixed ones): ~8
  * libm exponentials and logarithms a Gaussian were ~4 % of a classroom training step. Here they
- * are polynomials on 16 lanes: exp as the rasterizer's (splat_exp_poly16), log from the mantissa
- * and exponent fields (Cephes' logf polynomial), both within ~2 ulp of libm.
+ * are polynomials on 16 lanes, the rasterizer's (splat_exp_poly16, splat_log_poly16), within ~2 ulp
+ * of libm.
  */
 #include "splat/filter3d_kernels.h"
 
@@ -20,39 +20,13 @@ static inline __m512 exp16(__m512 x)
     return splat_exp_poly16(_mm512_max_ps(x, _mm512_set1_ps(-104.0f)));
 }
 
-/* log x for positive finite x (subnormals included): x = m 2^e with m in [sqrt(1/2), sqrt(2)),
- * log x = log m + e log 2, log(1 + f) = f - f^2/2 + f^3 P(f). */
-static inline __m512 log16(__m512 x)
-{
-    const __m512 one = _mm512_set1_ps(1.0f);
-    __m512 m = _mm512_getmant_ps(x, _MM_MANT_NORM_1_2, _MM_MANT_SIGN_zero);
-    __m512 e = _mm512_getexp_ps(x);
-    __mmask16 big = _mm512_cmp_ps_mask(m, _mm512_set1_ps(1.41421356f), _CMP_GT_OQ);
-    m = _mm512_mask_mul_ps(m, big, m, _mm512_set1_ps(0.5f));
-    e = _mm512_mask_add_ps(e, big, e, one);
-    __m512 f = _mm512_sub_ps(m, one), z = _mm512_mul_ps(f, f);
-    __m512 p = _mm512_set1_ps(7.0376836292e-2f);
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(-1.1514610310e-1f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.1676998740e-1f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(-1.2420140846e-1f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(1.4249322787e-1f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(-1.6668057665e-1f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(2.0000714765e-1f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(-2.4999993993e-1f));
-    p = _mm512_fmadd_ps(p, f, _mm512_set1_ps(3.3333331174e-1f));
-    __m512 y = _mm512_mul_ps(_mm512_mul_ps(p, f), z);
-    y = _mm512_fmadd_ps(e, _mm512_set1_ps(-2.12194440e-4f), y);
-    y = _mm512_fnmadd_ps(_mm512_set1_ps(0.5f), z, y);
-    return _mm512_fmadd_ps(e, _mm512_set1_ps(0.693359375f), _mm512_add_ps(f, y));
-}
-
 /* log(1 + u) for u in [0, 1] without losing the small u: log(w) u / (w - 1) with w = 1 + u rounded
  * (the rounding of w cancels to first order); u itself where w rounds to 1. */
 static inline __m512 log1p16(__m512 u)
 {
     __m512 w = _mm512_add_ps(_mm512_set1_ps(1.0f), u), d = _mm512_sub_ps(w, _mm512_set1_ps(1.0f));
     __mmask16 moved = _mm512_cmp_ps_mask(d, _mm512_setzero_ps(), _CMP_NEQ_OQ);
-    return _mm512_mask_mul_ps(u, moved, log16(w), _mm512_maskz_div_ps(moved, u, d));
+    return _mm512_mask_mul_ps(u, moved, splat_log_poly16(w), _mm512_maskz_div_ps(moved, u, d));
 }
 
 static inline __m512 abs16(__m512 x) { return _mm512_abs_ps(x); }
@@ -69,7 +43,7 @@ void splat_filter3d_forward16_avx512(float *log_scales, float *opacity, const fl
     if (!live) return;
     v = _mm512_mask_blend_ps(live, one, v); /* dead lanes compute on harmless numbers */
     const __m512i idx3 = _mm512_mullo_epi32(idx, _mm512_set1_epi32(3));
-    const __m512 lv = log16(v);
+    const __m512 lv = splat_log_poly16(v);
     __m512 w[3], log_keep = zero;
     for (int k = 0; k < 3; k++) {
         __m512 ls = _mm512_mask_i32gather_ps(zero, live, idx3, log_scales + k, 4);
@@ -93,7 +67,7 @@ void splat_filter3d_forward16_avx512(float *log_scales, float *opacity, const fl
     const __m512 log_a_rho = _mm512_sub_ps(log_rho, _mm512_add_ps(_mm512_max_ps(_mm512_sub_ps(zero, o), zero), log1p16(eo)));
     const __mmask16 plain = _mm512_cmp_ps_mask(log_a_rho, _mm512_set1_ps(-30.0f), _CMP_GT_OQ);
     const __m512 ratio = _mm512_div_ps(_mm512_mul_ps(a, rho), na_filtered);
-    const __m512 o_new = _mm512_mask_blend_ps(plain, log_a_rho, log16(_mm512_mask_blend_ps(plain, one, ratio)));
+    const __m512 o_new = _mm512_mask_blend_ps(plain, log_a_rho, splat_log_poly16(_mm512_mask_blend_ps(plain, one, ratio)));
     _mm512_mask_i32scatter_ps(opacity, live, idx, o_new, 4);
     if (saved) {
         const __m512i idx5 = _mm512_mullo_epi32(idx, _mm512_set1_epi32(SPLAT_FILTER3D_SAVED));

@@ -239,7 +239,57 @@ int splat_project_backward16(const float *means, const float *log_scales, const 
     }
     return 1;
 }
+unsigned splat_box16_avx512(const float pr[9][16], unsigned valid, const float *opacity, int i0, int width, int height,
+                            splat_box16 *b)
+{
+    const __m512 half = _mm512_set1_ps(0.5f), zero = _mm512_setzero_ps(), reach = _mm512_set1_ps(3.33f);
+    const __m512 wmax = _mm512_set1_ps((float)(width - 1)), hmax = _mm512_set1_ps((float)(height - 1));
+    const __m512 x = _mm512_loadu_ps(pr[0]), y = _mm512_loadu_ps(pr[1]);
+    const __m512 sx = _mm512_sqrt_ps(_mm512_loadu_ps(pr[3])), sy = _mm512_sqrt_ps(_mm512_loadu_ps(pr[5]));
+    const int up = _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC, down = _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC;
+    /* the box at the largest reach first: most of a crop's Gaussians leave here */
+    __m512 rx = _mm512_roundscale_ps(_mm512_mul_ps(reach, sx), up), ry = _mm512_roundscale_ps(_mm512_mul_ps(reach, sy), up);
+    __mmask16 k = (__mmask16)valid;
+    k = _mm512_mask_cmp_ps_mask(k, _mm512_roundscale_ps(_mm512_sub_ps(_mm512_add_ps(x, rx), half), down), zero, _CMP_GE_OQ);
+    k = _mm512_mask_cmp_ps_mask(k, _mm512_roundscale_ps(_mm512_sub_ps(_mm512_add_ps(y, ry), half), down), zero, _CMP_GE_OQ);
+    k = _mm512_mask_cmp_ps_mask(k, _mm512_roundscale_ps(_mm512_sub_ps(_mm512_sub_ps(x, rx), half), up), wmax, _CMP_LE_OQ);
+    k = _mm512_mask_cmp_ps_mask(k, _mm512_roundscale_ps(_mm512_sub_ps(_mm512_sub_ps(y, ry), half), up), hmax, _CMP_LE_OQ);
+    if (!k) return 0;
+    const __m512 o = splat_sigmoid_poly16(_mm512_loadu_ps(opacity + i0));
+    k = _mm512_mask_cmp_ps_mask(k, o, _mm512_set1_ps(SPLAT_ALPHA_MIN), _CMP_GE_OQ);
+    if (!k) return 0;
+    const __m512 lim = splat_log_poly16(_mm512_mask_mul_ps(_mm512_set1_ps(1.0f), k, _mm512_set1_ps(255.0f), o));
+    const __m512 e = _mm512_min_ps(_mm512_sqrt_ps(_mm512_mul_ps(_mm512_set1_ps(2.0f), _mm512_max_ps(lim, zero))), reach);
+    rx = _mm512_roundscale_ps(_mm512_mul_ps(e, sx), up);
+    ry = _mm512_roundscale_ps(_mm512_mul_ps(e, sy), up);
+    const __m512 fxmin = _mm512_roundscale_ps(_mm512_sub_ps(_mm512_sub_ps(x, rx), half), up);
+    const __m512 fxmax = _mm512_roundscale_ps(_mm512_sub_ps(_mm512_add_ps(x, rx), half), down);
+    const __m512 fymin = _mm512_roundscale_ps(_mm512_sub_ps(_mm512_sub_ps(y, ry), half), up);
+    const __m512 fymax = _mm512_roundscale_ps(_mm512_sub_ps(_mm512_add_ps(y, ry), half), down);
+    k = _mm512_mask_cmp_ps_mask(k, fxmax, zero, _CMP_GE_OQ);
+    k = _mm512_mask_cmp_ps_mask(k, fymax, zero, _CMP_GE_OQ);
+    k = _mm512_mask_cmp_ps_mask(k, fxmin, wmax, _CMP_LE_OQ);
+    k = _mm512_mask_cmp_ps_mask(k, fymin, hmax, _CMP_LE_OQ);
+    const __m512i xmin = _mm512_cvttps_epi32(_mm512_max_ps(fxmin, zero)), xmax = _mm512_cvttps_epi32(_mm512_min_ps(fxmax, wmax));
+    const __m512i ymin = _mm512_cvttps_epi32(_mm512_max_ps(fymin, zero)), ymax = _mm512_cvttps_epi32(_mm512_min_ps(fymax, hmax));
+    k = _mm512_mask_cmp_epi32_mask(k, xmin, xmax, _MM_CMPINT_LE);
+    k = _mm512_mask_cmp_epi32_mask(k, ymin, ymax, _MM_CMPINT_LE);
+    _mm512_storeu_ps(b->o, o);
+    _mm512_storeu_ps(b->thr, lim);
+    _mm512_storeu_si512((void *)b->xmin, xmin);
+    _mm512_storeu_si512((void *)b->xmax, xmax);
+    _mm512_storeu_si512((void *)b->ymin, ymin);
+    _mm512_storeu_si512((void *)b->ymax, ymax);
+    return k;
+}
 #else
+unsigned splat_box16_avx512(const float pr[9][16], unsigned valid, const float *opacity, int i0, int width, int height,
+                            splat_box16 *b)
+{
+    (void)pr; (void)valid; (void)opacity; (void)i0; (void)width; (void)height; (void)b;
+    return 0;
+}
+
 int splat_project_forward16(const float *means, const float *log_scales, const float *quats, int i0,
                             const pg_camera *cam, const float lim[SPLAT_LIM_COUNT], float near_clip, float out[9][16],
                             unsigned *valid)

@@ -93,15 +93,18 @@ void splat_raster_destroy(splat_raster *r)
 }
 
 /* Per kernel family: the tile kernels and the 16-wide projection (NULL: the scalar one per Gaussian). */
+typedef unsigned (*splat_box16_fn)(const float[9][16], unsigned, const float *, int, int, int, splat_box16 *);
 static const struct {
     void (*forward)(const splat_tile_job *), (*backward)(const splat_tile_job *);
     splat_project16_forward_fn project_forward;
     splat_project16_backward_fn project_backward;
+    splat_box16_fn box; /* NULL: box_one per lane */
 } tile_kernels[SPLAT_KERNELS] = {
-    { splat_tile_forward_scalar, splat_tile_backward_scalar, NULL, NULL },
+    { splat_tile_forward_scalar, splat_tile_backward_scalar, NULL, NULL, NULL },
 #if defined(__x86_64__) && defined(__GNUC__)
-    { splat_tile_forward_avx2, splat_tile_backward_avx2, splat_project_forward16_avx2, splat_project_backward16_avx2 },
-    { splat_tile_forward_avx512, splat_tile_backward_avx512, splat_project_forward16, splat_project_backward16 },
+    { splat_tile_forward_avx2, splat_tile_backward_avx2, splat_project_forward16_avx2, splat_project_backward16_avx2, NULL },
+    { splat_tile_forward_avx512, splat_tile_backward_avx512, splat_project_forward16, splat_project_backward16,
+      splat_box16_avx512 },
 #endif
 };
 
@@ -208,14 +211,12 @@ static pg_status ensure_tiles(splat_raster *r, int tiles)
     return PG_OK;
 }
 
-static float sigmoidf(float x) { return 1.0f / (1.0f + expf(-x)); }
-
-/* Given the projection of Gaussian i, evaluates its opacity-aware box and colour; fills
- * r->rec[i], r->rect[i], r->clamp[i] and r->ntiles[i] (0 when culled). */
-static void finish_one(splat_raster *r, const pg_gaussians *g, const pg_camera *cam, int deg, int i,
-                       const splat_proj *p)
+/* The opacity-aware pixel box of Gaussian i's projection p: activated opacity o, threshold ln(255 o)
+ * and clamped bounds (xmin, xmax, ymin, ymax); 0 when it covers no pixel. splat_box16_avx512 does
+ * the same operations on 16 lanes (the opacity's exp and log are the shared polynomials), so both
+ * paths give the same bits. */
+static int box_one(const splat_proj *p, float logit, int width, int height, float *o_out, float *thr, int box[4])
 {
-    r->ntiles[i] = 0;
     /* The box at the largest reach (3.33 sigma) contains the opacity-aware one below: a Gaussian
      * outside the image even so is culled before its opacity's exp and log (most of a motion
      * crop's Gaussians are). */
@@ -223,30 +224,39 @@ static void finish_one(splat_raster *r, const pg_gaussians *g, const pg_camera *
     {
         float rx = ceilf(3.33f * sx), ry = ceilf(3.33f * sy);
         if (!(floorf(p->xy[0] + rx - 0.5f) >= 0 && floorf(p->xy[1] + ry - 0.5f) >= 0 &&
-              ceilf(p->xy[0] - rx - 0.5f) <= cam->width - 1 && ceilf(p->xy[1] - ry - 0.5f) <= cam->height - 1))
-            return;
+              ceilf(p->xy[0] - rx - 0.5f) <= width - 1 && ceilf(p->xy[1] - ry - 0.5f) <= height - 1))
+            return 0;
     }
-    float o = sigmoidf(g->opacity[i]);
-    if (!(o >= SPLAT_ALPHA_MIN)) return;
+    float o = splat_sigmoid_poly(logit);
+    if (!(o >= SPLAT_ALPHA_MIN)) return 0;
     /* alpha = o exp(-sigma) >= 1/255 inside sigma <= ln(255 o); along x that reaches
-     * sqrt(2 ln(255 o) Sigma_xx). */
-    /* ternaries, not fminf / fmaxf: without -ffast-math those are library calls (NaN rules), and
-     * the call's register spills were ~10 % of this function; lim is a number here */
-    float lim = logf(255.0f * o), reach = sqrtf(2.0f * (lim > 0.0f ? lim : 0.0f));
+     * sqrt(2 ln(255 o) Sigma_xx). Ternaries, not fminf / fmaxf: without -ffast-math those are
+     * library calls (NaN rules); lim is a number here. */
+    float lim = splat_log_poly(255.0f * o), reach = sqrtf(2.0f * (lim > 0.0f ? lim : 0.0f));
     float e = reach < 3.33f ? reach : 3.33f;
     float rx = ceilf(e * sx), ry = ceilf(e * sy);
     /* Pixel i is covered when |i + 0.5 - x| <= rx. Compare in float before any int cast. */
     float fxmin = ceilf(p->xy[0] - rx - 0.5f), fxmax = floorf(p->xy[0] + rx - 0.5f);
     float fymin = ceilf(p->xy[1] - ry - 0.5f), fymax = floorf(p->xy[1] + ry - 0.5f);
-    if (!(fxmax >= 0 && fymax >= 0 && fxmin <= cam->width - 1 && fymin <= cam->height - 1)) return;
-    int xmin = fxmin < 0 ? 0 : (int)fxmin, xmax = fxmax > cam->width - 1 ? cam->width - 1 : (int)fxmax;
-    int ymin = fymin < 0 ? 0 : (int)fymin, ymax = fymax > cam->height - 1 ? cam->height - 1 : (int)fymax;
-    if (xmin > xmax || ymin > ymax) return;
+    if (!(fxmax >= 0 && fymax >= 0 && fxmin <= width - 1 && fymin <= height - 1)) return 0;
+    box[0] = fxmin < 0 ? 0 : (int)fxmin, box[1] = fxmax > width - 1 ? width - 1 : (int)fxmax;
+    box[2] = fymin < 0 ? 0 : (int)fymin, box[3] = fymax > height - 1 ? height - 1 : (int)fymax;
+    if (box[0] > box[1] || box[2] > box[3]) return 0;
+    *o_out = o;
+    *thr = lim; /* sigma <= ln(255 o) is exactly o exp(-sigma) >= 1/255, without rounding doubts */
+    return 1;
+}
+
+/* Fills r->rec[i], r->rect[i], r->clamp[i] and r->ntiles[i] of a Gaussian whose box (xmin, xmax,
+ * ymin, ymax) covers pixels: its record for the tile kernels and its colour. */
+static void write_record(splat_raster *r, const pg_gaussians *g, int deg, int i, const splat_proj *p, float o,
+                         float thr, int xmin, int xmax, int ymin, int ymax)
+{
     splat_rec *rc = &r->rec[i];
     rc->x = p->xy[0]; rc->y = p->xy[1];
     rc->ha = 0.5f * p->conic[0]; rc->cb = p->conic[1]; rc->hc = 0.5f * p->conic[2];
     rc->o = o; rc->z = p->z;
-    rc->thr = lim; /* sigma <= ln(255 o) is exactly o exp(-sigma) >= 1/255, without rounding doubts */
+    rc->thr = thr;
     rc->ymin = ymin; rc->ymax = ymax;
     rc->tx0 = xmin / SPLAT_TILE;
     rc->tw = xmax / SPLAT_TILE - rc->tx0 + 1;
@@ -259,6 +269,16 @@ static void finish_one(splat_raster *r, const pg_gaussians *g, const pg_camera *
     uint16_t *bx = r->rect + 4 * (size_t)i;
     bx[0] = (uint16_t)rc->tx0; bx[1] = (uint16_t)(ymin / SPLAT_TILE);
     bx[2] = (uint16_t)(xmax / SPLAT_TILE); bx[3] = (uint16_t)(ymax / SPLAT_TILE);
+}
+
+/* box_one then write_record (ntiles 0 when culled). */
+static void finish_one(splat_raster *r, const pg_gaussians *g, const pg_camera *cam, int deg, int i,
+                       const splat_proj *p)
+{
+    float o, thr;
+    int b[4];
+    r->ntiles[i] = 0;
+    if (box_one(p, g->opacity[i], cam->width, cam->height, &o, &thr, b)) write_record(r, g, deg, i, p, o, thr, b[0], b[1], b[2], b[3]);
 }
 
 /* Starts loading the colour rows of Gaussians i .. i+15 (for writing when write is set). A row
@@ -282,15 +302,20 @@ static void preprocess_range(splat_raster *r, const pg_gaussians *g, const pg_ca
     float pr[9][16];
     unsigned valid;
     splat_project16_forward_fn project16 = tile_kernels[r->kernel].project_forward;
+    splat_box16_fn box16 = tile_kernels[r->kernel].box;
     for (; project16 && i + 16 <= i1; i += 16) {
         if (!project16(g->means, g->log_scales, g->quats, i, cam, r->lim, s->near_clip, pr, &valid))
             break;
         prefetch_sh_rows(g->sh, i + 16, i1, 0);
+        splat_box16 bx;
+        unsigned keep = box16 ? box16(pr, valid, g->opacity, i, cam->width, cam->height, &bx) : 0;
         for (int l = 0; l < 16; l++) {
-            if (!(valid >> l & 1)) { r->ntiles[i + l] = 0; continue; }
+            r->ntiles[i + l] = 0;
+            if (!((box16 ? keep : valid) >> l & 1)) continue;
             splat_proj p = { { pr[0][l], pr[1][l] }, pr[2][l], { pr[3][l], pr[4][l], pr[5][l] },
                              { pr[6][l], pr[7][l], pr[8][l] } };
-            finish_one(r, g, cam, deg, i + l, &p);
+            if (box16) write_record(r, g, deg, i + l, &p, bx.o[l], bx.thr[l], bx.xmin[l], bx.xmax[l], bx.ymin[l], bx.ymax[l]);
+            else finish_one(r, g, cam, deg, i + l, &p);
         }
     }
     for (; i < i1; i++) {
