@@ -494,7 +494,10 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
         int v0 = (int)((long)vis * t / T), v1 = (int)((long)vis * (t + 1) / T);
         int *cnt = r->tcount + (size_t)t * ntile;
         memset(cnt, 0, (size_t)ntile * sizeof(int));
+        /* the boxes are read in depth order, a random walk over r->rect: fetched ahead, each was a
+         * cache miss (~a quarter of the binning's time) */
         for (int v = v0; v < v1; v++) {
+            if (v + 16 < v1) __builtin_prefetch(r->rect + 4 * (size_t)r->order[v + 16]);
             const uint16_t *bx = r->rect + 4 * (size_t)r->order[v];
             for (int yy = bx[1]; yy <= bx[3]; yy++)
                 for (int xx = bx[0]; xx <= bx[2]; xx++) cnt[yy * tx + xx]++;
@@ -513,6 +516,7 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
         }
         if (t == 0) r->tile_start[ntile] = run;
         for (int v = v0; v < v1; v++) {
+            if (v + 16 < v1) __builtin_prefetch(r->rect + 4 * (size_t)r->order[v + 16]);
             int id = r->order[v];
             const uint16_t *bx = r->rect + 4 * (size_t)id;
             for (int yy = bx[1]; yy <= bx[3]; yy++)
