@@ -535,6 +535,8 @@ static const float *chunk_backward_f32(const deform_network *net, deform_ws *ws,
     return dcur;
 }
 
+#define REDUCE_BLOCK 1024 /* floats of the thread-gradient reduction per loop trip */
+
 pg_status deform_network_backward(deform_network *net, deform_ws *ws, const float *d_out, float *d_means)
 {
     const long n = ws->n;
@@ -622,11 +624,15 @@ pg_status deform_network_backward(deform_network *net, deform_ws *ws, const floa
             const size_t P = ws->num_params;
             for (int r = 0; r < nranges; r++) {
                 size_t lo = ranges[r][0], hi = lo + ranges[r][1];
+                /* threads outermost: the same sums in the same order, and an inner loop that vectorises */
                 #pragma omp for schedule(static) nowait
-                for (size_t i = lo; i < hi; i++) {
-                    float sum = net->grads[i];
-                    for (int th = 1; th < used_threads; th++) sum += ws->tgrads[(size_t)(th - 1) * P + i];
-                    net->grads[i] = sum;
+                for (size_t b = lo; b < hi; b += REDUCE_BLOCK) {
+                    const size_t e = hi - b < REDUCE_BLOCK ? hi : b + REDUCE_BLOCK;
+                    for (int th = 1; th < used_threads; th++) {
+                        const float *src = ws->tgrads + (size_t)(th - 1) * P;
+                        #pragma omp simd
+                        for (size_t i = b; i < e; i++) net->grads[i] += src[i];
+                    }
                 }
             }
         }

@@ -625,7 +625,7 @@ pg_status train_model_deform_movers(train_model *m, float t, pg_gaussians *out)
     int k = 0;
     for (int i = 0; i < n; i++)
         if (!m->is_static[i]) idx[k++] = i;
-    pg_status st = k ? train_net_forward(m->net, &m->g_net, idx, k, t, out) : PG_OK;
+    pg_status st = k ? train_net_forward(m->net, &m->g_net, idx, k, t, PG_SH_COEFFS * 3, out) : PG_OK;
     if (!st) {
         to_user_units(out, m->unit, idx, k);
         splat_filter3d_forward_rows(out->log_scales, out->opacity, m->filter_var, idx, k, NULL);

@@ -40,12 +40,15 @@ float *train_net_grads(train_net *n);   /* (P) */
 /* Parameters [0, grid_end) are HexPlane grids (own lr), [grid_end, P) the MLP. */
 size_t train_net_grid_end(const train_net *n);
 void train_net_zero_grad(train_net *n);
-/* Writes the deformed rows idx[0..n) of out (other rows untouched) from canonical g at t. */
-pg_status train_net_forward(train_net *net, const pg_gaussians *g, const int *idx, int n, float t,
+/* Writes the deformed rows idx[0..n) of out (other rows untouched) from canonical g at t: every
+ * attribute and the first sh_floats colour floats of a row (the rest of out's rows untouched: 3
+ * when the run trains degree 0, of the 48 the network predicts). */
+pg_status train_net_forward(train_net *net, const pg_gaussians *g, const int *idx, int n, float t, int sh_floats,
                             pg_gaussians *out);
-/* Backward of the last forward (same idx, t): d_out rows -> net grads, and into d_canon rows
- * idx (which must hold the identity path d_out already: canon + delta). */
-pg_status train_net_backward(train_net *net, const pg_gaussians *g, const int *idx, int n, float t,
+/* Backward of the last forward (same idx, t, sh_floats): d_out rows -> net grads (the colour
+ * floats past sh_floats count as 0), and into d_canon rows idx (which must hold the identity path
+ * d_out already: canon + delta). */
+pg_status train_net_backward(train_net *net, const pg_gaussians *g, const int *idx, int n, float t, int sh_floats,
                              const pg_gaussians *d_out, pg_gaussians *d_canon);
 /* K-Planes regularisers: adds their gradients, returns the loss value. */
 float train_net_regularize(train_net *net, float w_tv, float w_time, float w_l1);

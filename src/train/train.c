@@ -703,7 +703,7 @@ static pg_status deform_all(train_session *s, const pg_camera *const *cams, int 
     if (s->fine) {
         int n = build_subset(s, cams, s->cfg.use_frustum_cull ? ncam : 0);
         *n_deformed = n;
-        if (n > 0) PG_TRY(train_net_forward(s->net, &s->g, s->idx, n, t, &s->d));
+        if (n > 0) PG_TRY(train_net_forward(s->net, &s->g, s->idx, n, t, train_sh_floats(s->cfg.sh_max_degree), &s->d));
     }
     if (whole) splat_filter3d_forward(s->d.log_scales, s->d.opacity, s->filter_var, s->d.count, s->filter_saved);
     else splat_filter3d_forward_rows(s->d.log_scales, s->d.opacity, s->filter_var, s->step_rows, s->n_moving_rows,
@@ -763,7 +763,7 @@ static pg_status check_static(train_session *s)
     pg_status st = (lo && hi && mean) ? PG_OK : PG_ERR_NOMEM;
     for (int k = 0; k < K && !st; k++) {
         blend_used(s, &s->d, &s->g, TRAIN_BLEND_COPY);
-        if ((st = train_net_forward(s->net, &s->g, s->idx, n, (float)k / (K - 1), &s->d))) break;
+        if ((st = train_net_forward(s->net, &s->g, s->idx, n, (float)k / (K - 1), PG_SH_COEFFS * 3, &s->d))) break;
         for (int j = 0; j < n; j++) {
             int i = s->idx[j];
             float dl[59];
@@ -1007,7 +1007,8 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
                                      s->dg.opacity);
         blend_rows(s, &s->gg, &s->dg, s->step_rows, s->n_moving_rows, first ? TRAIN_BLEND_COPY : TRAIN_BLEND_ADD);
     }
-    if (s->fine && nd > 0) PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, &s->dg, &s->gg));
+    if (s->fine && nd > 0)
+        PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, train_sh_floats(s->cfg.sh_max_degree), &s->dg, &s->gg));
     s->timing.deform_backward += (pg_time_seconds() - t0) * 1e3;
     *loss_out = loss;
     return PG_OK;

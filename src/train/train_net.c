@@ -21,6 +21,7 @@ struct train_net {
     float *out;   /* (n, 59) */
     float *d_out; /* (n, 59) */
     long cap;
+    int d_out_sh; /* colour floats of d_out's rows that may be non-zero (the rest are) */
 };
 
 /* The deformation network config of a trainer's network config (0 fields: library defaults). */
@@ -88,13 +89,16 @@ static pg_status ensure(train_net *t, long n)
     t->out = a;
     float *b = realloc(t->d_out, (size_t)c * DEFORM_OUT_DIM * sizeof(float));
     if (!b) return pg_fail(PG_ERR_NOMEM, "deformation: out of memory for %ld points", c);
+    memset(b + (size_t)t->cap * DEFORM_OUT_DIM, 0, (size_t)(c - t->cap) * DEFORM_OUT_DIM * sizeof(float));
     t->d_out = b;
     t->cap = c;
     return PG_OK;
 }
 
-pg_status train_net_forward(train_net *t, const pg_gaussians *g, const int *idx, int n, float tm, pg_gaussians *out)
+pg_status train_net_forward(train_net *t, const pg_gaussians *g, const int *idx, int n, float tm, int sh_floats,
+                            pg_gaussians *out)
 {
+    if (sh_floats < 0 || sh_floats > SH_ROW) sh_floats = SH_ROW;
     PG_TRY(ensure(t, n));
     PG_TRY(deform_network_forward(t->net, t->ws, g->means, idx, n, tm, t->out));
 #pragma omp parallel for schedule(static)
@@ -106,18 +110,25 @@ pg_status train_net_forward(train_net *t, const pg_gaussians *g, const int *idx,
             out->log_scales[3 * i + a] = g->log_scales[3 * i + a] + o[DEFORM_OUT_SCALE + a];
         for (int a = 0; a < 4; a++) out->quats[4 * i + a] = g->quats[4 * i + a] + o[DEFORM_OUT_ROT + a];
         out->opacity[i] = g->opacity[i] + o[DEFORM_OUT_OPACITY];
-        for (int a = 0; a < SH_ROW; a++)
+        for (int a = 0; a < sh_floats; a++)
             out->sh[(size_t)i * SH_ROW + a] = g->sh[(size_t)i * SH_ROW + a] + o[DEFORM_OUT_SH + a];
     }
     return PG_OK;
 }
 
-pg_status train_net_backward(train_net *t, const pg_gaussians *g, const int *idx, int n, float tm,
+pg_status train_net_backward(train_net *t, const pg_gaussians *g, const int *idx, int n, float tm, int sh_floats,
                              const pg_gaussians *d_out, pg_gaussians *d_canon)
 {
     (void)g;
     (void)tm;
+    if (sh_floats < 0 || sh_floats > SH_ROW) sh_floats = SH_ROW;
     PG_TRY(ensure(t, n));
+    if (t->d_out_sh > sh_floats) { /* an earlier call wrote colour floats this one leaves out */
+        for (long k = 0; k < t->cap; k++)
+            memset(t->d_out + (size_t)k * DEFORM_OUT_DIM + DEFORM_OUT_SH + sh_floats, 0,
+                   (size_t)(t->d_out_sh - sh_floats) * sizeof(float));
+    }
+    t->d_out_sh = sh_floats;
 #pragma omp parallel for schedule(static)
     for (int k = 0; k < n; k++) {
         int i = idx[k];
@@ -126,7 +137,8 @@ pg_status train_net_backward(train_net *t, const pg_gaussians *g, const int *idx
         memcpy(o + DEFORM_OUT_SCALE, d_out->log_scales + 3 * (size_t)i, 3 * sizeof(float));
         memcpy(o + DEFORM_OUT_ROT, d_out->quats + 4 * (size_t)i, 4 * sizeof(float));
         o[DEFORM_OUT_OPACITY] = d_out->opacity[i];
-        memcpy(o + DEFORM_OUT_SH, d_out->sh + (size_t)i * SH_ROW, SH_ROW * sizeof(float));
+        if (sh_floats == 3) memcpy(o + DEFORM_OUT_SH, d_out->sh + (size_t)i * SH_ROW, 3 * sizeof(float)); /* inline */
+        else memcpy(o + DEFORM_OUT_SH, d_out->sh + (size_t)i * SH_ROW, (size_t)sh_floats * sizeof(float));
     }
     return deform_network_backward(t->net, t->ws, t->d_out, d_canon->means);
 }
