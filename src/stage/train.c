@@ -180,11 +180,11 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
     train_timing tt;
     train_session_timing_total(s, &tt);
     cJSON *ph = cJSON_AddObjectToObject(root, "phase_seconds"); /* this process's steps, where the time went */
-    const double phases[] = { tt.deform_forward, tt.deform_backward, tt.regularize, tt.raster_forward,
+    const double phases[] = { tt.targets, tt.deform_forward, tt.deform_backward, tt.regularize, tt.raster_forward,
                               tt.raster_backward, tt.loss, tt.optimizer, tt.other };
-    static const char *phase_names[] = { "deform_forward", "deform_backward", "regularize", "raster_forward",
+    static const char *phase_names[] = { "targets", "deform_forward", "deform_backward", "regularize", "raster_forward",
                                          "raster_backward", "loss", "optimizer", "other" };
-    for (int k = 0; k < 8; k++) cJSON_AddNumberToObject(ph, phase_names[k], phases[k] * 1e-3);
+    for (int k = 0; k < 9; k++) cJSON_AddNumberToObject(ph, phase_names[k], phases[k] * 1e-3);
     cJSON *cams = cJSON_AddArrayToObject(root, "cameras");
     for (int i = 0; i < ts->num_views; i++) {
         pg_camera user = train_set_user_camera(ts, i);

@@ -868,6 +868,7 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, const 
     const train_config *c = &s->cfg;
     pg_camera cam = ts->views[vi].cam, whole = cam;
     int real = ts->views[vi].role == IO_ROLE_REAL;
+    double t0 = pg_time_seconds(), t1;
     int has_depth = load_target(s, vi, f, 1);
     if (rect) {
         crop_in_place(s->target.data, ts->width, 3, rect);
@@ -886,7 +887,9 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, const 
     const size_t px = (size_t)W * H;
     optim_ssim_ws *ssim;
     PG_TRY(ssim_workspace(s, W, H, &ssim));
-    double t0 = pg_time_seconds(), t1;
+    t1 = pg_time_seconds();
+    s->timing.targets += (t1 - t0) * 1e3;
+    t0 = t1;
     pg_render_settings rs = splat_default_settings();
     memcpy(rs.background, c->bg, sizeof rs.background);
     if (rect) rs.whole = &whole;
@@ -1125,6 +1128,7 @@ pg_status train_session_step(train_session *s)
     a->loss += b->loss;
     a->optimizer += b->optimizer;
     a->other += b->other;
+    a->targets += b->targets;
     a->deformed += b->deformed;
     return PG_OK;
 }

@@ -185,7 +185,8 @@ int train_session_static_count(const train_session *s);
 /* Per-phase timings of the last step in milliseconds (bench iteration). */
 typedef struct {
     double deform_forward, deform_backward, regularize, raster_forward, raster_backward, loss, optimizer, other;
-    int deformed; /* Gaussians sent through the network */
+    double targets; /* each view's target frame, mask and depth made ready (cropped, halved) */
+    int deformed;   /* Gaussians sent through the network */
 } train_timing;
 void train_session_timing(const train_session *s, train_timing *t);
 /* The same summed over every step of this process (train.json's phase_seconds). */
