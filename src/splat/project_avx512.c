@@ -246,7 +246,7 @@ unsigned splat_box16_avx512(const float pr[9][16], unsigned valid, const float *
     const __m512 wmax = _mm512_set1_ps((float)(width - 1)), hmax = _mm512_set1_ps((float)(height - 1));
     const __m512 x = _mm512_loadu_ps(pr[0]), y = _mm512_loadu_ps(pr[1]);
     const __m512 sx = _mm512_sqrt_ps(_mm512_loadu_ps(pr[3])), sy = _mm512_sqrt_ps(_mm512_loadu_ps(pr[5]));
-    const int up = _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC, down = _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC;
+    enum { up = _MM_FROUND_TO_POS_INF | _MM_FROUND_NO_EXC, down = _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC };
     /* the box at the largest reach first: most of a crop's Gaussians leave here */
     __m512 rx = _mm512_roundscale_ps(_mm512_mul_ps(reach, sx), up), ry = _mm512_roundscale_ps(_mm512_mul_ps(reach, sy), up);
     __mmask16 k = (__mmask16)valid;
