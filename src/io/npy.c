@@ -90,6 +90,31 @@ float io_half_to_float(uint16_t h)
     return f;
 }
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#include <immintrin.h>
+
+__attribute__((target("avx,f16c"))) static void halves_to_floats_f16c(const uint16_t *h, size_t n, float scale,
+                                                                    float *out)
+{
+    const __m256 k = _mm256_set1_ps(scale);
+    size_t i = 0;
+    for (; i + 8 <= n; i += 8)
+        _mm256_storeu_ps(out + i, _mm256_mul_ps(_mm256_cvtph_ps(_mm_loadu_si128((const __m128i *)(h + i))), k));
+    for (; i < n; i++) out[i] = io_half_to_float(h[i]) * scale;
+}
+#endif
+
+void io_halves_to_floats(const uint16_t *h, size_t n, float scale, float *out)
+{
+#if defined(__x86_64__) && defined(__GNUC__)
+    if (__builtin_cpu_supports("f16c") && __builtin_cpu_supports("avx")) {
+        halves_to_floats_f16c(h, n, scale, out);
+        return;
+    }
+#endif
+    for (size_t i = 0; i < n; i++) out[i] = io_half_to_float(h[i]) * scale;
+}
+
 uint16_t io_float_to_half(float f)
 {
     uint32_t x;

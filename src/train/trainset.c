@@ -49,8 +49,7 @@ float train_view_depth(const train_view *v, size_t i) { return io_half_to_float(
 void train_view_depth_frame(const train_view *v, int f, size_t px, float *out)
 {
     const uint16_t *h = v->depth + (size_t)f * px;
-    #pragma omp parallel for schedule(static)
-    for (size_t i = 0; i < px; i++) out[i] = io_half_to_float(h[i]) * v->depth_scale;
+    io_halves_to_floats(h, px, v->depth_scale, out); /* a frame is ~0.1 ms: no threads */
 }
 
 /* Value i of the depth being stored: of the float array, or (d NULL) the raw half in the view. */
