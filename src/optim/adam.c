@@ -192,6 +192,12 @@ static inline void scatter_rows(float *restrict dst, int stride, const float *re
         for (int r = 0; r < nr; r++) memcpy(dst + (size_t)r * stride, src + r * nc, nc * sizeof(float));
 }
 
+/* The step size of row r of a group's step: boosted on the rows the step marks. */
+static inline float row_step_size(const adam_run *u, int r)
+{
+    return u->boost_rows && u->boost_rows[r] ? u->step_size * u->boost : u->step_size;
+}
+
 /* Rows r0 .. r0 + ADAM_BLOCK_ROWS - 1 (those below rows) of one group's step. */
 static void step_rows_block(const adam_run *u, int r0, int rows, float b1, float b2, float eps)
 {
@@ -201,16 +207,14 @@ static void step_rows_block(const adam_run *u, int r0, int rows, float b1, float
     float *p = u->p + (size_t)r0 * stride, *m = u->g->m + (size_t)r0 * cols, *v = u->g->v + (size_t)r0 * cols;
     const float *gr = u->gr + (size_t)r0 * stride;
     if (nc > ADAM_MAX_COLS) { /* long rows vectorise on their own */
-        for (int r = 0; r < nr; r++) {
-            const float s = u->boost_rows && u->boost_rows[r0 + r] ? u->step_size * u->boost : u->step_size;
+        for (int r = 0; r < nr; r++)
             adam_span(p + (size_t)r * stride, gr + (size_t)r * stride, m + (size_t)r * cols, v + (size_t)r * cols, nc,
-                      b1, b2, eps, s, u->inv_sqrt_c2);
-        }
+                      b1, b2, eps, row_step_size(u, r0 + r), u->inv_sqrt_c2);
         return;
     }
     float step[ADAM_BLOCK_ROWS * ADAM_MAX_COLS];
     for (int r = 0; r < nr; r++) {
-        const float s = u->boost_rows && u->boost_rows[r0 + r] ? u->step_size * u->boost : u->step_size;
+        const float s = row_step_size(u, r0 + r);
         for (int j = 0; j < nc; j++) step[r * nc + j] = s;
     }
     if (stride == nc && cols == nc) { /* already contiguous */

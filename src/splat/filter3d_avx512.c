@@ -29,8 +29,6 @@ static inline __m512 log1p16(__m512 u)
     return _mm512_mask_mul_ps(u, moved, splat_log_poly16(w), _mm512_maskz_div_ps(moved, u, d));
 }
 
-static inline __m512 abs16(__m512 x) { return _mm512_abs_ps(x); }
-
 void splat_filter3d_forward16_avx512(float *log_scales, float *opacity, const float *var, const int *rows, int i0,
                                      int n, float *saved)
 {
@@ -48,7 +46,7 @@ void splat_filter3d_forward16_avx512(float *log_scales, float *opacity, const fl
     for (int k = 0; k < 3; k++) {
         __m512 ls = _mm512_mask_i32gather_ps(zero, live, idx3, log_scales + k, 4);
         __m512 d = _mm512_fnmadd_ps(_mm512_set1_ps(2.0f), ls, lv);
-        __m512 e = exp16(_mm512_sub_ps(zero, abs16(d))), inv = _mm512_div_ps(one, _mm512_add_ps(one, e));
+        __m512 e = exp16(_mm512_sub_ps(zero, _mm512_abs_ps(d))), inv = _mm512_div_ps(one, _mm512_add_ps(one, e));
         __m512 sp = _mm512_add_ps(_mm512_max_ps(d, zero), log1p16(e));
         __mmask16 pos = _mm512_cmp_ps_mask(d, zero, _CMP_GE_OQ);
         w[k] = _mm512_mask_blend_ps(pos, _mm512_mul_ps(e, inv), inv);
@@ -59,7 +57,7 @@ void splat_filter3d_forward16_avx512(float *log_scales, float *opacity, const fl
     const __m512 lost = _mm512_fmadd_ps(_mm512_sub_ps(one, w[0]),
                                         _mm512_fmadd_ps(_mm512_sub_ps(one, w[1]), w[2], w[1]), w[0]);
     const __m512 o = _mm512_mask_i32gather_ps(zero, live, idx, opacity, 4);
-    const __m512 eo = exp16(_mm512_sub_ps(zero, abs16(o))), inv = _mm512_div_ps(one, _mm512_add_ps(one, eo));
+    const __m512 eo = exp16(_mm512_sub_ps(zero, _mm512_abs_ps(o))), inv = _mm512_div_ps(one, _mm512_add_ps(one, eo));
     const __mmask16 opos = _mm512_cmp_ps_mask(o, zero, _CMP_GE_OQ);
     const __m512 a = _mm512_mask_blend_ps(opos, _mm512_mul_ps(eo, inv), inv);
     const __m512 na = _mm512_mask_blend_ps(opos, inv, _mm512_mul_ps(eo, inv));
