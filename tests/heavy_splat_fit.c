@@ -32,7 +32,7 @@ static double fit(pg_gaussians *g, const pg_camera *cam, const float *target, in
     splat_gaussians_create(&grad, g->count);
     splat_gaussians_resize(&grad, g->count);
     optim_adam *opt;
-    CHECK_OK(optim_adam_create_gaussians(&opt, g->count, 1e-15f));
+    CHECK_OK(optim_adam_create_gaussians(&opt, g->count, g->sh_stride, 1e-15f));
     splat_raster *r;
     CHECK_OK(splat_raster_create(&r));
     pg_render_settings s = splat_default_settings();

@@ -143,7 +143,7 @@ static void test_gaussian_groups_and_remap(void)
         gr.opacity[i] = -1;
     }
     optim_adam *opt;
-    CHECK_OK(optim_adam_create_gaussians(&opt, 3, 1e-15f));
+    CHECK_OK(optim_adam_create_gaussians(&opt, 3, g.sh_stride, 1e-15f));
     float lr[OPTIM_GAUSS_GROUPS] = { 0.1f, 0, 0, 0.2f, 0.3f, 0.01f };
     CHECK_OK(optim_adam_step_gaussians(opt, &g, &gr, lr));
     CHECK(fabsf(g.means[0] + 0.1f) < 1e-6f && fabsf(g.opacity[2] - 0.2f) < 1e-6f, "means/opacity step wrong");

@@ -784,13 +784,13 @@ int main(void)
     snprintf(a, sizeof a, "%s/m1/train.json", dir);
     CHECK(pg_path_exists(a), "train.json written");
 
-    /* a full disk while the checkpoint streams out (writes capped at 300 kB, EFBIG): exit 3 naming
+    /* a full disk while the checkpoint streams out (writes capped at 100 kB, EFBIG): exit 3 naming
      * the checkpoint, and neither it nor its temporary is left */
     {
         struct rlimit old_lim, capped;
         getrlimit(RLIMIT_FSIZE, &old_lim);
         capped = old_lim;
-        capped.rlim_cur = 300000;
+        capped.rlim_cur = 100000;
         signal(SIGXFSZ, SIG_IGN);
         setrlimit(RLIMIT_FSIZE, &capped);
         snprintf(cmd, sizeof cmd, "train '%s' --out '%s/m3' %s", data, dir, opts);

@@ -114,7 +114,7 @@ int bench_iteration(int argc, char **argv)
         g.quats[4 * i] = 1;
         float o = (float)pg_rng_range(&rng, 0.05, 0.95);
         g.opacity[i] = logf(o / (1 - o));
-        for (int k = 0; k < 3; k++) g.sh[(size_t)i * 48 + k] = ((float)pg_rng_uniform(&rng) - 0.5f) / SPLAT_SH_C0;
+        for (int k = 0; k < 3; k++) splat_gaussians_sh(&g, (size_t)i)[k] = ((float)pg_rng_uniform(&rng) - 0.5f) / SPLAT_SH_C0;
         flags[i] = pg_rng_uniform(&rng) < static_fraction;
     }
     g.sh_degree = 3;

@@ -65,7 +65,7 @@ pg_status io_ply_load(const char *path, pg_gaussians *g)
     int rgb_u8 = rgb[0] >= 0 && pf.props[rgb[0]].type == PLY_U8;
     for (int i = 0; i < pf.count && st == PG_OK; i++) {
         float *m = g->means + (size_t)i * 3, *s = g->log_scales + (size_t)i * 3, *q = g->quats + (size_t)i * 4;
-        float *sh = g->sh + (size_t)i * PG_SH_COEFFS * 3;
+        float *sh = splat_gaussians_sh(g, (size_t)i);
         for (int k = 0; k < 3; k++) {
             m[k] = (float)ply_get(&pf, i, pos[k]);
             s[k] = sc[k] >= 0 ? (float)ply_get(&pf, i, sc[k]) : -4.6051702f; /* log(0.01) */
@@ -114,13 +114,13 @@ pg_status io_ply_save(const char *path, const pg_gaussians *g)
     enum { ROW = 62 };
     float row[ROW];
     for (int i = 0; i < g->count; i++) {
-        const float *sh = g->sh + (size_t)i * PG_SH_COEFFS * 3;
+        const float *sh = splat_gaussians_sh(g, (size_t)i);
         int n = 0;
         for (int k = 0; k < 3; k++) row[n++] = g->means[(size_t)i * 3 + k];
         row[n++] = 0; row[n++] = 0; row[n++] = 0;
         for (int c = 0; c < 3; c++) row[n++] = sh[c];
         for (int c = 0; c < 3; c++)
-            for (int k = 1; k < PG_SH_COEFFS; k++) row[n++] = sh[k * 3 + c];
+            for (int k = 1; k < PG_SH_COEFFS; k++) row[n++] = k * 3 + c < g->sh_stride ? sh[k * 3 + c] : 0.0f;
         row[n++] = g->opacity[i];
         for (int k = 0; k < 3; k++) row[n++] = g->log_scales[(size_t)i * 3 + k];
         for (int k = 0; k < 4; k++) row[n++] = g->quats[(size_t)i * 4 + k];

@@ -27,7 +27,7 @@ pg_status io_splat_save(const char *path, const pg_gaussians *g)
             pos_scale[3 + k] = expf(g->log_scales[3 * (size_t)i + k]);
         }
         memcpy(row, pos_scale, sizeof pos_scale); /* little-endian hosts (x86-64) */
-        const float *dc = g->sh + (size_t)i * PG_SH_COEFFS * 3;
+        const float *dc = splat_gaussians_sh(g, (size_t)i);
         for (int k = 0; k < 3; k++) row[24 + k] = to_u8((0.5f + SPLAT_SH_C0 * dc[k]) * 255.0f);
         row[27] = to_u8(255.0f / (1.0f + expf(-g->opacity[i])));
         const float *q = g->quats + 4 * (size_t)i;

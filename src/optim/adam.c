@@ -49,7 +49,7 @@ static pg_status alloc_moments(optim_adam *opt, int cap)
         size_t n;
         if (pg_size_mul((size_t)(cap > 0 ? cap : 1), (size_t)opt->g[i].d.cols * sizeof(float), &n))
             return pg_fail(PG_ERR_SIZE, "adam: %d rows overflow", cap);
-        float *m = calloc(1, n), *v = calloc(1, n);
+        float *m = calloc(1, n ? n : 1), *v = calloc(1, n ? n : 1); /* a 0-column group: no moments */
         if (!m || !v) { free(m); free(v); return pg_fail(PG_ERR_NOMEM, "adam: out of memory for %d rows", cap); }
         free(opt->g[i].m); free(opt->g[i].v);
         opt->g[i].m = m; opt->g[i].v = v;
@@ -63,7 +63,7 @@ pg_status optim_adam_create(optim_adam **out, const optim_group_desc *groups, in
     *out = NULL;
     if (ngroups <= 0 || rows < 0) return pg_fail(PG_ERR_ARG, "adam: %d groups, %d rows", ngroups, rows);
     for (int i = 0; i < ngroups; i++)
-        if (groups[i].cols <= 0 || groups[i].col0 < 0 || groups[i].col0 + groups[i].cols > groups[i].row_stride)
+        if (groups[i].cols < 0 || groups[i].col0 < 0 || groups[i].col0 + groups[i].cols > groups[i].row_stride)
             return pg_fail(PG_ERR_ARG, "adam: group %s has columns [%d, %d) outside its row of %d",
                            groups[i].name ? groups[i].name : "?", groups[i].col0, groups[i].col0 + groups[i].cols,
                            groups[i].row_stride);
@@ -81,11 +81,12 @@ pg_status optim_adam_create(optim_adam **out, const optim_group_desc *groups, in
     return PG_OK;
 }
 
-pg_status optim_adam_create_gaussians(optim_adam **opt, int rows, float eps)
+pg_status optim_adam_create_gaussians(optim_adam **opt, int rows, int sh_stride, float eps)
 {
-    static const optim_group_desc groups[OPTIM_GAUSS_GROUPS] = {
+    if (sh_stride < 3 || sh_stride > PG_SH_FLOATS) return pg_fail(PG_ERR_ARG, "adam: SH rows of %d floats", sh_stride);
+    const optim_group_desc groups[OPTIM_GAUSS_GROUPS] = {
         { "means", 3, 0, 3 }, { "log_scales", 3, 0, 3 }, { "quats", 4, 0, 4 },
-        { "opacity", 1, 0, 1 }, { "sh_dc", 48, 0, 3 }, { "sh_rest", 48, 3, 45 },
+        { "opacity", 1, 0, 1 }, { "sh_dc", sh_stride, 0, 3 }, { "sh_rest", sh_stride, 3, sh_stride - 3 },
     };
     return optim_adam_create(opt, groups, OPTIM_GAUSS_GROUPS, rows, eps);
 }
@@ -285,7 +286,7 @@ pg_status optim_adam_remap_rows(optim_adam *opt, const int *src, int new_rows)
         adam_group *g = &opt->g[gi];
         int cols = g->d.cols;
         size_t n = (size_t)(new_rows > 0 ? new_rows : 1) * cols;
-        float *m = calloc(n, sizeof(float)), *v = calloc(n, sizeof(float));
+        float *m = calloc(n ? n : 1, sizeof(float)), *v = calloc(n ? n : 1, sizeof(float));
         if (!m || !v) { free(m); free(v); return pg_fail(PG_ERR_NOMEM, "adam: out of memory remapping %d rows", new_rows); }
         for (int i = 0; i < new_rows; i++)
             if (src[i] >= 0) {

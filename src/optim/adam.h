@@ -3,7 +3,7 @@
  *
  *   // Gaussians: six groups over a pg_gaussians (means, log_scales, quats, opacity, sh dc, sh rest)
  *   optim_adam *opt;
- *   optim_adam_create_gaussians(&opt, g.count, 1e-15f);
+ *   optim_adam_create_gaussians(&opt, g.count, g.sh_stride, 1e-15f);
  *   optim_lr_schedule means_lr = { 1.6e-4f, 1.6e-6f, 0, 1.0f, 30000 };
  *   float lr[OPTIM_GAUSS_GROUPS] = { optim_lr_expon(&means_lr, step), 5e-3f, 1e-3f, 5e-2f, 2.5e-3f, 1.25e-4f };
  *   optim_adam_step_gaussians(opt, &g, &grad, lr);
@@ -42,7 +42,8 @@ typedef struct {
 float optim_lr_expon(const optim_lr_schedule *s, int step);
 
 /* One parameter group: `rows` rows of `row_stride` floats, of which columns [col0, col0+cols)
- * belong to this group (e.g. the SH DC is col0 = 0, cols = 3 of each 48-float row). */
+ * belong to this group (e.g. the SH DC is col0 = 0, cols = 3 of each 48-float row). A group of
+ * 0 columns (the higher SH degrees of a set that stores degree 0 only) steps nothing. */
 typedef struct {
     const char *name;
     int row_stride, col0, cols;
@@ -56,8 +57,8 @@ enum { OPTIM_G_MEANS, OPTIM_G_LOG_SCALES, OPTIM_G_QUATS, OPTIM_G_OPACITY, OPTIM_
 
 /* Creates an optimiser of ngroups groups of `rows` rows each (betas 0.9 / 0.999). */
 pg_status optim_adam_create(optim_adam **opt, const optim_group_desc *groups, int ngroups, int rows, float eps);
-/* The six pg_gaussians groups listed in the enum above. */
-pg_status optim_adam_create_gaussians(optim_adam **opt, int rows, float eps);
+/* The six pg_gaussians groups listed in the enum above, for SH rows of sh_stride floats. */
+pg_status optim_adam_create_gaussians(optim_adam **opt, int rows, int sh_stride, float eps);
 /* One group of n scalars (row_stride = cols = 1, rows = n). */
 pg_status optim_adam_create_flat(optim_adam **opt, int n, float eps);
 void optim_adam_destroy(optim_adam *opt);

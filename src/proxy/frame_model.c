@@ -28,8 +28,6 @@ struct proxy_frame_model {
     proxy_fit_options opt;
     pg_gaussians g, grad;  /* parameters and their gradients (N) */
     optim_adam *adam;      /* shared Adam over the groups of fit_groups (N rows), rebuilt per frame */
-    float *dc, *d_dc;      /* (N, 3) compact SH DC colour and its gradient: the optimised copy of the
-                            * stride-48 DC entries of g.sh / grad.sh (contiguous, so Adam vectorises) */
     splat_raster *raster;
     pg_camera cam;         /* source camera widened by the margin (seeding, masks) */
     float *rgb;            /* (H, W, 3) source colours, outpainted margin included */
@@ -90,8 +88,6 @@ void proxy_model_destroy(proxy_frame_model *m)
     optim_ssim_destroy(m->ssim);
     free(m->vmask);
     optim_adam_destroy(m->adam);
-    free(m->dc);
-    free(m->d_dc);
     free(m->rgb);
     free(m->depth);
     free(m->src_rgb);
@@ -139,19 +135,17 @@ pg_status proxy_model_create(proxy_frame_model **out, int width, int height, con
     }
     size_t ng = (size_t)((width + opt.block - 1) / opt.block) * ((height + opt.block - 1) / opt.block) +
                 (size_t)((m->W + km - 1) / km) * ((m->H + km - 1) / km);
-    pg_status st = splat_gaussians_create(&m->g, (int)ng);
-    if (!st) st = splat_gaussians_create(&m->grad, (int)ng);
+    pg_status st = splat_gaussians_create_sh(&m->g, (int)ng, 0); /* colour of degree 0: 3 floats a row */
+    if (!st) st = splat_gaussians_create_sh(&m->grad, (int)ng, 0);
     if (!st) st = splat_raster_create(&m->raster);
     if (!st) st = optim_ssim_create(&m->ssim, height, width, 3);
     if (st) { proxy_model_destroy(m); return st; }
-    m->dc = pg_malloc(ng * 3 * sizeof(float), "proxy colour");
-    m->d_dc = pg_malloc(ng * 3 * sizeof(float), "proxy colour gradient");
     m->d_rgb = pg_malloc(npix * 3 * sizeof(float), "proxy d_rgb");
     m->d_depth = pg_malloc(npix * sizeof(float), "proxy d_depth");
     m->d_alpha = pg_malloc(npix * sizeof(float), "proxy d_alpha");
     m->vmask = pg_malloc(npix * sizeof(float), "proxy loss mask");
     m->block_depths = pg_malloc((size_t)km * km * sizeof(float), "proxy block depths");
-    if (!m->vmask || !m->block_depths || !m->dc || !m->d_dc || !m->d_rgb || !m->d_depth || !m->d_alpha) {
+    if (!m->vmask || !m->block_depths || !m->d_rgb || !m->d_depth || !m->d_alpha) {
         proxy_model_destroy(m);
         return PG_ERR_NOMEM;
     }
@@ -266,8 +260,7 @@ static int seed_block(proxy_frame_model *m, int bx, int by, int k, int interior,
         q[0] = 1; q[1] = q[2] = q[3] = 0;
     }
     g->opacity[n] = logit;
-    float *sh = g->sh + (size_t)n * PG_SH_COEFFS * 3;
-    memset(sh, 0, PG_SH_COEFFS * 3 * sizeof(float));
+    float *sh = splat_gaussians_sh(g, (size_t)n);
     for (int c = 0; c < 3; c++) sh[c] = (col[c] / used - 0.5f) / SPLAT_SH_C0;
     *depth_out = d;
     return 1;
@@ -332,11 +325,8 @@ pg_status proxy_model_init(proxy_frame_model *m, const pg_camera *cam, const flo
     n = m->n_fit; /* the fit's arrays hold the frame's Gaussians only */
     PG_TRY(splat_gaussians_resize(&m->grad, n));
     m->grad.sh_degree = 0;
-    for (int i = 0; i < n; i++)
-        for (int c = 0; c < 3; c++) m->dc[(size_t)i * 3 + c] = g->sh[(size_t)i * PG_SH_COEFFS * 3 + c];
     /* The fit never reads these gradients: zeroed once per frame instead of every step. */
     memset(m->grad.quats, 0, (size_t)n * 4 * sizeof(float));
-    for (int i = 0; i < n; i++) memset(m->grad.sh + (size_t)i * PG_SH_COEFFS * 3, 0, 3 * sizeof(float));
     /* Fresh moments and step counts for every frame. */
     optim_adam_destroy(m->adam);
     m->adam = NULL;
@@ -394,37 +384,15 @@ static float source_loss(proxy_frame_model *m, const pg_render_output *out, int 
     return loss + (float)(wd * ld * inv_v);
 }
 
-/* Zeroes the gradients the fit reads. Rotations are fixed and the model renders at SH degree 0:
- * the quaternion gradients (zeroed per frame) and SH rows beyond DC are never read; the DC
- * gradients are moved out and zeroed by colour_grads. */
+/* Zeroes the gradients the fit reads. Rotations are fixed: the quaternion gradients are zeroed
+ * per frame. */
 static void zero_grads(pg_gaussians *gr)
 {
     size_t n = (size_t)gr->count;
     memset(gr->means, 0, n * 3 * sizeof(float));
     memset(gr->log_scales, 0, n * 3 * sizeof(float));
     memset(gr->opacity, 0, n * sizeof(float));
-}
-
-/* Moves the DC gradients (stride 48 in grad.sh) into the compact d_dc (N,3), zeroing them. */
-static void colour_grads(proxy_frame_model *m)
-{
-    int n = m->grad.count;
-    for (int i = 0; i < n; i++) {
-        float *src = m->grad.sh + (size_t)i * PG_SH_COEFFS * 3, *dst = m->d_dc + (size_t)i * 3;
-        dst[0] = src[0]; dst[1] = src[1]; dst[2] = src[2];
-        src[0] = src[1] = src[2] = 0;
-    }
-}
-
-/* Copies the compact colours back into the DC entries the rasterizer reads. */
-static void colour_scatter(proxy_frame_model *m)
-{
-    int n = m->g.count;
-    for (int i = 0; i < n; i++) {
-        float *dst = m->g.sh + (size_t)i * PG_SH_COEFFS * 3;
-        const float *src = m->dc + (size_t)i * 3;
-        dst[0] = src[0]; dst[1] = src[1]; dst[2] = src[2];
-    }
+    memset(gr->sh, 0, n * 3 * sizeof(float));
 }
 
 /* PSNR of a source-view render over the pixels with valid depth, into the stats. The fit uses the
@@ -486,9 +454,7 @@ static pg_status fit_steps(proxy_frame_model *m)
         if (lr_mean > 0) PG_TRY(optim_adam_step_group(m->adam, FIT_MEANS, g->means, gr->means, lr_mean));
         PG_TRY(optim_adam_step_group(m->adam, FIT_SCALES, g->log_scales, gr->log_scales, lr_scales));
         PG_TRY(optim_adam_step_group(m->adam, FIT_OPACITY, g->opacity, gr->opacity, lr_opacity));
-        colour_grads(m);
-        PG_TRY(optim_adam_step_group(m->adam, FIT_DC, m->dc, m->d_dc, lr_color));
-        colour_scatter(m);
+        PG_TRY(optim_adam_step_group(m->adam, FIT_DC, g->sh, gr->sh, lr_color));
     }
     if (m->opt.steps == 0) { /* no step rendered the source view: report the initial model */
         PG_TRY(splat_render_forward(m->raster, g, &m->src_cam, &s, &out));

@@ -23,8 +23,8 @@ pg_status splat_random_scene(pg_gaussians *g, const pg_camera *cam, int n, float
         g->quats[4*i] = 1; g->quats[4*i+1] = g->quats[4*i+2] = g->quats[4*i+3] = 0;
         float o = (float)pg_rng_range(&rng, 0.05, 0.95);
         g->opacity[i] = logf(o / (1 - o));
-        float *sh = g->sh + (size_t)48 * i;
-        for (int k = 0; k < 48; k++) sh[k] = 0;
+        float *sh = splat_gaussians_sh(g, (size_t)i);
+        for (int k = 0; k < g->sh_stride; k++) sh[k] = 0;
         for (int c = 0; c < 3; c++) sh[c] = ((float)pg_rng_uniform(&rng) - 0.5f) / SPLAT_SH_C0;
         int nb = (sh_degree + 1) * (sh_degree + 1);
         for (int k = 3; k < 3 * nb; k++) sh[k] = (float)(0.1 * pg_rng_normal(&rng));

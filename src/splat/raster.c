@@ -263,7 +263,7 @@ static void write_record(splat_raster *r, const pg_gaussians *g, int deg, int i,
     float dir[3];
     vec3_sub(dir, g->means + 3*i, r->cam_center);
     int cl[3];
-    splat_sh_forward(deg, g->sh + (size_t)48 * i, dir, rc->col, cl);
+    splat_sh_forward(deg, splat_gaussians_sh(g, (size_t)i), dir, rc->col, cl);
     r->clamp[i] = (unsigned char)(cl[0] | cl[1] << 1 | cl[2] << 2);
     r->ntiles[i] = rc->tw * (ymax / SPLAT_TILE - ymin / SPLAT_TILE + 1);
     uint16_t *bx = r->rect + 4 * (size_t)i;
@@ -282,15 +282,18 @@ static void finish_one(splat_raster *r, const pg_gaussians *g, const pg_camera *
 }
 
 /* Starts loading the colour rows of Gaussians i .. i+15 (for writing when write is set). A row
- * is 48 floats of which degree 0 reads 3, so the rows are a stride the hardware prefetcher does
- * not follow: without this, the colour load of every Gaussian was a cache miss (the colour code,
- * a few instructions, took ~7 % of a classroom training step in perf; ~2 % with the prefetch). */
-static inline void prefetch_sh_rows(const float *sh, int i, int end, int write)
+ * of the 48 floats of degree 3 of which degree 0 reads 3 is a stride the hardware prefetcher does
+ * not follow: without this, the colour load of every Gaussian was a cache miss (~7 % of a
+ * classroom training step in perf when its rows were 48 floats; ~2 % with the prefetch). Rows of
+ * up to 16 floats are a few cache lines for the 16, which the prefetcher streams itself. */
+static inline void prefetch_sh_rows(const pg_gaussians *g, int i, int end, int write)
 {
+    if (g->sh_stride < 16) return;
     int n = end - i < 16 ? end - i : 16;
     for (int l = 0; l < n; l++) {
-        if (write) __builtin_prefetch(sh + (size_t)48 * (i + l), 1, 3);
-        else __builtin_prefetch(sh + (size_t)48 * (i + l), 0, 3);
+        const float *row = splat_gaussians_sh(g, (size_t)(i + l));
+        if (write) __builtin_prefetch(row, 1, 3);
+        else __builtin_prefetch(row, 0, 3);
     }
 }
 
@@ -306,7 +309,7 @@ static void preprocess_range(splat_raster *r, const pg_gaussians *g, const pg_ca
     for (; project16 && i + 16 <= i1; i += 16) {
         if (!project16(g->means, g->log_scales, g->quats, i, cam, r->lim, s->near_clip, pr, &valid))
             break;
-        prefetch_sh_rows(g->sh, i + 16, i1, 0);
+        prefetch_sh_rows(g, i + 16, i1, 0);
         splat_box16 bx;
         unsigned keep = box16 ? box16(pr, valid, g->opacity, i, cam->width, cam->height, &bx) : 0;
         for (int l = 0; l < 16; l++) {
@@ -407,6 +410,9 @@ static pg_status check_inputs(const pg_gaussians *g, const pg_camera *cam, const
     if (g->count < 0 || (g->count > 0 && !g->means))
         return pg_fail(PG_ERR_ARG, "rasterizer: Gaussian set has %d rows but no storage", g->count);
     if (s->sh_degree > 3) return pg_fail(PG_ERR_ARG, "rasterizer: SH degree %d > 3", s->sh_degree);
+    int deg = s->sh_degree >= 0 ? s->sh_degree : g->sh_degree;
+    if (g->count > 0 && splat_sh_floats(deg < 0 ? 0 : deg) > g->sh_stride)
+        return pg_fail(PG_ERR_ARG, "rasterizer: SH degree %d but the set stores %d SH floats a row", deg, g->sh_stride);
     return PG_OK;
 }
 
@@ -569,6 +575,9 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
     if (!grad || grad->count != g->count || (g->count > 0 && !grad->means))
         return pg_fail(PG_ERR_ARG, "rasterizer: gradient set has %d rows, expected %d",
                        grad ? grad->count : -1, g->count);
+    if (g->count > 0 && splat_sh_floats(r->sh_degree) > grad->sh_stride)
+        return pg_fail(PG_ERR_ARG, "rasterizer: SH degree %d but the gradient set stores %d SH floats a row",
+                       r->sh_degree, grad->sh_stride);
     size_t caps = r->cap_slots;
     PG_TRY(grow((void **)&r->slots, &caps, (r->m > 0 ? r->m : 1) * SPLAT_GRAD_STRIDE, sizeof(float), "gradient slots"));
     r->cap_slots = caps;
@@ -597,8 +606,8 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
     for (int b = 0; b < nblk; b++) {
         int i0 = 16 * b, cnt = n - i0 < 16 ? n - i0 : 16;
         float d_xy[2][16], d_conic[3][16], d_z[16];
-        prefetch_sh_rows(grad->sh, i0 + 16, n, 1);
-        if (deg > 0) prefetch_sh_rows(g->sh, i0 + 16, n, 0);
+        prefetch_sh_rows(grad, i0 + 16, n, 1);
+        if (deg > 0) prefetch_sh_rows(g, i0 + 16, n, 0);
         unsigned mask = 0;
         for (int l = 0; l < cnt; l++) {
             int i = i0 + l;
@@ -617,7 +626,7 @@ pg_status splat_render_backward(splat_raster *r, const pg_gaussians *g, const pg
             float dir[3], d_dir[3] = { 0, 0, 0 };
             vec3_sub(dir, g->means + 3*i, C);
             int cl[3] = { r->clamp[i] & 1, (r->clamp[i] >> 1) & 1, (r->clamp[i] >> 2) & 1 };
-            splat_sh_backward(deg, g->sh + (size_t)48 * i, dir, cl, d_rgb3, grad->sh + (size_t)48 * i, d_dir);
+            splat_sh_backward(deg, splat_gaussians_sh(g, (size_t)i), dir, cl, d_rgb3, splat_gaussians_sh(grad, (size_t)i), d_dir);
             vec3_add(grad->means + 3*i, grad->means + 3*i, d_dir);
             if (viewspace_grad_norm) {
                 /* In NDC units (x pixels * 2/W) like 3DGS, so its 2e-4 densification threshold applies. */

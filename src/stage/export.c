@@ -26,9 +26,9 @@ void pg_export_defaults(pg_export_config *c)
  * (a zero one becomes the identity). */
 static pg_status clean_copy(const pg_gaussians *g, pg_gaussians *out)
 {
-    if (out->capacity < g->count) {
+    if (out->capacity < g->count || out->sh_stride != g->sh_stride) {
         splat_gaussians_destroy(out);
-        PG_TRY(splat_gaussians_create(out, g->count));
+        PG_TRY(splat_gaussians_create_sh(out, g->count, splat_gaussians_sh_max(g)));
     }
     int n = 0;
     for (int i = 0; i < g->count; i++) {
@@ -36,7 +36,7 @@ static pg_status clean_copy(const pg_gaussians *g, pg_gaussians *out)
         size_t a = (size_t)i, b = (size_t)n;
         memcpy(out->means + 3 * b, g->means + 3 * a, 3 * sizeof(float));
         memcpy(out->log_scales + 3 * b, g->log_scales + 3 * a, 3 * sizeof(float));
-        memcpy(out->sh + b * PG_SH_COEFFS * 3, g->sh + a * PG_SH_COEFFS * 3, PG_SH_COEFFS * 3 * sizeof(float));
+        memcpy(splat_gaussians_sh(out, b), splat_gaussians_sh(g, a), (size_t)g->sh_stride * sizeof(float));
         out->opacity[b] = g->opacity[a];
         const float *q = g->quats + 4 * a;
         float len = sqrtf(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);

@@ -11,7 +11,8 @@
  *       SH floats only the (sh_max_degree + 1)^2 x 3 up to the config's largest degree: the others are
  *       never rendered nor stepped, and read back as zero)
  *   with optimiser state: Adam of the Gaussians: i32 step[6], then per group f32 m[N x cols],
- *       v[N x cols] (groups means, log_scales, quats, opacity, sh_dc, sh_rest of 3, 3, 4, 1, 3, 45 cols)
+ *       v[N x cols] (groups means, log_scales, quats, opacity, sh_dc, sh_rest of 3, 3, 4, 1, 3 cols
+ *       and the SH floats stored above less 3)
  *   u8 is_static[N]; f32 filter_var[N] (the 3D filter, splat/filter3d.h); with optimiser state:
  *       f32 grad_accum[N], grad_denom[N]
  *   if fine: network config (f32 aabb[6], i32 width, res, tres, channels, head_width, time_coarsen, u64 seed),
@@ -26,7 +27,7 @@
  * read (1: one step count for all Gaussian groups, moments stored like Gaussians; 3: no head
  * width in the network config; 4: no unit, trained in the depth's own units; 5: no flags, always
  * optimiser state; 6: no 3D filter; 7: no time_coarsen in the network config; 8: all 48 SH floats
- * per Gaussian whatever the degree). The checkpoint written when training ends leaves the optimiser state out (it
+ * per Gaussian whatever the degree; 9: the Adam moments of all 45 higher SH floats whatever the degree). The checkpoint written when training ends leaves the optimiser state out (it
  * is two thirds of the bytes and only a continuation needs it): continuing a finished model
  * starts Adam afresh, while an interrupted run resumes bit-exactly from a periodic checkpoint.
  */
@@ -45,13 +46,11 @@
 
 #define CKPT_MAGIC "PGDYCKP1"
 #define CKPT_END "PGEND\0\0\0"
-#define CKPT_VERSION 9u
+#define CKPT_VERSION 10u
 #define CKPT_HAS_OPTIMIZER 1u
 #define CKPT_HAS_AVERAGE 2u /* only with the optimiser state */
 #define CKPT_MAX_STEP 100000000 /* iterations and Adam steps beyond this are corruption */
-#define SH_ROW (PG_SH_COEFFS * 3)
-#define GAUSS_FLOATS (3 + 3 + 4 + 1 + SH_ROW) /* per Gaussian, also the Adam columns per row */
-#define GAUSS_NON_SH (3 + 3 + 4 + 1)
+#define GAUSS_NON_SH (3 + 3 + 4 + 1) /* per Gaussian besides the SH floats, also Adam's columns */
 
 /* SH floats stored per Gaussian for a run of this largest degree: a degree-0 model (one real
  * camera, the default there) stores 3 of the 48, 40 % of a checkpoint's size. */
@@ -80,16 +79,16 @@ static void put_gaussians(buf *b, const pg_gaussians *g, int n, int sh_cols)
     put(b, g->log_scales, (size_t)n * 3 * 4);
     put(b, g->quats, (size_t)n * 4 * 4);
     put(b, g->opacity, (size_t)n * 4);
-    if (sh_cols == SH_ROW) {
-        put(b, g->sh, (size_t)n * SH_ROW * 4);
+    if (sh_cols == g->sh_stride) {
+        put(b, g->sh, (size_t)n * sh_cols * 4);
         return;
     }
     enum { ROWS = 256 }; /* gathered in blocks: one write (and CRC update) per row would be slow */
-    float block[ROWS * SH_ROW];
+    float block[ROWS * PG_SH_FLOATS];
     for (int i0 = 0; i0 < n; i0 += ROWS) {
         int m = n - i0 < ROWS ? n - i0 : ROWS;
         for (int k = 0; k < m; k++)
-            memcpy(block + (size_t)k * sh_cols, g->sh + (size_t)(i0 + k) * SH_ROW, (size_t)sh_cols * 4);
+            memcpy(block + (size_t)k * sh_cols, splat_gaussians_sh(g, (size_t)(i0 + k)), (size_t)sh_cols * 4);
         put(b, block, (size_t)m * sh_cols * 4);
     }
 }
@@ -268,7 +267,7 @@ static float get_f32(rd *r) { float x; get(r, &x, 4); return x; }
 static pg_status check_finite(const pg_gaussians *g, int n, const char *path)
 {
     const float *arrays[5] = { g->means, g->log_scales, g->quats, g->opacity, g->sh };
-    const size_t cols[5] = { 3, 3, 4, 1, SH_ROW };
+    const size_t cols[5] = { 3, 3, 4, 1, (size_t)g->sh_stride };
     for (int a = 0; a < 5; a++)
         for (size_t i = 0; i < (size_t)n * cols[a]; i++)
             if (!isfinite(arrays[a][i]))
@@ -286,15 +285,24 @@ static pg_status check_filter(const float *var, int n, const char *path)
     return PG_OK;
 }
 
+/* Into g's rows (which hold at least sh_cols SH floats: created for the file's largest degree). */
 static void get_gaussians(rd *r, pg_gaussians *g, int n, int sh_cols)
 {
+    if (g->sh_stride < sh_cols) {
+        r->bad = 1;
+        return;
+    }
     get(r, g->means, (size_t)n * 3 * 4);
     get(r, g->log_scales, (size_t)n * 3 * 4);
     get(r, g->quats, (size_t)n * 4 * 4);
     get(r, g->opacity, (size_t)n * 4);
+    if (sh_cols == g->sh_stride) {
+        get(r, g->sh, (size_t)n * sh_cols * 4);
+        return;
+    }
     for (size_t i = 0; i < (size_t)n; i++) {
-        get(r, g->sh + i * SH_ROW, (size_t)sh_cols * 4);
-        memset(g->sh + i * SH_ROW + sh_cols, 0, (size_t)(SH_ROW - sh_cols) * 4);
+        get(r, splat_gaussians_sh(g, i), (size_t)sh_cols * 4);
+        memset(splat_gaussians_sh(g, i) + sh_cols, 0, (size_t)(g->sh_stride - sh_cols) * 4);
     }
 }
 
@@ -388,7 +396,7 @@ static pg_status read_header(rd *r, const char *path, ckpt_header *h)
                        h->sh_degree, h->cfg.sh_max_degree);
     /* the rest must fit: the Gaussians, their Adam state, flags and statistics */
     const size_t row = (size_t)(GAUSS_NON_SH + train_sh_floats(h->cfg.sh_max_degree)) * 4;
-    size_t need = h->optimizer ? (size_t)h->n * (row + GAUSS_FLOATS * 4 * 2 + 1 + 8) + OPTIM_GAUSS_GROUPS * 4
+    size_t need = h->optimizer ? (size_t)h->n * (row + row * 2 + 1 + 8) + OPTIM_GAUSS_GROUPS * 4
                                : (size_t)h->n * (row + 1);
     if (r->size - r->off < need) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (Gaussians)", path);
     return PG_OK;
@@ -558,14 +566,17 @@ pg_status train_model_load(const char *path, train_model *m)
     pg_status st = check_crc((const unsigned char *)data, size, path);
     if (!st) st = read_header(&r, path, &h);
     if (st) goto done;
-    if ((st = splat_gaussians_create(&m->g_net, h.n)) || (st = splat_gaussians_resize(&m->g_net, h.n))) goto done;
-    get_gaussians(&r, &m->g_net, h.n, train_sh_floats(h.cfg.sh_max_degree));
+    const int sh_cols = train_sh_floats(h.cfg.sh_max_degree);
+    if ((st = splat_gaussians_create_sh(&m->g_net, h.n, h.cfg.sh_max_degree)) ||
+        (st = splat_gaussians_resize(&m->g_net, h.n)))
+        goto done;
+    get_gaussians(&r, &m->g_net, h.n, sh_cols);
     if ((st = check_finite(&m->g_net, h.n, path))) goto done;
     m->g_net.sh_degree = h.sh_degree;
     m->unit = h.unit;
     if ((st = splat_gaussians_copy(&m->g_net, &m->g))) goto done;
     to_user_units(&m->g, m->unit, NULL, 0);
-    if (h.optimizer) skip(&r, OPTIM_GAUSS_GROUPS * 4 + (size_t)h.n * GAUSS_FLOATS * 4 * 2); /* Adam state */
+    if (h.optimizer) skip(&r, OPTIM_GAUSS_GROUPS * 4 + (size_t)h.n * (GAUSS_NON_SH + sh_cols) * 4 * 2); /* Adam state */
     m->is_static = pg_malloc((size_t)h.n, "model static flags");
     m->filter_var = pg_malloc((size_t)h.n * sizeof(float) + 1, "model 3D filter");
     if (!m->is_static || !m->filter_var) {
@@ -586,7 +597,7 @@ pg_status train_model_load(const char *path, train_model *m)
         train_net_config nc;
         if ((st = read_net(&r, path, &nc, &m->net, NULL, h.optimizer))) goto done;
     }
-    if (h.average) skip(&r, ((size_t)h.n * GAUSS_FLOATS + (h.fine ? train_net_num_params(m->net) : 0)) * 4);
+    if (h.average) skip(&r, ((size_t)h.n * (GAUSS_NON_SH + sh_cols) + (h.fine ? train_net_num_params(m->net) : 0)) * 4);
     st = check_end(&r, path);
     m->frames = h.frames;
     memcpy(m->bg, h.bg, sizeof h.bg);
@@ -625,7 +636,7 @@ pg_status train_model_deform_movers(train_model *m, float t, pg_gaussians *out)
     int k = 0;
     for (int i = 0; i < n; i++)
         if (!m->is_static[i]) idx[k++] = i;
-    pg_status st = k ? train_net_forward(m->net, &m->g_net, idx, k, t, PG_SH_COEFFS * 3, out) : PG_OK;
+    pg_status st = k ? train_net_forward(m->net, &m->g_net, idx, k, t, PG_SH_FLOATS, out) : PG_OK;
     if (!st) {
         to_user_units(out, m->unit, idx, k);
         splat_filter3d_forward_rows(out->log_scales, out->opacity, m->filter_var, idx, k, NULL);

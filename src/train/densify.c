@@ -14,8 +14,6 @@
 #include "core/mathx.h"
 #include "splat/filter3d.h"
 
-#define SH_ROW (PG_SH_COEFFS * 3)
-
 pg_status train_ensure_side(train_session *s, int n)
 {
     if (n <= s->side_cap) return PG_OK;
@@ -66,7 +64,7 @@ static void zero_rows(pg_gaussians *g, int from, int to)
     memset(g->log_scales + 3 * (size_t)from, 0, n * 3 * sizeof(float));
     memset(g->quats + 4 * (size_t)from, 0, n * 4 * sizeof(float));
     memset(g->opacity + from, 0, n * sizeof(float));
-    memset(g->sh + (size_t)SH_ROW * from, 0, n * SH_ROW * sizeof(float));
+    memset(splat_gaussians_sh(g, (size_t)from), 0, n * (size_t)g->sh_stride * sizeof(float));
 }
 
 /* Sets the count of every per-Gaussian array to n; rows past the old count are zeroed. */
@@ -75,7 +73,7 @@ pg_status train_resize_all(train_session *s, int n)
     pg_gaussians *all[4] = {&s->g, &s->gg, &s->d, &s->dg};
     for (int k = 0; k < 4; k++) {
         int old = all[k]->count;
-        if (all[k]->capacity == 0) PG_TRY(splat_gaussians_create(all[k], n > 16 ? n : 16));
+        if (all[k]->capacity == 0) PG_TRY(splat_gaussians_create_sh(all[k], n > 16 ? n : 16, s->cfg.sh_max_degree));
         PG_TRY(splat_gaussians_resize(all[k], n));
         zero_rows(all[k], old, n);
     }
@@ -90,7 +88,7 @@ static void copy_row(pg_gaussians *dst, int di, const pg_gaussians *src, int si)
     memmove(dst->log_scales + 3 * (size_t)di, src->log_scales + 3 * (size_t)si, 3 * sizeof(float));
     memmove(dst->quats + 4 * (size_t)di, src->quats + 4 * (size_t)si, 4 * sizeof(float));
     dst->opacity[di] = src->opacity[si];
-    memmove(dst->sh + (size_t)SH_ROW * di, src->sh + (size_t)SH_ROW * si, SH_ROW * sizeof(float));
+    memmove(splat_gaussians_sh(dst, (size_t)di), splat_gaussians_sh(src, (size_t)si), (size_t)dst->sh_stride * sizeof(float));
 }
 
 static float max_scale(const pg_gaussians *g, int i)

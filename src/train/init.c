@@ -290,7 +290,7 @@ static void put_isotropic(train_session *s, int r, const float mean[3], const fl
     for (int k = 0; k < 3; k++) {
         s->g.means[3 * r + k] = mean[k];
         s->g.log_scales[3 * r + k] = log_s;
-        s->g.sh[(size_t)r * PG_SH_COEFFS * 3 + k] = sh0[k];
+        splat_gaussians_sh(&s->g, (size_t)r)[k] = sh0[k];
     }
     s->g.quats[4 * r] = 1.0f;
     s->g.opacity[r] = opacity_logit;

@@ -181,13 +181,13 @@ void train_blend_floats(float *dst, const float *src, size_t n, train_blend how,
     }
 }
 
-/* The first `used` of every 48 SH floats: with degree 0 a sixteenth of the array, which was ~80 %
- * of every copy, zeroing and sum of the rows (three of each per deformed time). */
-static void blend_sh_rows(float *dst, const float *src, int n, int used, train_blend how, float keep)
+/* The first `used` SH floats of each row, where the rows of dst and src differ in stride (a model
+ * of every degree into a session's set) or a row holds more floats than the run uses. */
+static void blend_sh_rows(pg_gaussians *dst, const pg_gaussians *src, int n, int used, train_blend how, float keep)
 {
-    const size_t row = PG_SH_COEFFS * 3;
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; i++) blend_sh_span(dst + (size_t)i * row, src + (size_t)i * row, (size_t)used, how, keep);
+    for (int i = 0; i < n; i++)
+        blend_sh_span(splat_gaussians_sh(dst, (size_t)i), splat_gaussians_sh(src, (size_t)i), (size_t)used, how, keep);
 }
 
 void train_blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, train_blend how, float keep, int sh_floats)
@@ -197,8 +197,12 @@ void train_blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, train_ble
     const float *s[4] = { src->means, src->log_scales, src->quats, src->opacity };
     const size_t len[4] = { n * 3, n * 3, n * 4, n };
     for (int a = 0; a < 4; a++) train_blend_floats(d[a], s[a], len[a], how, keep);
-    if (sh_floats >= PG_SH_COEFFS * 3) train_blend_floats(dst->sh, src->sh, n * PG_SH_COEFFS * 3, how, keep);
-    else blend_sh_rows(dst->sh, src->sh, (int)n, sh_floats, how, keep);
+    int used = sh_floats < dst->sh_stride ? sh_floats : dst->sh_stride;
+    used = used < src->sh_stride ? used : src->sh_stride;
+    if (dst->sh_stride == src->sh_stride && used == dst->sh_stride)
+        train_blend_floats(dst->sh, src->sh, n * (size_t)used, how, keep);
+    else
+        blend_sh_rows(dst, src, (int)n, used, how, keep);
     if (how == TRAIN_BLEND_COPY || how == TRAIN_BLEND_AVERAGE) dst->sh_degree = src->sh_degree;
 }
 
@@ -212,7 +216,7 @@ static void blend_used(train_session *s, pg_gaussians *dst, const pg_gaussians *
 static void blend_rows(train_session *s, pg_gaussians *dst, const pg_gaussians *src, const int *rows, int n,
                        train_blend how)
 {
-    const size_t sh_floats = (size_t)train_sh_floats(s->cfg.sh_max_degree), sh_row = PG_SH_COEFFS * 3;
+    const size_t sh_floats = (size_t)train_sh_floats(s->cfg.sh_max_degree);
     #pragma omp parallel for schedule(static)
     for (int k = 0; k < n; k++) {
         const size_t i = (size_t)rows[k];
@@ -220,7 +224,7 @@ static void blend_rows(train_session *s, pg_gaussians *dst, const pg_gaussians *
         blend_span(dst->log_scales + 3 * i, src->log_scales + 3 * i, 3, how, 0.0f);
         blend_span(dst->quats + 4 * i, src->quats + 4 * i, 4, how, 0.0f);
         blend_span(dst->opacity + i, src->opacity + i, 1, how, 0.0f);
-        blend_sh_span(dst->sh + sh_row * i, src->sh + sh_row * i, sh_floats, how, 0.0f);
+        blend_sh_span(splat_gaussians_sh(dst, i), splat_gaussians_sh(src, i), sh_floats, how, 0.0f);
     }
 }
 
@@ -466,7 +470,7 @@ pg_status train_session_set_gaussians(train_session *s, const pg_gaussians *g, c
     if (g->count < 1) return pg_fail(PG_ERR_ARG, "train: empty Gaussian set");
     PG_TRY(train_resize_all(s, 0));
     PG_TRY(train_resize_all(s, g->count));
-    train_blend_gaussians(&s->g, g, TRAIN_BLEND_COPY, 0.0f, PG_SH_COEFFS * 3);
+    train_blend_gaussians(&s->g, g, TRAIN_BLEND_COPY, 0.0f, PG_SH_FLOATS);
     for (int i = 0; i < g->count; i++) s->is_static[i] = is_static ? is_static[i] : 0;
     memset(s->grad_accum, 0, (size_t)s->side_cap * sizeof(float));
     memset(s->grad_denom, 0, (size_t)s->side_cap * sizeof(float));
@@ -756,6 +760,7 @@ static pg_status check_static(train_session *s)
         if (!s->is_static[i]) s->idx[n++] = i;
     if (n == 0) return PG_OK;
     size_t N = (size_t)s->g.count;
+    const int S = s->g.sh_stride;
     enum { K = 5 };
     float *lo = pg_malloc((size_t)n * 59 * sizeof(float), "static check");
     float *hi = pg_malloc((size_t)n * 59 * sizeof(float), "static check");
@@ -763,15 +768,15 @@ static pg_status check_static(train_session *s)
     pg_status st = (lo && hi && mean) ? PG_OK : PG_ERR_NOMEM;
     for (int k = 0; k < K && !st; k++) {
         blend_used(s, &s->d, &s->g, TRAIN_BLEND_COPY);
-        if ((st = train_net_forward(s->net, &s->g, s->idx, n, (float)k / (K - 1), PG_SH_COEFFS * 3, &s->d))) break;
+        if ((st = train_net_forward(s->net, &s->g, s->idx, n, (float)k / (K - 1), S, &s->d))) break;
         for (int j = 0; j < n; j++) {
             int i = s->idx[j];
-            float dl[59];
+            float dl[59] = { 0 }; /* SH past the set's stride: none, no change */
             for (int a = 0; a < 3; a++) dl[a] = s->d.means[3 * i + a] - s->g.means[3 * i + a];
             for (int a = 0; a < 3; a++) dl[3 + a] = s->d.log_scales[3 * i + a] - s->g.log_scales[3 * i + a];
             for (int a = 0; a < 4; a++) dl[6 + a] = s->d.quats[4 * i + a] - s->g.quats[4 * i + a];
             dl[10] = s->d.opacity[i] - s->g.opacity[i];
-            for (int a = 0; a < 48; a++) dl[11 + a] = s->d.sh[(size_t)i * 48 + a] - s->g.sh[(size_t)i * 48 + a];
+            for (int a = 0; a < S; a++) dl[11 + a] = splat_gaussians_sh(&s->d, i)[a] - splat_gaussians_sh(&s->g, i)[a];
             for (int a = 0; a < 59; a++) {
                 size_t o = (size_t)j * 59 + a;
                 lo[o] = k ? fminf(lo[o], dl[a]) : dl[a];
@@ -791,7 +796,7 @@ static pg_status check_static(train_session *s)
         for (int a = 0; a < 3; a++) s->g.log_scales[3 * i + a] += mean[o + 3 + a];
         for (int a = 0; a < 4; a++) s->g.quats[4 * i + a] += mean[o + 6 + a];
         s->g.opacity[i] += mean[o + 10];
-        for (int a = 0; a < 48; a++) s->g.sh[(size_t)i * 48 + a] += mean[o + 11 + a];
+        for (int a = 0; a < S; a++) splat_gaussians_sh(&s->g, i)[a] += mean[o + 11 + a];
         s->is_static[i] = 1;
         train_average_restart(s);
     }

@@ -18,7 +18,7 @@
  * keep their moments, new rows start at zero, the step counts are kept. */
 pg_status train_adam_resize_gaussians(train_session *s, int n)
 {
-    if (!s->gopt) return optim_adam_create_gaussians(&s->gopt, n, TRAIN_ADAM_EPS);
+    if (!s->gopt) return optim_adam_create_gaussians(&s->gopt, n, s->g.sh_stride, TRAIN_ADAM_EPS);
     int old = optim_adam_rows(s->gopt);
     int *src = pg_malloc((size_t)(n > 0 ? n : 1) * sizeof(int), "Adam row map");
     if (!src) return PG_ERR_NOMEM;

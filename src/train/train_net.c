@@ -12,7 +12,6 @@
 #include "deform/deform.h"
 
 #define WS_MAX_POINTS 32768
-#define SH_ROW (PG_SH_COEFFS * 3)
 
 struct train_net {
     train_net_config cfg;
@@ -98,7 +97,9 @@ static pg_status ensure(train_net *t, long n)
 pg_status train_net_forward(train_net *t, const pg_gaussians *g, const int *idx, int n, float tm, int sh_floats,
                             pg_gaussians *out)
 {
-    if (sh_floats < 0 || sh_floats > SH_ROW) sh_floats = SH_ROW;
+    if (sh_floats < 0 || sh_floats > PG_SH_FLOATS) sh_floats = PG_SH_FLOATS;
+    if (sh_floats > g->sh_stride) sh_floats = g->sh_stride;
+    if (sh_floats > out->sh_stride) sh_floats = out->sh_stride;
     PG_TRY(ensure(t, n));
     PG_TRY(deform_network_forward(t->net, t->ws, g->means, idx, n, tm, t->out));
 #pragma omp parallel for schedule(static)
@@ -110,8 +111,9 @@ pg_status train_net_forward(train_net *t, const pg_gaussians *g, const int *idx,
             out->log_scales[3 * i + a] = g->log_scales[3 * i + a] + o[DEFORM_OUT_SCALE + a];
         for (int a = 0; a < 4; a++) out->quats[4 * i + a] = g->quats[4 * i + a] + o[DEFORM_OUT_ROT + a];
         out->opacity[i] = g->opacity[i] + o[DEFORM_OUT_OPACITY];
-        for (int a = 0; a < sh_floats; a++)
-            out->sh[(size_t)i * SH_ROW + a] = g->sh[(size_t)i * SH_ROW + a] + o[DEFORM_OUT_SH + a];
+        const float *sh = splat_gaussians_sh(g, (size_t)i);
+        float *out_sh = splat_gaussians_sh(out, (size_t)i);
+        for (int a = 0; a < sh_floats; a++) out_sh[a] = sh[a] + o[DEFORM_OUT_SH + a];
     }
     return PG_OK;
 }
@@ -121,7 +123,8 @@ pg_status train_net_backward(train_net *t, const pg_gaussians *g, const int *idx
 {
     (void)g;
     (void)tm;
-    if (sh_floats < 0 || sh_floats > SH_ROW) sh_floats = SH_ROW;
+    if (sh_floats < 0 || sh_floats > PG_SH_FLOATS) sh_floats = PG_SH_FLOATS;
+    if (sh_floats > d_out->sh_stride) sh_floats = d_out->sh_stride;
     PG_TRY(ensure(t, n));
     if (t->d_out_sh > sh_floats) { /* an earlier call wrote colour floats this one leaves out */
         for (long k = 0; k < t->cap; k++)
@@ -137,8 +140,9 @@ pg_status train_net_backward(train_net *t, const pg_gaussians *g, const int *idx
         memcpy(o + DEFORM_OUT_SCALE, d_out->log_scales + 3 * (size_t)i, 3 * sizeof(float));
         memcpy(o + DEFORM_OUT_ROT, d_out->quats + 4 * (size_t)i, 4 * sizeof(float));
         o[DEFORM_OUT_OPACITY] = d_out->opacity[i];
-        if (sh_floats == 3) memcpy(o + DEFORM_OUT_SH, d_out->sh + (size_t)i * SH_ROW, 3 * sizeof(float)); /* inline */
-        else memcpy(o + DEFORM_OUT_SH, d_out->sh + (size_t)i * SH_ROW, (size_t)sh_floats * sizeof(float));
+        const float *sh = splat_gaussians_sh(d_out, (size_t)i);
+        if (sh_floats == 3) memcpy(o + DEFORM_OUT_SH, sh, 3 * sizeof(float)); /* inline */
+        else memcpy(o + DEFORM_OUT_SH, sh, (size_t)sh_floats * sizeof(float));
     }
     return deform_network_backward(t->net, t->ws, t->d_out, d_canon->means);
 }

@@ -63,7 +63,7 @@ static void range_add(gauss_range *r, const pg_gaussians *g, int i)
     size_t a = (size_t)i;
     for (int k = 0; k < 3; k++) {
         float p = g->means[3 * a + k], s = g->log_scales[3 * a + k];
-        float c = 0.5f + SPLAT_SH_C0 * g->sh[a * PG_SH_COEFFS * 3 + k];
+        float c = 0.5f + SPLAT_SH_C0 * splat_gaussians_sh(g, a)[k];
         r->lo[k] = fminf(r->lo[k], p), r->hi[k] = fmaxf(r->hi[k], p);
         r->ls_lo[k] = fminf(r->ls_lo[k], s), r->ls_hi[k] = fmaxf(r->ls_hi[k], s);
         r->col_lo[k] = fminf(r->col_lo[k], c), r->col_hi[k] = fmaxf(r->col_hi[k], c);
@@ -136,7 +136,7 @@ static void encode_block(const pg_gaussians *g, const int *idx, int n, const qua
         for (int k = 0; k < 3; k++) {
             pos[3 * j + k] = q16(g->means[3 * i + k], q->box_min[k], q->box_max[k]);
             ls[3 * j + k] = q8(g->log_scales[3 * i + k], q->ls_lo, q->ls_hi);
-            rgba[4 * j + k] = q8(0.5f + SPLAT_SH_C0 * g->sh[i * PG_SH_COEFFS * 3 + k], q->col_lo, q->col_hi);
+            rgba[4 * j + k] = q8(0.5f + SPLAT_SH_C0 * splat_gaussians_sh(g, i)[k], q->col_lo, q->col_hi);
         }
         float u[4];
         unit_quat(g, i, u);
@@ -243,13 +243,13 @@ static float sh_range(const pg_gaussians *g, const int *order, int n, int rest)
     enum { BINS = 4096 };
     float top = 0.0f;
     for (int j = 0; j < n; j++)
-        for (int k = 3; k < 3 * (rest + 1); k++) top = fmaxf(top, fabsf(g->sh[(size_t)order[j] * PG_SH_COEFFS * 3 + k]));
+        for (int k = 3; k < 3 * (rest + 1); k++) top = fmaxf(top, fabsf(splat_gaussians_sh(g, (size_t)order[j])[k]));
     if (!(top > 0.0f)) return 0.0f;
     static size_t hist[BINS];
     memset(hist, 0, sizeof hist);
     for (int j = 0; j < n; j++)
         for (int k = 3; k < 3 * (rest + 1); k++) {
-            int b = (int)(fabsf(g->sh[(size_t)order[j] * PG_SH_COEFFS * 3 + k]) / top * (BINS - 1));
+            int b = (int)(fabsf(splat_gaussians_sh(g, (size_t)order[j])[k]) / top * (BINS - 1));
             hist[b < 0 ? 0 : b > BINS - 1 ? BINS - 1 : b]++;
         }
     size_t total = (size_t)n * 3 * (size_t)rest, below = 0;
@@ -369,7 +369,7 @@ pg_status view_scene_write(const char *path, const view_scene_source *src, const
     if (st == PG_OK) {
         memset(block, 0, sh_bytes);
         for (int j = 0; j < s + m; j++) {
-            const float *sh = g->sh + (size_t)order[j] * PG_SH_COEFFS * 3 + 3;
+            const float *sh = splat_gaussians_sh(g, (size_t)order[j]) + 3;
             for (int k = 0; k < 3 * rest; k++) block[(size_t)j * 3 * rest + k] = q8(sh[k], -q.sh_max, q.sh_max);
         }
         st = write_bytes(&f, block, sh_bytes);
