@@ -1,4 +1,4 @@
-/* image_io.c - PNG through libpng's simplified API, JPEG through libjpeg(-turbo). */
+/* image_io.c - PNG through libpng, JPEG through libjpeg(-turbo). */
 #include "io/image_io.h"
 #include "core/fileutil.h"
 
@@ -208,6 +208,35 @@ static uint8_t to_u8(float v)
     return (uint8_t)(v * 255.0f + 0.5f);
 }
 
+/* 8-bit rows to fp at zlib level 1 with the Sub filter: the proxy stage writes thousands of frames
+ * and masks, and libpng's defaults (level 6, every filter tried on every row) spent ~10 % of it in
+ * zlib. 0 with ctx->message set on failure. */
+static int write_png_rows(FILE *fp, const uint8_t *buf, int width, int height, int channels, png_err_ctx *ctx)
+{
+    png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, ctx, png_error_jump, png_warning_quiet);
+    png_infop info = png ? png_create_info_struct(png) : NULL;
+    if (!info) {
+        png_destroy_write_struct(&png, NULL);
+        snprintf(ctx->message, sizeof ctx->message, "out of memory");
+        return 0;
+    }
+    if (setjmp(ctx->jump)) {
+        png_destroy_write_struct(&png, &info);
+        return 0;
+    }
+    png_init_io(png, fp);
+    png_set_IHDR(png, info, (png_uint_32)width, (png_uint_32)height, 8,
+                 channels == 3 ? PNG_COLOR_TYPE_RGB : PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_NONE,
+                 PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+    png_set_compression_level(png, 1);
+    png_set_filter(png, PNG_FILTER_TYPE_BASE, PNG_FILTER_SUB);
+    png_write_info(png, info);
+    for (int y = 0; y < height; y++) png_write_row(png, buf + (size_t)y * width * channels);
+    png_write_end(png, NULL);
+    png_destroy_write_struct(&png, &info);
+    return 1;
+}
+
 pg_status io_image_save_png(const char *path, const pg_image *img)
 {
     if (img->channels != 1 && img->channels != 3)
@@ -216,18 +245,14 @@ pg_status io_image_save_png(const char *path, const pg_image *img)
     uint8_t *buf = pg_malloc(n, path);
     if (!buf) return PG_ERR_NOMEM;
     for (size_t i = 0; i < n; i++) buf[i] = to_u8(img->data[i]);
-    png_image pi;
-    memset(&pi, 0, sizeof pi);
-    pi.version = PNG_IMAGE_VERSION;
-    pi.width = (png_uint_32)img->width;
-    pi.height = (png_uint_32)img->height;
-    pi.format = img->channels == 3 ? PNG_FORMAT_RGB : PNG_FORMAT_GRAY;
     pg_atomic_file f;
     pg_status st = pg_atomic_open(&f, path);
     if (st == PG_OK) {
-        if (!png_image_write_to_stdio(&pi, f.fp, 0, buf, 0, NULL)) {
+        png_err_ctx ctx;
+        ctx.message[0] = '\0';
+        if (!write_png_rows(f.fp, buf, img->width, img->height, img->channels, &ctx)) {
             pg_atomic_abort(&f);
-            st = pg_fail(PG_ERR_ENV, "%s: PNG write failed: %s", path, pi.message);
+            st = pg_fail(PG_ERR_ENV, "%s: PNG write failed: %s", path, ctx.message);
         } else {
             st = pg_atomic_commit(&f);
         }
