@@ -318,6 +318,7 @@ typedef struct {
     int seed;                         /* (1) */
     int evaluate;                     /* score the test cameras into OUT/metrics.json, report.md */
     int render_videos;                /* fixed/orbit/spiral videos into OUT/renders */
+    int render_width, render_height;  /* their size (0, 0: the working size; one side 0 keeps the aspect) */
     const char *command;              /* recorded in report.md and metrics.json (may be NULL) */
     /* called once the cameras, size and thread count are settled, before the first stage (a
      * caller prints them; may be NULL) */

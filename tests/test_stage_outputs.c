@@ -2,6 +2,7 @@
  * full disk) must not leave a complete-looking output folder, the next run must clean up and
  * finish, and an output that cannot be written must be refused before any work. */
 #include "testlib.h"
+#include "io/video.h"
 #include "core/fileutil.h"
 
 #include <signal.h>
@@ -120,6 +121,18 @@ int main(void)
         CHECK(rc != 0 && !exists_in("vid/renders"), "%s mid-orbit: exit %d, renders/ %s", crash ? "killed" : "disk full", rc,
               exists_in("vid/renders") ? "left half-filled" : "absent");
     }
+
+    /* issue 25: --render-size writes the videos at that size (one side 0 keeps the aspect) */
+    snprintf(args, sizeof args, "run '%s/ds' --depth '%s/ds/depth_mono/cam00.npy' --out '%s/vid' --iters 2 --render-size 64x0",
+             dir, dir, dir);
+    rc = test_run_cli(args, err, sizeof err);
+    io_video_info vi = { 0 };
+    snprintf(path, sizeof path, "%s/vid/renders/spiral.mp4", dir);
+    CHECK(rc == 0 && io_video_probe(path, &vi) == PG_OK && vi.width == 64 && vi.height > 0 && vi.frames > 1,
+          "run --render-size 64x0: exit %d, %s; spiral.mp4 %d x %d, %d frames", rc, err, vi.width, vi.height, vi.frames);
+    snprintf(args, sizeof args, "run '%s/ds' --depth '%s/ds/depth_mono/cam00.npy' --out '%s/vid' --render-size 64", dir, dir, dir);
+    rc = test_run_cli(args, err, sizeof err);
+    CHECK(rc == 2 && strstr(err, "--render-size"), "run --render-size 64: exit %d, %s", rc, err);
 
     /* a dataset camera with --steps: that many evenly spread times (slow motion), not the 4 frames */
     snprintf(args, sizeof args, "render '%s/vid/model' --out '%s/slow' --path dataset-cam --camera 0 --steps 7 --png --no-depth", dir, dir);

@@ -497,6 +497,11 @@ static cJSON *config_record(const pg_pipeline_config *c, const pipeline_plan *pl
         snprintf(size, sizeof size, "%dx%d", plan->width, plan->height);
         cJSON_AddStringToObject(j, "size", size);
     }
+    if (c->render_width || c->render_height) {
+        char size[32];
+        snprintf(size, sizeof size, "%dx%d", c->render_width, c->render_height);
+        cJSON_AddStringToObject(j, "render_size", size);
+    }
     cJSON_AddNumberToObject(j, "threads", plan->threads);
     cJSON_AddNumberToObject(j, "seed", c->seed);
     return j;
@@ -613,6 +618,8 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
             rc.out = set.work;
             rc.path = paths[k];
             rc.threads = plan.threads;
+            rc.width = c->render_width;
+            rc.height = c->render_height;
             rc.reference_frames = k == 0 && pg_path_is_dir(reference) ? reference : NULL;
             pg_render_report rr;
             st = pg_render_run(&rc, &rr);
