@@ -298,9 +298,67 @@ static void test_bench_cli(void)
     CHECK(rc == 2 && strstr(err, "--gaussians"), "bad --gaussians gives %d: %s", rc, err);
 }
 
+/* A set storing degree 0 only (3 SH floats a row, what the trainer keeps for one camera) renders
+ * and back-propagates to the same bytes as the same Gaussians in rows of 48; a degree above what
+ * the rows hold is refused. */
+static void test_sh_stride(void)
+{
+    const int W = 96, H = 64, N = 800;
+    const size_t P = (size_t)W * H;
+    pg_camera cam;
+    pg_camera_from_fov(&cam, W, H, 60);
+    pg_gaussians wide, narrow, gw, gn;
+    CHECK_OK(splat_gaussians_create(&wide, N));
+    CHECK_OK(splat_random_scene(&wide, &cam, N, 2.5f, 0, 5));
+    CHECK_OK(splat_gaussians_create_sh(&narrow, N, 0));
+    CHECK_OK(splat_gaussians_resize(&narrow, N));
+    CHECK(narrow.sh_stride == 3 && wide.sh_stride == 48, "strides %d and %d", narrow.sh_stride, wide.sh_stride);
+    memcpy(narrow.means, wide.means, (size_t)N * 3 * sizeof(float));
+    memcpy(narrow.log_scales, wide.log_scales, (size_t)N * 3 * sizeof(float));
+    memcpy(narrow.quats, wide.quats, (size_t)N * 4 * sizeof(float));
+    memcpy(narrow.opacity, wide.opacity, (size_t)N * sizeof(float));
+    for (int i = 0; i < N; i++) memcpy(splat_gaussians_sh(&narrow, (size_t)i), splat_gaussians_sh(&wide, (size_t)i), 3 * sizeof(float));
+    narrow.sh_degree = wide.sh_degree = 0;
+    float *d_rgb = malloc(P * 3 * sizeof(float)), *img = malloc(P * 3 * sizeof(float));
+    pg_rng rng;
+    pg_rng_seed(&rng, 9);
+    for (size_t i = 0; i < 3 * P; i++) d_rgb[i] = (float)pg_rng_normal(&rng);
+    splat_raster *r;
+    CHECK_OK(splat_raster_create(&r));
+    pg_render_settings s = splat_default_settings();
+    pg_render_output out;
+    CHECK_OK(splat_gaussians_create(&gw, N));
+    CHECK_OK(splat_gaussians_resize(&gw, N));
+    CHECK_OK(splat_gaussians_create_sh(&gn, N, 0));
+    CHECK_OK(splat_gaussians_resize(&gn, N));
+    CHECK_OK(splat_render_forward(r, &wide, &cam, &s, &out));
+    memcpy(img, out.rgb, P * 3 * sizeof(float));
+    CHECK_OK(splat_render_backward(r, &wide, &cam, &s, d_rgb, NULL, NULL, &gw, NULL));
+    CHECK_OK(splat_render_forward(r, &narrow, &cam, &s, &out));
+    CHECK(!memcmp(img, out.rgb, P * 3 * sizeof(float)), "3-float SH rows render other colours than 48-float ones");
+    CHECK_OK(splat_render_backward(r, &narrow, &cam, &s, d_rgb, NULL, NULL, &gn, NULL));
+    int same = !memcmp(gw.means, gn.means, (size_t)N * 3 * sizeof(float)) &&
+               !memcmp(gw.log_scales, gn.log_scales, (size_t)N * 3 * sizeof(float)) &&
+               !memcmp(gw.opacity, gn.opacity, (size_t)N * sizeof(float));
+    for (int i = 0; i < N; i++)
+        same &= !memcmp(splat_gaussians_sh(&gw, (size_t)i), splat_gaussians_sh(&gn, (size_t)i), 3 * sizeof(float));
+    CHECK(same, "3-float SH rows give other gradients than 48-float ones");
+    s.sh_degree = 1;
+    CHECK(splat_render_forward(r, &narrow, &cam, &s, &out) == PG_ERR_ARG && strstr(pg_last_error(), "SH floats"),
+          "degree 1 on rows of 3 SH floats: %s", pg_last_error());
+    splat_raster_destroy(r);
+    free(d_rgb);
+    free(img);
+    splat_gaussians_destroy(&wide);
+    splat_gaussians_destroy(&narrow);
+    splat_gaussians_destroy(&gw);
+    splat_gaussians_destroy(&gn);
+}
+
 int main(void)
 {
     test_simd_and_determinism();
+    test_sh_stride();
     test_edge_cases();
     test_crop_camera();
     test_training_pixel_filter();
