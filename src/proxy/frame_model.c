@@ -392,7 +392,7 @@ static void zero_grads(pg_gaussians *gr)
     memset(gr->means, 0, n * 3 * sizeof(float));
     memset(gr->log_scales, 0, n * 3 * sizeof(float));
     memset(gr->opacity, 0, n * sizeof(float));
-    memset(gr->sh, 0, n * 3 * sizeof(float));
+    memset(gr->sh, 0, n * (size_t)gr->sh_stride * sizeof(float));
 }
 
 /* PSNR of a source-view render over the pixels with valid depth, into the stats. The fit uses the

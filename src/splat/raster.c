@@ -400,6 +400,13 @@ static void make_job(const splat_raster *r, int tile, splat_tile_job *j)
     j->grad_slots = r->slots;
 }
 
+/* The SH degree a render uses: the settings' (-1: the set's own), within 0..3. */
+static int render_degree(const pg_gaussians *g, const pg_render_settings *s)
+{
+    int deg = s->sh_degree >= 0 ? s->sh_degree : g->sh_degree;
+    return deg < 0 ? 0 : (deg > 3 ? 3 : deg);
+}
+
 static pg_status check_inputs(const pg_gaussians *g, const pg_camera *cam, const pg_render_settings *s)
 {
     if (!g || !cam || !s) return pg_fail(PG_ERR_ARG, "rasterizer: NULL argument");
@@ -410,8 +417,8 @@ static pg_status check_inputs(const pg_gaussians *g, const pg_camera *cam, const
     if (g->count < 0 || (g->count > 0 && !g->means))
         return pg_fail(PG_ERR_ARG, "rasterizer: Gaussian set has %d rows but no storage", g->count);
     if (s->sh_degree > 3) return pg_fail(PG_ERR_ARG, "rasterizer: SH degree %d > 3", s->sh_degree);
-    int deg = s->sh_degree >= 0 ? s->sh_degree : g->sh_degree;
-    if (g->count > 0 && splat_sh_floats(deg < 0 ? 0 : deg) > g->sh_stride)
+    int deg = render_degree(g, s);
+    if (g->count > 0 && splat_sh_floats(deg) > g->sh_stride)
         return pg_fail(PG_ERR_ARG, "rasterizer: SH degree %d but the set stores %d SH floats a row", deg, g->sh_stride);
     return PG_OK;
 }
@@ -423,8 +430,7 @@ pg_status splat_render_forward(splat_raster *r, const pg_gaussians *g, const pg_
     double t0 = pg_time_seconds();
     r->valid = 0;
     int n = g->count, W = cam->width, H = cam->height;
-    int deg = s->sh_degree >= 0 ? s->sh_degree : g->sh_degree;
-    deg = deg < 0 ? 0 : (deg > 3 ? 3 : deg);
+    int deg = render_degree(g, s);
     int tx = (W + SPLAT_TILE - 1) / SPLAT_TILE, ty = (H + SPLAT_TILE - 1) / SPLAT_TILE;
     PG_TRY(ensure_gaussians(r, n > 0 ? n : 1));
     PG_TRY(ensure_pixels(r, (size_t)W * H));

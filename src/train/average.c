@@ -28,7 +28,7 @@ pg_status train_average_update(train_session *s)
         s->avg_on = 1;
         return PG_OK;
     }
-    train_blend_gaussians(&s->avg_g, &s->g, TRAIN_BLEND_AVERAGE, s->cfg.average_decay, train_sh_floats(s->cfg.sh_max_degree));
+    train_blend_gaussians(&s->avg_g, &s->g, TRAIN_BLEND_AVERAGE, s->cfg.average_decay, splat_sh_floats(s->cfg.sh_max_degree));
     train_blend_floats(s->avg_net, net, P, TRAIN_BLEND_AVERAGE, s->cfg.average_decay);
     return PG_OK;
 }

@@ -52,9 +52,6 @@
 #define CKPT_MAX_STEP 100000000 /* iterations and Adam steps beyond this are corruption */
 #define GAUSS_NON_SH (3 + 3 + 4 + 1) /* per Gaussian besides the SH floats, also Adam's columns */
 
-/* SH floats stored per Gaussian for a run of this largest degree: a degree-0 model (one real
- * camera, the default there) stores 3 of the 48, 40 % of a checkpoint's size. */
-
 /* The checkpoint streams into its temporary file with the CRC kept as the bytes go: a copy of
  * the model and its optimiser state in memory (growing by doubling) was up to twice the file. */
 typedef struct {
@@ -194,7 +191,7 @@ pg_status train_checkpoint_write(train_session *s, const char *path, int with_op
     int n = s->g.count;
     put_i32(&b, n);
     put_i32(&b, s->g.sh_degree);
-    const int sh_cols = train_sh_floats(s->cfg.sh_max_degree);
+    const int sh_cols = splat_sh_floats(s->cfg.sh_max_degree);
     put_gaussians(&b, &s->g, n, sh_cols);
     if (with_optimizer) put_adam(&b, s->gopt);
     put(&b, s->is_static, (size_t)n);
@@ -395,7 +392,7 @@ static pg_status read_header(rd *r, const char *path, ckpt_header *h)
         return pg_fail(PG_ERR_FORMAT, "%s: corrupt checkpoint header (SH degree %d above the run's largest, %d)", path,
                        h->sh_degree, h->cfg.sh_max_degree);
     /* the rest must fit: the Gaussians, their Adam state, flags and statistics */
-    const size_t row = (size_t)(GAUSS_NON_SH + train_sh_floats(h->cfg.sh_max_degree)) * 4;
+    const size_t row = (size_t)(GAUSS_NON_SH + splat_sh_floats(h->cfg.sh_max_degree)) * 4;
     size_t need = h->optimizer ? (size_t)h->n * (row + row * 2 + 1 + 8) + OPTIM_GAUSS_GROUPS * 4
                                : (size_t)h->n * (row + 1);
     if (r->size - r->off < need) return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (Gaussians)", path);
@@ -450,7 +447,7 @@ static pg_status read_average(rd *r, const char *path, train_session *s, const c
     s->avg_on = 0;
     if (!h->average) return PG_OK;
     size_t P = h->fine ? train_net_num_params(s->net) : 0;
-    const int sh_cols = train_sh_floats(h->cfg.sh_max_degree);
+    const int sh_cols = splat_sh_floats(h->cfg.sh_max_degree);
     if ((r->size - r->off) / 4 < (size_t)h->n * (GAUSS_NON_SH + sh_cols) + P)
         return pg_fail(PG_ERR_FORMAT, "%s: truncated checkpoint (parameter average)", path);
     PG_TRY(splat_gaussians_copy(&s->g, &s->avg_g)); /* sized like the Gaussians, then overwritten */
@@ -505,7 +502,7 @@ pg_status train_checkpoint_read(train_session *s, const char *path)
     s->max_disp = h.max_disp;
     memcpy(s->cfg.bg, h.bg, sizeof h.bg);
     if ((st = train_resize_all(s, h.n))) goto done;
-    get_gaussians(&r, &s->g, h.n, train_sh_floats(h.cfg.sh_max_degree));
+    get_gaussians(&r, &s->g, h.n, splat_sh_floats(h.cfg.sh_max_degree));
     if ((st = check_finite(&s->g, h.n, path))) goto done;
     if (h.optimizer) get_adam(&r, s->gopt);
     else /* a finished model continued: Adam starts afresh */
@@ -566,7 +563,7 @@ pg_status train_model_load(const char *path, train_model *m)
     pg_status st = check_crc((const unsigned char *)data, size, path);
     if (!st) st = read_header(&r, path, &h);
     if (st) goto done;
-    const int sh_cols = train_sh_floats(h.cfg.sh_max_degree);
+    const int sh_cols = splat_sh_floats(h.cfg.sh_max_degree);
     if ((st = splat_gaussians_create_sh(&m->g_net, h.n, h.cfg.sh_max_degree)) ||
         (st = splat_gaussians_resize(&m->g_net, h.n)))
         goto done;

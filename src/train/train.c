@@ -209,14 +209,14 @@ void train_blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, train_ble
 /* A blend of the session's rows over the SH floats the run uses (copy, zero with src = dst, add). */
 static void blend_used(train_session *s, pg_gaussians *dst, const pg_gaussians *src, train_blend how)
 {
-    train_blend_gaussians(dst, src, how, 0.0f, train_sh_floats(s->cfg.sh_max_degree));
+    train_blend_gaussians(dst, src, how, 0.0f, splat_sh_floats(s->cfg.sh_max_degree));
 }
 
 /* blend_used (copy, zero with src = dst, add) over the listed rows only. */
 static void blend_rows(train_session *s, pg_gaussians *dst, const pg_gaussians *src, const int *rows, int n,
                        train_blend how)
 {
-    const size_t sh_floats = (size_t)train_sh_floats(s->cfg.sh_max_degree);
+    const size_t sh_floats = (size_t)splat_sh_floats(s->cfg.sh_max_degree);
     #pragma omp parallel for schedule(static)
     for (int k = 0; k < n; k++) {
         const size_t i = (size_t)rows[k];
@@ -707,7 +707,7 @@ static pg_status deform_all(train_session *s, const pg_camera *const *cams, int 
     if (s->fine) {
         int n = build_subset(s, cams, s->cfg.use_frustum_cull ? ncam : 0);
         *n_deformed = n;
-        if (n > 0) PG_TRY(train_net_forward(s->net, &s->g, s->idx, n, t, train_sh_floats(s->cfg.sh_max_degree), &s->d));
+        if (n > 0) PG_TRY(train_net_forward(s->net, &s->g, s->idx, n, t, splat_sh_floats(s->cfg.sh_max_degree), &s->d));
     }
     if (whole) splat_filter3d_forward(s->d.log_scales, s->d.opacity, s->filter_var, s->d.count, s->filter_saved);
     else splat_filter3d_forward_rows(s->d.log_scales, s->d.opacity, s->filter_var, s->step_rows, s->n_moving_rows,
@@ -1016,7 +1016,7 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
         blend_rows(s, &s->gg, &s->dg, s->step_rows, s->n_moving_rows, first ? TRAIN_BLEND_COPY : TRAIN_BLEND_ADD);
     }
     if (s->fine && nd > 0)
-        PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, train_sh_floats(s->cfg.sh_max_degree), &s->dg, &s->gg));
+        PG_TRY(train_net_backward(s->net, &s->g, s->idx, nd, t, splat_sh_floats(s->cfg.sh_max_degree), &s->dg, &s->gg));
     s->timing.deform_backward += (pg_time_seconds() - t0) * 1e3;
     *loss_out = loss;
     return PG_OK;

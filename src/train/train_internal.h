@@ -85,9 +85,6 @@ void train_update_filter(train_session *s);
 /* dst = src, dst += src, dst = keep * dst + (1 - keep) * src (the parameters' average) or dst = 0 */
 typedef enum { TRAIN_BLEND_COPY, TRAIN_BLEND_ADD, TRAIN_BLEND_AVERAGE, TRAIN_BLEND_ZERO } train_blend;
 void train_blend_floats(float *dst, const float *src, size_t n, train_blend how, float keep);
-/* The SH floats of a row that a run up to SH degree d ever uses; the columns above it are never
- * rendered, stepped or stored, so the per-step passes over the rows skip them. */
-static inline int train_sh_floats(int sh_max_degree) { return (sh_max_degree + 1) * (sh_max_degree + 1) * 3; }
 /* Over every parameter array of src's rows, the SH rows up to their first sh_floats (copy and
  * average also take src's SH degree). */
 void train_blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, train_blend how, float keep, int sh_floats);
