@@ -6,9 +6,13 @@
 #include "core/fileutil.h"
 #include "depth/fuse.h"
 #include "depth/prepare.h"
+#include "depth/static_mask.h"
 #include "io/npy.h"
 
+#include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
 /* Exact recovery of (alpha, beta) with 30 % gross outliers. */
 static void test_fit(void)
@@ -229,6 +233,49 @@ static void test_fuse_static(void)
     printf("fuse static: mean relative error %.4f -> %.4f\n", err_before / (F * N), err_after / (F * 390));
 }
 
+/* A surface without texture cannot show motion, so a flow over it (the solver's smoothness
+ * dragging a passer-by's motion across a gym floor) must not mark it dynamic when its colour has
+ * not changed; the same flow over a textured surface must. Two identical frames, the left half
+ * flat grey, the right half stripes, and a 2 px flow everywhere. */
+static void test_static_mask_flat(void)
+{
+    const int W = 64, H = 32;
+    pg_image a, b;
+    CHECK_OK(pg_image_create(&a, W, H, 3));
+    CHECK_OK(pg_image_create(&b, W, H, 3));
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++)
+            for (int c = 0; c < 3; c++)
+                a.data[((size_t)y * W + x) * 3 + c] = x < W / 2 ? 0.4f : 0.4f + 0.3f * (float)sin(x * 1.3 + y * 0.4);
+    memcpy(b.data, a.data, sizeof(float) * (size_t)W * H * 3);
+    float *flow = malloc(sizeof(float) * W * H * 2), *prob = malloc(sizeof(float) * W * H);
+    unsigned char *mask = malloc((size_t)W * H);
+    for (int k = 0; k < W * H; k++) flow[2 * k] = 2.0f, flow[2 * k + 1] = 0.0f;
+    depth_static_params p;
+    depth_static_defaults(&p);
+    for (int gated = 1; gated >= 0; gated--) {
+        if (!gated) p.texture_thresh = 0.0f;
+        CHECK_OK(depth_static_mask(&p, &a, &b, flow, NULL, prob, mask));
+        int flat_static = 0, tex_static = 0; /* away from the seam, where the blurs mix the halves */
+        for (int y = 0; y < H; y++)
+            for (int x = 0; x < W; x++) {
+                if (x < W / 2 - 6) flat_static += mask[y * W + x];
+                if (x >= W / 2 + 6) tex_static += mask[y * W + x];
+            }
+        const int half = H * (W / 2 - 6);
+        printf("static mask, %s: flat half %d/%d static, striped half %d/%d\n", gated ? "texture gate" : "no gate",
+               flat_static, half, tex_static, half);
+        CHECK(tex_static == 0, "a 2 px flow over stripes must be dynamic (%d static)", tex_static);
+        if (gated) CHECK(flat_static == half, "flat unchanged surface called dynamic (%d of %d static)", flat_static, half);
+        else CHECK(flat_static == 0, "without the gate the flow must count everywhere (%d static)", flat_static);
+    }
+    free(flow);
+    free(prob);
+    free(mask);
+    pg_image_destroy(&a);
+    pg_image_destroy(&b);
+}
+
 int main(void)
 {
     pg_set_threads(2);
@@ -237,5 +284,6 @@ int main(void)
     test_fallbacks();
     test_determinism();
     test_fuse_static();
+    test_static_mask_flat();
     return test_summary("test_depth_align");
 }

@@ -347,6 +347,7 @@ static pg_status write_json(const char *path, const depth_prepare_options *opt, 
     cJSON_AddNumberToObject(set, "refine_edge_thresh", opt->refine_params.edge_thresh);
     cJSON_AddNumberToObject(set, "static_flow_thresh", opt->static_params.flow_thresh);
     cJSON_AddNumberToObject(set, "static_color_thresh", opt->static_params.color_thresh);
+    cJSON_AddNumberToObject(set, "static_texture_thresh", opt->static_params.texture_thresh);
     cJSON_AddNumberToObject(set, "align_iterations", opt->align_params.iterations);
     cJSON_AddBoolToObject(set, "align_fit_shift", opt->align_params.fit_shift);
     cJSON_AddNumberToObject(set, "min_valid_fraction", opt->min_valid_fraction);

@@ -11,6 +11,7 @@ void depth_static_defaults(depth_static_params *p)
     p->flow_thresh = 0.6f;
     p->color_thresh = 0.05f;
     p->color_blur = 1.0f;
+    p->texture_thresh = 0.004f; /* Panoptic's gym floor ~0.0017 (90 % below 0.0035), textured renders >= 0.004 at the 5th percentile */
     p->open_radius = 1;
     p->close_radius = 2;
     p->dilate_radius = 0;
@@ -25,6 +26,26 @@ static inline float soft_step(float v, float t)
     return s * s * (3.0f - 2.0f * s);
 }
 
+/* How observable motion is at each pixel: the mean gradient magnitude of the (blurred) grey
+ * frame over a small neighbourhood. Where it is near the noise level the flow is unobservable
+ * (the aperture problem) and what the solver puts there is its smoothness term dragging a
+ * passing object's motion across the surface; the forward-backward check fails there for the
+ * same reason. gray is overwritten with the map; tmp is (H,W) scratch. */
+static void texture_map(float *gray, int W, int H, float *tmp)
+{
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            const float *g = gray + (size_t)y * W;
+            int x0 = x > 0 ? x - 1 : x, x1 = x + 1 < W ? x + 1 : x;
+            int y0 = y > 0 ? y - 1 : y, y1 = y + 1 < H ? y + 1 : y;
+            float gx = (g[x1] - g[x0]) / (float)(x1 - x0 > 0 ? x1 - x0 : 1);
+            float gy = (gray[(size_t)y1 * W + x] - gray[(size_t)y0 * W + x]) / (float)(y1 - y0 > 0 ? y1 - y0 : 1);
+            tmp[(size_t)y * W + x] = sqrtf(gx * gx + gy * gy);
+        }
+    depth_plane_gaussian_blur(tmp, W, H, 1.5f, gray, tmp);
+    memcpy(gray, tmp, sizeof(float) * (size_t)W * H);
+}
+
 pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i, const pg_image *img_ref,
                             const float *flow_i, const float *conf_i, float *prob, unsigned char *mask)
 {
@@ -34,15 +55,16 @@ pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i,
                        img_ref->width, img_ref->height);
     const size_t n = (size_t)W * H;
     const int C = img_i->channels < img_ref->channels ? img_i->channels : img_ref->channels;
-    float *buf = pg_malloc(sizeof(float) * n * 4, "static mask buffers");
+    float *buf = pg_malloc(sizeof(float) * n * 6, "static mask buffers");
     unsigned char *m8 = pg_malloc(n * 2, "static mask buffers");
     if (!buf || !m8) {
         free(buf);
         free(m8);
         return PG_ERR_NOMEM;
     }
-    float *diff = buf, *tmp = buf + n, *a = buf + 2 * n, *b = buf + 3 * n;
-    memset(diff, 0, sizeof(float) * n);
+    float *diff = buf, *tmp = buf + n, *a = buf + 2 * n, *b = buf + 3 * n, *tex_i = buf + 4 * n, *tex_ref = buf + 5 * n;
+    memset(diff, 0, sizeof(float) * n * 6);
+    const float nc = C >= 3 ? 3.0f : 1.0f;
     /* Mean absolute colour difference of the blurred frames (blur tames noise and compression). */
     for (int c = 0; c < (C >= 3 ? 3 : 1); c++) {
         for (size_t k = 0; k < n; k++) {
@@ -51,7 +73,16 @@ pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i,
         }
         depth_plane_gaussian_blur(a, W, H, p->color_blur, tmp, a);
         depth_plane_gaussian_blur(b, W, H, p->color_blur, tmp, b);
-        for (size_t k = 0; k < n; k++) diff[k] += fabsf(a[k] - b[k]) / (C >= 3 ? 3.0f : 1.0f);
+        for (size_t k = 0; k < n; k++) {
+            diff[k] += fabsf(a[k] - b[k]) / nc;
+            tex_i[k] += a[k] / nc;
+            tex_ref[k] += b[k] / nc;
+        }
+    }
+    const int gate = p->texture_thresh > 0.0f;
+    if (gate) {
+        texture_map(tex_i, W, H, tmp);
+        texture_map(tex_ref, W, H, tmp);
     }
     unsigned char *dyn = m8, *tmp8 = m8 + n;
     for (size_t k = 0; k < n; k++) {
@@ -59,7 +90,9 @@ pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i,
         float pf = soft_step(mag, p->flow_thresh);
         float pc = soft_step(diff[k], p->color_thresh);
         float po = conf_i ? 1.0f - conf_i[k] : 0.0f;
-        float pd = 1.0f - (1.0f - pf) * (1.0f - pc) * (1.0f - po);
+        float pm = 1.0f - (1.0f - pf) * (1.0f - po);
+        if (gate) pm *= soft_step(tex_i[k] > tex_ref[k] ? tex_i[k] : tex_ref[k], p->texture_thresh);
+        float pd = 1.0f - (1.0f - pm) * (1.0f - pc);
         if (!(pd >= 0.0f)) pd = 1.0f; /* NaN flow from a plugged-in backend counts as dynamic */
         if (prob) prob[k] = pd;
         dyn[k] = pd >= 0.5f;

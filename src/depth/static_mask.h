@@ -3,8 +3,11 @@
  * The camera does not move, so a pixel is static when the flow between frame i and the
  * reference is small, the colours agree, and the flow passes the forward-backward check.
  * Each cue gives a soft "dynamic" probability; they combine as independent evidence
- * p = 1 - (1 - p_flow)(1 - p_colour)(1 - p_occlusion). The binary mask (1 = static) is
- * p < 0.5 cleaned with a morphological opening and closing of the dynamic region.
+ * p = 1 - (1 - o p_motion)(1 - p_colour), p_motion = 1 - (1 - p_flow)(1 - p_occlusion), where o
+ * says how observable motion is at the pixel (its local image gradient in either frame): on a
+ * flat surface the flow is the solver's smoothness filling in a passer-by's motion, not a
+ * measurement, and only the colour can tell. The binary mask (1 = static) is p < 0.5 cleaned
+ * with a morphological opening and closing of the dynamic region.
  */
 #ifndef PG_DEPTH_STATIC_MASK_H
 #define PG_DEPTH_STATIC_MASK_H
@@ -15,6 +18,9 @@ typedef struct {
     float flow_thresh;   /* px: |flow| at which p_flow = 0.5 (default 0.6) */
     float color_thresh;  /* mean absolute RGB difference at which p_colour = 0.5 (default 0.05) */
     float color_blur;    /* Gaussian sigma applied to both frames before differencing (default 1) */
+    float texture_thresh; /* local mean |gradient| of the blurred grey frame (per px, intensities
+                           * in [0,1]) at which the flow and occlusion cues count half (default
+                           * 0.004; <= 0: they count everywhere) */
     int open_radius;     /* removes dynamic specks smaller than this (default 1) */
     int close_radius;    /* fills holes in dynamic regions (default 2) */
     int dilate_radius;   /* extra safety margin around dynamic regions (default 0) */
