@@ -377,6 +377,8 @@ int main(void)
     expect_error(a, "--proxies");
     snprintf(a, sizeof a, "run @/ds %s --out @/u --depth-scale -1", dep);
     expect_error(a, "--depth-scale");
+    snprintf(a, sizeof a, "run @/ds %s --out @/u --densify-until -2", dep);
+    expect_error(a, "--densify-until must be >= 1 (got -2)");
     expect_error("run @/ds --depth @/nan.npy --out @/u2", "valid depth");
     {
         char marker[4300];

@@ -38,6 +38,7 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
         { "--deform-time-coarsen", CLI_INT, &c->deform_time_coarsen, "coarse HexPlane scale: one time texel per 2^K of the fine scale's (default 2; 0 = same)" },
         { "--deform-time-warmup", CLI_FLOAT, &c->deform_time_warmup, "share of the fine stage trained on a quarter of the HexPlane time rows, then refined (default 0.4; 0 = off)" },
         { "--densify-movable", CLI_FLOAT, &c->densify_movable, "the movable Gaussians' densification threshold, a multiple of the still ones' (default: 3 for a long clip, whose time rows get < 40 fits each; else 1)" },
+        { "--densify-until", CLI_INT, &c->densify_until, "no densification from this step on (default: 70 % of --iters, or of the preset's steps when they are raised for a long clip)" },
         { "--proxy-downscale", CLI_INT, &c->proxy_downscale, "proxies train at 1/S of the working size per side: 1 or 2 (default 2; the real view keeps every pixel)" },
         { "--motion-crops", CLI_INT, &c->motion_crops, "extra renders per fine step over the box around the movers, the real view and a proxy in turn (default 2; 0 = off)" },
         { "--views-per-step", CLI_INT, &c->views_per_step, "views trained per deformation: the real view + proxies of one time (default 2)" },

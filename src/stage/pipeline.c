@@ -78,6 +78,7 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
     if (!c->input || !c->out || (!c->depth && !c->depth_model)) return pg_fail(PG_ERR_ARG, "input, depth (or a depth model) and out are required");
     if (c->depth && c->depth_model) return pg_fail(PG_ERR_ARG, "give --depth or --depth-model, not both");
     if (c->iters < 0) return pg_fail(PG_ERR_ARG, "--iters must be >= 1 (got %d)", c->iters);
+    if (c->densify_until < 0) return pg_fail(PG_ERR_ARG, "--densify-until must be >= 1 (got %d)", c->densify_until);
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "--frames must be >= 1 (got %d)", c->frames);
     PG_TRY(stage_check_threads("pipeline", c->threads));
     if (c->seed < 0) return pg_fail(PG_ERR_ARG, "--seed must be >= 0 (got %d)", c->seed);
@@ -204,6 +205,7 @@ static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipelin
                     (plan->iters - plan->coarse_iters) * train_fits_per_step(crops) / (frames > 0 ? frames : 1),
                     plan->densify_until);
     }
+    if (c->densify_until > 0) plan->densify_until = c->densify_until;
     plan->fit_steps = p->fit_steps;
     plan->proxies = c->proxies >= 0 ? c->proxies : (nt > 0 ? -1 : p->proxies);
     plan->poses = c->poses ? c->poses : nt > 0 ? "dataset" : "hemisphere";
