@@ -85,7 +85,7 @@ int train_time_texels(int frames, int fine_times); /* fine_times: fine iteration
  * TRAIN_MAX_BUDGET_THIRDS / 3 times the preset's budget (the first doubling buys the most; docs/train.md).
  * Short clips keep `iters` (up to 58 frames at the fast preset). 64 rather than the 40 of before:
  * a 120-frame clip got 1,850 iterations and its movers 34.05 dB against the 30-frame clip's 38.59;
- * at 3,000 iterations 38.21. 64 keeps the quality preset's 8,000 whole up to 300 frames. */
+ * at 3,000 iterations 38.21. */
 #define TRAIN_FITS_PER_FRAME 64
 #define TRAIN_MAX_BUDGET_THIRDS 8 /* the cap: 8/3 of the preset's budget (4,000 for the fast preset's 1,500) */
 /* The cap is one of compute: a step costs about what its pixels cost, so a clip trained smaller than
