@@ -308,7 +308,7 @@ typedef struct {
     int deform_time_coarsen;          /* -1: the trainer's default (2) */
     float deform_time_warmup;         /* -1: the trainer's default (0.4) */
     float densify_movable;            /* movable Gaussians' densification threshold / the still ones' (-1: the trainer's) */
-    int densify_until;                /* no densification from this step on (0: the budget's, 70 % of the preset's steps) */
+    int densify_until;                /* no densification from this step on (0: 70 % of the steps; of the preset's when a long clip raises them) */
     int proxy_downscale;              /* proxies train at 1/this of the working size per side, 1 or 2 (0: the trainer's, 2) */
     int motion_crops;                 /* motion crops per fine step (-1: the trainer's default) */
     int views_per_step;               /* views trained per deformation (the trainer's default, 2) */

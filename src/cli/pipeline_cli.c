@@ -15,7 +15,7 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
         { "--depth", CLI_STR, &c->depth, "per-frame depth of the training camera: .npy (F,H,W) or a folder (or --depth-model)" },
         { "--depth-model", CLI_STR, &c->depth_model, "instead of --depth: a depth network (.tflite/.onnx) run first into DIR/depth/ (default: the built-in FastDepth)" },
         { "--out", CLI_STR, &c->out, "output directory (required)" },
-        { "--preset", CLI_STR, &c->preset, "fast (default: 1,500 steps, 8 proxies) or quality (3,000 steps, 18 proxies: ~2.5x the time, the real view's movers ~3 dB sharper, novel views the same)" },
+        { "--preset", CLI_STR, &c->preset, "fast (default: 1,500 steps, 8 proxies) or quality (3,000 steps, 18 proxies: ~3x the time, the real view's movers ~4 dB sharper, novel views the same)" },
         { "--train-cam", CLI_STR, &c->train_camera, "dataset camera that is the real view: name or index (default: the first)" },
         { "--test-cams", CLI_STR, &c->test_cameras, "held-out dataset cameras: names or indices, e.g. cam05,cam06" },
         { "--proxies", CLI_STR, &t->proxies, "proxy cameras: a count or all (default: the preset's; all with --test-cams)" },

@@ -39,8 +39,8 @@ typedef struct {
 } preset;
 
 /* fast: minutes on 2 cores for a short clip at up to 320 px. quality: twice the steps and 18
- * proxies (all of a dataset's cameras) at the same size, ~2.5x the time: the real view's movers
- * gain ~3.3 dB and the novel views stay within 0.1 dB. More steps or 640 px did not buy novel
+ * proxies (all of a dataset's cameras) at the same size, ~3x the time: the real view's movers
+ * gain ~4 dB and the novel views stay within 0.15 dB. More steps or 640 px did not buy novel
  * views: held out they peak at 1,000-1,500 steps on tabletop_dev and stay flat on Panoptic while
  * only the real view keeps improving (8,000 steps at 640 px: -0.24 dB held out at ~10x the
  * time; docs/train.md "Held-out views against the budget").
