@@ -49,15 +49,7 @@ static void tvl1_solve_level(const depth_flow_tvl1_params *prm, const float *i0,
     const float lt = prm->lambda * prm->theta, taut = prm->tau / prm->theta, theta = prm->theta;
 
     /* Central-difference gradient of I1, warped together with I1 below. */
-    #pragma omp parallel for schedule(static) if (PAR_OK)
-    for (int y = 0; y < h; y++) {
-        for (int x = 0; x < w; x++) {
-            int xl = x > 0 ? x - 1 : 0, xr = x < w - 1 ? x + 1 : w - 1;
-            int yu = y > 0 ? y - 1 : 0, yd = y < h - 1 ? y + 1 : h - 1;
-            i1x[(size_t)y * w + x] = (i1[(size_t)y * w + xr] - i1[(size_t)y * w + xl]) / (float)(xr - xl > 0 ? xr - xl : 1);
-            i1y[(size_t)y * w + x] = (i1[(size_t)yd * w + x] - i1[(size_t)yu * w + x]) / (float)(yd - yu > 0 ? yd - yu : 1);
-        }
-    }
+    depth_plane_gradient(i1, w, h, i1x, i1y);
 
     for (int warp = 0; warp < prm->warps; warp++) {
         #pragma omp parallel for schedule(static) if (PAR_OK)

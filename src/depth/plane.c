@@ -146,6 +146,19 @@ void depth_plane_median3_ref(const float *src, int w, int h, float *dst)
 
 /* Interior pixels use the classic 19 compare-exchange median-of-9 network (same result as
  * sorting for finite values), written so the compiler can vectorise across x. */
+void depth_plane_gradient(const float *src, int w, int h, float *gx, float *gy)
+{
+    #pragma omp parallel for schedule(static) if (PAR_OK)
+    for (int y = 0; y < h; y++) {
+        for (int x = 0; x < w; x++) {
+            int xl = x > 0 ? x - 1 : 0, xr = x < w - 1 ? x + 1 : w - 1;
+            int yu = y > 0 ? y - 1 : 0, yd = y < h - 1 ? y + 1 : h - 1;
+            gx[(size_t)y * w + x] = (src[(size_t)y * w + xr] - src[(size_t)y * w + xl]) / (float)(xr - xl > 0 ? xr - xl : 1);
+            gy[(size_t)y * w + x] = (src[(size_t)yd * w + x] - src[(size_t)yu * w + x]) / (float)(yd - yu > 0 ? yd - yu : 1);
+        }
+    }
+}
+
 void depth_plane_median3(const float *src, int w, int h, float *dst)
 {
     #pragma omp parallel for schedule(static) if (PAR_OK)

@@ -22,6 +22,8 @@ float depth_plane_sample_bilinear(const float *p, int w, int h, float x, float y
 /* Bicubic (Keys, a = -0.5) samples of n planes at one point (same coordinates as above) into
  * out[0..n): the weights once for all (the flow warps an image and its two gradients together). */
 void depth_plane_sample_bicubic(const float *const *planes, int n, int w, int h, float x, float y, float *out);
+/* Central-difference gradient of a (h,w) plane into gx, gy (one-sided at the borders). */
+void depth_plane_gradient(const float *src, int w, int h, float *gx, float *gy);
 /* 3x3 median filter (borders replicate): a sorting network; _ref sorts (test oracle). */
 void depth_plane_median3(const float *src, int w, int h, float *dst);
 void depth_plane_median3_ref(const float *src, int w, int h, float *dst);

@@ -30,20 +30,13 @@ static inline float soft_step(float v, float t)
  * frame over a small neighbourhood. Where it is near the noise level the flow is unobservable
  * (the aperture problem) and what the solver puts there is its smoothness term dragging a
  * passing object's motion across the surface; the forward-backward check fails there for the
- * same reason. gray is overwritten with the map; tmp is (H,W) scratch. */
-static void texture_map(float *gray, int W, int H, float *tmp)
+ * same reason. gray is overwritten with the map; gx, gy are (H,W) scratch. */
+static void texture_map(float *gray, int W, int H, float *gx, float *gy)
 {
-    for (int y = 0; y < H; y++)
-        for (int x = 0; x < W; x++) {
-            const float *g = gray + (size_t)y * W;
-            int x0 = x > 0 ? x - 1 : x, x1 = x + 1 < W ? x + 1 : x;
-            int y0 = y > 0 ? y - 1 : y, y1 = y + 1 < H ? y + 1 : y;
-            float gx = (g[x1] - g[x0]) / (float)(x1 - x0 > 0 ? x1 - x0 : 1);
-            float gy = (gray[(size_t)y1 * W + x] - gray[(size_t)y0 * W + x]) / (float)(y1 - y0 > 0 ? y1 - y0 : 1);
-            tmp[(size_t)y * W + x] = sqrtf(gx * gx + gy * gy);
-        }
-    depth_plane_gaussian_blur(tmp, W, H, 1.5f, gray, tmp);
-    memcpy(gray, tmp, sizeof(float) * (size_t)W * H);
+    const size_t n = (size_t)W * H;
+    depth_plane_gradient(gray, W, H, gx, gy);
+    for (size_t k = 0; k < n; k++) gx[k] = sqrtf(gx[k] * gx[k] + gy[k] * gy[k]);
+    depth_plane_gaussian_blur(gx, W, H, 1.5f, gy, gray);
 }
 
 pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i, const pg_image *img_ref,
@@ -81,8 +74,8 @@ pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i,
     }
     const int gate = p->texture_thresh > 0.0f;
     if (gate) {
-        texture_map(tex_i, W, H, tmp);
-        texture_map(tex_ref, W, H, tmp);
+        texture_map(tex_i, W, H, a, b); /* the blurred channels are done with */
+        texture_map(tex_ref, W, H, a, b);
     }
     unsigned char *dyn = m8, *tmp8 = m8 + n;
     for (size_t k = 0; k < n; k++) {
