@@ -200,6 +200,53 @@ static void test_densify_movable(const train_set *ts)
     }
 }
 
+/* From static_steps on the still Gaussians keep their scales, rotation, opacity and colour and
+ * no longer densify, while the movable ones go on training (TRAIN_STATIC_STEPS). */
+static void test_static_steps(const train_set *ts)
+{
+    train_config tc = small_config();
+    tc.static_check_every = 0;
+    tc.static_steps = 30;
+    tc.densify_until = 30; /* no row changes after the stop: rows compare one to one */
+    tc.max_gaussians = 100000;
+    train_session *s = NULL;
+    CHECK_OK(train_session_create(&s, ts, &tc, NULL, 0));
+    if (!s) return;
+    while (train_session_iteration(s) < tc.static_steps) CHECK_OK(train_session_step(s));
+    const int n = s->g.count, sh = s->g.sh_stride;
+    float *before = malloc((size_t)n * (8 + sh) * sizeof(float));
+    if (!before) { train_session_destroy(s); return; }
+    memcpy(before, s->g.log_scales, (size_t)n * 3 * sizeof(float));
+    memcpy(before + 3 * n, s->g.quats, (size_t)n * 4 * sizeof(float));
+    memcpy(before + 7 * n, s->g.opacity, (size_t)n * sizeof(float));
+    memcpy(before + 8 * n, s->g.sh, (size_t)n * sh * sizeof(float));
+    for (int k = 0; k < 10; k++) CHECK_OK(train_session_step(s));
+    int still_changed = 0, movable_changed = 0, still = 0;
+    for (int i = 0; i < n && s->g.count == n; i++) {
+        int changed = memcmp(before + 3 * i, s->g.log_scales + 3 * i, 3 * sizeof(float)) ||
+                      memcmp(before + 3 * n + 4 * i, s->g.quats + 4 * i, 4 * sizeof(float)) ||
+                      before[7 * n + i] != s->g.opacity[i] ||
+                      memcmp(before + 8 * n + (size_t)i * sh, s->g.sh + (size_t)i * sh, (size_t)sh * sizeof(float));
+        still += s->is_static[i] != 0;
+        if (s->is_static[i]) still_changed += changed;
+        else movable_changed += changed;
+    }
+    CHECK(s->g.count == n && still > 0 && still_changed == 0 && movable_changed > 0,
+          "after static_steps: %d of %d still Gaussians changed (want 0), %d movable changed (want > 0)",
+          still_changed, still, movable_changed);
+    for (int i = 0; i < n; i++) { /* over the threshold of both kinds (the movable one is up to 3x) */
+        s->grad_accum[i] = 4 * tc.densify_grad;
+        s->grad_denom[i] = 1;
+    }
+    int st0 = train_session_static_count(s), mov0 = s->g.count - st0;
+    CHECK_OK(train_densify_and_prune(s, 1));
+    int st1 = train_session_static_count(s), mov1 = s->g.count - st1;
+    CHECK(st1 <= st0 && mov1 > mov0, "densify after static_steps: still %d -> %d (want no more), movable %d -> %d",
+          st0, st1, mov0, mov1);
+    free(before);
+    train_session_destroy(s);
+}
+
 /* Proxies train at half size (TRAIN_PROXY_DOWNSCALE): the full render box-averaged 2x2 must be
  * the half camera's render. A principal point off by half a pixel (the usual mistake) lands
  * every splat a quarter of a half-size pixel off; the test tells the two apart. Depth leaves
@@ -445,6 +492,7 @@ int main(void)
     }
 
     test_densify_movable(&ts);
+    test_static_steps(&ts);
     test_half_size_proxies();
 
     /* uninterrupted run */

@@ -112,7 +112,7 @@ static void config_text(const train_config *c, char *out, size_t size)
              "opacity_reset_every=%d\ndensify_grad=%.9g\npercent_dense=%.9g\nprune_opacity=%.9g\n"
              "prune_big_scale=%.9g\nuse_static_flags=%d\nuse_frustum_cull=%d\nstatic_check_every=%d\n"
              "static_eps=%.9g\ndeform_width=%d\ndeform_res=%d\ndeform_tres=%d\ndeform_channels=%d\n"
-             "deform_head_width=%d\ndeform_time_coarsen=%d\nreal_weight=%.9g\nmoving_weight=%.9g\nproxy_moving_weight=%.9g\ntimes_per_step=%d\nmotion_crops=%d\nlr_static_scale=%.9g\naverage_decay=%.9g\ndeform_time_warmup=%.9g\ndensify_movable=%.9g\nproxy_downscale=%d\n",
+             "deform_head_width=%d\ndeform_time_coarsen=%d\nreal_weight=%.9g\nmoving_weight=%.9g\nproxy_moving_weight=%.9g\ntimes_per_step=%d\nmotion_crops=%d\nlr_static_scale=%.9g\naverage_decay=%.9g\ndeform_time_warmup=%.9g\ndensify_movable=%.9g\nproxy_downscale=%d\nstatic_steps=%d\n",
              c->iters, c->coarse_iters, (unsigned long long)c->seed, c->max_gaussians, c->init_points, c->views_per_step,
              c->sh_max_degree, c->sh_ramp_every, c->bg[0], c->bg[1], c->bg[2], c->lambda_dssim, c->lambda_depth,
              c->reg_tv, c->reg_time, c->reg_l1, c->lr_means, c->lr_means_final, c->lr_scales, c->lr_quats,
@@ -120,7 +120,7 @@ static void config_text(const train_config *c, char *out, size_t size)
              c->densify_from, c->densify_until, c->densify_every, c->opacity_reset_every, c->densify_grad,
              c->percent_dense, c->prune_opacity, c->prune_big_scale, c->use_static_flags, c->use_frustum_cull,
              c->static_check_every, c->static_eps, c->deform_width, c->deform_res, c->deform_tres,
-             c->deform_channels, c->deform_head_width, c->deform_time_coarsen, c->real_weight, c->moving_weight, c->proxy_moving_weight, c->times_per_step, c->motion_crops, c->lr_static_scale, c->average_decay, c->deform_time_warmup, c->densify_movable, c->proxy_downscale);
+             c->deform_channels, c->deform_head_width, c->deform_time_coarsen, c->real_weight, c->moving_weight, c->proxy_moving_weight, c->times_per_step, c->motion_crops, c->lr_static_scale, c->average_decay, c->deform_time_warmup, c->densify_movable, c->proxy_downscale, c->static_steps);
 }
 
 static int cfg_get(const char *text, const char *key, char *val, size_t size)
@@ -153,11 +153,12 @@ static void config_parse(const char *text, train_config *c)
     GI(densify_until); GI(densify_every); GI(opacity_reset_every); GF(densify_grad); GF(percent_dense);
     GF(prune_opacity); GF(prune_big_scale); GI(use_static_flags); GI(use_frustum_cull);
     GI(static_check_every); GF(static_eps); GI(deform_width); GI(deform_res); GI(deform_tres);
-    GI(deform_channels); GI(deform_head_width); GI(deform_time_coarsen); GF(real_weight); GF(moving_weight); GF(proxy_moving_weight); GI(times_per_step); GI(motion_crops); GF(lr_static_scale); GF(average_decay); GF(deform_time_warmup); GF(densify_movable); GI(proxy_downscale);
+    GI(deform_channels); GI(deform_head_width); GI(deform_time_coarsen); GF(real_weight); GF(moving_weight); GF(proxy_moving_weight); GI(times_per_step); GI(motion_crops); GF(lr_static_scale); GF(average_decay); GF(deform_time_warmup); GF(densify_movable); GI(proxy_downscale); GI(static_steps);
 #undef GI
 #undef GF
     if (!cfg_get(text, "deform_time_warmup", v, sizeof v)) c->deform_time_warmup = 0; /* written before it existed */
     if (!cfg_get(text, "densify_movable", v, sizeof v)) c->densify_movable = 1;
+    if (!cfg_get(text, "static_steps", v, sizeof v)) c->static_steps = 0;
     if (!cfg_get(text, "proxy_downscale", v, sizeof v)) c->proxy_downscale = 1; /* proxies at full size before it */
     if (cfg_get(text, "seed", v, sizeof v)) c->seed = strtoull(v, NULL, 10);
     if (cfg_get(text, "bg", v, sizeof v)) sscanf(v, "%f,%f,%f", &c->bg[0], &c->bg[1], &c->bg[2]);
@@ -655,6 +656,7 @@ const char *train_config_invalid(const train_config *c)
     if (!(c->average_decay >= 0 && c->average_decay < 1)) return "average_decay";
     if (!(c->densify_movable > 0)) return "densify_movable"; /* written resolved: 0 (the rule) would densify every mover */
     if (c->proxy_downscale != 1 && c->proxy_downscale != 2) return "proxy_downscale";
+    if (c->static_steps < 0) return "static_steps";
     if (c->sh_ramp_every < 0 || c->densify_every < 0 || c->opacity_reset_every < 0 || c->static_check_every < 0)
         return "an interval";
     if (c->deform_width < 0 || c->deform_width > 4096 || c->deform_res < 0 || c->deform_res > 4096 ||

@@ -132,7 +132,9 @@ pg_status train_densify_and_prune(train_session *s, int densify)
     cand *cs = pg_malloc(sizeof(cand) * (size_t)(n0 ? n0 : 1), "densify candidates");
     if (!cs) return PG_ERR_NOMEM;
     if (densify) {
+        const int still_frozen = train_still_frozen(s);
         for (int i = 0; i < n0; i++) {
+            if (still_frozen && s->is_static[i]) continue; /* a copy could not move away from its original */
             float g = s->grad_denom[i] > 0 ? s->grad_accum[i] / s->grad_denom[i] : 0;
             if (g >= (s->is_static[i] ? c->densify_grad : c->densify_grad * c->densify_movable)) cs[nc++] = (cand){g, i};
         }

@@ -63,6 +63,7 @@ train_config train_default_config(void)
     c.lr_grid = 1.6e-2f;
     c.lr_grid_final = 1.6e-3f;
     c.lr_static_scale = 2.0f;
+    c.static_steps = TRAIN_STATIC_STEPS;
     c.average_decay = 0.99f; /* issue 24: the last ~100 steps averaged (docs/train.md) */
     c.densify_from = 200;
     c.densify_until = 0; /* 0: train_default_densify_until(iters) */

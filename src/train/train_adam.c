@@ -76,7 +76,7 @@ static float stage_lr(const train_session *s, float lr0, float lr1)
  * coefficients above it get no gradient, so their moments are still zero and an Adam step would
  * not move them: only the columns up to the current degree are stepped. Scales, rotation,
  * opacity and colour go in one pass over the rows, at lr_static_scale times the rate on the static
- * Gaussians: 3DGS's rates are set for 30,000 iterations and the still scene converges faster at
+ * Gaussians (0 once they stopped, train_still_frozen): 3DGS's rates are set for 30,000 iterations and the still scene converges faster at
  * twice them in our 1,500-3,000, while the movable ones keep theirs, which the deformation network
  * follows (docs/train.md). */
 static pg_status step_gaussians(train_session *s)
@@ -87,7 +87,7 @@ static pg_status step_gaussians(train_session *s)
     float lr_means = stage_lr(s, c->lr_means, c->lr_means_final) * s->extent;
     if (lr_means > 0) PG_TRY(optim_adam_step_group(s->gopt, OPTIM_G_MEANS, g->means, gr->means, lr_means));
     const uint8_t *st = s->is_static;
-    const float k = c->lr_static_scale;
+    const float k = train_still_frozen(s) ? 0.0f : c->lr_static_scale;
     int deg = g->sh_degree, sh_rest_cols = (deg + 1) * (deg + 1) * 3 - 3;
     const optim_group_step all[] = {
         {OPTIM_G_LOG_SCALES, g->log_scales, gr->log_scales, c->lr_scales, 3, st, k},
