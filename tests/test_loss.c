@@ -165,21 +165,22 @@ static void test_ssim_determinism(void)
     free(x); free(y); free(g1); free(g2);
 }
 
+/* Weighted: w_i = mask[i] where mask[i] > 0.5 (1 without a mask), out below. */
 static double ref_ssi(const double *p, const float *t, const float *mask, int n)
 {
-    double sp = 0, st = 0, spp = 0, spt = 0;
-    int M = 0;
+    double sp = 0, st = 0, spp = 0, spt = 0, W = 0;
     for (int i = 0; i < n; i++) {
         if (mask && mask[i] <= 0.5f) continue;
-        sp += p[i]; st += t[i]; spp += p[i] * p[i]; spt += p[i] * t[i]; M++;
+        double w = mask ? mask[i] : 1.0;
+        sp += w * p[i]; st += w * t[i]; spp += w * p[i] * p[i]; spt += w * p[i] * t[i]; W += w;
     }
-    double s = (M * spt - sp * st) / (M * spp - sp * sp), b = (st - s * sp) / M, l = 0;
+    double s = (W * spt - sp * st) / (W * spp - sp * sp), b = (st - s * sp) / W, l = 0;
     for (int i = 0; i < n; i++) {
         if (mask && mask[i] <= 0.5f) continue;
         double r = s * p[i] + b - t[i];
-        l += r * r;
+        l += (mask ? mask[i] : 1.0) * r * r;
     }
-    return l / (2.0 * M);
+    return l / (2.0 * W);
 }
 
 static void test_ssi_depth(void)
@@ -192,7 +193,8 @@ static void test_ssi_depth(void)
     for (int i = 0; i < n; i++) {
         p[i] = (float)pg_rng_range(&rng, 1, 5);
         t[i] = 0.7f * p[i] + 0.4f + (float)(0.3 * pg_rng_normal(&rng));
-        mask[i] = pg_rng_uniform(&rng) < 0.8 ? 1.0f : 0.0f;
+        double u = pg_rng_uniform(&rng); /* out, weight 1, or a mover's weight */
+        mask[i] = u < 0.2 ? 0.0f : u < 0.9 ? 1.0f : 10.0f;
         pd[i] = p[i];
     }
     t[7] = NAN; mask[7] = 0; /* invalid target is skipped when masked out */

@@ -732,8 +732,10 @@ static double depth_loss(train_session *s, const float *depth, int W, int H, flo
     size_t px = (size_t)W * H;
     double n = 0, sum = 0, sum2 = 0;
     for (size_t i = 0; i < px; i++) {
-        /* invalid target pixels are excluded through the mask */
-        s->depth_mask[i] = (s->depth_t[i] > 0 && s->mask[i] > 0.5f) ? 1.0f : 0.0f;
+        /* invalid target pixels are excluded through the mask; the real view's movers weigh what
+         * they weigh in the image loss (1 + moving_weight), or their depth would hold them ten times
+         * less than their colours pull them (docs/train.md, "The movers' depth") */
+        s->depth_mask[i] = (s->depth_t[i] > 0 && s->mask[i] > 0.5f) ? fmaxf(1.0f, s->mask[i]) : 0.0f;
         if (s->depth_mask[i] > 0) {
             n += 1;
             sum += s->depth_t[i];
