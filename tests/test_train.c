@@ -201,8 +201,9 @@ static void test_densify_movable(const train_set *ts)
 }
 
 /* From static_steps on the still Gaussians keep their scales, rotation, opacity and colour and
- * no longer densify, while the movable ones go on training (TRAIN_STATIC_STEPS). */
-static void test_static_steps(const train_set *ts)
+ * no longer densify, while the movable ones go on training (TRAIN_STATIC_STEPS); with two real
+ * cameras (multi_real) they go on too. */
+static void test_static_steps(const train_set *ts, int multi_real)
 {
     train_config tc = small_config();
     tc.static_check_every = 0;
@@ -230,6 +231,13 @@ static void test_static_steps(const train_set *ts)
         still += s->is_static[i] != 0;
         if (s->is_static[i]) still_changed += changed;
         else movable_changed += changed;
+    }
+    if (multi_real) {
+        CHECK(s->g.count == n && still_changed > still / 2, "two real cameras: %d of %d still Gaussians changed",
+              still_changed, still);
+        free(before);
+        train_session_destroy(s);
+        return;
     }
     CHECK(s->g.count == n && still > 0 && still_changed == 0 && movable_changed > 0,
           "after static_steps: %d of %d still Gaussians changed (want 0), %d movable changed (want > 0)",
@@ -492,7 +500,14 @@ int main(void)
     }
 
     test_densify_movable(&ts);
-    test_static_steps(&ts);
+    test_static_steps(&ts, 0);
+    {
+        train_set t2;
+        CHECK_OK(train_set_load(data, &t2));
+        t2.views[1].role = IO_ROLE_REAL;
+        test_static_steps(&t2, 1);
+        train_set_destroy(&t2);
+    }
     test_half_size_proxies();
 
     /* uninterrupted run */

@@ -48,8 +48,8 @@ typedef struct {
     float lr_means, lr_means_final, lr_scales, lr_quats, lr_opacity, lr_sh_dc, lr_sh_rest;
     float lr_net, lr_net_final, lr_grid, lr_grid_final;
     float lr_static_scale; /* factor on the static Gaussians' scale/rotation/opacity/colour rates (2) */
-    int static_steps;      /* the static Gaussians' scales, rotation, opacity and colour stop at this iteration
-                            * and they no longer densify (TRAIN_STATIC_STEPS; 0 = never) */
+    int static_steps;      /* with one real camera the static Gaussians' scales, rotation, opacity and colour
+                            * stop at this iteration and they no longer densify (TRAIN_STATIC_STEPS; 0 = never) */
     float average_decay;   /* the model is this moving average of the parameters after densify_until (0.99; 0 = the last step's) */
     /* density control */
     int densify_from, densify_until, densify_every, opacity_reset_every;
@@ -118,10 +118,11 @@ int train_iterations_for_clip(int iters, int frames, int motion_crops, long pixe
  * every pixel. A proxy render then costs about a third (classroom_cam3: training 11 % faster,
  * moving pixels within the run-to-run floor; docs/train.md). */
 #define TRAIN_PROXY_DOWNSCALE 2
-/* The still scene is fitted for this many iterations, whatever the budget: past it each step only
- * sharpens still texture where the monocular depth placed it a pixel off in the other views, and
- * the held-out views lose (tabletop_dev, 3,000 steps: 27.82 dB held out, frozen at 1,000: 28.02;
- * docs/train.md "The still scene stops"). The fast preset's length, so it is unchanged. */
+/* With one real camera the still scene is fitted for this many iterations, whatever the budget:
+ * past it each step only sharpens still texture where the monocular depth placed it a pixel off
+ * in the other views, and the held-out views lose (tabletop_dev, 3,000 steps: 27.82 dB held out,
+ * frozen at 1,000: 28.02; docs/train.md "The still scene stops at 1,500 steps"). The fast
+ * preset's length, so it is unchanged. */
 #define TRAIN_STATIC_STEPS 1500
 /* The largest SH degree when none is asked for: 3 with two or more real cameras, 0 with one. With
  * one camera every proxy carries that camera's colours to its viewpoint, so a colour that changes

@@ -76,9 +76,9 @@ static float stage_lr(const train_session *s, float lr0, float lr1)
  * coefficients above it get no gradient, so their moments are still zero and an Adam step would
  * not move them: only the columns up to the current degree are stepped. Scales, rotation,
  * opacity and colour go in one pass over the rows, at lr_static_scale times the rate on the static
- * Gaussians (0 once they stopped, train_still_frozen): 3DGS's rates are set for 30,000 iterations and the still scene converges faster at
- * twice them in our 1,500-3,000, while the movable ones keep theirs, which the deformation network
- * follows (docs/train.md). */
+ * Gaussians (0 once they stopped, train_still_frozen): 3DGS's rates are set for 30,000 iterations
+ * and the still scene converges faster at twice them in our 1,500-3,000, while the movable ones
+ * keep theirs, which the deformation network follows (docs/train.md). */
 static pg_status step_gaussians(train_session *s)
 {
     const train_config *c = &s->cfg;

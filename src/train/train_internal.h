@@ -100,10 +100,12 @@ pg_status train_adam_create_net(train_session *s);
  * its time rows, train_net_resample_array), step counts kept; old_opt is left to the caller. */
 pg_status train_adam_resample_net(train_session *s, const train_net *from, optim_adam *old_opt);
 pg_status train_adam_step(train_session *s);
-/* 1 once the static Gaussians stopped (train_config.static_steps): no optimiser steps, no densification. */
+/* 1 once the static Gaussians stopped (train_config.static_steps): no optimiser steps, no
+ * densification. Only with one real camera: with two or more the still scene is seen from
+ * several true viewpoints, and sharpening it is what those steps are for. */
 static inline int train_still_frozen(const train_session *s)
 {
-    return s->cfg.static_steps > 0 && s->iter >= s->cfg.static_steps;
+    return s->cfg.static_steps > 0 && s->iter >= s->cfg.static_steps && train_set_count_role(s->ts, IO_ROLE_REAL) == 1;
 }
 /* init.c */
 pg_status train_init_gaussians(train_session *s);
