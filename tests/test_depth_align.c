@@ -255,7 +255,10 @@ static void test_static_mask_flat(void)
     depth_static_defaults(&p);
     for (int gated = 1; gated >= 0; gated--) {
         if (!gated) p.texture_thresh = 0.0f;
-        CHECK_OK(depth_static_mask(&p, &a, &b, flow, NULL, prob, mask));
+        depth_mask_reference ref;
+        CHECK_OK(depth_mask_reference_create(&p, &b, &ref));
+        CHECK_OK(depth_static_mask(&p, &a, &ref, flow, NULL, prob, mask));
+        depth_mask_reference_free(&ref);
         int flat_static = 0, tex_static = 0; /* away from the seam, where the blurs mix the halves */
         for (int y = 0; y < H; y++)
             for (int x = 0; x < W; x++) {
@@ -269,6 +272,18 @@ static void test_static_mask_flat(void)
         if (gated) CHECK(flat_static == half, "flat unchanged surface called dynamic (%d of %d static)", flat_static, half);
         else CHECK(flat_static == 0, "without the gate the flow must count everywhere (%d static)", flat_static);
     }
+    /* a reference made without the gate cannot serve a gated mask, nor one of another size */
+    depth_mask_reference ref;
+    CHECK_OK(depth_mask_reference_create(&p, &b, &ref));
+    depth_static_defaults(&p);
+    CHECK(depth_static_mask(&p, &a, &ref, flow, NULL, prob, mask) == PG_ERR_ARG, "gate missing from the reference");
+    depth_mask_reference_free(&ref);
+    pg_image small;
+    CHECK_OK(pg_image_create(&small, W / 2, H, 3));
+    CHECK_OK(depth_mask_reference_create(&p, &small, &ref));
+    CHECK(depth_static_mask(&p, &a, &ref, flow, NULL, prob, mask) == PG_ERR_SIZE, "reference of another size");
+    depth_mask_reference_free(&ref);
+    pg_image_destroy(&small);
     free(flow);
     free(prob);
     free(mask);

@@ -133,6 +133,8 @@ static pg_status prepare_frames(const depth_prepare_options *opt, const pg_image
     char (*msg)[256] = pg_calloc((size_t)F, 256, "per-frame messages");
     if (!fst || !msg) st = st ? st : PG_ERR_NOMEM;
     long done = 0;
+    depth_mask_reference sref = {0};
+    if (!st) st = depth_mask_reference_create(&opt->static_params, &frames[ref], &sref);
     if (!st) {
         #pragma omp parallel
         {
@@ -156,7 +158,7 @@ static pg_status prepare_frames(const depth_prepare_options *opt, const pg_image
                 if (!s1) s1 = depth_flow_compute(flow, &frames[ref], &frames[i], f_ri);
                 if (!s1) {
                     depth_flow_consistency(f_ir, f_ri, W, H, conf);
-                    s1 = depth_static_mask(&opt->static_params, &frames[i], &frames[ref], f_ir, conf, prob, mask);
+                    s1 = depth_static_mask(&opt->static_params, &frames[i], &sref, f_ir, conf, prob, mask);
                 }
                 if (s1) {
                     fst[i] = s1;
@@ -175,6 +177,7 @@ static pg_status prepare_frames(const depth_prepare_options *opt, const pg_image
         for (int i = 0; i < F && !st; i++)
             if (fst[i]) st = pg_fail(fst[i], "frame %d: %s", i, msg[i]);
     }
+    depth_mask_reference_free(&sref);
     free(fst);
     free(msg);
     if (!st) st = mark_off_background(frames, F, res->static_masks);

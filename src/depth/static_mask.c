@@ -39,44 +39,81 @@ static void texture_map(float *gray, int W, int H, float *gx, float *gy)
     depth_plane_gaussian_blur(gx, W, H, 1.5f, gy, gray);
 }
 
-pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i, const pg_image *img_ref,
+static int mask_channels(const pg_image *img) { return img->channels >= 3 ? 3 : 1; }
+
+pg_status depth_mask_reference_create(const depth_static_params *p, const pg_image *img_ref,
+                                        depth_mask_reference *ref)
+{
+    memset(ref, 0, sizeof *ref);
+    const int W = img_ref->width, H = img_ref->height, C = mask_channels(img_ref);
+    const size_t n = (size_t)W * H;
+    const int gate = p->texture_thresh > 0.0f;
+    float *blurred = pg_malloc(sizeof(float) * n * C, "static mask reference");
+    float *work = pg_malloc(sizeof(float) * n * 3, "static mask reference");
+    float *texture = gate ? pg_malloc(sizeof(float) * n, "static mask reference") : NULL;
+    if (!blurred || !work || (gate && !texture)) {
+        free(blurred);
+        free(work);
+        free(texture);
+        return PG_ERR_NOMEM;
+    }
+    float *mean = work, *tmp = work + n, *tmp2 = work + 2 * n;
+    memset(mean, 0, sizeof(float) * n);
+    for (int c = 0; c < C; c++) {
+        float *plane = blurred + (size_t)c * n;
+        for (size_t k = 0; k < n; k++) plane[k] = img_ref->data[k * img_ref->channels + c];
+        depth_plane_gaussian_blur(plane, W, H, p->color_blur, tmp, plane);
+        for (size_t k = 0; k < n; k++) mean[k] += plane[k] / (float)C;
+    }
+    if (gate) {
+        texture_map(mean, W, H, tmp, tmp2);
+        memcpy(texture, mean, sizeof(float) * n);
+    }
+    free(work);
+    *ref = (depth_mask_reference){W, H, C, blurred, texture};
+    return PG_OK;
+}
+
+void depth_mask_reference_free(depth_mask_reference *ref)
+{
+    free(ref->blurred);
+    free(ref->texture);
+    memset(ref, 0, sizeof *ref);
+}
+
+pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i, const depth_mask_reference *ref,
                             const float *flow_i, const float *conf_i, float *prob, unsigned char *mask)
 {
-    const int W = img_i->width, H = img_i->height;
-    if (img_ref->width != W || img_ref->height != H)
-        return pg_fail(PG_ERR_SIZE, "static mask: frames differ in size (%d x %d vs %d x %d)", W, H,
-                       img_ref->width, img_ref->height);
+    const int W = img_i->width, H = img_i->height, C = mask_channels(img_i);
+    if (ref->width != W || ref->height != H || ref->channels != C)
+        return pg_fail(PG_ERR_SIZE, "static mask: frame is %d x %d x %d, the reference %d x %d x %d", W, H, C,
+                       ref->width, ref->height, ref->channels);
+    const int gate = p->texture_thresh > 0.0f;
+    if (gate && !ref->texture)
+        return pg_fail(PG_ERR_ARG, "static mask: the reference was made without the texture gate");
     const size_t n = (size_t)W * H;
-    const int C = img_i->channels < img_ref->channels ? img_i->channels : img_ref->channels;
-    float *buf = pg_malloc(sizeof(float) * n * 6, "static mask buffers");
+    float *buf = pg_malloc(sizeof(float) * n * 4, "static mask buffers");
     unsigned char *m8 = pg_malloc(n * 2, "static mask buffers");
     if (!buf || !m8) {
         free(buf);
         free(m8);
         return PG_ERR_NOMEM;
     }
-    float *diff = buf, *tmp = buf + n, *a = buf + 2 * n, *b = buf + 3 * n, *tex_i = buf + 4 * n, *tex_ref = buf + 5 * n;
-    memset(diff, 0, sizeof(float) * n * 6);
-    const float nc = C >= 3 ? 3.0f : 1.0f;
+    float *diff = buf, *tex_i = buf + n, *a = buf + 2 * n, *b = buf + 3 * n;
     /* Mean absolute colour difference of the blurred frames (blur tames noise and compression). */
-    for (int c = 0; c < (C >= 3 ? 3 : 1); c++) {
+    memset(diff, 0, sizeof(float) * n);
+    memset(tex_i, 0, sizeof(float) * n);
+    for (int c = 0; c < C; c++) {
+        const float *r = ref->blurred + (size_t)c * n;
+        for (size_t k = 0; k < n; k++) a[k] = img_i->data[k * img_i->channels + c];
+        depth_plane_gaussian_blur(a, W, H, p->color_blur, b, a);
         for (size_t k = 0; k < n; k++) {
-            a[k] = img_i->data[k * img_i->channels + c];
-            b[k] = img_ref->data[k * img_ref->channels + c];
-        }
-        depth_plane_gaussian_blur(a, W, H, p->color_blur, tmp, a);
-        depth_plane_gaussian_blur(b, W, H, p->color_blur, tmp, b);
-        for (size_t k = 0; k < n; k++) {
-            diff[k] += fabsf(a[k] - b[k]) / nc;
-            tex_i[k] += a[k] / nc;
-            tex_ref[k] += b[k] / nc;
+            diff[k] += fabsf(a[k] - r[k]) / (float)C;
+            tex_i[k] += a[k] / (float)C;
         }
     }
-    const int gate = p->texture_thresh > 0.0f;
-    if (gate) {
-        texture_map(tex_i, W, H, a, b); /* the blurred channels are done with */
-        texture_map(tex_ref, W, H, a, b);
-    }
+    if (gate) texture_map(tex_i, W, H, a, b); /* the blurred channels are done with */
+    const float *tex_ref = ref->texture;
     unsigned char *dyn = m8, *tmp8 = m8 + n;
     for (size_t k = 0; k < n; k++) {
         float mag = hypotf(flow_i[2 * k], flow_i[2 * k + 1]);

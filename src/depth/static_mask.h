@@ -28,10 +28,23 @@ typedef struct {
 
 void depth_static_defaults(depth_static_params *p);
 
-/* img_i, img_ref: frames (same size, RGB or gray in [0,1]); flow_i: (H,W,2) from frame i to the
+/* What every frame's mask needs of the reference frame, made once per clip: its blurred colour
+ * planes and, with the texture gate on, its texture map. */
+typedef struct {
+    int width, height, channels; /* channels: 3 (RGB) or 1 (grey) */
+    float *blurred;              /* channels planes of (H,W) */
+    float *texture;              /* (H,W); NULL when p->texture_thresh <= 0 */
+} depth_mask_reference;
+
+/* img_ref: the reference frame (RGB or grey in [0,1]); p: the parameters the masks will use. */
+pg_status depth_mask_reference_create(const depth_static_params *p, const pg_image *img_ref,
+                                        depth_mask_reference *ref);
+void depth_mask_reference_free(depth_mask_reference *ref);
+
+/* img_i: frame i (the reference's size and channels); flow_i: (H,W,2) from frame i to the
  * reference; conf_i: (H,W) forward-backward confidence of flow_i (NULL: not used).
  * Outputs prob (H,W) dynamic probability (may be NULL) and mask (H,W) 1 = static, 0 = dynamic. */
-pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i, const pg_image *img_ref,
+pg_status depth_static_mask(const depth_static_params *p, const pg_image *img_i, const depth_mask_reference *ref,
                             const float *flow_i, const float *conf_i, float *prob, unsigned char *mask);
 
 /* Intersection over union of the 1-pixels of two (n) masks (1 when both are empty). */
