@@ -398,8 +398,12 @@ static void test_iterations_for_clip(void)
     CHECK(train_iterations_for_clip(1500, 30, 0, 320L * 180) == 250 + 1920, "no crops: one fit per step");
     CHECK(train_iterations_for_clip(1500, 300, 2, 320L * 180) == 1500 * TRAIN_MAX_BUDGET_THIRDS / 3, "300 frames: the cap, got %d",
           train_iterations_for_clip(1500, 300, 2, 320L * 180));
-    CHECK(train_iterations_for_clip(3000, 300, 2, 320L * 180) == 500 + 6400, "the quality preset's 3000 raised to fit 300 frames %d times each, got %d",
+    CHECK(train_iterations_for_clip(3000, 300, 2, 320L * 180) == 250 + 6400, "the quality preset's 3000 raised to fit 300 frames %d times each, got %d",
           TRAIN_FITS_PER_FRAME, train_iterations_for_clip(3000, 300, 2, 320L * 180));
+    /* the coarse stage: a sixth of a short budget, never longer than the fast preset's */
+    CHECK(train_default_coarse_iters(600) == 100 && train_default_coarse_iters(1500) == 250 &&
+          train_default_coarse_iters(8000) == TRAIN_MAX_COARSE_ITERS, "coarse stage %d, %d, %d",
+          train_default_coarse_iters(600), train_default_coarse_iters(1500), train_default_coarse_iters(8000));
     /* the raised budget fits longer; it does not densify longer (memory and checkpoint size) */
     train_budget b = train_budget_for_clip(1500, 300, 2, 320L * 180);
     CHECK(b.iters == 4000 && b.coarse_iters == 250 && b.densify_until == 1050,

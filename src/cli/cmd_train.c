@@ -10,13 +10,13 @@ int cmd_train(int argc, char **argv)
 {
     pg_train_config c;
     pg_train_defaults(&c);
-    c.coarse_iters = INT_MIN; /* unset: iters / 6 */
+    c.coarse_iters = INT_MIN; /* unset: train_default_coarse_iters */
     const char *proxies = NULL;
     int no_static = 0, no_cull = 0;
     cli_option opts[] = {
         {"--out", CLI_STR, &c.out, "model directory to write (model.ckpt, train.json, cameras.json) (required)"},
         {"--iters", CLI_INT, &c.iters, "total iterations, coarse included (3000)"},
-        {"--coarse-iters", CLI_INT, &c.coarse_iters, "static-Gaussian iterations before the deformation (iters/6)"},
+        {"--coarse-iters", CLI_INT, &c.coarse_iters, "static-Gaussian iterations before the deformation (iters/6, at most 250)"},
         {"--densify-until", CLI_INT, &c.densify_until, "no densification from this iteration on (70 % of --iters)"},
         {"--resume", CLI_FLAG, &c.resume, "continue from MODEL/model.ckpt if present"},
         {"--threads", CLI_INT, &c.threads, "worker threads (default: all cores)"},

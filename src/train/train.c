@@ -32,7 +32,7 @@ train_config train_default_config(void)
     train_config c;
     memset(&c, 0, sizeof c);
     c.iters = 3000;
-    c.coarse_iters = 500;
+    c.coarse_iters = train_default_coarse_iters(c.iters);
     c.seed = 1;
     c.threads = 0;
     c.max_gaussians = 200000;
@@ -322,7 +322,7 @@ int train_time_texels(int frames, int fine_iters)
     return t > 2 ? t : 2;
 }
 
-int train_default_coarse_iters(int iters) { return iters / 6; }
+int train_default_coarse_iters(int iters) { return iters / 6 < TRAIN_MAX_COARSE_ITERS ? iters / 6 : TRAIN_MAX_COARSE_ITERS; }
 int train_default_sh_degree(const train_set *ts) { return train_set_count_role(ts, IO_ROLE_REAL) >= 2 ? 3 : 0; }
 int train_default_densify_until(int iters) { return (int)(0.7 * iters); }
 

@@ -124,12 +124,18 @@ int train_iterations_for_clip(int iters, int frames, int motion_crops, long pixe
  * frozen at 1,000: 28.02; docs/train.md "The still scene stops at 1,500 steps"). The fast
  * preset's length, so it is unchanged. */
 #define TRAIN_STATIC_STEPS 1500
+/* The longest coarse stage a default gives: the fast preset's 250 steps place the still scene
+ * before the motion starts. A sixth of a long budget fits the movers as still blobs for longer
+ * (8,000 steps: 1,333) and the held-out views' movers lose for it (tabletop_dev at 8,000 steps:
+ * 22.02 dB, coarse 250: 22.74; docs/train.md "The coarse stage stays short"). */
+#define TRAIN_MAX_COARSE_ITERS 250
 /* The largest SH degree when none is asked for: 3 with two or more real cameras, 0 with one. With
  * one camera every proxy carries that camera's colours to its viewpoint, so a colour that changes
  * with the direction has nothing true to learn, only where the proxies disagree (tabletop_dev
  * held out: degree 0 as good as 3, a step ~8 % cheaper; docs/train.md). */
 int train_default_sh_degree(const train_set *ts);
-/* The coarse (still) stage's iterations when none are asked for: a sixth of the budget. */
+/* The coarse (still) stage's iterations when none are asked for: a sixth of the budget, at most
+ * TRAIN_MAX_COARSE_ITERS. */
 int train_default_coarse_iters(int iters);
 /* The iteration densification stops at when none is asked for: 70 % of the budget. A long clip's
  * raised budget keeps its preset's point (the extra steps fit, they do not add Gaussians): the
