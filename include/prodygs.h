@@ -97,6 +97,7 @@ typedef struct {
     int align;                /* per-frame scale/shift alignment (1) */
     int fuse;                 /* static pixels take their temporal median depth (1) */
     int planes;               /* static depth snapped onto the scene's dominant planes (1) */
+    int movers_front;         /* moving blobs behind the still scene they cover brought in front (1) */
     int frames;               /* first N frames (0: all) */
     int width, height;        /* resize (0, 0: keep; one side 0 keeps the aspect) */
     int threads;              /* worker threads (0: all cores) */
@@ -302,6 +303,7 @@ typedef struct {
     const char *depth_kind;
     float depth_scale;                /* 0: 1 */
     int refine, align, fuse, planes;  /* (1, 1, 1, 1) */
+    int movers_front;                 /* (1) */
     int frames, width, height, iters; /* 0: all / the preset's */
     int deform_width;                 /* 0: the trainer's default */
     int deform_head_width;            /* 0: the trainer's default (32) */

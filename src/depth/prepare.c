@@ -26,6 +26,7 @@ void depth_prepare_defaults(depth_prepare_options *opt)
     opt->align = 1;
     opt->fuse_static = 1;
     opt->snap_planes = 1;
+    opt->movers_front = 1;
     opt->min_valid_fraction = 0.01f;
     depth_refine_defaults(&opt->refine_params);
     depth_static_defaults(&opt->static_params);
@@ -234,6 +235,24 @@ static pg_status prepare_frames(const depth_prepare_options *opt, const pg_image
                               : PG_ERR_NOMEM;
     }
 
+    /* 4c. Moving blobs behind the still surface they cover come in front of it (movers_front.h):
+     *     the blobs are the pixels not static in their frame. */
+    if (!st && opt->movers_front && F >= 3) {
+        depth_movers_front_params mp = opt->movers_params;
+        if (mp.min_area <= 0) depth_movers_front_defaults(&mp, W, H);
+        uint8_t *blobs = pg_malloc((size_t)F * n, "moving blobs");
+        float *background = pg_malloc(n * sizeof(float), "still scene depth");
+        res->movers_moved = -1;
+        if (blobs && background &&
+            depth_static_reference(res->depth, res->static_masks, F, n, min_static, background) >= 0) {
+            for (size_t k = 0; k < (size_t)F * n; k++) blobs[k] = !res->static_masks[k];
+            res->movers_moved = depth_movers_in_front(res->depth, blobs, background, F, W, H, &mp);
+        }
+        free(blobs);
+        free(background);
+        if (res->movers_moved < 0) st = pg_fail(PG_ERR_NOMEM, "depth preparation: out of memory placing movers");
+    }
+
     /* 5. Invalid frames copy the nearest earlier valid frame (later one if none earlier). */
     for (int i = 0; i < F && !st; i++) {
         if (valid[i]) continue;
@@ -336,6 +355,7 @@ static pg_status write_json(const char *path, const depth_prepare_options *opt, 
     cJSON_AddNumberToObject(root, "height", res->height);
     cJSON_AddNumberToObject(root, "reference_frame", res->reference);
     cJSON_AddNumberToObject(root, "fused_static_pixels", (double)res->fused_pixels);
+    cJSON_AddNumberToObject(root, "movers_moved", (double)res->movers_moved);
     cJSON_AddStringToObject(root, "depth_space", "depth, relative residuals (alpha*D_i + beta ~ D_ref)");
     cJSON *set = cJSON_AddObjectToObject(root, "settings");
     cJSON_AddStringToObject(set, "refine", opt->refiner ? opt->refiner->name : depth_refine_kind_name(opt->refine));
@@ -343,6 +363,7 @@ static pg_status write_json(const char *path, const depth_prepare_options *opt, 
     cJSON_AddBoolToObject(set, "align", opt->align);
     cJSON_AddBoolToObject(set, "fuse_static", opt->fuse_static);
     cJSON_AddBoolToObject(set, "snap_planes", opt->snap_planes);
+    cJSON_AddBoolToObject(set, "movers_front", opt->movers_front);
     cJSON_AddNumberToObject(set, "plane_tolerance", opt->planes_params.tolerance);
     cJSON_AddNumberToObject(set, "plane_min_support", opt->planes_params.min_support);
     cJSON_AddNumberToObject(set, "refine_radius", opt->refine_params.radius);

@@ -29,6 +29,7 @@
 #include "core/image.h"
 #include "depth/align.h"
 #include "depth/flow.h"
+#include "depth/movers_front.h"
 #include "depth/refine.h"
 #include "depth/scene_planes.h"
 #include "depth/static_mask.h"
@@ -40,12 +41,15 @@ typedef struct {
     int align;                       /* 0: alpha = 1, beta = 0 for every frame (--no-align) */
     int fuse_static;                 /* 1: static pixels take their temporal median (fuse.h; --no-fuse) */
     int snap_planes;                 /* 1: static depth snapped onto dominant planes (scene_planes.h; --no-planes) */
+    int movers_front;                /* 1: moving blobs behind the still scene brought in front (movers_front.h;
+                                        --no-movers-front) */
     int keep_flow;                   /* 1: result.flow holds the flow of every frame (for vis) */
     float min_valid_fraction;        /* below this a frame counts as invalid (default 0.01) */
     depth_refine_params refine_params;
     depth_static_params static_params;
     depth_align_params align_params;
     depth_scene_planes_params planes_params;
+    depth_movers_front_params movers_params; /* min_area 0: the image size's default */
 } depth_prepare_options;
 
 typedef enum { DEPTH_FALLBACK_NONE, DEPTH_FALLBACK_COPIED, DEPTH_FALLBACK_ALL_PIXELS, DEPTH_FALLBACK_IDENTITY } depth_fallback;
@@ -70,6 +74,7 @@ typedef struct {
     float *flow;                  /* (F,H,W,2) frame i -> reference, only with keep_flow */
     depth_prepare_frame *info;    /* (F) */
     long fused_pixels;            /* pixels given their temporal median (fuse_static) */
+    long movers_moved;            /* moving blobs brought in front of the still scene, over all frames */
     depth_scene_planes_result planes; /* dominant planes found (snap_planes) */
     signed char *plane_label;     /* (H,W) plane index of each pixel, -1 none (snap_planes) */
     double seconds_refine, seconds_flow, seconds_align, seconds_total;

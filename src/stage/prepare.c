@@ -25,6 +25,7 @@ void pg_prepare_defaults(pg_prepare_config *c)
     c->align = 1;
     c->fuse = 1;
     c->planes = 1;
+    c->movers_front = 1;
     c->keep_flow_vis = 1;
 }
 
@@ -38,6 +39,7 @@ cJSON *stage_prepare_config_json(const pg_prepare_config *c)
     cJSON_AddBoolToObject(j, "align", c->align);
     cJSON_AddBoolToObject(j, "fuse", c->fuse);
     cJSON_AddBoolToObject(j, "planes", c->planes);
+    cJSON_AddBoolToObject(j, "movers_front", c->movers_front);
     cJSON_AddNumberToObject(j, "frames", c->frames);
     cJSON_AddNumberToObject(j, "width", c->width);
     cJSON_AddNumberToObject(j, "height", c->height);
@@ -64,6 +66,7 @@ static pg_status check_config(const pg_prepare_config *c, io_depth_kind *kind, d
     popt->align = c->align;
     popt->fuse_static = c->fuse;
     popt->snap_planes = c->planes;
+    popt->movers_front = c->movers_front;
     popt->keep_flow = c->keep_flow_vis;
     return PG_OK;
 }

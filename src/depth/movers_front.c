@@ -1,0 +1,173 @@
+/* movers_front.c - moving blobs brought in front of the still scene they cover (movers_front.h). */
+#include "depth/movers_front.h"
+
+#include "core/mathx.h"
+#include "depth/align.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+void depth_movers_front_defaults(depth_movers_front_params *p, int width, int height)
+{
+    long area = (long)width * height / 1000;
+    p->min_area = area > 16 ? (int)area : 16;
+    p->quantile = 0.03f;
+    p->tolerance = 0.05f;
+    p->window = 3;
+}
+
+/* Labels the 4-connected blob of moving pixels around seed with `label` and lists its pixels.
+ * Returns its size. */
+static int grow_blob(const uint8_t *moving, int *labels, int W, int H, int seed, int label, int *pixels)
+{
+    int count = 0, head = 0;
+    pixels[count++] = seed;
+    labels[seed] = label;
+    while (head < count) {
+        int k = pixels[head++], x = k % W, y = k / W;
+        int next[4] = { x > 0 ? k - 1 : -1, x < W - 1 ? k + 1 : -1, y > 0 ? k - W : -1, y < H - 1 ? k + W : -1 };
+        for (int e = 0; e < 4; e++) {
+            int m = next[e];
+            if (m < 0 || labels[m] || !moving[m]) continue;
+            labels[m] = label;
+            pixels[count++] = m;
+        }
+    }
+    return count;
+}
+
+/* The factor that brings a blob in front of its background: the quantile of background / depth
+ * over its pixels with both, or 1 when that is within the tolerance (or too few pixels tell). */
+static float blob_factor(const float *d, const float *background, const int *pixels, int count, float *ratios,
+                         const depth_movers_front_params *p)
+{
+    int m = 0;
+    for (int i = 0; i < count; i++) {
+        int k = pixels[i];
+        if (depth_valid(d[k]) && background[k] > 0) ratios[m++] = background[k] / d[k];
+    }
+    if (m < p->min_area / 2) return 1.0f;
+    qsort(ratios, (size_t)m, sizeof(float), pg_cmp_float);
+    float q = ratios[(int)(p->quantile * (float)(m - 1))];
+    return q < 1.0f - p->tolerance ? q : 1.0f;
+}
+
+typedef struct {
+    int *labels;    /* (F, n) blob of each pixel, 1-based within its frame; 0 = none or too small */
+    float *factor;  /* (F, max_blobs) each blob's own factor, then its smoothed one */
+    int *count;     /* (F) blobs per frame */
+    int max_blobs;
+} blob_set;
+
+/* Pass 1: the blobs of frame f and their own factors. Returns 0, or -1 when a scratch buffer is
+ * missing. Blobs below min_area keep label 0 after being visited (a negative marker). */
+static void label_frame(blob_set *b, const float *d, const uint8_t *mv, const float *background, int f, int W, int H,
+                        int *pixels, float *ratios, const depth_movers_front_params *p)
+{
+    const size_t n = (size_t)W * H;
+    int *lab = b->labels + (size_t)f * n;
+    float *fac = b->factor + (size_t)f * b->max_blobs;
+    int nb = 0;
+    for (size_t k = 0; k < n; k++) {
+        if (!mv[k] || lab[k]) continue;
+        int count = grow_blob(mv, lab, W, H, (int)k, -1, pixels);
+        if (count < p->min_area || nb >= b->max_blobs) continue; /* stays -1: visited, not a blob */
+        fac[nb] = blob_factor(d, background, pixels, count, ratios, p);
+        nb++;
+        for (int i = 0; i < count; i++) lab[pixels[i]] = nb;
+    }
+    for (size_t k = 0; k < n; k++)
+        if (lab[k] < 0) lab[k] = 0;
+    b->count[f] = nb;
+}
+
+/* Pass 2: a blob's factor becomes the median of its own and those of the blobs overlapping it
+ * in the frames within the window (the same object one step earlier or later): a per-frame
+ * factor flickers with the network's depth, and a mover that jumps in depth blurs the model. */
+static void smooth_frame(const blob_set *b, float *smoothed, int f, int frames, size_t n, int window,
+                         unsigned char *overlap, float *vals)
+{
+    const int nb = b->count[f], mb = b->max_blobs;
+    const int *lab = b->labels + (size_t)f * n;
+    int lo = f - window > 0 ? f - window : 0, hi = f + window < frames - 1 ? f + window : frames - 1;
+    for (int i = 0; i < nb; i++) {
+        int m = 0;
+        for (int g = lo; g <= hi; g++) {
+            const int *other = b->labels + (size_t)g * n;
+            memset(overlap, 0, (size_t)mb);
+            for (size_t k = 0; k < n; k++)
+                if (lab[k] == i + 1 && other[k]) overlap[other[k] - 1] = 1;
+            for (int j = 0; j < b->count[g]; j++)
+                if (overlap[j]) vals[m++] = b->factor[(size_t)g * mb + j];
+        }
+        qsort(vals, (size_t)m, sizeof(float), pg_cmp_float);
+        smoothed[(size_t)f * mb + i] = m % 2 ? vals[m / 2] : 0.5f * (vals[m / 2 - 1] + vals[m / 2]);
+    }
+}
+
+long depth_movers_in_front(float *depth, const uint8_t *moving, const float *background, int frames, int width,
+                           int height, const depth_movers_front_params *p)
+{
+    const size_t n = (size_t)width * height;
+    blob_set b = { 0 };
+    b.max_blobs = (int)(n / (size_t)(p->min_area > 0 ? p->min_area : 1)) + 1;
+    b.labels = calloc((size_t)frames * n, sizeof(int));
+    b.factor = malloc((size_t)frames * b.max_blobs * sizeof(float));
+    b.count = calloc((size_t)frames, sizeof(int));
+    float *smoothed = malloc((size_t)frames * b.max_blobs * sizeof(float));
+    long moved = 0;
+    int out_of_memory = !b.labels || !b.factor || !b.count || !smoothed;
+    if (!out_of_memory) {
+#pragma omp parallel
+        {
+            int *pixels = malloc(n * sizeof(int));
+            float *ratios = malloc(n * sizeof(float));
+            if (!pixels || !ratios) {
+#pragma omp atomic write
+                out_of_memory = 1;
+            }
+#pragma omp for schedule(dynamic, 1)
+            for (int f = 0; f < frames; f++)
+                if (pixels && ratios)
+                    label_frame(&b, depth + (size_t)f * n, moving + (size_t)f * n, background, f, width, height,
+                                pixels, ratios, p);
+            free(pixels);
+            free(ratios);
+        }
+    }
+    if (!out_of_memory) {
+#pragma omp parallel reduction(+ : moved)
+        {
+            unsigned char *overlap = malloc((size_t)b.max_blobs);
+            float *vals = malloc((size_t)(2 * p->window + 1) * b.max_blobs * sizeof(float));
+            if (!overlap || !vals) {
+#pragma omp atomic write
+                out_of_memory = 1;
+            }
+#pragma omp for schedule(dynamic, 1)
+            for (int f = 0; f < frames; f++) {
+                if (!overlap || !vals) continue;
+                smooth_frame(&b, smoothed, f, frames, n, p->window, overlap, vals);
+                float *d = depth + (size_t)f * n;
+                const int *lab = b.labels + (size_t)f * n;
+                for (size_t k = 0; k < n; k++) {
+                    if (!lab[k] || !depth_valid(d[k])) continue;
+                    float s = smoothed[(size_t)f * b.max_blobs + lab[k] - 1];
+                    /* the still scene showing through the blob (where the mover was, or a gap
+                     * the dilation took in) already has its own depth */
+                    if (s >= 1.0f || (background[k] > 0 && fabsf(logf(background[k] / d[k])) < p->tolerance)) continue;
+                    d[k] *= s;
+                }
+                for (int i = 0; i < b.count[f]; i++) moved += smoothed[(size_t)f * b.max_blobs + i] < 1.0f;
+            }
+            free(overlap);
+            free(vals);
+        }
+    }
+    free(b.labels);
+    free(b.factor);
+    free(b.count);
+    free(smoothed);
+    return out_of_memory ? -1 : moved;
+}
