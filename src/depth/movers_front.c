@@ -19,7 +19,7 @@ void depth_movers_front_defaults(depth_movers_front_params *p, int width, int he
 
 /* Labels the 4-connected blob of moving pixels around seed with `label` and lists its pixels.
  * Returns its size. */
-static int grow_blob(const uint8_t *moving, int *labels, int W, int H, int seed, int label, int *pixels)
+static int grow_blob(const uint8_t *moving, int16_t *labels, int W, int H, int seed, int16_t label, int *pixels)
 {
     int count = 0, head = 0;
     pixels[count++] = seed;
@@ -54,19 +54,19 @@ static float blob_factor(const float *d, const float *background, const int *pix
 }
 
 typedef struct {
-    int *labels;    /* (F, n) blob of each pixel, 1-based within its frame; 0 = none or too small */
-    float *factor;  /* (F, max_blobs) each blob's own factor, then its smoothed one */
+    int16_t *labels; /* (F, n) blob of each pixel, 1-based within its frame; 0 = none or too small */
+    float *factor;  /* (F, max_blobs) each blob's own factor */
     int *count;     /* (F) blobs per frame */
     int max_blobs;
 } blob_set;
 
-/* Pass 1: the blobs of frame f and their own factors. Returns 0, or -1 when a scratch buffer is
- * missing. Blobs below min_area keep label 0 after being visited (a negative marker). */
+/* Pass 1: the blobs of frame f and their own factors. While labelling, -1 marks a visited pixel
+ * of a blob below min_area (or past max_blobs); such pixels end with label 0. */
 static void label_frame(blob_set *b, const float *d, const uint8_t *mv, const float *background, int f, int W, int H,
                         int *pixels, float *ratios, const depth_movers_front_params *p)
 {
     const size_t n = (size_t)W * H;
-    int *lab = b->labels + (size_t)f * n;
+    int16_t *lab = b->labels + (size_t)f * n;
     float *fac = b->factor + (size_t)f * b->max_blobs;
     int nb = 0;
     for (size_t k = 0; k < n; k++) {
@@ -75,7 +75,7 @@ static void label_frame(blob_set *b, const float *d, const uint8_t *mv, const fl
         if (count < p->min_area || nb >= b->max_blobs) continue; /* stays -1: visited, not a blob */
         fac[nb] = blob_factor(d, background, pixels, count, ratios, p);
         nb++;
-        for (int i = 0; i < count; i++) lab[pixels[i]] = nb;
+        for (int i = 0; i < count; i++) lab[pixels[i]] = (int16_t)nb;
     }
     for (size_t k = 0; k < n; k++)
         if (lab[k] < 0) lab[k] = 0;
@@ -89,12 +89,12 @@ static void smooth_frame(const blob_set *b, float *smoothed, int f, int frames, 
                          unsigned char *overlap, float *vals)
 {
     const int nb = b->count[f], mb = b->max_blobs;
-    const int *lab = b->labels + (size_t)f * n;
+    const int16_t *lab = b->labels + (size_t)f * n;
     int lo = f - window > 0 ? f - window : 0, hi = f + window < frames - 1 ? f + window : frames - 1;
     for (int i = 0; i < nb; i++) {
         int m = 0;
         for (int g = lo; g <= hi; g++) {
-            const int *other = b->labels + (size_t)g * n;
+            const int16_t *other = b->labels + (size_t)g * n;
             memset(overlap, 0, (size_t)mb);
             for (size_t k = 0; k < n; k++)
                 if (lab[k] == i + 1 && other[k]) overlap[other[k] - 1] = 1;
@@ -111,8 +111,9 @@ long depth_movers_in_front(float *depth, const uint8_t *moving, const float *bac
 {
     const size_t n = (size_t)width * height;
     blob_set b = { 0 };
-    b.max_blobs = (int)(n / (size_t)(p->min_area > 0 ? p->min_area : 1)) + 1;
-    b.labels = calloc((size_t)frames * n, sizeof(int));
+    size_t most = n / (size_t)(p->min_area > 0 ? p->min_area : 1) + 1;
+    b.max_blobs = most < INT16_MAX ? (int)most : INT16_MAX;
+    b.labels = calloc((size_t)frames * n, sizeof(int16_t));
     b.factor = malloc((size_t)frames * b.max_blobs * sizeof(float));
     b.count = calloc((size_t)frames, sizeof(int));
     float *smoothed = malloc((size_t)frames * b.max_blobs * sizeof(float));
@@ -150,7 +151,7 @@ long depth_movers_in_front(float *depth, const uint8_t *moving, const float *bac
                 if (!overlap || !vals) continue;
                 smooth_frame(&b, smoothed, f, frames, n, p->window, overlap, vals);
                 float *d = depth + (size_t)f * n;
-                const int *lab = b.labels + (size_t)f * n;
+                const int16_t *lab = b.labels + (size_t)f * n;
                 for (size_t k = 0; k < n; k++) {
                     if (!lab[k] || !depth_valid(d[k])) continue;
                     float s = smoothed[(size_t)f * b.max_blobs + lab[k] - 1];
