@@ -37,3 +37,10 @@ double pg_median(double *v, int n)
     qsort(v, (size_t)n, sizeof(double), pg_cmp_double);
     return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
+
+float pg_median_float(float *v, int n)
+{
+    if (n <= 0) return 0.0f;
+    qsort(v, (size_t)n, sizeof(float), pg_cmp_float);
+    return n % 2 ? v[n / 2] : 0.5f * (v[n / 2 - 1] + v[n / 2]);
+}

@@ -14,5 +14,7 @@ double pg_time_seconds(void);
 double pg_cpu_seconds(void);
 /* Median of v[0..n) (sorts v in place). */
 double pg_median(double *v, int n);
+/* The same for floats (v sorted in place; 0 when n <= 0). */
+float pg_median_float(float *v, int n);
 
 #endif

@@ -1,7 +1,7 @@
 /* fuse.c - temporal median of static pixels (see fuse.h). */
 #include "depth/fuse.h"
 
-#include "core/mathx.h"
+#include "core/parallel.h"
 
 #include <stdlib.h>
 
@@ -28,8 +28,7 @@ long depth_static_reference(const float *depth, const unsigned char *static_mask
                 if (static_masks[(size_t)f * n + k] && d > 0) vals[m++] = d;
             }
             if (m < min_frames) continue;
-            qsort(vals, (size_t)m, sizeof(float), pg_cmp_float);
-            ref[k] = m % 2 ? vals[m / 2] : 0.5f * (vals[m / 2 - 1] + vals[m / 2]);
+            ref[k] = pg_median_float(vals, m);
             found++;
         }
         free(vals);

@@ -2,6 +2,7 @@
 #include "depth/movers_front.h"
 
 #include "core/mathx.h"
+#include "core/parallel.h"
 #include "depth/align.h"
 
 #include <math.h>
@@ -101,8 +102,7 @@ static void smooth_frame(const blob_set *b, float *smoothed, int f, int frames, 
             for (int j = 0; j < b->count[g]; j++)
                 if (overlap[j]) vals[m++] = b->factor[(size_t)g * mb + j];
         }
-        qsort(vals, (size_t)m, sizeof(float), pg_cmp_float);
-        smoothed[(size_t)f * mb + i] = m % 2 ? vals[m / 2] : 0.5f * (vals[m / 2 - 1] + vals[m / 2]);
+        smoothed[(size_t)f * mb + i] = pg_median_float(vals, m);
     }
 }
 
