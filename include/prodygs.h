@@ -302,8 +302,7 @@ typedef struct {
     const char *proxy_render;         /* "mesh" (NULL: default) or "splat" */
     const char *depth_kind;
     float depth_scale;                /* 0: 1 */
-    int refine, align, fuse, planes;  /* (1, 1, 1, 1) */
-    int movers_front;                 /* (1) */
+    int refine, align, fuse, planes, movers_front; /* (1, 1, 1, 1, 1) */
     int frames, width, height, iters; /* 0: all / the preset's */
     int deform_width;                 /* 0: the trainer's default */
     int deform_head_width;            /* 0: the trainer's default (32) */

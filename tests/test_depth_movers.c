@@ -14,12 +14,12 @@ enum { W = 80, H = 60, F = 9, RING = 2 };
 
 typedef struct {
     float depth[F * W * H], before[F * W * H], background[W * H];
-    uint8_t blobs[F * W * H];
+    unsigned char still[F * W * H]; /* 1 = still: everything but the mover and its ring */
     unsigned char inside[F * W * H]; /* 1 = the mover itself, 0 = ring or still scene */
 } scene;
 
 /* A wall at WALL everywhere; in frame f a 12 x 20 mover at x = 10 + 4f drawn at mover_depth(f),
- * its blob the mover plus a RING px ring where the wall shows. */
+ * its blob (not still) the mover plus a RING px ring where the wall shows. */
 static void make_scene(scene *s, float (*mover_depth)(int f), int width, int height)
 {
     for (int k = 0; k < W * H; k++) s->background[k] = WALL;
@@ -31,7 +31,7 @@ static void make_scene(scene *s, float (*mover_depth)(int f), int width, int hei
                 int in = x >= x0 && x < x0 + width && y >= y0 && y < y0 + height;
                 int near = x >= x0 - RING && x < x0 + width + RING && y >= y0 - RING && y < y0 + height + RING;
                 s->inside[k] = (unsigned char)in;
-                s->blobs[k] = (uint8_t)near;
+                s->still[k] = (unsigned char)!near;
                 s->depth[k] = in ? mover_depth(f) : WALL;
             }
     }
@@ -52,7 +52,7 @@ static void test_behind(const depth_movers_front_params *p)
 {
     scene *s = malloc(sizeof *s);
     make_scene(s, behind, 12, 20);
-    long moved = depth_movers_in_front(s->depth, s->blobs, s->background, F, W, H, p);
+    long moved = depth_movers_in_front(s->depth, s->still, s->background, F, W, H, p);
     CHECK(moved == F, "moved %ld blobs, want %d", moved, F);
     double worst_mover = 0, worst_wall = 0;
     for (size_t k = 0; k < (size_t)F * W * H; k++) {
@@ -69,20 +69,20 @@ static void test_left_alone(const depth_movers_front_params *p)
 {
     scene *s = malloc(sizeof *s);
     make_scene(s, in_front, 12, 20);
-    CHECK(depth_movers_in_front(s->depth, s->blobs, s->background, F, W, H, p) == 0, "a blob in front moved");
+    CHECK(depth_movers_in_front(s->depth, s->still, s->background, F, W, H, p) == 0, "a blob in front moved");
     check_unchanged(s, "in front");
 
     make_scene(s, slightly_behind, 12, 20);
-    CHECK(depth_movers_in_front(s->depth, s->blobs, s->background, F, W, H, p) == 0, "3 %% behind moved");
+    CHECK(depth_movers_in_front(s->depth, s->still, s->background, F, W, H, p) == 0, "3 %% behind moved");
     check_unchanged(s, "within the tolerance");
 
     make_scene(s, behind, 2, 1); /* 6 x 5 px with its ring: under min_area */
-    CHECK(depth_movers_in_front(s->depth, s->blobs, s->background, F, W, H, p) == 0, "a small blob moved");
+    CHECK(depth_movers_in_front(s->depth, s->still, s->background, F, W, H, p) == 0, "a small blob moved");
     check_unchanged(s, "too small");
 
     make_scene(s, behind, 12, 20);
     memset(s->background, 0, sizeof s->background);
-    CHECK(depth_movers_in_front(s->depth, s->blobs, s->background, F, W, H, p) == 0, "moved without a background");
+    CHECK(depth_movers_in_front(s->depth, s->still, s->background, F, W, H, p) == 0, "moved without a background");
     check_unchanged(s, "unknown background");
     free(s);
 }
@@ -91,7 +91,7 @@ static void test_flicker(const depth_movers_front_params *p)
 {
     scene *s = malloc(sizeof *s);
     make_scene(s, flicker, 12, 20);
-    CHECK(depth_movers_in_front(s->depth, s->blobs, s->background, F, W, H, p) == F, "not every frame moved");
+    CHECK(depth_movers_in_front(s->depth, s->still, s->background, F, W, H, p) == F, "not every frame moved");
     size_t k4 = (size_t)4 * W * H + (size_t)25 * W + 28, k3 = (size_t)3 * W * H + (size_t)25 * W + 28;
     CHECK(s->inside[k4] && s->inside[k3], "test pixels off the mover");
     /* frame 4's own factor would be 1/3; its neighbours' 2/3 win the median */

@@ -6,6 +6,7 @@
 #include "depth/align.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -18,9 +19,9 @@ void depth_movers_front_defaults(depth_movers_front_params *p, int width, int he
     p->window = 3;
 }
 
-/* Labels the 4-connected blob of moving pixels around seed with `label` and lists its pixels.
+/* Labels the 4-connected blob of non-still pixels around seed with `label` and lists its pixels.
  * Returns its size. */
-static int grow_blob(const uint8_t *moving, int16_t *labels, int W, int H, int seed, int16_t label, int *pixels)
+static int grow_blob(const unsigned char *still, int16_t *labels, int W, int H, int seed, int16_t label, int *pixels)
 {
     int count = 0, head = 0;
     pixels[count++] = seed;
@@ -30,7 +31,7 @@ static int grow_blob(const uint8_t *moving, int16_t *labels, int W, int H, int s
         int next[4] = { x > 0 ? k - 1 : -1, x < W - 1 ? k + 1 : -1, y > 0 ? k - W : -1, y < H - 1 ? k + W : -1 };
         for (int e = 0; e < 4; e++) {
             int m = next[e];
-            if (m < 0 || labels[m] || !moving[m]) continue;
+            if (m < 0 || labels[m] || still[m]) continue;
             labels[m] = label;
             pixels[count++] = m;
         }
@@ -63,7 +64,7 @@ typedef struct {
 
 /* Pass 1: the blobs of frame f and their own factors. While labelling, -1 marks a visited pixel
  * of a blob below min_area (or past max_blobs); such pixels end with label 0. */
-static void label_frame(blob_set *b, const float *d, const uint8_t *mv, const float *background, int f, int W, int H,
+static void label_frame(blob_set *b, const float *d, const unsigned char *still, const float *background, int f, int W, int H,
                         int *pixels, float *ratios, const depth_movers_front_params *p)
 {
     const size_t n = (size_t)W * H;
@@ -71,8 +72,8 @@ static void label_frame(blob_set *b, const float *d, const uint8_t *mv, const fl
     float *fac = b->factor + (size_t)f * b->max_blobs;
     int nb = 0;
     for (size_t k = 0; k < n; k++) {
-        if (!mv[k] || lab[k]) continue;
-        int count = grow_blob(mv, lab, W, H, (int)k, -1, pixels);
+        if (still[k] || lab[k]) continue;
+        int count = grow_blob(still, lab, W, H, (int)k, -1, pixels);
         if (count < p->min_area || nb >= b->max_blobs) continue; /* stays -1: visited, not a blob */
         fac[nb] = blob_factor(d, background, pixels, count, ratios, p);
         nb++;
@@ -85,28 +86,43 @@ static void label_frame(blob_set *b, const float *d, const uint8_t *mv, const fl
 
 /* Pass 2: a blob's factor becomes the median of its own and those of the blobs overlapping it
  * in the frames within the window (the same object one step earlier or later): a per-frame
- * factor flickers with the network's depth, and a mover that jumps in depth blurs the model. */
-static void smooth_frame(const blob_set *b, float *smoothed, int f, int frames, size_t n, int window,
-                         unsigned char *overlap, float *vals)
+ * factor flickers with the network's depth, and a mover that jumps in depth blurs the model.
+ * One pass over the pixels per frame of the window fills which blobs of f overlap which of that
+ * frame. Returns 0, or -1 when out of memory. */
+static int smooth_frame(const blob_set *b, float *smoothed, int f, int frames, size_t n, int window, float *vals)
 {
     const int nb = b->count[f], mb = b->max_blobs;
     const int16_t *lab = b->labels + (size_t)f * n;
     int lo = f - window > 0 ? f - window : 0, hi = f + window < frames - 1 ? f + window : frames - 1;
+    size_t cells = 0;
+    for (int g = lo; g <= hi; g++) cells += (size_t)nb * b->count[g];
+    if (cells == 0) return 0;
+    unsigned char *overlap = calloc(cells, 1); /* per frame g: (nb, count[g]) */
+    if (!overlap) return -1;
+    unsigned char *o = overlap;
+    for (int g = lo; g <= hi; g++) {
+        const int16_t *other = b->labels + (size_t)g * n;
+        const int cg = b->count[g];
+        for (size_t k = 0; k < n; k++)
+            if (lab[k] && other[k]) o[(size_t)(lab[k] - 1) * cg + other[k] - 1] = 1;
+        o += (size_t)nb * cg;
+    }
     for (int i = 0; i < nb; i++) {
         int m = 0;
+        o = overlap;
         for (int g = lo; g <= hi; g++) {
-            const int16_t *other = b->labels + (size_t)g * n;
-            memset(overlap, 0, (size_t)mb);
-            for (size_t k = 0; k < n; k++)
-                if (lab[k] == i + 1 && other[k]) overlap[other[k] - 1] = 1;
-            for (int j = 0; j < b->count[g]; j++)
-                if (overlap[j]) vals[m++] = b->factor[(size_t)g * mb + j];
+            const int cg = b->count[g];
+            for (int j = 0; j < cg; j++)
+                if (o[(size_t)i * cg + j]) vals[m++] = b->factor[(size_t)g * mb + j];
+            o += (size_t)nb * cg;
         }
         smoothed[(size_t)f * mb + i] = pg_median_float(vals, m);
     }
+    free(overlap);
+    return 0;
 }
 
-long depth_movers_in_front(float *depth, const uint8_t *moving, const float *background, int frames, int width,
+long depth_movers_in_front(float *depth, const unsigned char *still, const float *background, int frames, int width,
                            int height, const depth_movers_front_params *p)
 {
     const size_t n = (size_t)width * height;
@@ -131,7 +147,7 @@ long depth_movers_in_front(float *depth, const uint8_t *moving, const float *bac
 #pragma omp for schedule(dynamic, 1)
             for (int f = 0; f < frames; f++)
                 if (pixels && ratios)
-                    label_frame(&b, depth + (size_t)f * n, moving + (size_t)f * n, background, f, width, height,
+                    label_frame(&b, depth + (size_t)f * n, still + (size_t)f * n, background, f, width, height,
                                 pixels, ratios, p);
             free(pixels);
             free(ratios);
@@ -140,16 +156,19 @@ long depth_movers_in_front(float *depth, const uint8_t *moving, const float *bac
     if (!out_of_memory) {
 #pragma omp parallel reduction(+ : moved)
         {
-            unsigned char *overlap = malloc((size_t)b.max_blobs);
             float *vals = malloc((size_t)(2 * p->window + 1) * b.max_blobs * sizeof(float));
-            if (!overlap || !vals) {
+            if (!vals) {
 #pragma omp atomic write
                 out_of_memory = 1;
             }
 #pragma omp for schedule(dynamic, 1)
             for (int f = 0; f < frames; f++) {
-                if (!overlap || !vals) continue;
-                smooth_frame(&b, smoothed, f, frames, n, p->window, overlap, vals);
+                if (!vals) continue;
+                if (smooth_frame(&b, smoothed, f, frames, n, p->window, vals)) {
+#pragma omp atomic write
+                    out_of_memory = 1;
+                    continue;
+                }
                 float *d = depth + (size_t)f * n;
                 const int16_t *lab = b.labels + (size_t)f * n;
                 for (size_t k = 0; k < n; k++) {
@@ -162,7 +181,6 @@ long depth_movers_in_front(float *depth, const uint8_t *moving, const float *bac
                 }
                 for (int i = 0; i < b.count[f]; i++) moved += smoothed[(size_t)f * b.max_blobs + i] < 1.0f;
             }
-            free(overlap);
             free(vals);
         }
     }

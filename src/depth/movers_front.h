@@ -9,12 +9,10 @@
  * (one factor per blob keeps its shape), until nearly all of it is in front. Blobs already in
  * front (a ball in the air, a hand before the body) are left alone.
  *
- *   long moved = depth_movers_in_front(depth, moving, background, F, W, H, &params);
+ *   long moved = depth_movers_in_front(depth, static_masks, background, F, W, H, &params);
  */
 #ifndef PG_DEPTH_MOVERS_FRONT_H
 #define PG_DEPTH_MOVERS_FRONT_H
-
-#include <stdint.h>
 
 typedef struct {
     int min_area;     /* smallest blob in pixels (default 0.1 % of the image, at least 16) */
@@ -26,10 +24,11 @@ typedef struct {
 
 void depth_movers_front_defaults(depth_movers_front_params *p, int width, int height);
 
-/* depth (F, H*W): prepared depth, 0 = invalid, changed in place on moving blobs; moving (F, H*W):
- * 1 = moving pixel; background (H*W): the still scene's depth per pixel, 0 = unknown. Blobs are
- * 4-connected per frame. Returns the number of blobs moved, -1 when out of memory. */
-long depth_movers_in_front(float *depth, const uint8_t *moving, const float *background, int frames, int width,
+/* depth (F, H*W): prepared depth, 0 = invalid, changed in place on moving blobs; still (F, H*W):
+ * the static masks, 1 = still in that frame (the blobs are the 4-connected groups of the other
+ * pixels); background (H*W): the still scene's depth per pixel, 0 = unknown. Returns the number
+ * of blobs moved, -1 when out of memory. */
+long depth_movers_in_front(float *depth, const unsigned char *still, const float *background, int frames, int width,
                            int height, const depth_movers_front_params *p);
 
 #endif

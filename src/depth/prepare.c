@@ -240,15 +240,10 @@ static pg_status prepare_frames(const depth_prepare_options *opt, const pg_image
     if (!st && opt->movers_front && F >= 3) {
         depth_movers_front_params mp = opt->movers_params;
         if (mp.min_area <= 0) depth_movers_front_defaults(&mp, W, H);
-        uint8_t *blobs = pg_malloc((size_t)F * n, "moving blobs");
         float *background = pg_malloc(n * sizeof(float), "still scene depth");
         res->movers_moved = -1;
-        if (blobs && background &&
-            depth_static_reference(res->depth, res->static_masks, F, n, min_static, background) >= 0) {
-            for (size_t k = 0; k < (size_t)F * n; k++) blobs[k] = !res->static_masks[k];
-            res->movers_moved = depth_movers_in_front(res->depth, blobs, background, F, W, H, &mp);
-        }
-        free(blobs);
+        if (background && depth_static_reference(res->depth, res->static_masks, F, n, min_static, background) >= 0)
+            res->movers_moved = depth_movers_in_front(res->depth, res->static_masks, background, F, W, H, &mp);
         free(background);
         if (res->movers_moved < 0) st = pg_fail(PG_ERR_NOMEM, "depth preparation: out of memory placing movers");
     }
