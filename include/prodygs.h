@@ -132,6 +132,9 @@ typedef struct {
     int frames, width, height, threads, force; /* force: recompute cached frames */
     int diagnose;                    /* dataset poses: score each proxy against its camera's real
                                         frames (OUT/diagnose.json, OUT/vis/) */
+    int pose_shift;                  /* dataset poses, evaluation only: the paper's global scale-and-shift
+                                        alignment to COLMAP's points at the known poses when COLMAP is
+                                        installed (1); 0 or no COLMAP: a photometric scale alone */
 } pg_proxies_config;
 
 typedef struct {
@@ -141,6 +144,9 @@ typedef struct {
     double mean_source_psnr;         /* splat: fitted model vs the real frame; NaN for mesh */
     int diagnosed_views;             /* diagnose: proxies scored against their camera's real frames */
     double diagnose_psnr_reprojected, diagnose_psnr_guessed, diagnose_psnr_moving; /* pooled; NaN: none */
+    double pose_shift;               /* fitted disparity shift per user depth unit (0: none):
+                                        pose depth = pose_scale * d / (1 + pose_shift * d) */
+    char pose_fit[160];              /* how: "COLMAP scale and shift (N points, ...)", "photometric scale", "given", "none" */
 } pg_proxies_report;
 
 void pg_proxies_defaults(pg_proxies_config *c);
@@ -194,6 +200,8 @@ typedef struct {
     const char *config_json;           /* optional JSON object recorded as "config" */
     const char *stages_json;           /* optional JSON object of per-stage {seconds, threads} */
     int threads;
+    const char *trainset;              /* the training set the model learnt from: its real camera's depth
+                                          gives the report's 2.5D-warp baseline (NULL: no warp row) */
 } pg_evaluate_config;
 
 typedef struct {
@@ -202,6 +210,9 @@ typedef struct {
     double psnr_moving;         /* test cameras' moving pixels */
     double train_psnr_moving, train_psnr_static; /* the training camera */
     double seconds;
+    /* the yardsticks at the same test frames (NaN: not scored): a flat image of the training
+       camera's mean colour, its frame as is, its 2.5D warp with the trained-on depth */
+    double flat_psnr, as_is_psnr, warp_psnr, warp_psnr_moving;
 } pg_evaluate_report;
 
 void pg_evaluate_defaults(pg_evaluate_config *c);
@@ -303,6 +314,7 @@ typedef struct {
     const char *depth_kind;
     float depth_scale;                /* 0: 1 */
     int refine, align, fuse, planes, movers_front; /* (1, 1, 1, 1, 1) */
+    int pose_shift;                   /* dataset poses: scale and disparity shift to COLMAP's points (1; see pg_proxies_config) */
     int frames, width, height, iters; /* 0: all / the preset's */
     int deform_width;                 /* 0: the trainer's default */
     int deform_head_width;            /* 0: the trainer's default (32) */

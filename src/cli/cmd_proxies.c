@@ -8,6 +8,7 @@ int cmd_proxies(int argc, char **argv)
     pg_proxies_config c;
     pg_proxies_defaults(&c);
     const char *size = NULL, *proxies = NULL;
+    int no_pose_shift = 0;
     const cli_option opts[] = {
         { "--depth", CLI_STR, &c.depth, "aligned depth (F,H,W) .npy, e.g. prepare's depth_aligned.npy (required)" },
         { "--out", CLI_STR, &c.out, "training-set directory to write (required)" },
@@ -21,6 +22,7 @@ int cmd_proxies(int argc, char **argv)
         { "--train-cam", CLI_STR, &c.train_camera, "the real (training) camera: name or index (default: the first)" },
         { "--test-cams", CLI_STR, &c.test_cameras, "held-out cameras, names or indices (dataset default cam05,cam06)" },
         { "--pose-scale", CLI_FLOAT, &c.pose_scale, "pose units per depth unit (dataset: fitted if absent)" },
+        { "--no-pose-shift", CLI_FLAG, &no_pose_shift, "dataset poses: fit the pose scale alone, no disparity shift (ablation)" },
         { "--frames", CLI_INT, &c.frames, "use only the first N frames (default: all)" },
         { "--size", CLI_STR, &size, "resize frames to WxH (0 for one side keeps the aspect)" },
         { "--fov", CLI_FLOAT, &c.fov, "single video: horizontal field of view in degrees (60)" },
@@ -37,18 +39,20 @@ int cmd_proxies(int argc, char **argv)
     if (!c.depth || !c.out) return cli_usage_error("proxies: --depth PATH and --out DIR are required");
     if ((rc = cli_parse_size("--size", size, &c.width, &c.height))) return rc;
     if ((rc = cli_parse_count_or_all("--proxies", proxies, &c.proxies))) return rc;
+    c.pose_shift = !no_pose_shift;
 
     pg_proxies_report r;
-    char psnr[32];
+    char psnr[32], cost[32];
     pg_status st = pg_proxies_run(&c, &r);
     if (st) return cli_fail(st);
     printf("proxies: training camera %s%s%s\n", r.train_camera, r.test_cameras[0] ? "; test cameras " : "",
            r.test_cameras);
     printf("{\"out\": \"%s\", \"frames\": %d, \"computed\": %d, \"reused\": %d, \"proxies\": %d, \"poses\": \"%s\", "
-           "\"pose_scale\": %.6g, \"pose_scale_fitted\": %s, \"pose_scale_cost\": %.5f, \"mean_valid_fraction\": %.4f, "
+           "\"pose_scale\": %.6g, \"pose_shift\": %.6g, \"pose_fit\": \"%s\", \"pose_scale_fitted\": %s, \"pose_scale_cost\": %s, \"mean_valid_fraction\": %.4f, "
            "\"mean_source_psnr\": %s, \"threads\": %d, \"seconds\": %.1f}\n",
-           c.out, r.frames, r.computed, r.reused, r.proxies, r.poses, r.pose_scale, r.pose_scale_fitted ? "true" : "false",
-           r.pose_scale_cost, r.mean_valid_fraction, cli_json_number(r.mean_source_psnr, 2, psnr, sizeof psnr), r.threads, r.seconds);
+           c.out, r.frames, r.computed, r.reused, r.proxies, r.poses, r.pose_scale, r.pose_shift, r.pose_fit, r.pose_scale_fitted ? "true" : "false",
+           cli_json_number(r.pose_scale_cost, 5, cost, sizeof cost), r.mean_valid_fraction,
+           cli_json_number(r.mean_source_psnr, 2, psnr, sizeof psnr), r.threads, r.seconds);
     if (c.diagnose) {
         char a[32], b[32], m[32];
         printf("{\"diagnosed_views\": %d, \"psnr_reprojected\": %s, \"psnr_guessed\": %s, \"psnr_moving\": %s, "

@@ -47,6 +47,7 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
         { "--real-weight", CLI_FLOAT, &c->real_weight, "share of each step's loss on the real view when proxies are in it (default 0.75)" },
         { "--sh-degree", CLI_INT, &c->sh_degree, "largest spherical-harmonics degree of the colours, 0..3 (default: 0 with one real camera)" },
         { "--pose-scale", CLI_FLOAT, &c->pose_scale, "depth-to-pose scale instead of fitting it (dataset poses)" },
+        { "--no-pose-shift", CLI_FLAG, &t->no_pose_shift, "dataset poses: fit the depth-to-pose scale alone, no disparity shift (ablation)" },
         { "--threads", CLI_INT, &c->threads, "worker threads for every stage (default: all cores)" },
         { "--seed", CLI_INT, &c->seed, "random seed (default 1)" },
     };
@@ -85,6 +86,7 @@ int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pg_pipeline_
     c->fuse = !t->no_fuse;
     c->planes = !t->no_planes;
     c->movers_front = !t->no_movers_front;
+    c->pose_shift = !t->no_pose_shift;
     size_t len = (size_t)snprintf(t->command, sizeof t->command, "prodygs");
     for (int i = 0; i < argc && len < sizeof t->command; i++)
         len += (size_t)snprintf(t->command + len, sizeof t->command - len, " %s", argv[i]);
@@ -131,6 +133,10 @@ int pipeline_cli_run(pg_pipeline_config *c)
         add_score(line, sizeof line, "psnr_moving", r.evaluation.psnr_moving);
         add_score(line, sizeof line, "train_psnr_moving", r.evaluation.train_psnr_moving);
         add_score(line, sizeof line, "train_psnr_static", r.evaluation.train_psnr_static);
+        add_score(line, sizeof line, "flat_psnr", r.evaluation.flat_psnr);
+        add_score(line, sizeof line, "as_is_psnr", r.evaluation.as_is_psnr);
+        add_score(line, sizeof line, "warp_psnr", r.evaluation.warp_psnr);
+        add_score(line, sizeof line, "warp_psnr_moving", r.evaluation.warp_psnr_moving);
         size_t n = strlen(line);
         snprintf(line + n, sizeof line - n, ", \"frames\": %d, \"metrics\": \"%s/metrics.json\"", r.evaluation.frames, c->out);
     } else {

@@ -1,5 +1,6 @@
 /* metrics.c - PSNR/SSIM (plain and alpha-masked) and the per-frame evaluation record. */
 #include "eval/metrics.h"
+#include "eval/baselines.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -137,6 +138,9 @@ int eval_results_mean(const eval_results *r, const char *camera, eval_role role,
 void eval_results_destroy(eval_results *r)
 {
     if (!r) return;
+    if (r->baseline)
+        for (int b = 0; b < EVAL_BASELINES; b++) eval_results_destroy(&r->baseline[b]);
+    free(r->baseline);
     free(r->records);
     memset(r, 0, sizeof *r);
 }

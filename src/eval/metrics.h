@@ -43,9 +43,12 @@ typedef struct {
     eval_scores s;
 } eval_frame_record;
 
-typedef struct {
+typedef struct eval_results {
     eval_frame_record *records; /* (count) */
     int count, capacity;
+    /* (EVAL_BASELINES, eval/baselines.h) the yardsticks' scores at the test cameras, the same
+     * frames and pixels as the model's; NULL: not scored */
+    struct eval_results *baseline;
 } eval_results;
 
 /* Scores a rendered image against the truth; alpha (H, W) may be NULL (masked = unmasked).
@@ -65,6 +68,7 @@ pg_status eval_results_add(eval_results *r, const char *camera, eval_role role, 
 /* Mean over the records of one camera (camera NULL: every record of the role); returns the
  * record count. Regions are pooled (summed), the other scores are means of per-frame scores. */
 int eval_results_mean(const eval_results *r, const char *camera, eval_role role, eval_scores *mean);
+/* Frees the records and the baselines' records. */
 void eval_results_destroy(eval_results *r);
 
 #endif

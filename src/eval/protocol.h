@@ -25,7 +25,11 @@ pg_status eval_dataset_moving_masks(pg_dataset *ds, int cam, int frames, int W, 
 int eval_wants_side_by_side(int f, int frames);
 
 /* dataset: the DyNeRF (or Panoptic) directory; model: the trained model directory (with
- * trainset.json); sbs_dir: where truth|render|error PNGs go (NULL: none). */
-pg_status eval_protocol_run(const char *dataset, const char *model, const char *sbs_dir, eval_results *results);
+ * trainset.json); trainset: the training set it was trained on (its real camera's depth gives the
+ * warp baseline; NULL: none); sbs_dir: where truth|render|error PNGs go (NULL: none). The
+ * baselines (eval/baselines.h) are scored into results->baseline when the dataset has the
+ * training camera. */
+pg_status eval_protocol_run(const char *dataset, const char *model, const char *trainset, const char *sbs_dir,
+                            eval_results *results);
 
 #endif

@@ -1,5 +1,6 @@
 /* report.c - writes the evaluation results for machines (JSON) and people (markdown, PNG). */
 #include "eval/report.h"
+#include "eval/baselines.h"
 #include "core/fileutil.h"
 #include "io/image_io.h"
 #include "io/json.h"
@@ -67,6 +68,46 @@ static int list_cameras(const eval_results *r, const char **names, int max)
     return n;
 }
 
+/* Mean of baseline b's records (one camera, or every test record); 0 when it was not scored. */
+static int baseline_mean(const eval_results *r, int b, const char *camera, eval_scores *s)
+{
+    memset(s, 0, sizeof *s);
+    return r->baseline ? eval_results_mean(&r->baseline[b], camera, EVAL_ROLE_TEST, s) : 0;
+}
+
+/* {"psnr", "ssim", "psnr_moving"} of one set of scores. */
+static cJSON *brief_json(const eval_scores *s)
+{
+    cJSON *o = cJSON_CreateObject();
+    add_number_or_null(o, "psnr", s->psnr);
+    add_number_or_null(o, "ssim", s->ssim);
+    add_number_or_null(o, "psnr_moving", eval_region_psnr(&s->region[EVAL_MOVING]));
+    return o;
+}
+
+/* "baselines": each yardstick pooled and per test camera; "margin_db": the model's held-out PSNR
+ * minus each one's. */
+static void add_baselines(cJSON *root, const eval_results *r, const eval_scores *model, const char **names, int ncam)
+{
+    cJSON *base = cJSON_AddObjectToObject(root, "baselines"), *margin = cJSON_AddObjectToObject(root, "margin_db");
+    for (int b = 0; b < EVAL_BASELINES; b++) {
+        eval_scores s;
+        if (!baseline_mean(r, b, NULL, &s)) {
+            cJSON_AddNullToObject(base, eval_baseline_names[b]);
+            cJSON_AddNullToObject(margin, eval_baseline_names[b]);
+            continue;
+        }
+        cJSON *o = brief_json(&s), *per = cJSON_AddObjectToObject(o, "per_camera");
+        for (int k = 0; k < ncam; k++) {
+            eval_scores c;
+            if (camera_role(r, names[k]) == EVAL_ROLE_TEST && baseline_mean(r, b, names[k], &c))
+                cJSON_AddItemToObject(per, names[k], brief_json(&c));
+        }
+        cJSON_AddItemToObject(base, eval_baseline_names[b], o);
+        cJSON_AddNumberToObject(margin, eval_baseline_names[b], model->psnr - s.psnr);
+    }
+}
+
 pg_status eval_write_metrics_json(const char *path, const eval_results *r, const cJSON *config, const cJSON *stages)
 {
     eval_scores mean, train;
@@ -92,6 +133,7 @@ pg_status eval_write_metrics_json(const char *path, const eval_results *r, const
         cJSON_AddStringToObject(o, "role", role_name(camera_role(r, names[k])));
         cJSON_AddItemToObject(per_cam, names[k], o);
     }
+    if (ntest > 0) add_baselines(root, r, &mean, names, ncam);
     cJSON *frames = cJSON_AddArrayToObject(root, "per_frame");
     for (int i = 0; i < r->count; i++) {
         cJSON *f = scores_json(&r->records[i].s, -1);
@@ -162,6 +204,48 @@ pg_status eval_write_report_md(const char *path, const eval_results *r, const cJ
             EMIT(" - | - | - | - |\n");
     }
     EMIT("\n");
+    if (ntest > 0 && r->baseline) {
+        static const char *const label[EVAL_BASELINES] = { "flat image of the training camera's mean colour",
+                                                            "training frame shown as is",
+                                                            "2.5D warp of the training frame (trained-on depth)" };
+        EMIT("## Against the trivial baselines\n\n"
+             "Each held-out frame is also scored as three yardsticks would draw it: a %s; the %s; a %s,\n"
+             "z-buffered, holes filled from the background beside them. PSNR / SSIM / moving-pixel PSNR.\n\n",
+             label[0], label[1], label[2]);
+        EMIT("| camera | model | flat | as is | warp | model minus flat / as is / warp (dB) |\n|---|---|---|---|---|---|\n");
+        for (int k = 0; k <= ncam; k++) {
+            if (k < ncam && camera_role(r, names[k]) != EVAL_ROLE_TEST) continue;
+            const char *cam = k < ncam ? names[k] : NULL;
+            eval_scores m, b[EVAL_BASELINES];
+            int have[EVAL_BASELINES];
+            eval_results_mean(r, cam, EVAL_ROLE_TEST, &m);
+            EMIT("| %s | %.2f / %.3f / %.2f |", cam ? cam : "**all**", m.psnr, m.ssim, eval_region_psnr(&m.region[EVAL_MOVING]));
+            for (int j = 0; j < EVAL_BASELINES; j++) {
+                have[j] = baseline_mean(r, j, cam, &b[j]);
+                if (have[j])
+                    EMIT(" %.2f / %.3f / %.2f |", b[j].psnr, b[j].ssim, eval_region_psnr(&b[j].region[EVAL_MOVING]));
+                else
+                    EMIT(" - |");
+            }
+            for (int j = 0; j < EVAL_BASELINES; j++) {
+                if (have[j]) EMIT(" %+.2f", m.psnr - b[j].psnr);
+                else EMIT(" -");
+                EMIT("%s", j + 1 < EVAL_BASELINES ? " /" : " |\n");
+            }
+        }
+        eval_scores b;
+        int lost = 0;
+        EMIT("\n");
+        for (int j = 0; j < EVAL_BASELINES; j++) {
+            if (!baseline_mean(r, j, NULL, &b) || mean.psnr > b.psnr) continue;
+            EMIT("**The model loses to the %s (%.2f dB against %.2f)%s**\n", label[j], mean.psnr, b.psnr,
+                 j == EVAL_BASE_WARP ? ": it adds nothing to what the depth map already gives; broken."
+                 : j == EVAL_BASE_FLAT ? ": it draws the scene in the wrong place." : ".");
+            lost = 1;
+        }
+        if (!lost) EMIT("The model is above every baseline it was scored against.\n");
+        EMIT("\n");
+    }
     EMIT("LPIPS: not reported. It needs the AlexNet or VGG backbone weights, which are not available on this\n"
          "machine (only the LPIPS linear heads are); `metrics.json` has `\"lpips\": null`.\n\n");
     if (stages && cJSON_GetArraySize(stages) > 0) {

@@ -111,6 +111,8 @@ pg_status io_trainset_write_json_named(const char *dir, const char *file, const 
     if (info->depth) cJSON_AddStringToObject(src, "depth", info->depth);
     else cJSON_AddNullToObject(src, "depth");
     cJSON_AddNumberToObject(src, "pose_scale", info->pose_scale);
+    cJSON_AddNumberToObject(src, "pose_shift", info->pose_shift);
+    if (info->pose_fit) cJSON_AddStringToObject(src, "pose_fit", info->pose_fit);
     cJSON_AddNumberToObject(src, "unit", info->unit > 0 ? info->unit : 1);
     char *text = cJSON_Print(root);
     cJSON_Delete(root);

@@ -32,6 +32,8 @@ typedef struct {
     float center[3], radius, near, far; /* "scene" */
     const char *input, *depth;          /* "source" paths (may be NULL) */
     float pose_scale;                   /* pose units per value of the source depth file */
+    float pose_shift;                   /* with it: pose depth = pose_scale * d / (1 + pose_shift * d) */
+    const char *pose_fit;               /* how they were found (NULL: not recorded) */
     double unit;                        /* the user's length per length of the set (0 or 1: the same) */
 } io_trainset_info;
 

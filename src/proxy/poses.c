@@ -378,3 +378,13 @@ done:
     free(src);
     return st;
 }
+
+void proxy_shift_disparity(float *depth, size_t n, float shift)
+{
+    if (shift == 0) return;
+    for (size_t i = 0; i < n; i++) {
+        if (!depth_valid(depth[i])) continue;
+        float den = 1.0f + shift * depth[i];
+        depth[i] = den > 0 ? depth[i] / den : 0.0f;
+    }
+}

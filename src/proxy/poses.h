@@ -59,6 +59,9 @@ pg_status proxy_fit_pose_scale(const pg_camera *real, const float *rgb, const fl
                                const pg_camera *targets, const float *const *target_rgb,
                                const proxy_scale_options *opt, proxy_scale_report *report);
 
+/* depth[i] -> depth[i] / (1 + shift * depth[i]) for valid entries (0 where the denominator is <= 0). */
+void proxy_shift_disparity(float *depth, size_t n, float shift);
+
 /* Forward warp (nearest splat with a z-buffer, no hole filling) of a source RGB-D image into dst.
  * out_rgb (H2,W2,3), out_depth (H2,W2) z in dst (0 where nothing landed); either may be NULL.
  * depth is multiplied by depth_scale. Used by the pose-scale fit and as a test reference. */

@@ -441,7 +441,7 @@ pg_status proxy_generate(const proxy_options *opt_in, const proxy_job *j, const 
     }
     io_trainset_info info = { j->frames, j->width, j->height, j->fps, { j->center[0], j->center[1], j->center[2] },
                                  j->radius, far > 0 ? near : 0, far, j->input_path, j->depth_path, j->pose_scale,
-                                 j->unit };
+                                 j->pose_shift, j->pose_fit, j->unit };
     st = io_trainset_write_json(dir, &info, cams, ncam);
     free(cams);
     res->write_s += pg_time_seconds() - t0;

@@ -39,6 +39,8 @@ typedef struct {
     void *frame_ctx;
     const float *depth; /* (F, H, W) aligned depth in depth units, 0 = invalid */
     float pose_scale;   /* pose units per depth unit (1 for hemisphere poses) */
+    float pose_shift;   /* the disparity shift already applied to depth (trainset.json "source"; 0: none) */
+    const char *pose_fit; /* how pose_scale and pose_shift were found (trainset.json "source"; may be NULL) */
     double unit;        /* the user's length per pose unit (hemisphere: the depth's unit; 1 for dataset poses) */
     const char *real_name;
     pg_camera real;

@@ -10,6 +10,7 @@
 #include "core/fileutil.h"
 #include "core/parallel.h"
 #include "core/status.h"
+#include "eval/baselines.h"
 #include "eval/protocol.h"
 #include "eval/report.h"
 
@@ -36,6 +37,7 @@ pg_status pg_evaluate_run(const pg_evaluate_config *c, pg_evaluate_report *r)
 {
     memset(r, 0, sizeof *r);
     r->psnr = r->ssim = r->psnr_moving = r->train_psnr_moving = r->train_psnr_static = NAN;
+    r->flat_psnr = r->as_is_psnr = r->warp_psnr = r->warp_psnr_moving = NAN;
     if (!c->dataset || !c->model || !c->out) return pg_fail(PG_ERR_ARG, "evaluate: dataset, model and out are required");
     cJSON *config = NULL, *stages = NULL;
     PG_TRY(parse_object(c->config_json, "the config record", &config));
@@ -46,7 +48,7 @@ pg_status pg_evaluate_run(const pg_evaluate_config *c, pg_evaluate_report *r)
     double t0 = pg_time_seconds();
     if (st == PG_OK) st = pg_mkdir_p(c->out);
     if (st == PG_OK) st = pg_path_join(sbs, sizeof sbs, c->out, "side_by_side");
-    if (st == PG_OK) st = eval_protocol_run(c->dataset, c->model, sbs, &res);
+    if (st == PG_OK) st = eval_protocol_run(c->dataset, c->model, c->trainset, sbs, &res);
     r->seconds = pg_time_seconds() - t0;
     if (st == PG_OK) {
         /* the record of this stage goes in with the ones the caller passed */
@@ -70,6 +72,13 @@ pg_status pg_evaluate_run(const pg_evaluate_config *c, pg_evaluate_report *r)
             r->psnr = m.psnr;
             r->ssim = m.ssim;
             r->psnr_moving = eval_region_psnr(&m.region[EVAL_MOVING]);
+        }
+        double *base_psnr[EVAL_BASELINES] = { &r->flat_psnr, &r->as_is_psnr, &r->warp_psnr };
+        for (int b = 0; b < EVAL_BASELINES && res.baseline; b++) {
+            eval_scores bs;
+            if (!eval_results_mean(&res.baseline[b], NULL, EVAL_ROLE_TEST, &bs)) continue;
+            *base_psnr[b] = bs.psnr;
+            if (b == EVAL_BASE_WARP) r->warp_psnr_moving = eval_region_psnr(&bs.region[EVAL_MOVING]);
         }
         if (ntr) {
             r->train_psnr_moving = eval_region_psnr(&tr.region[EVAL_MOVING]);

@@ -56,7 +56,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
     c->preset = "fast";
     c->proxies = -1;
     c->pad = -1;
-    c->refine = c->align = c->fuse = c->planes = c->movers_front = 1;
+    c->refine = c->align = c->fuse = c->planes = c->movers_front = c->pose_shift = 1;
     c->seed = 1;
     c->motion_crops = -1;
     c->views_per_step = train_default_config().views_per_step;
@@ -392,6 +392,7 @@ static pg_status run_proxies(pipeline_run *p, const pipeline_plan *plan, const c
     xc.fit_steps = plan->fit_steps;
     xc.render = c->proxy_render;
     xc.pose_scale = c->pose_scale;
+    xc.pose_shift = c->pose_shift;
     PG_TRY(stage_depth_unit(depth, &xc.depth_unit)); /* in the config: a new --depth-scale reruns proxies */
     xc.frames = c->frames;
     xc.width = plan->width;
@@ -597,6 +598,7 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
         pg_evaluate_defaults(&ec);
         ec.dataset = c->input;
         ec.model = model_dir;
+        ec.trainset = proxies_dir;
         ec.out = c->out;
         ec.threads = plan.threads;
         char *cfg = cJSON_PrintUnformatted(config), *stages = cJSON_PrintUnformatted(p.stages);

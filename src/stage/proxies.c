@@ -16,6 +16,7 @@
 #include "core/status.h"
 #include "io/dataset.h"
 #include "io/depth_io.h"
+#include "proxy/colmap_align.h"
 #include "proxy/poses.h"
 #include "proxy/proxy.h"
 #include "stage/proxies_diagnose.h"
@@ -62,9 +63,20 @@ static void other_cameras(pg_dataset *ds, int ncam, int train_cam, const int *te
     }
 }
 
-/* Fits the depth-to-pose scale on frame 0 against the proxy (training) cameras. */
+/* How frame 0's depth was brought to pose units (evaluation only). */
+typedef struct {
+    float scale, shift;
+    char method[160]; /* for trainset.json and the report */
+    double cost;      /* photometric: the warp's cost at the scale */
+} pose_fit;
+
+/* Fits the depth-to-pose map on frame 0 against the proxy (training) cameras: with `shift` and
+ * COLMAP installed, scale and disparity shift to COLMAP's points at the known poses (workdir holds
+ * its files while it runs); otherwise, or when COLMAP finds too few points, a scale alone by the
+ * photometric warp fit. */
 static pg_status fit_scale(pg_dataset *ds, int real_idx, const pg_camera *real, const float *depth0, int n,
-                           const int *idx, const pg_camera *cams, float *scale, proxy_scale_report *rep)
+                           const int *idx, const pg_camera *cams, int shift, const char *workdir, int threads,
+                           pose_fit *fit)
 {
     int W = real->width, H = real->height;
     pg_image real_img = { 0 };
@@ -76,7 +88,30 @@ static pg_status fit_scale(pg_dataset *ds, int real_idx, const pg_camera *real, 
         st = io_dataset_frame(ds, idx[k], 0, &imgs[k]);
         ptrs[k] = imgs[k].data;
     }
-    if (!st) {
+    int done = 0;
+    fit->shift = 0;
+    if (!st && shift && !proxy_colmap_available())
+        snprintf(fit->method, sizeof fit->method, "photometric scale (COLMAP not installed: no shift)");
+    if (!st && shift && proxy_colmap_available()) {
+        proxy_colmap_report cr;
+        pg_status cs = proxy_colmap_align(workdir, real, real_img.data, depth0, n, cams, ptrs, threads, &cr);
+        pg_remove_tree(workdir);
+        if (cs == PG_OK) {
+            fit->scale = cr.scale, fit->shift = cr.shift, fit->cost = NAN;
+            snprintf(fit->method, sizeof fit->method,
+                     "COLMAP scale and shift (%d points, median error %.1f %%; scale alone %.1f %%)", cr.points,
+                     100 * cr.abs_rel, 100 * cr.abs_rel_scale_only);
+            done = 1;
+        } else if (cs == PG_ERR_NOMEM) {
+            st = cs;
+        } else {
+            fprintf(stderr, "prodygs: pose alignment: %s; fitting a scale alone photometrically\n", pg_last_error());
+            snprintf(fit->method, sizeof fit->method, "photometric scale (COLMAP failed: no shift)");
+        }
+    } else if (!st && !shift) {
+        snprintf(fit->method, sizeof fit->method, "photometric scale");
+    }
+    if (!st && !done) {
         proxy_scale_options so = proxy_default_scale_options();
         float near_z = 0, far_z = 0, med = median_valid(depth0, (size_t)W * H);
         io_dataset_near_far(ds, real_idx, &near_z, &far_z);
@@ -89,8 +124,9 @@ static pg_status fit_scale(pg_dataset *ds, int real_idx, const pg_camera *real, 
             so.scale_min = 1.0f / 16;
             so.scale_max = 16;
         }
-        st = proxy_fit_pose_scale(real, real_img.data, depth0, n, cams, ptrs, &so, rep);
-        *scale = rep->scale;
+        proxy_scale_report rep;
+        st = proxy_fit_pose_scale(real, real_img.data, depth0, n, cams, ptrs, &so, &rep);
+        fit->scale = rep.scale, fit->cost = rep.cost;
     }
     pg_image_destroy(&real_img);
     for (int k = 0; k < n && imgs; k++) pg_image_destroy(&imgs[k]);
@@ -109,6 +145,7 @@ void pg_proxies_defaults(pg_proxies_config *c)
     c->pad = -1;
     c->fit_steps = 50;
     c->fit_block = 1;
+    c->pose_shift = 1;
 }
 
 cJSON *stage_proxies_config_json(const pg_proxies_config *c)
@@ -122,6 +159,7 @@ cJSON *stage_proxies_config_json(const pg_proxies_config *c)
     cJSON_AddNumberToObject(j, "fov", c->fov);
     cJSON_AddNumberToObject(j, "pad", c->pad);
     cJSON_AddNumberToObject(j, "pose_scale", c->pose_scale);
+    cJSON_AddBoolToObject(j, "pose_shift", c->pose_shift);
     cJSON_AddNumberToObject(j, "depth_unit", c->depth_unit);
     cJSON_AddStringToObject(j, "render", c->render ? c->render : "mesh");
     cJSON_AddNumberToObject(j, "fit_steps", c->fit_steps);
@@ -286,7 +324,7 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
         io_dataset_camera(ds, tests[k], &tcams[k]);
         tnames[k] = io_dataset_camera_name(ds, tests[k]);
     }
-    proxy_scale_report rep = { 0 };
+    pose_fit fit = { 0, 0, "given", NAN };
     int fitted = 0;
     /* Dataset poses train at the other cameras; test cameras need the depth in pose units whatever
      * the proxies' poses (hemisphere proxies scored at test cameras would otherwise see the scene at
@@ -297,8 +335,13 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
      * the user's unit beside them; a given pose scale is per user depth unit. */
     double length_unit = 1;
     if (pose_scale == 0 && use_others && nother > 0) {
-        st = fit_scale(ds, train_cam, &real, depth.data, nother, idx, cams, &pose_scale, &rep);
+        char workdir[4200];
+        snprintf(workdir, sizeof workdir, "%s.colmap", out);
+        st = fit_scale(ds, train_cam, &real, depth.data, nother, idx, cams, c->pose_shift, workdir, r->threads, &fit);
         if (st) { free(tcams); goto done; }
+        pose_scale = fit.scale;
+        /* every frame takes frame 0's shift: one global map, as the paper's alignment */
+        proxy_shift_disparity(depth.data, (size_t)F * W * H, fit.shift);
         fitted = 1;
     } else if (pose_scale == 0) {
         pose_scale = 1;
@@ -327,7 +370,7 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
     if (st) { free(tcams); goto done; }
     job.frames = F; job.width = W; job.height = H; job.fps = io_dataset_fps(ds);
     job.get_frame = source_frame; job.frame_ctx = &src;
-    job.depth = depth.data; job.pose_scale = pose_scale; job.unit = length_unit;
+    job.depth = depth.data; job.pose_scale = pose_scale; job.pose_shift = fit.shift; job.pose_fit = fit.method; job.unit = length_unit;
     job.real_name = io_dataset_camera_name(ds, train_cam); job.real = real;
     job.num_proxies = M; job.proxy_names = names; job.proxies = cams;
     job.num_tests = ntest; job.test_names = tnames; job.tests = tcams;
@@ -360,7 +403,9 @@ pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
     snprintf(r->poses, sizeof r->poses, "%s", use_dataset_poses ? "dataset" : "hemisphere");
     r->pose_scale = pose_scale / depth_unit; /* per user depth unit, as --pose-scale */
     r->pose_scale_fitted = fitted;
-    r->pose_scale_cost = rep.cost;
+    r->pose_scale_cost = fit.cost;
+    r->pose_shift = fit.shift / depth_unit; /* per user depth unit, as pose_scale */
+    snprintf(r->pose_fit, sizeof r->pose_fit, "%s", fitted ? fit.method : c->pose_scale > 0 ? "given" : "none");
     r->mean_valid_fraction = res.mean_valid_fraction;
     r->mean_source_psnr = res.mean_source_psnr;
     r->seconds = res.wall_s;
