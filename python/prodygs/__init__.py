@@ -33,15 +33,17 @@ STATUS = ("ok", "arg", "io", "format", "size", "nomem", "internal", "env")  # pg
 
 
 class Error(Exception):
-    """A stage failed: .status is the pg_status number, .code its name (e.g. "PG_ERR_ARG"),
-    .stage the function and str(error) pg_last_error()'s message."""
+    """A stage failed. str(error) is pg_last_error()'s one line (naming the file or value at
+    fault); .status is the pg_status number, .code its short name ("arg", "io", "format", "size",
+    "nomem", "internal", "env"; STATUS), .reason pg_status_name's words and .stage the function."""
 
     def __init__(self, stage, status, message):
         self.stage = stage
         self.status = status
-        self.code = _lib.status_name(status).decode()
+        self.code = STATUS[status] if 0 <= status < len(STATUS) else str(status)
+        self.reason = _lib.status_name(status).decode()
         self.message = message
-        super().__init__("%s: %s (%s)" % (stage, message, self.code))
+        super().__init__(message)
 
 
 def version():

@@ -29,4 +29,12 @@ ldd "$tmp/example" | grep -q "$prefix/lib/$soname" || { echo "example does not l
 OMP_WAIT_POLICY=PASSIVE "$tmp/example" "$tmp/data" "$tmp/data/depth_mono/cam00.npy" "$tmp/out" | tee "$tmp/example.log"
 grep -q '^evaluate: ' "$tmp/example.log"
 test -f "$tmp/out/metrics.json"
+# the Python module installed beside it finds that library by itself and runs a stage
+py=${PYTHON3:-/usr/bin/python3}
+site=$prefix/lib/python3/dist-packages
+if [ -x "$py" ] && "$py" -c "import numpy" 2>/dev/null; then
+  (cd "$tmp" && env -u PRODYGS_LIB PYTHONPATH="$site" "$py" -c "import prodygs; assert prodygs.library_path.startswith('$prefix/lib/'), prodygs.library_path; d = prodygs.depth('data/cam00/images', frames=2, threads=2); print('python: prodygs', prodygs.version(), 'from', prodygs.library_path, 'depth', d.shape, d.dtype)")
+else
+  echo "install_pkgconfig: python3 with numpy not found: the installed module is not tried here"
+fi
 echo "install_pkgconfig: ok ($soname)"
