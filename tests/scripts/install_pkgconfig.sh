@@ -16,15 +16,14 @@ soname=$(objdump -p "$so" | awk '$1=="SONAME"{print $2}')
 case $soname in libprodygs.so.[0-9]*) ;; *) echo "SONAME '$soname'"; exit 1 ;; esac
 test -e "$prefix/lib/$soname" || { echo "$soname is not installed"; exit 1; }
 # only the public API is exported
-if nm -D --defined-only "$so" | awk '$2=="T"{print $3}' | grep -v '^pg_' | grep -q .; then
-  echo "libprodygs.so exports non-pg_ symbols:"; nm -D --defined-only "$so" | awk '$2=="T"{print $3}' | grep -v '^pg_' | head
-  exit 1
-fi
+others=$(nm -D --defined-only "$so" | awk '$2=="T" && $3 !~ /^pg_/ {print $3}')
+[ -z "$others" ] || { echo "libprodygs.so exports non-pg_ symbols:"; echo "$others" | head; exit 1; }
 flags=$(PKG_CONFIG_PATH=$prefix/lib/pkgconfig pkg-config --cflags --libs prodygs)
 echo "pkg-config --cflags --libs prodygs: $flags"
 "$cc" -Wall -Wextra -Werror "$src/docs/example_pipeline.c" $flags -o "$tmp/example"
 # it runs from the installed shared library, found through the rpath alone
-ldd "$tmp/example" | grep -q "$prefix/lib/$soname" || { echo "example does not load the installed library:"; ldd "$tmp/example"; exit 1; }
+deps=$(ldd "$tmp/example")   # (not piped into grep -q: an early exit would fail the pipe)
+grep -q "$prefix/lib/$soname" <<<"$deps" || { echo "example does not load the installed library:"; echo "$deps"; exit 1; }
 "$prefix/bin/prodygs" synth "$tmp/data" --cams 7 --frames 3 --size 32x24 --spp 1 --threads 2 >"$tmp/synth.log" 2>&1
 OMP_WAIT_POLICY=PASSIVE "$tmp/example" "$tmp/data" "$tmp/data/depth_mono/cam00.npy" "$tmp/out" | tee "$tmp/example.log"
 grep -q '^evaluate: ' "$tmp/example.log"
