@@ -97,6 +97,21 @@ for block in re.findall(r"```python\n(.*?)```", readme, re.S):
         failed.append("python block: " + block.splitlines()[0])
     ran += 1
 
+# the results table's script: prints the table and rewrites the block of (a copy of) README.md
+r = sh("scripts/results-table --write README.md")
+copy = open(os.path.join(tmp, "README.md")).read()
+block = copy.split("<!-- results-table:begin -->", 1)[1].split("<!-- results-table:end -->", 1)[0]
+rows = [l for l in block.splitlines() if l.startswith("| ") and not l.startswith("| data ")]
+if len(rows) != len(__import__("json").load(open(os.path.join(src, "scripts", "results.json")))["runs"]):
+    failed.append("results-table wrote %d rows" % len(rows))
+if any(len(cell) > 300 for l in rows for cell in l.split("|")):
+    failed.append("results-table: a cell over 300 characters")
+for line in readme.splitlines():
+    if line.startswith("|") and any(len(cell) > 300 for cell in line.split("|")):
+        failed.append("README table cell over 300 characters: " + line[:60])
+if len(readme.splitlines()) > 260:
+    failed.append("README.md has %d lines" % len(readme.splitlines()))
+
 # a few of the results the examples promise
 for path in ("out/report.md", "out/renders/orbit.mp4", "out/bullet", "out/ply", "out/viewer/index.html", "ev/metrics.json",
              "depth.npy", "out_disp/report.md", "out_model/report.md"):
