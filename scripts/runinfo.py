@@ -36,7 +36,7 @@ def read_run(path):
     if os.path.isfile(report):
         with open(report, encoding="utf-8", errors="replace") as f:
             text = f.read()
-        m = re.search(r"```\n(prodygs [^\n]*)\n```", text)
+        m = re.search(r"```\n((?:prodygs |python3: )[^\n]*)\n```", text)
         r["command"] = m.group(1) if m else None
         r["peak_mib"] = _num(r"Peak memory ([\d.,]+) MiB", text)
         r["seconds"] = _num(r"Total ([\d.,]+) s", text)

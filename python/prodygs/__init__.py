@@ -294,6 +294,16 @@ def run(input, out, depth=None, depth_model=None, **options):
     pg_pipeline_config (preset, iters, proxies, frames, width, height, threads, seed,
     train_camera, test_cameras, evaluate, render_videos, ...). The report's "stages" says which
     stages ran and how long each took."""
+    if "command" not in options:  # what report.md and metrics.json record as the command
+        args = [repr(os.fspath(input)), repr(os.fspath(out))]
+        if isinstance(depth, (str, bytes, os.PathLike)):
+            args.append("depth=%r" % os.fspath(depth))
+        elif depth is not None:
+            args.append("depth=<array>")
+        if depth_model is not None:
+            args.append("depth_model=%r" % os.fspath(depth_model))
+        args += ["%s=%r" % kv for kv in sorted(options.items())]
+        options["command"] = "python3: prodygs.run(%s)" % ", ".join(args)
     if depth is None and depth_model is None:
         depth_model = default_depth_model()
     with _DepthArg(depth) as d:
