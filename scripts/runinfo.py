@@ -44,6 +44,25 @@ def read_run(path):
         r["train_psnr_moving"] = _num(r"moving pixels ([\d.]+) dB", text)
         r["train_psnr_static"] = _num(r"static pixels ([\d.]+) dB", text)
         r["gaussians"] = _num(r"iterations, ([\d,]+) Gaussians", text)
+        # the stage table: each stage's own seconds and peak, also for stages an earlier
+        # invocation ran (a resumed run's "Total" is only the last invocation's)
+        m = re.search(r"^\| stage \| seconds \|([^\n]*)\n\|[-|]+\n((?:\|[^\n]*\n)+)", text, re.M)
+        if m:
+            cols = ["stage", "seconds"] + [c.strip() for c in m.group(1).split("|")]
+            secs, peaks = [], []
+            for line in m.group(2).splitlines():
+                cells = [c.strip() for c in line.strip().strip("|").split("|")]
+                row = dict(zip(cols, cells))
+                try:
+                    secs.append(float(row["seconds"]))
+                    if row.get("peak memory MiB"):
+                        peaks.append(float(row["peak memory MiB"]))
+                except ValueError:
+                    pass
+            if secs:
+                r["seconds"] = sum(secs)
+            if peaks:
+                r["peak_mib"] = max(peaks + [r["peak_mib"] or 0])
     metrics = os.path.join(path, "metrics.json")
     if os.path.isfile(metrics):
         with open(metrics) as f:
