@@ -20,6 +20,8 @@
 #ifndef PRODYGS_H
 #define PRODYGS_H
 
+#include <stddef.h>
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -47,6 +49,11 @@ const char *pg_last_error(void);
 typedef void (*pg_warning_handler)(const char *message, void *ctx);
 void pg_set_warning_handler(pg_warning_handler handler, void *ctx);
 const char *pg_status_name(pg_status code);
+/* The library's PRODYGS_VERSION (a program built against another header can tell). */
+const char *pg_version(void);
+/* sizeof the public struct named NAME ("pg_train_config", ...), 0 for an unknown name: bindings
+ * that mirror the structs (python/prodygs) check their copies against it. */
+size_t pg_struct_size(const char *name);
 
 #define PG_CAMERA_LABEL 160  /* "name (index i)" */
 #define PG_CAMERA_LABELS 2048 /* a comma-separated list of labels */
@@ -82,6 +89,10 @@ typedef struct {
 
 void pg_depth_defaults(pg_depth_config *c);
 pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r);
+/* The built-in depth network (FastDepth, MIT): written once into the user's cache folder
+ * ($XDG_CACHE_HOME/prodygs, else ~/.cache/prodygs) and its path given in PATH, for a config's
+ * model / depth_model when the caller names none (what the CLI does). */
+pg_status pg_depth_default_model(char *path, size_t size);
 
 /* ---- prepare: refine and temporally align per-frame depth (paper 3.1) ---- */
 typedef struct {
