@@ -75,12 +75,9 @@ def read_run(path):
             reg = tc.get("regions", {})
             r["train_psnr_moving"] = r["train_psnr_moving"] or _finite(reg.get("moving", {}).get("psnr"))
             r["train_psnr_static"] = r["train_psnr_static"] or _finite(reg.get("static", {}).get("psnr"))
-        for key in ("baseline_psnr", "flat_psnr"):
-            if _finite(m.get(key)) is not None:
-                r["baseline_psnr"] = m[key]
-        b = m.get("baseline")
-        if isinstance(b, dict) and _finite(b.get("psnr")) is not None:
-            r["baseline_psnr"] = b["psnr"]
+        flat = (m.get("baselines") or {}).get("flat")  # eval's yardsticks (docs/eval.md)
+        if isinstance(flat, dict) and _finite(flat.get("psnr")) is not None:
+            r["baseline_psnr"] = flat["psnr"]
         cfg = m.get("config", {})
         r["command"] = r["command"] or cfg.get("command")
         stages = m.get("stages", {})

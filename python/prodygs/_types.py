@@ -56,7 +56,7 @@ class ProxiesConfig(C.Structure):
                 ("poses", _s), ("proxies", _i), ("max_angle", _f), ("fov", _f), ("pad", _f),
                 ("pose_scale", _f), ("depth_unit", _d), ("render", _s), ("fit_steps", _i),
                 ("fit_block", _i), ("frames", _i), ("width", _i), ("height", _i), ("threads", _i),
-                ("force", _i), ("diagnose", _i)]
+                ("force", _i), ("diagnose", _i), ("pose_shift", _i)]
 
 
 class ProxiesReport(C.Structure):
@@ -66,7 +66,7 @@ class ProxiesReport(C.Structure):
                 ("threads", _i), ("pose_scale_fitted", _i), ("pose_scale", _d), ("pose_scale_cost", _d),
                 ("mean_valid_fraction", _d), ("seconds", _d), ("mean_source_psnr", _d),
                 ("diagnosed_views", _i), ("diagnose_psnr_reprojected", _d), ("diagnose_psnr_guessed", _d),
-                ("diagnose_psnr_moving", _d)]
+                ("diagnose_psnr_moving", _d), ("pose_shift", _d), ("pose_fit", _label(160))]
 
 
 class TrainConfig(C.Structure):
@@ -94,13 +94,14 @@ class TrainReport(C.Structure):
 class EvaluateConfig(C.Structure):
     _c_name = "pg_evaluate_config"
     _fields_ = [("dataset", _s), ("model", _s), ("out", _s), ("config_json", _s), ("stages_json", _s),
-                ("threads", _i)]
+                ("threads", _i), ("trainset", _s)]
 
 
 class EvaluateReport(C.Structure):
     _c_name = "pg_evaluate_report"
     _fields_ = [("frames", _i), ("psnr", _d), ("ssim", _d), ("psnr_moving", _d), ("train_psnr_moving", _d),
-                ("train_psnr_static", _d), ("seconds", _d)]
+                ("train_psnr_static", _d), ("seconds", _d), ("flat_psnr", _d), ("as_is_psnr", _d),
+                ("warp_psnr", _d), ("warp_psnr_moving", _d)]
 
 
 class RenderConfig(C.Structure):
@@ -158,7 +159,7 @@ class PipelineConfig(C.Structure):
                 ("train_camera", _s), ("test_cameras", _s), ("poses", _s), ("proxies", _i),
                 ("max_angle", _f), ("fov", _f), ("pad", _f), ("pose_scale", _f), ("proxy_render", _s),
                 ("depth_kind", _s), ("depth_scale", _f), ("refine", _i), ("align", _i), ("fuse", _i),
-                ("planes", _i), ("movers_front", _i), ("frames", _i), ("width", _i), ("height", _i),
+                ("planes", _i), ("movers_front", _i), ("pose_shift", _i), ("frames", _i), ("width", _i), ("height", _i),
                 ("iters", _i), ("deform_width", _i), ("deform_head_width", _i), ("deform_time_coarsen", _i),
                 ("deform_time_warmup", _f), ("densify_movable", _f), ("densify_until", _i),
                 ("proxy_downscale", _i), ("motion_crops", _i), ("views_per_step", _i),
