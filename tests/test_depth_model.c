@@ -429,6 +429,69 @@ static void test_channel_order(const char *tmp)
     }
 }
 
+/* The built-in FastDepth with its mirrored pass: the output is the mean of the plain output and
+ * the mirrored output of the mirrored frame, so it differs from the plain one; "flip_average":
+ * false gives the plain one, a non-boolean is refused. */
+static void test_flip_average(const char *tmp)
+{
+    char model[4200], side[4300], src[4200];
+    snprintf(src, sizeof src, "%s/models/fastdepth_224_int8.tflite", PG_SOURCE_DIR);
+    snprintf(model, sizeof model, "%s/fd.tflite", tmp);
+    snprintf(side, sizeof side, "%s.json", model);
+    char *bytes = NULL;
+    size_t n = 0;
+    CHECK_OK(pg_read_file(src, 1 << 24, &bytes, &n));
+    if (!bytes) return;
+    write_bytes(model, (const uint8_t *)bytes, n);
+    free(bytes);
+    enum { W = 224, H = 224 };
+    pg_image frame, mirror;
+    CHECK_OK(pg_image_create(&frame, W, H, 3));
+    CHECK_OK(pg_image_create(&mirror, W, H, 3));
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++)
+            for (int c = 0; c < 3; c++) {
+                float v = 0.5f + 0.4f * sinf(0.07f * x * (c + 1) + 0.05f * y) * (x < W / 3 ? 0.3f : 1.0f);
+                frame.data[((size_t)y * W + x) * 3 + c] = v;
+                mirror.data[((size_t)y * W + (W - 1 - x)) * 3 + c] = v;
+            }
+    float *plain = malloc(sizeof(float) * W * H * 3), *plain_m = plain + W * H, *both = plain_m + W * H;
+    const char *off = "{\"channel_order\": \"bgr\", \"flip_average\": false}", *on = "{\"channel_order\": \"bgr\"}";
+    depth_net *net = NULL;
+    write_bytes(side, (const uint8_t *)off, strlen(off));
+    CHECK_OK(depth_net_open(model, NULL, 0, W, H, &net));
+    if (net) {
+        CHECK(!depth_net_get_info(net)->flip, "flip_average false read");
+        CHECK_OK(depth_net_infer(net, &frame, plain, W, H, 1));
+        CHECK_OK(depth_net_infer(net, &mirror, plain_m, W, H, 1));
+        depth_net_close(net);
+    }
+    write_bytes(side, (const uint8_t *)on, strlen(on));
+    net = NULL;
+    CHECK_OK(depth_net_open(model, NULL, 0, W, H, &net));
+    if (net) {
+        CHECK(depth_net_get_info(net)->flip, "flip_average is the default");
+        CHECK_OK(depth_net_infer(net, &frame, both, W, H, 1));
+        depth_net_close(net);
+    }
+    double err = 0, diff = 0;
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            size_t i = (size_t)y * W + x, m = (size_t)y * W + (W - 1 - x);
+            err = fmax(err, fabs(both[i] - 0.5 * (plain[i] + plain_m[m])) / plain[i]);
+            diff = fmax(diff, fabs(both[i] - plain[i]) / plain[i]);
+        }
+    CHECK(err < 1e-4 && diff > 0.01, "flip average: off the mean of both passes by %g, off the plain pass by %g", err, diff);
+    write_bytes(side, (const uint8_t *)"{\"flip_average\": 1}", 19);
+    net = NULL;
+    CHECK(depth_net_open(model, NULL, 0, W, H, &net) == PG_ERR_FORMAT && strstr(pg_last_error(), "flip_average"),
+          "a non-boolean flip_average is refused: %s", pg_last_error());
+    depth_net_close(net);
+    free(plain);
+    pg_image_destroy(&frame);
+    pg_image_destroy(&mirror);
+}
+
 int main(void)
 {
     char tmp[4096], clip[4200], model[4200];
@@ -446,5 +509,6 @@ int main(void)
     test_pipeline(tmp, model);
     test_hostile_sidecars(tmp, clip);
     test_channel_order(tmp);
+    test_flip_average(tmp);
     return test_summary("test_depth_model");
 }

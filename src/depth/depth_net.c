@@ -75,6 +75,10 @@ static pg_status read_sidecar(depth_net *net)
         else st = parse_kind(it->valuestring, side, &in->disparity);
         if (st == PG_ERR_ARG) st = PG_ERR_FORMAT;
     }
+    if (!st && (it = cJSON_GetObjectItemCaseSensitive(j, "flip_average"))) {
+        if (!cJSON_IsBool(it)) st = pg_fail(PG_ERR_FORMAT, "%s: \"flip_average\" must be true or false", side);
+        else in->flip = cJSON_IsTrue(it);
+    }
     if (!st && cJSON_GetObjectItemCaseSensitive(j, "scale")) {
         double s;
         st = io_json_get_number(j, "scale", side, &s);
@@ -157,6 +161,7 @@ pg_status depth_net_open(const char *model_path, const char *kind, int size, int
         const char *base = strrchr(model_path, '/');
         snprintf(in->name, sizeof in->name, "%s", base ? base + 1 : model_path);
         in->scale = 1;
+        in->flip = 1;
         for (int k = 0; k < 3; k++) {
             in->mean[k] = tflite ? 0.0f : (float[]){ 0.485f, 0.456f, 0.406f }[k];
             in->std[k] = tflite ? 1.0f : (float[]){ 0.229f, 0.224f, 0.225f }[k];
@@ -201,19 +206,32 @@ pg_status depth_net_infer(depth_net *net, const pg_image *frame, float *depth, i
 {
     const depth_net_info *in = &net->info;
     if (frame->channels != 3) return pg_fail(PG_ERR_ARG, "depth network: frame has %d channels (3 needed)", frame->channels);
-    pg_image small = { 0 }, raw = { 0 }, full = { 0 };
+    pg_image small = { 0 }, full = { 0 }, mean = { 0 };
     PG_TRY(pg_image_resize(&small, frame, in->width, in->height));
-    size_t P = (size_t)in->width * in->height;
-    for (size_t p = 0; p < P; p++)
-        for (int k = 0; k < 3; k++) {
-            float v = (small.data[p * 3 + (in->bgr ? 2 - k : k)] - in->mean[k]) / in->std[k];
-            if (in->nchw) net->in[(size_t)k * P + p] = v;
-            else net->in[p * 3 + k] = v;
-        }
+    const int passes = in->flip ? 2 : 1;
+    pg_status st = pg_image_create(&mean, in->out_width, in->out_height, 1);
+    for (int pass = 0; pass < passes && !st; pass++) {
+        /* pass 1 feeds the mirrored frame and mirrors its output back */
+        for (int y = 0; y < in->height; y++)
+            for (int x = 0; x < in->width; x++) {
+                size_t p = (size_t)y * in->width + x, q = pass ? (size_t)y * in->width + (in->width - 1 - x) : p;
+                for (int k = 0; k < 3; k++) {
+                    float v = (small.data[q * 3 + (in->bgr ? 2 - k : k)] - in->mean[k]) / in->std[k];
+                    if (in->nchw) net->in[(size_t)k * in->width * in->height + p] = v;
+                    else net->in[p * 3 + k] = v;
+                }
+            }
+        st = nn_model_run(net->model, net->in, net->out, threads);
+        for (int y = 0; !st && y < in->out_height; y++)
+            for (int x = 0; x < in->out_width; x++) {
+                int xo = pass ? in->out_width - 1 - x : x;
+                mean.data[(size_t)y * in->out_width + xo] += net->out[(size_t)y * in->out_width + x] / passes;
+            }
+    }
     pg_image_destroy(&small);
-    PG_TRY(nn_model_run(net->model, net->in, net->out, threads));
-    raw.width = in->out_width, raw.height = in->out_height, raw.channels = 1, raw.data = net->out;
-    PG_TRY(pg_image_resize(&full, &raw, width, height));
+    if (!st) st = pg_image_resize(&full, &mean, width, height);
+    pg_image_destroy(&mean);
+    if (st) return st;
     size_t n = (size_t)width * height;
     for (size_t i = 0; i < n; i++) {
         float v = full.data[i] * in->scale;

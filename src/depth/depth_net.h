@@ -53,6 +53,8 @@ typedef struct {
     float scale;
     int sidecar;          /* 1 when MODEL.json was read */
     int dynamic;          /* the input size was chosen here (symbolic dims in the file) */
+    int flip;             /* the output is the mean of the frame's and the mirrored frame's (mirrored
+                             back): 1 unless MODEL.json says "flip_average": false */
 } depth_net_info;
 
 /* Loads the model and its sidecar. kind ("depth" / "disparity", NULL: sidecar or default)

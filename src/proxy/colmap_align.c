@@ -3,6 +3,8 @@
 #include "proxy/colmap_align.h"
 
 #include <fcntl.h>
+#include <signal.h>
+#include <time.h>
 #include <math.h>
 #include <spawn.h>
 #include <stdio.h>
@@ -39,8 +41,9 @@ int proxy_colmap_available(void)
     return 0;
 }
 
-/* Runs `colmap ARGS...` with its output appended to workdir/colmap.log; fails naming the step. */
-static pg_status run_colmap(const char *workdir, const char *const *args)
+/* Runs `colmap ARGS...` once with its output appended to workdir/colmap.log, killed after
+ * limit_s seconds; fails naming the step (*timed_out set when it was killed). */
+static pg_status run_colmap_once(const char *workdir, const char *const *args, double limit_s, int *timed_out)
 {
     char log[4200];
     PG_TRY(pg_path_join(log, sizeof log, workdir, "colmap.log"));
@@ -58,11 +61,34 @@ static pg_status run_colmap(const char *workdir, const char *const *args)
     posix_spawn_file_actions_destroy(&fa);
     if (rc != 0) return pg_fail(PG_ERR_IO, "colmap %s: could not start colmap", args[0]);
     int status = 0;
-    while (waitpid(pid, &status, 0) < 0) {}
+    *timed_out = 0;
+    for (double waited = 0;; waited += 0.05) {
+        pid_t got = waitpid(pid, &status, WNOHANG);
+        if (got == pid) break;
+        if (got < 0) return pg_fail(PG_ERR_IO, "colmap %s: lost the process", args[0]);
+        if (waited > limit_s) {
+            kill(pid, SIGKILL);
+            waitpid(pid, &status, 0);
+            *timed_out = 1;
+            return pg_fail(PG_ERR_IO, "colmap %s did not finish in %.0f s; its output is in %s", args[0], limit_s, log);
+        }
+        nanosleep(&(struct timespec){ 0, 50000000 }, NULL);
+    }
     if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
         return pg_fail(PG_ERR_IO, "colmap %s failed (exit %d); its output is in %s", args[0],
                        WIFEXITED(status) ? WEXITSTATUS(status) : -1, log);
     return PG_OK;
+}
+
+/* run_colmap_once, and once more when it timed out: COLMAP 3.8's feature extractor now and then
+ * hangs in a futex after writing its features (seen once in ~60 runs, Panoptic at 640x360); a
+ * rerun skips the images already in the database. */
+static pg_status run_colmap(const char *workdir, const char *const *args, double limit_s)
+{
+    int timed_out = 0;
+    pg_status st = run_colmap_once(workdir, args, limit_s, &timed_out);
+    if (st && timed_out) st = run_colmap_once(workdir, args, limit_s, &timed_out);
+    return st;
 }
 
 /* COLMAP's quaternion (w, x, y, z) of a world-to-camera rotation (row-major R). */
@@ -115,12 +141,12 @@ static pg_status run_reconstruction(const char *workdir, int n, const pg_camera 
                                "--image_list_path", list, "--ImageReader.camera_model", "PINHOLE",
                                "--ImageReader.camera_params", params, "--SiftExtraction.use_gpu", "0",
                                "--SiftExtraction.num_threads", thr, NULL };
-        if (!st) st = run_colmap(workdir, args);
+        if (!st) st = run_colmap(workdir, args, 120);
     }
     if (!st) {
         const char *args[] = { "exhaustive_matcher", "--database_path", db, "--SiftMatching.use_gpu", "0",
                                "--SiftMatching.num_threads", thr, NULL };
-        st = run_colmap(workdir, args);
+        st = run_colmap(workdir, args, 900);
     }
     if (!st) st = pg_path_join(path, sizeof path, in, "cameras.txt");
     if (!st && !(fc = fopen(path, "w"))) st = pg_fail(PG_ERR_IO, "%s: cannot write", path);
@@ -141,11 +167,11 @@ static pg_status run_reconstruction(const char *workdir, int n, const pg_camera 
     if (!st) {
         const char *args[] = { "point_triangulator", "--database_path", db, "--image_path", images,
                                "--input_path", in, "--output_path", out, NULL };
-        st = run_colmap(workdir, args);
+        st = run_colmap(workdir, args, 900);
     }
     if (!st) {
         const char *args[] = { "model_converter", "--input_path", out, "--output_path", out, "--output_type", "TXT", NULL };
-        st = run_colmap(workdir, args);
+        st = run_colmap(workdir, args, 120);
     }
     return st;
 }
@@ -209,7 +235,7 @@ static pg_status read_points(const char *path, colmap_point **out, int *count)
 /* The real camera's observations in images.txt (image line "v000.png", then its "X Y POINT3D_ID"
  * triples) paired with the depth map at their pixels: d[i] from depth0, z[i] the point's depth. */
 static pg_status read_pairs(const char *path, const colmap_point *pts, int npts, const pg_camera *real,
-                            const float *depth0, double **d_out, double **z_out, int *count)
+                            const float *depth0, int dw, int dh, double **d_out, double **z_out, int *count)
 {
     char *text = NULL;
     size_t len = 0;
@@ -248,11 +274,11 @@ static pg_status read_pairs(const char *path, const colmap_point *pts, int npts,
         const colmap_point *p = bsearch(&key, pts, (size_t)npts, sizeof *pts, cmp_point);
         /* seen from three cameras or more and reprojected within 2 px: a point, not a lucky pair */
         if (!p || p->track < 3 || p->error > 2.0) continue;
-        int u = (int)floor(x), v = (int)floor(y);
-        if (u < 0 || v < 0 || u >= real->width || v >= real->height) continue;
+        int u = (int)floor(x * dw / real->width), v = (int)floor(y * dh / real->height);
+        if (u < 0 || v < 0 || u >= dw || v >= dh) continue;
         float Xw[3] = { (float)p->X[0], (float)p->X[1], (float)p->X[2] }, Xc[3];
         pg_camera_world_to_cam(real, Xw, Xc);
-        float dv = depth0[(size_t)v * real->width + u];
+        float dv = depth0[(size_t)v * dw + u];
         if (!(Xc[2] > 0) || !(dv > 0) || !isfinite(dv)) continue;
         d[n] = dv, z[n] = Xc[2];
         n++;
@@ -320,7 +346,7 @@ pg_status proxy_fit_scale_shift(const double *d, const double *z, int n, proxy_c
 }
 
 pg_status proxy_colmap_align(const char *workdir, const pg_camera *real, const float *real_rgb, const float *depth0,
-                             int n, const pg_camera *cams, const float *const *rgb, int threads,
+                             int dw, int dh, int n, const pg_camera *cams, const float *const *rgb, int threads,
                              proxy_colmap_report *rep)
 {
     if (n < 2) return pg_fail(PG_ERR_ARG, "depth alignment: COLMAP needs at least two other cameras (got %d)", n);
@@ -342,7 +368,7 @@ pg_status proxy_colmap_align(const char *workdir, const pg_camera *real, const f
     if (!st) st = pg_path_join(path, sizeof path, workdir, "triangulated/points3D.txt");
     if (!st) st = read_points(path, &pts, &npts);
     if (!st) st = pg_path_join(path, sizeof path, workdir, "triangulated/images.txt");
-    if (!st) st = read_pairs(path, pts, npts, real, depth0, &d, &z, &npairs);
+    if (!st) st = read_pairs(path, pts, npts, real, depth0, dw, dh, &d, &z, &npairs);
     if (!st) st = proxy_fit_scale_shift(d, z, npairs, rep);
     if (st == PG_ERR_FORMAT) st = pg_fail_context(PG_ERR_FORMAT, "COLMAP triangulated %d points", npts);
     free(pts);

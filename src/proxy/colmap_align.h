@@ -12,7 +12,7 @@
  * COLMAP's -0.14); COLMAP's points pin the geometry instead.
  *
  *   proxy_colmap_report rep;
- *   if (proxy_colmap_available() && proxy_colmap_align(dir, &real, rgb0, depth0, n, cams, rgbs, 2, &rep) == PG_OK)
+ *   if (proxy_colmap_available() && proxy_colmap_align(dir, &real, rgb0, depth0, W, H, n, cams, rgbs, 2, &rep) == PG_OK)
  *       use rep.scale, rep.shift;
  *
  * The single-video path never calls it: it needs cameras with known poses.
@@ -34,11 +34,12 @@ typedef struct {
 int proxy_colmap_available(void);
 
 /* Runs COLMAP in workdir (created; the caller removes it) on the real camera (real, real_rgb (H,W,3)
- * in [0,1], depth0 (H,W) its frame-0 depth, <= 0 invalid) and the n other cameras (cams, rgb), all
- * at their known poses, then fits scale and shift. Fails (a message naming the COLMAP step and its
- * log) when a step fails or fewer than 12 points are usable. */
+ * in [0,1]) and the n other cameras (cams, rgb, each image at its camera's size), all at their known
+ * poses, then fits scale and shift to depth0 (dw x dh, the real camera's frame-0 depth at any size,
+ * <= 0 invalid). Fails (a message naming the COLMAP step and its log) when a step fails or fewer
+ * than 12 points are usable. */
 pg_status proxy_colmap_align(const char *workdir, const pg_camera *real, const float *real_rgb, const float *depth0,
-                             int n, const pg_camera *cams, const float *const *rgb, int threads,
+                             int dw, int dh, int n, const pg_camera *cams, const float *const *rgb, int threads,
                              proxy_colmap_report *rep);
 
 /* The fit alone, from n pairs (d[i] the depth map's value, z[i] the point's depth): iteratively

@@ -64,6 +64,7 @@ static pg_status make_key(const pg_depth_config *c, const char *source, const ch
     cJSON_AddItemToObject(k, "mean", io_json_float_array(info->mean, 3));
     cJSON_AddItemToObject(k, "std", io_json_float_array(info->std, 3));
     if (info->bgr) cJSON_AddStringToObject(k, "channel_order", "bgr"); /* absent for rgb: older keys stay valid */
+    cJSON_AddBoolToObject(k, "flip_average", info->flip);
     cJSON_AddNumberToObject(k, "frames", r->frames);
     cJSON_AddNumberToObject(k, "decode_width", r->decode_width);
     cJSON_AddNumberToObject(k, "decode_height", r->decode_height);

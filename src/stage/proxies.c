@@ -70,6 +70,69 @@ typedef struct {
     double cost;      /* photometric: the warp's cost at the scale */
 } pose_fit;
 
+/* Frame 0 of the real camera and of the n cameras idx[] at the dataset's current frame size. */
+static pg_status load_first_frames(pg_dataset *ds, int real_idx, int n, const int *idx, pg_image *real_img,
+                                   pg_image *imgs, const float **ptrs)
+{
+    pg_status st = io_dataset_frame(ds, real_idx, 0, real_img);
+    for (int k = 0; k < n && !st; k++) {
+        st = io_dataset_frame(ds, idx[k], 0, &imgs[k]);
+        ptrs[k] = imgs[k].data;
+    }
+    return st;
+}
+
+static void free_first_frames(pg_dataset *ds, int real_idx, int n, const int *idx, pg_image *real_img, pg_image *imgs)
+{
+    pg_image_destroy(real_img);
+    for (int k = 0; k < n; k++) pg_image_destroy(&imgs[k]);
+    io_dataset_release(ds, real_idx);
+    for (int k = 0; k < n; k++) io_dataset_release(ds, idx[k]);
+}
+
+/* COLMAP's scale and shift, on frame 0 at the source resolution (long side at most 1280): SIFT
+ * finds few features at the working size (Panoptic at 320x180: 13 usable points, at 640x360 36).
+ * The dataset goes back to the working size after. *done = 1 when the fit holds. */
+static pg_status colmap_fit(pg_dataset *ds, int real_idx, const pg_camera *real, const float *depth0, int n,
+                            const int *idx, const pg_camera *cams, const char *workdir, int threads, pose_fit *fit,
+                            int *done)
+{
+    int W = real->width, H = real->height, Ws = io_dataset_source_width(ds), Hs = io_dataset_source_height(ds);
+    double shrink = fmax(Ws, Hs) > 1280 ? 1280.0 / fmax(Ws, Hs) : 1.0;
+    int Wc = (int)lround(Ws * shrink), Hc = (int)lround(Hs * shrink);
+    pg_image real_img = { 0 };
+    pg_image *imgs = calloc((size_t)n, sizeof(pg_image));
+    const float **ptrs = calloc((size_t)n, sizeof(float *));
+    pg_camera rc = *real, *cc = calloc((size_t)n, sizeof(pg_camera));
+    pg_status st = (!imgs || !ptrs || !cc) ? pg_fail(PG_ERR_NOMEM, "pose alignment: out of memory") : PG_OK;
+    if (!st) {
+        io_dataset_set_frame_size(ds, Wc, Hc);
+        pg_camera_resize(&rc, Wc, Hc);
+        for (int k = 0; k < n; k++) cc[k] = cams[k], pg_camera_resize(&cc[k], Wc, Hc);
+        st = load_first_frames(ds, real_idx, n, idx, &real_img, imgs, ptrs);
+    }
+    proxy_colmap_report cr;
+    pg_status cs = st ? st : proxy_colmap_align(workdir, &rc, real_img.data, depth0, W, H, n, cc, ptrs, threads, &cr);
+    pg_remove_tree(workdir);
+    if (imgs) free_first_frames(ds, real_idx, n, idx, &real_img, imgs);
+    io_dataset_set_frame_size(ds, W, H);
+    free(imgs);
+    free(ptrs);
+    free(cc);
+    if (cs == PG_OK) {
+        fit->scale = cr.scale, fit->shift = cr.shift, fit->cost = NAN;
+        snprintf(fit->method, sizeof fit->method,
+                 "COLMAP scale and shift at %dx%d (%d points, median error %.1f %%; scale alone %.1f %%)", Wc, Hc,
+                 cr.points, 100 * cr.abs_rel, 100 * cr.abs_rel_scale_only);
+        *done = 1;
+        return PG_OK;
+    }
+    if (cs == PG_ERR_NOMEM) return cs;
+    fprintf(stderr, "prodygs: pose alignment: %s; fitting a scale alone photometrically\n", pg_last_error());
+    snprintf(fit->method, sizeof fit->method, "photometric scale (COLMAP failed: no shift)");
+    return PG_OK;
+}
+
 /* Fits the depth-to-pose map on frame 0 against the proxy (training) cameras: with `shift` and
  * COLMAP installed, scale and disparity shift to COLMAP's points at the known poses (workdir holds
  * its files while it runs); otherwise, or when COLMAP finds too few points, a scale alone by the
@@ -78,40 +141,20 @@ static pg_status fit_scale(pg_dataset *ds, int real_idx, const pg_camera *real, 
                            const int *idx, const pg_camera *cams, int shift, const char *workdir, int threads,
                            pose_fit *fit)
 {
-    int W = real->width, H = real->height;
+    int W = real->width, H = real->height, done = 0;
+    pg_status st = PG_OK;
+    fit->shift = 0;
+    snprintf(fit->method, sizeof fit->method, "%s",
+             !shift ? "photometric scale" : "photometric scale (COLMAP not installed: no shift)");
+    if (shift && proxy_colmap_available())
+        PG_TRY(colmap_fit(ds, real_idx, real, depth0, n, idx, cams, workdir, threads, fit, &done));
+    if (done) return PG_OK;
     pg_image real_img = { 0 };
     pg_image *imgs = calloc((size_t)n, sizeof(pg_image));
     const float **ptrs = calloc((size_t)n, sizeof(float *));
-    pg_status st = (!imgs || !ptrs) ? pg_fail(PG_ERR_NOMEM, "pose scale fit: out of memory") : PG_OK;
-    if (!st) st = io_dataset_frame(ds, real_idx, 0, &real_img);
-    for (int k = 0; k < n && !st; k++) {
-        st = io_dataset_frame(ds, idx[k], 0, &imgs[k]);
-        ptrs[k] = imgs[k].data;
-    }
-    int done = 0;
-    fit->shift = 0;
-    if (!st && shift && !proxy_colmap_available())
-        snprintf(fit->method, sizeof fit->method, "photometric scale (COLMAP not installed: no shift)");
-    if (!st && shift && proxy_colmap_available()) {
-        proxy_colmap_report cr;
-        pg_status cs = proxy_colmap_align(workdir, real, real_img.data, depth0, n, cams, ptrs, threads, &cr);
-        pg_remove_tree(workdir);
-        if (cs == PG_OK) {
-            fit->scale = cr.scale, fit->shift = cr.shift, fit->cost = NAN;
-            snprintf(fit->method, sizeof fit->method,
-                     "COLMAP scale and shift (%d points, median error %.1f %%; scale alone %.1f %%)", cr.points,
-                     100 * cr.abs_rel, 100 * cr.abs_rel_scale_only);
-            done = 1;
-        } else if (cs == PG_ERR_NOMEM) {
-            st = cs;
-        } else {
-            fprintf(stderr, "prodygs: pose alignment: %s; fitting a scale alone photometrically\n", pg_last_error());
-            snprintf(fit->method, sizeof fit->method, "photometric scale (COLMAP failed: no shift)");
-        }
-    } else if (!st && !shift) {
-        snprintf(fit->method, sizeof fit->method, "photometric scale");
-    }
-    if (!st && !done) {
+    st = (!imgs || !ptrs) ? pg_fail(PG_ERR_NOMEM, "pose scale fit: out of memory") : PG_OK;
+    if (!st) st = load_first_frames(ds, real_idx, n, idx, &real_img, imgs, ptrs);
+    if (!st) {
         proxy_scale_options so = proxy_default_scale_options();
         float near_z = 0, far_z = 0, med = median_valid(depth0, (size_t)W * H);
         io_dataset_near_far(ds, real_idx, &near_z, &far_z);
