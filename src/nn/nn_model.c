@@ -48,8 +48,8 @@ pg_status nn_model_load_memory(const void *data, size_t size, const char *name, 
 pg_status nn_model_load_shaped(const char *path, int ndim, const int64_t *dims, nn_model **model)
 {
     *model = NULL;
-    FILE *f = fopen(path, "rb");
-    if (!f) return pg_fail(PG_ERR_IO, "%s: cannot open", path);
+    FILE *f;
+    PG_TRY(pg_open_read(path, &f));
     long len = -1;
     if (fseek(f, 0, SEEK_END) == 0) len = ftell(f);
     if (len < 0 || fseek(f, 0, SEEK_SET) != 0) { fclose(f); return pg_fail(PG_ERR_IO, "%s: cannot read", path); }

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "core/fileutil.h"
+#include "core/output.h"
 #include "core/status.h"
 #include "io/ply.h"
 #include "io/splat_file.h"
@@ -85,7 +86,7 @@ static void time_file_name(char *out, size_t size, float t, const char *format)
     snprintf(out, size, "time_%.3f.%s", t, format);
 }
 
-pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
+static pg_status export_run(const pg_export_config *c, pg_export_report *r)
 {
     memset(r, 0, sizeof *r);
     if (!c->model || !c->out) return pg_fail(PG_ERR_ARG, "export: model and out are required");
@@ -144,5 +145,17 @@ pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
     render_model_close(rm);
     if (staged && st) pg_staged_dir_abort(&out);
     else if (staged) st = pg_staged_dir_commit(&out);
+    return st;
+}
+
+/* The output is claimed (checked and locked, core/output.h) before any work and held for the
+ * whole stage. */
+pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
+{
+    memset(r, 0, sizeof *r);
+    if (!c->out) return export_run(c, r); /* its own check names what is missing */
+    PG_TRY(pg_output_claim_dir(c->out));
+    pg_status st = export_run(c, r);
+    pg_output_release(c->out);
     return st;
 }

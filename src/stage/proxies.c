@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "core/fileutil.h"
+#include "core/output.h"
 #include "core/mathx.h"
 #include "core/parallel.h"
 #include "core/status.h"
@@ -176,7 +177,7 @@ static pg_status begin_output(const char *out, pg_staged_dir *staged)
     return pg_mkdir_p(staged->work);
 }
 
-pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
+static pg_status proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
 {
     memset(r, 0, sizeof *r);
     int use_dataset_poses;
@@ -375,5 +376,17 @@ done:
     free(idx);
     io_depth_destroy(&depth);
     io_dataset_close(ds);
+    return st;
+}
+
+/* The output is claimed (checked and locked, core/output.h) before any work and held for the
+ * whole stage. */
+pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
+{
+    memset(r, 0, sizeof *r);
+    if (!c->out) return proxies_run(c, r); /* its own check names what is missing */
+    PG_TRY(pg_output_claim_dir(c->out));
+    pg_status st = proxies_run(c, r);
+    pg_output_release(c->out);
     return st;
 }

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "core/fileutil.h"
+#include "core/output.h"
 #include "core/status.h"
 #include "io/image_io.h"
 #include "render/camera_path_file.h"
@@ -57,7 +58,7 @@ static pg_status reference_frame(void *ctx, int step, float time, pg_image *img)
     return io_image_load(path, img);
 }
 
-pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
+static pg_status render_run(const pg_render_config *c, pg_render_report *r)
 {
     memset(r, 0, sizeof *r);
     if (!c->model || !c->out) return pg_fail(PG_ERR_ARG, "render: model and out are required");
@@ -142,5 +143,17 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
     free(keys);
     free(key_times);
     free(sc);
+    return st;
+}
+
+/* The output is claimed (checked and locked, core/output.h) before any work and held for the
+ * whole stage. */
+pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
+{
+    memset(r, 0, sizeof *r);
+    if (!c->out) return render_run(c, r); /* its own check names what is missing */
+    PG_TRY(pg_output_claim_dir(c->out));
+    pg_status st = render_run(c, r);
+    pg_output_release(c->out);
     return st;
 }
