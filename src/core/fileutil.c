@@ -110,6 +110,31 @@ pg_status pg_check_input(const char *path)
     return PG_OK;
 }
 
+pg_status pg_private_dir(const char *dir)
+{
+    char parent[4096];
+    const char *slash = strrchr(dir, '/');
+    if (slash && slash > dir) {
+        snprintf(parent, sizeof parent, "%.*s", (int)(slash - dir), dir);
+        PG_TRY(pg_mkdir_p(parent));
+    }
+    if (mkdir(dir, 0700) != 0 && errno != EEXIST)
+        return pg_fail(PG_ERR_ENV, "%s: cannot create the cache folder: %s", dir, strerror(errno));
+    struct stat st;
+    if (lstat(dir, &st) != 0) return pg_fail(PG_ERR_ENV, "%s: cannot use the cache folder: %s", dir, strerror(errno));
+    if (S_ISLNK(st.st_mode))
+        return pg_fail(PG_ERR_ENV, "%s: the cache folder is a symbolic link; remove it or set XDG_CACHE_HOME", dir);
+    if (!S_ISDIR(st.st_mode)) return pg_fail(PG_ERR_ENV, "%s: the cache folder is not a folder; remove it or set XDG_CACHE_HOME", dir);
+    if (st.st_uid != geteuid())
+        return pg_fail(PG_ERR_ENV, "%s: the cache folder belongs to uid %ld, not to you (uid %ld); remove it or set XDG_CACHE_HOME",
+                       dir, (long)st.st_uid, (long)geteuid());
+    /* ours, so nobody else could have created entries unless it was open to them: close it; the
+     * files in it are checked byte for byte by their users */
+    if ((st.st_mode & 077) && chmod(dir, 0700) != 0)
+        return pg_fail(PG_ERR_ENV, "%s: cannot make the cache folder private: %s", dir, strerror(errno));
+    return PG_OK;
+}
+
 int pg_path_exists(const char *path)
 {
     struct stat st;

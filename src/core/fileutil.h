@@ -54,6 +54,11 @@ pg_status pg_remove_tree(const char *path);
 
 /* Creates a directory and its parents (like mkdir -p). */
 pg_status pg_mkdir_p(const char *path);
+/* The one policy for a cache folder shared between runs (the built-in model's): created mode
+ * 0700 if missing; used only if it is a real folder (not a symbolic link) owned by this user, and
+ * made 0700 if it was open to others. PG_ERR_ENV naming the folder otherwise: another user's
+ * folder in /tmp could swap the files the next run loads. */
+pg_status pg_private_dir(const char *dir);
 int pg_path_exists(const char *path);
 int pg_path_is_dir(const char *path);
 /* Joins dir and name with one slash into out (size bytes); fails if it does not fit. */

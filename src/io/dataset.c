@@ -115,6 +115,8 @@ pg_status io_dataset_open(const char *path, const io_dataset_options *opt, pg_da
     char probe[4200];
     if (!pg_path_exists(path)) {
         st = pg_fail(PG_ERR_IO, "%s: no such file or folder", path);
+    } else if ((st = pg_check_input(path)) != PG_OK) {
+        /* a FIFO or device: nothing to open */
     } else if (pg_path_is_dir(path) &&
                ((pg_path_join(probe, sizeof probe, ds->path, "train_meta.json"), pg_path_exists(probe)) ||
                 (pg_path_join(probe, sizeof probe, ds->path, "test_meta.json"), pg_path_exists(probe)))) {

@@ -330,7 +330,7 @@ static pg_status av_input_open(const char *path, av_input *in, int open_decoder)
     char eb[128];
     memset(in, 0, sizeof *in);
     quiet_ffmpeg();
-    if (!pg_path_exists(path)) return pg_fail(PG_ERR_IO, "%s: no such file", path);
+    PG_TRY(pg_check_input(path)); /* a FIFO would block ffmpeg's open until a writer came */
     int r = avformat_open_input(&in->fmt, path, NULL, NULL);
     if (r < 0) return pg_fail(PG_ERR_FORMAT, "%s: not a readable video: %s", path, av_err(r, eb, sizeof eb));
     r = avformat_find_stream_info(in->fmt, NULL);

@@ -83,7 +83,7 @@ static pg_status copy_cameras(const char *model, const char *out, pg_export_repo
 /* The file of a time request: to 3 decimals, so nearer times share a name (refused up front). */
 static void time_file_name(char *out, size_t size, float t, const char *format)
 {
-    snprintf(out, size, "time_%.3f.%s", t, format);
+    snprintf(out, size, "time_%.3f.%s", t == 0 ? 0.0f : t, format); /* -0 is 0: one file, not time_-0.000 beside it */
 }
 
 static pg_status export_run(const pg_export_config *c, pg_export_report *r)

@@ -356,8 +356,9 @@ static pg_status run_depth(pipeline_run *p, pipeline_plan *plan, const char *dir
     dc.threads = plan->threads;
     dc.out_width = plan->width; /* prepare reads depth at its working size: nothing larger is kept */
     dc.out_height = plan->height;
+    /* the model is keyed on its content (inputs), not its path: the built-in one's path follows
+     * XDG_CACHE_HOME */
     cJSON *config = cJSON_CreateObject(), *inputs;
-    cJSON_AddStringToObject(config, "model", c->depth_model);
     cJSON_AddStringToObject(config, "train_camera", plan->train_camera);
     cJSON_AddNumberToObject(config, "frames", c->frames);
     cJSON_AddNumberToObject(config, "width", plan->width);
