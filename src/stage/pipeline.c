@@ -106,7 +106,8 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
         return pg_fail(PG_ERR_ARG, "--poses must be hemisphere or dataset (got '%s')", c->poses);
     if (c->depth_kind && strcmp(c->depth_kind, "depth") != 0 && strcmp(c->depth_kind, "disparity") != 0)
         return pg_fail(PG_ERR_ARG, "--depth-kind must be depth or disparity (got '%s')", c->depth_kind);
-    PG_TRY(stage_check_size("pipeline", c->width, c->height));
+    PG_TRY(stage_check_size("pipeline", "--size", c->width, c->height, 0));
+    PG_TRY(stage_check_size("pipeline", "--render-size", c->render_width, c->render_height, 1));
     const char *name = c->preset ? c->preset : "fast";
     for (size_t i = 0; i < sizeof presets / sizeof presets[0]; i++)
         if (strcmp(name, presets[i].name) == 0) {

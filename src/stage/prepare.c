@@ -50,7 +50,7 @@ cJSON *stage_prepare_config_json(const pg_prepare_config *c)
 static pg_status check_config(const pg_prepare_config *c, io_depth_kind *kind, depth_prepare_options *popt)
 {
     if (!c->input || !c->depth || !c->out) return pg_fail(PG_ERR_ARG, "prepare: input, depth (or depth_model) and out are required");
-    PG_TRY(stage_check_size("prepare", c->width, c->height));
+    PG_TRY(stage_check_size("prepare", "--size", c->width, c->height, 0));
     PG_TRY(stage_check_threads("prepare", c->threads));
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "prepare: --frames %d must be >= 1 (0 = all)", c->frames);
     if (!(c->depth_scale > 0.0f)) return pg_fail(PG_ERR_ARG, "prepare: --depth-scale %g must be > 0", c->depth_scale);

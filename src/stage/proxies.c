@@ -152,7 +152,7 @@ static pg_status check_config(const pg_proxies_config *c, int *dataset_poses)
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "proxies: --frames %d is negative", c->frames);
     if (c->pose_scale < 0 || !isfinite(c->pose_scale)) return pg_fail(PG_ERR_ARG, "proxies: --pose-scale must be positive");
     if (c->depth_unit < 0 || !isfinite(c->depth_unit)) return pg_fail(PG_ERR_ARG, "proxies: depth unit must be positive");
-    PG_TRY(stage_check_size("proxies", c->width, c->height));
+    PG_TRY(stage_check_size("proxies", "--size", c->width, c->height, 0));
     PG_TRY(stage_check_threads("proxies", c->threads));
     *dataset_poses = -1;
     if (c->poses) {
