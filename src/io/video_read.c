@@ -584,6 +584,9 @@ static pg_status read_video(const char *path, const io_video_options *opt, io_fr
         if (out->count == 0)
             st = pg_fail(PG_ERR_FORMAT, "%s: no frames decoded (decoded %d, first %d): file empty, garbled or truncated",
                          path, ds.decoded, ds.first);
+        else if (want > 0 && out->count < want && s->nb_frames > 0 && ds.decoded < s->nb_frames)
+            st = pg_fail(PG_ERR_FORMAT, "%s: truncated: header says %lld frames, only %d decode", path,
+                         (long long)s->nb_frames, ds.decoded); /* what was asked came from the header */
         else if (want > 0 && out->count < want)
             st = pg_fail(PG_ERR_ARG, "%s: asked for %d frames from %d with stride %d, but only %d exist", path, want,
                          ds.first, ds.stride, out->count);

@@ -251,8 +251,7 @@ static pg_status depth_run(const pg_depth_config *c, pg_depth_report *r)
                 break;
             }
             st = io_dataset_frame(ds, cam, t, &img[nb]);
-            if (st) pg_fail_context(st, "%s: frame %d: ", c->input, t);
-            else batch[nb++] = t;
+            if (!st) batch[nb++] = t; /* a failure's message names the file (the reader knows which) */
             t++;
         }
         pg_status bst[DEPTH_MAX_NETS];
