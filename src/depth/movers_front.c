@@ -174,9 +174,15 @@ long depth_movers_in_front(float *depth, const unsigned char *still, const float
                 for (size_t k = 0; k < n; k++) {
                     if (!lab[k] || !depth_valid(d[k])) continue;
                     float s = smoothed[(size_t)f * b.max_blobs + lab[k] - 1];
-                    /* the still scene showing through the blob (where the mover was, or a gap
-                     * the dilation took in) already has its own depth */
-                    if (s >= 1.0f || (background[k] > 0 && fabsf(logf(background[k] / d[k])) < p->tolerance)) continue;
+                    /* the still scene showing through the blob (where the mover was, or the ring
+                     * of background the dilation took in) already has its own depth: a pixel
+                     * nearer its background's depth than the mover's (less than half the factor's
+                     * way, in log) is left alone */
+                    if (s >= 1.0f) continue;
+                    if (background[k] > 0) {
+                        float off = logf(background[k] / d[k]);
+                        if (fabsf(off) < p->tolerance || off > 0.5f * logf(s)) continue;
+                    }
                     d[k] *= s;
                 }
                 for (int i = 0; i < b.count[f]; i++) moved += smoothed[(size_t)f * b.max_blobs + i] < 1.0f;

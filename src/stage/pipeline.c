@@ -99,7 +99,7 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
         return pg_fail(PG_ERR_ARG, "--proxy-render must be mesh or splat, not '%s'", c->proxy_render);
     if (c->max_angle < 0 || c->max_angle >= 90)
         return pg_fail(PG_ERR_ARG, "--max-angle must be in (0, 90) degrees (got %g)", c->max_angle);
-    if (c->fov < 0 || c->fov >= 180) return pg_fail(PG_ERR_ARG, "--fov must be in (0, 180) degrees (got %g)", c->fov);
+    if (c->fov < 0 || c->fov >= 179) return pg_fail(PG_ERR_ARG, "--fov must be in (0, 179) degrees (got %g)", c->fov);
     if (c->pad > 1 || (c->pad < 0 && c->pad != -1)) return pg_fail(PG_ERR_ARG, "--pad must be in [0, 1] (got %g)", c->pad);
     if (c->proxies < -1 || c->proxies > 256) return pg_fail(PG_ERR_ARG, "--proxies must be in 0..256 or all (got %d)", c->proxies);
     if (c->poses && strcmp(c->poses, "hemisphere") != 0 && strcmp(c->poses, "dataset") != 0)

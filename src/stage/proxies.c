@@ -142,7 +142,7 @@ static pg_status check_config(const pg_proxies_config *c, int *dataset_poses)
         return pg_fail(PG_ERR_ARG, "proxies: --proxies %d not in 0..%d", c->proxies, MAX_CAMS);
     if (!(c->max_angle > 0 && c->max_angle < 90))
         return pg_fail(PG_ERR_ARG, "proxies: --max-angle %g not in (0, 90) degrees", c->max_angle);
-    if (!(c->fov > 0 && c->fov < 180)) return pg_fail(PG_ERR_ARG, "proxies: --fov %g not in (0, 180)", c->fov);
+    if (!(c->fov > 0 && c->fov < 179)) return pg_fail(PG_ERR_ARG, "proxies: --fov %g not in (0, 179) degrees", c->fov); /* the dataset's limit */
     if (c->render && strcmp(c->render, "mesh") != 0 && strcmp(c->render, "splat") != 0)
         return pg_fail(PG_ERR_ARG, "proxies: --render must be mesh or splat, not '%s'", c->render);
     if (c->fit_steps < 0 || c->fit_steps > 100000)
