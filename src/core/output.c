@@ -104,7 +104,7 @@ static pg_status claim(const char *out, int want_dir)
         char parent[4096];
         snprintf(parent, sizeof parent, "%.*s", (int)(slash - path), path);
         pg_status s = pg_mkdir_p(parent);
-        if (s) return pg_fail_context(s, "%s: output is not writable", path);
+        if (s) return pg_fail_context(PG_ERR_ENV, "%s: output is not writable", path); /* a parent that is a file: the place, not the name, is wrong */
     }
     snprintf(lock, sizeof lock, "%s.lock", path);
     return take_lock(path, lock);
