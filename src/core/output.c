@@ -104,7 +104,8 @@ static pg_status claim(const char *out, int want_dir)
         char parent[4096];
         snprintf(parent, sizeof parent, "%.*s", (int)(slash - path), path);
         pg_status s = pg_mkdir_p(parent);
-        if (s) return pg_fail_context(PG_ERR_ENV, "%s: output is not writable", path); /* a parent that is a file: the place, not the name, is wrong */
+        /* a parent that is a file: the place, not the name, is wrong (exit 3, as a read-only disk) */
+        if (s) return pg_fail_context(PG_ERR_ENV, "%s: output is not writable", path);
     }
     snprintf(lock, sizeof lock, "%s.lock", path);
     return take_lock(path, lock);
