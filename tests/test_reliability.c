@@ -20,7 +20,8 @@ static char dir[4096];
 static char err[16384], args[16384];
 
 #define R "--iters 30 --proxies 2 --threads 1"
-#define M "--model .cache/prodygs/fastdepth_224_int8.tflite" /* the built-in model, cached by main */
+#define MODEL ".cache/prodygs/fastdepth_224_int8.tflite" /* the built-in model, cached by main */
+#define M "--model " MODEL
 
 /* dir/name into a static buffer (one of four in turn, so a call may take a few). */
 static const char *at(const char *name)
@@ -395,6 +396,29 @@ static void model_by_content(void)
     unsetenv("XDG_CACHE_HOME");
 }
 
+/* Acceptance: a run killed (-9) anywhere resumes to the same bytes as one never interrupted; the
+ * kills land in different stages (depth, prepare, proxies, train, render) by their delay. */
+static void kill_and_resume(void)
+{
+    static const char *files[] = { "depth/depth.npy", "prepare/depth_aligned.npy", "prepare/static_masks.npy", "model/model.ckpt" };
+    int rc = run("run s1/cam00.mp4 --depth-model " MODEL " " R " --out rk_ref");
+    CHECK(rc == 0, "reference run: exit %d, %s", rc, err);
+    static const char *delays[] = { "0.3", "0.9", "1.8" };
+    for (int k = 0; k < 3; k++) {
+        snprintf(args, sizeof args, "cd '%s' && rm -rf rk rk.lock && timeout -s KILL %s '%s' run s1/cam00.mp4 --depth-model "
+                 MODEL " " R " --out rk >/dev/null 2>&1", dir, delays[k], PG_CLI_PATH);
+        int killed = system(args);
+        rc = run("run s1/cam00.mp4 --depth-model " MODEL " " R " --out rk");
+        CHECK(rc == 0, "resume after a kill at %s s (%d): exit %d, %s", delays[k], killed, rc, err);
+        for (int i = 0; i < 4; i++) {
+            char a[64], b[64];
+            snprintf(a, sizeof a, "rk_ref/%s", files[i]);
+            snprintf(b, sizeof b, "rk/%s", files[i]);
+            CHECK(test_files_equal(at(a), at(b)), "killed at %s s: %s differs from the uninterrupted run's", delays[k], files[i]);
+        }
+    }
+}
+
 /* The minor rows: values the messages refuse are refused, a refused run leaves nothing. */
 static void minor(void)
 {
@@ -435,5 +459,6 @@ int main(void)
     flat_depth();
     model_by_content();
     minor();
+    kill_and_resume();
     return test_summary("test_reliability");
 }
