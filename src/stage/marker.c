@@ -56,7 +56,7 @@ static pg_status hash_dir(content_hash *h, const char *path, int depth)
         else n++;
     }
     closedir(d);
-    if (st == PG_OK) qsort(names, n, sizeof *names, compare_names);
+    if (st == PG_OK && n > 0) qsort(names, n, sizeof *names, compare_names); /* an empty folder has no list */
     for (size_t i = 0; i < n && st == PG_OK; i++) {
         char child[4096];
         st = pg_path_join(child, sizeof child, path, names[i]);
