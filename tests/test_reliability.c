@@ -249,6 +249,27 @@ static void write_8x8_model(const char *path)
     free(m);
 }
 
+/* A copy of an MP4 whose mdat payload is zeroed from `from` (0..1) on: the header still promises
+ * every frame, the last ones no longer decode, as in a file cut short and padded. */
+static void damage_mp4(const char *src, const char *dst, double from)
+{
+    char *data = NULL;
+    size_t n = 0;
+    CHECK_OK(pg_read_file(src, 1 << 24, &data, &n));
+    for (size_t at = 0; data && at + 8 <= n;) {
+        const unsigned char *h = (const unsigned char *)data + at;
+        size_t box = (size_t)h[0] << 24 | (size_t)h[1] << 16 | (size_t)h[2] << 8 | h[3];
+        if (box < 8 || at + box > n) break;
+        if (memcmp(h + 4, "mdat", 4) == 0) {
+            size_t cut = at + 8 + (size_t)((box - 8) * from);
+            memset(data + cut, 0, at + box - cut);
+        }
+        at += box;
+    }
+    CHECK_OK(pg_write_file_atomic(dst, data, n));
+    free(data);
+}
+
 /* Row 7: one line naming the real file and problem. */
 static void messages(void)
 {
@@ -270,6 +291,10 @@ static void messages(void)
     rc = run("depth mixed " M " --out mx.npy");
     CHECK(rc == 2 && strstr(err, "0003.png") && !strstr(err, ": :") && !strstr(err, "frame 0") && one_line(), "mixed frame sizes: exit %d, %s",
           rc, err);
+
+    damage_mp4(at("s2/cam00.mp4"), at("cut.mp4"), 0.6);
+    rc = run("prepare cut.mp4 --depth s2/depth_mono/cam00.npy --out pcut");
+    CHECK(rc == 2 && strstr(err, "cut.mp4: truncated") && !strstr(err, "asked for") && one_line(), "a truncated mp4: exit %d, %s", rc, err);
 
     CHECK_OK(pg_mkdir_p(at("bare")));
     snprintf(args, sizeof args, "cp '%s/r0/model/model.ckpt' '%s/bare/'", dir, dir);
@@ -333,9 +358,8 @@ static void negative_zero(void)
  * them keeps its depth. */
 static void movers_ring(void)
 {
-    int rc = run("synth s2 --cams 1 --frames 10 --size 128x96 --video --threads 1");
-    CHECK(rc == 0, "synth s2: %s", err);
     pg_array mono = { 0 }, mask = { 0 }, on = { 0 }, off = { 0 };
+    int rc;
     CHECK_OK(io_npy_load(at("s2/depth_mono/cam00.npy"), &mono));
     CHECK_OK(io_npy_load(at("s2/masks_dynamic/cam00.npy"), &mask));
     if (mono.count != mask.count || !mono.count) {
@@ -442,6 +466,8 @@ int main(void)
     unsetenv("XDG_CACHE_HOME");
     int rc = run("synth s1 --cams 3 --frames 6 --size 96x72 --video --threads 1");
     CHECK(rc == 0, "synth: %s", err);
+    rc = run("synth s2 --cams 1 --frames 10 --size 128x96 --video --threads 1");
+    CHECK(rc == 0, "synth s2: %s", err);
     rc = run("depth s1/cam00.mp4 --out warm.npy --threads 1"); /* caches the built-in model */
     CHECK(rc == 0, "depth: %s", err);
     rc = run("run s1/cam00.mp4 --depth s1/depth_mono/cam00.npy " R " --out r0");
