@@ -4,6 +4,7 @@
 #include "testlib.h"
 #include "io/video.h"
 #include "core/fileutil.h"
+#include "core/output.h"
 
 #include <signal.h>
 #include <stdio.h>
@@ -92,7 +93,7 @@ int main(void)
     char locked[4200], pid[32];
     snprintf(locked, sizeof locked, "%s/busy", dir);
     CHECK_OK(pg_mkdir_p(locked));
-    CHECK_OK(pg_dir_lock(locked));
+    CHECK_OK(pg_output_claim_dir(locked));
     snprintf(pid, sizeof pid, "PID %ld", (long)getpid());
     snprintf(args, sizeof args, "run '%s/ds' --depth '%s/ds/depth_mono/cam00.npy' --out '%s' --iters 2", dir, dir, locked);
     rc = test_run_cli(args, err, sizeof err);

@@ -1,12 +1,14 @@
 /* cmd_proxies.c - `prodygs proxies`: options -> pg_proxies_config -> pg_proxies_run -> JSON line. */
 #include "cli/cli.h"
 
+#include <math.h>
 #include <stdio.h>
 
 int cmd_proxies(int argc, char **argv)
 {
     pg_proxies_config c;
     pg_proxies_defaults(&c);
+    c.pad = NAN; /* unset until given: a given --pad -1 is refused, not read as "the default" */
     const char *size = NULL, *proxies = NULL;
     int no_pose_shift = 0;
     const cli_option opts[] = {
@@ -37,6 +39,8 @@ int cmd_proxies(int argc, char **argv)
     int rc = cli_parse(&spec, argc, argv, &c.input, NULL);
     if (rc) return rc < 0 ? 0 : rc;
     if (!c.depth || !c.out) return cli_usage_error("proxies: --depth PATH and --out DIR are required");
+    if (isnan(c.pad)) c.pad = -1; /* the default */
+    else if (!(c.pad >= 0 && c.pad <= 1)) return cli_usage_error("proxies: --pad %g not in [0, 1]", c.pad);
     if ((rc = cli_parse_size("--size", size, &c.width, &c.height))) return rc;
     if ((rc = cli_parse_count_or_all("--proxies", proxies, &c.proxies))) return rc;
     c.pose_shift = !no_pose_shift;

@@ -3,6 +3,7 @@
 
 #include "depth/depth_default.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -10,6 +11,9 @@
 int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option *opts, int max)
 {
     pg_pipeline_defaults(c);
+    /* unset until given: a given --pad -1 or --iters 0 is refused, not read as "the default" */
+    c->pad = NAN;
+    c->iters = INT_MIN;
     memset(t, 0, sizeof *t);
     const cli_option shared[] = {
         { "--depth", CLI_STR, &c->depth, "per-frame depth of the training camera: .npy (F,H,W) or a folder (or --depth-model)" },
@@ -71,6 +75,10 @@ int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pg_pipeline_
     if (rc) return rc;
     const char *verb = strchr(spec->command, ' ') ? strchr(spec->command, ' ') + 1 : spec->command;
     if (!c->out) return cli_usage_error("%s: --out is required", verb);
+    if (isnan(c->pad)) c->pad = -1; /* the proxies' default */
+    else if (!(c->pad >= 0 && c->pad <= 1)) return cli_usage_error("%s: --pad must be in [0, 1] (got %g)", verb, c->pad);
+    if (c->iters == INT_MIN) c->iters = 0; /* the preset's */
+    else if (c->iters < 1) return cli_usage_error("%s: --iters must be >= 1 (got %d)", verb, c->iters);
     if (c->depth && c->depth_model) return cli_usage_error("%s: give --depth or --depth-model, not both", verb);
     if (!c->depth && (c->depth_kind || c->depth_scale))
         return cli_usage_error("%s: --depth-kind and --depth-scale apply to --depth; a model's output kind comes from "

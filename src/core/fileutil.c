@@ -5,7 +5,6 @@
 #include <errno.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/file.h>
 #include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -67,6 +66,75 @@ pg_status pg_mkdir_p(const char *path)
     return PG_OK;
 }
 
+/* What a path is when it is not what a reader can use. */
+static const char *kind_of(mode_t mode)
+{
+    if (S_ISDIR(mode)) return "a folder";
+    if (S_ISFIFO(mode)) return "a FIFO";
+    if (S_ISCHR(mode) || S_ISBLK(mode)) return "a device";
+    if (S_ISSOCK(mode)) return "a socket";
+    return "a special file";
+}
+
+pg_status pg_open_read(const char *path, FILE **fp)
+{
+    *fp = NULL;
+    /* O_NONBLOCK: opening a FIFO for reading would otherwise wait for a writer */
+    int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    struct stat st;
+    if (fstat(fd, &st) != 0) {
+        int e = errno;
+        close(fd);
+        return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(e));
+    }
+    if (!S_ISREG(st.st_mode)) {
+        close(fd);
+        return pg_fail(PG_ERR_ARG, "%s: is %s, not a regular file", path, kind_of(st.st_mode));
+    }
+    int flags = fcntl(fd, F_GETFL);
+    if (flags < 0 || fcntl(fd, F_SETFL, flags & ~O_NONBLOCK) != 0 || !(*fp = fdopen(fd, "rb"))) {
+        int e = errno;
+        close(fd);
+        return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(e));
+    }
+    return PG_OK;
+}
+
+pg_status pg_check_input(const char *path)
+{
+    struct stat st;
+    if (stat(path, &st) != 0) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    if (!S_ISREG(st.st_mode) && !S_ISDIR(st.st_mode))
+        return pg_fail(PG_ERR_ARG, "%s: is %s, not a regular file or folder", path, kind_of(st.st_mode));
+    return PG_OK;
+}
+
+pg_status pg_private_dir(const char *dir)
+{
+    char parent[4096];
+    const char *slash = strrchr(dir, '/');
+    if (slash && slash > dir) {
+        snprintf(parent, sizeof parent, "%.*s", (int)(slash - dir), dir);
+        PG_TRY(pg_mkdir_p(parent));
+    }
+    if (mkdir(dir, 0700) != 0 && errno != EEXIST)
+        return pg_fail(PG_ERR_ENV, "%s: cannot create the cache folder: %s", dir, strerror(errno));
+    struct stat st;
+    if (lstat(dir, &st) != 0) return pg_fail(PG_ERR_ENV, "%s: cannot use the cache folder: %s", dir, strerror(errno));
+    if (S_ISLNK(st.st_mode))
+        return pg_fail(PG_ERR_ENV, "%s: the cache folder is a symbolic link; remove it or set XDG_CACHE_HOME", dir);
+    if (!S_ISDIR(st.st_mode)) return pg_fail(PG_ERR_ENV, "%s: the cache folder is not a folder; remove it or set XDG_CACHE_HOME", dir);
+    if (st.st_uid != geteuid())
+        return pg_fail(PG_ERR_ENV, "%s: the cache folder belongs to uid %ld, not to you (uid %ld); remove it or set XDG_CACHE_HOME",
+                       dir, (long)st.st_uid, (long)geteuid());
+    /* ours, so nobody else could have created entries unless it was open to them: close it; the
+     * files in it are checked byte for byte by their users */
+    if ((st.st_mode & 077) && chmod(dir, 0700) != 0)
+        return pg_fail(PG_ERR_ENV, "%s: cannot make the cache folder private: %s", dir, strerror(errno));
+    return PG_OK;
+}
+
 int pg_path_exists(const char *path)
 {
     struct stat st;
@@ -102,8 +170,8 @@ pg_status pg_read_file(const char *path, size_t limit, char **data, size_t *size
 {
     *data = NULL;
     *size = 0;
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    FILE *fp;
+    PG_TRY(pg_open_read(path, &fp));
     if (fseek(fp, 0, SEEK_END) != 0) { fclose(fp); return pg_fail(PG_ERR_IO, "%s: cannot seek", path); }
     long len = ftell(fp);
     if (len < 0) { fclose(fp); return pg_fail(PG_ERR_IO, "%s: cannot tell size", path); }
@@ -167,15 +235,34 @@ pg_status pg_staged_dir_begin(pg_staged_dir *d, const char *dir, int resume)
     memcpy(d->final, dir, n);
     d->final[n] = '\0';
     snprintf(d->work, sizeof d->work, "%s.partial", d->final);
+    d->replace = 0;
     if (!resume) PG_TRY(pg_remove_tree(d->work));
     pg_status st = pg_mkdir_p(d->work);
     if (st) return pg_fail_context(st, "%s: output is not writable", d->final);
     return PG_OK;
 }
 
+/* Removes every entry of a folder, keeping the folder. */
+static pg_status empty_dir(const char *path)
+{
+    DIR *dir = opendir(path);
+    if (!dir) return pg_fail(PG_ERR_IO, "%s: cannot list: %s", path, strerror(errno));
+    pg_status rc = PG_OK;
+    struct dirent *e;
+    char child[4096];
+    while (rc == PG_OK && (e = readdir(dir)) != NULL) {
+        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
+        rc = pg_path_join(child, sizeof child, path, e->d_name);
+        if (rc == PG_OK) rc = pg_remove_tree(child);
+    }
+    closedir(dir);
+    return rc;
+}
+
 pg_status pg_staged_dir_commit(pg_staged_dir *d)
 {
     PG_TRY(pg_mkdir_p(d->final));
+    if (d->replace) PG_TRY(empty_dir(d->final));
     DIR *dir = opendir(d->work);
     if (!dir) return pg_fail(PG_ERR_IO, "%s: cannot list: %s", d->work, strerror(errno));
     pg_status rc = PG_OK;
@@ -202,34 +289,4 @@ void pg_staged_dir_abort(pg_staged_dir *d)
     snprintf(saved, sizeof saved, "%s", pg_last_error()); /* keep the stage's own error message */
     pg_remove_tree(d->work);
     pg_fail(PG_ERR_IO, "%s", saved);
-}
-
-pg_status pg_dir_lock(const char *dir)
-{
-    static char held[4096];
-    static int held_fd = -1;
-    if (held_fd >= 0 && strcmp(held, dir) == 0) return PG_OK;
-    char path[4200];
-    PG_TRY(pg_path_join(path, sizeof path, dir, ".lock"));
-    int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-    if (fd < 0) return pg_fail(PG_ERR_ENV, "%s: cannot create the lock file: %s", path, strerror(errno));
-    if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
-        char pid[32] = "";
-        ssize_t n = read(fd, pid, sizeof pid - 1);
-        pid[n > 0 ? n : 0] = '\0';
-        pid[strcspn(pid, "\n")] = '\0';
-        close(fd);
-        return pg_fail(PG_ERR_ENV, "%s: in use by another prodygs (PID %s); wait for it or choose another --out", dir,
-                       pid[0] ? pid : "unknown");
-    }
-    char pid[32];
-    int len = snprintf(pid, sizeof pid, "%ld\n", (long)getpid());
-    if (ftruncate(fd, 0) != 0 || write(fd, pid, (size_t)len) != len) {
-        close(fd);
-        return pg_fail(PG_ERR_ENV, "%s: cannot write the lock file: %s", path, strerror(errno));
-    }
-    if (held_fd >= 0) close(held_fd); /* one folder at a time: a library caller moving on releases the last */
-    held_fd = fd; /* stays open: the lock lives until the process ends or locks another folder */
-    snprintf(held, sizeof held, "%s", dir);
-    return PG_OK;
 }

@@ -39,6 +39,7 @@ void pg_atomic_abort(pg_atomic_file *f);
 typedef struct {
     char final[4096];
     char work[4200];
+    int replace; /* set after begin: commit empties DIR first, so DIR holds exactly this result */
 } pg_staged_dir;
 
 /* Creates DIR's parent and DIR.partial. resume = 0 clears what a crashed run left in
@@ -50,14 +51,14 @@ pg_status pg_staged_dir_commit(pg_staged_dir *d);
 void pg_staged_dir_abort(pg_staged_dir *d);
 /* Removes a file or a directory tree (like rm -rf); a missing path is not an error. */
 pg_status pg_remove_tree(const char *path);
-/* Takes DIR/.lock (an exclusive flock, the holder's PID inside), so a second process on the same
- * output folder stops at once instead of racing it; fails with PG_ERR_ENV naming the holder's
- * PID. Held until the process ends (the kernel drops it however the process ends) or locks
- * another folder; taking the same folder again is a no-op. */
-pg_status pg_dir_lock(const char *dir);
 
 /* Creates a directory and its parents (like mkdir -p). */
 pg_status pg_mkdir_p(const char *path);
+/* The one policy for a cache folder shared between runs (the built-in model's): created mode
+ * 0700 if missing; used only if it is a real folder (not a symbolic link) owned by this user, and
+ * made 0700 if it was open to others. PG_ERR_ENV naming the folder otherwise: another user's
+ * folder in /tmp could swap the files the next run loads. */
+pg_status pg_private_dir(const char *dir);
 int pg_path_exists(const char *path);
 int pg_path_is_dir(const char *path);
 /* Joins dir and name with one slash into out (size bytes); fails if it does not fit. */
@@ -65,6 +66,12 @@ pg_status pg_path_join(char *out, size_t size, const char *dir, const char *name
 /* Joins name to path when path is a directory, else to the directory holding the file path ("."
  * for a bare file name): what lies beside a model given as its directory or its checkpoint. */
 pg_status pg_path_join_beside(char *out, size_t size, const char *path, const char *name);
+/* Opens a file for reading if it is a regular file: a folder, FIFO or device where a file is read
+ * would hang or give nonsense sizes. PG_ERR_ARG names what the path is instead; PG_ERR_IO when it
+ * cannot be opened. */
+pg_status pg_open_read(const char *path, FILE **fp);
+/* The same for a path a library opens itself (ffmpeg, a dataset): a regular file or a folder. */
+pg_status pg_check_input(const char *path);
 /* Reads a whole file into a malloc'd buffer (NUL-terminated); limit guards huge files. */
 pg_status pg_read_file(const char *path, size_t limit, char **data, size_t *size);
 /* Writes a whole buffer atomically. */

@@ -11,11 +11,14 @@ typedef struct {
 
 static int by_value(const void *a, const void *b)
 {
-    float x = ((const ranked *)a)->value, y = ((const ranked *)b)->value;
-    return (x > y) - (x < y);
+    const ranked *p = a, *q = b;
+    if (p->value != q->value) return (p->value > q->value) - (p->value < q->value);
+    return (p->index > q->index) - (p->index < q->index); /* deterministic whatever qsort does with ties */
 }
 
-/* Spearman rank correlation between the row order and the rows' mean depth (ties broken by row). */
+/* Spearman rank correlation between the row order and the rows' mean depth. Rows of equal depth
+ * share their average rank, so a flat map (every row the same) has no trend at all: with ties
+ * broken by row it read as depth growing down the frame, a perfect "disparity". */
 static double row_trend(const float *plane, int width, int height, ranked *rows)
 {
     int n = 0;
@@ -34,14 +37,21 @@ static double row_trend(const float *plane, int width, int height, ranked *rows)
     }
     if (n < 8) return 0;
     qsort(rows, (size_t)n, sizeof *rows, by_value);
-    /* rank of the value of row i is its position after sorting; rank of the row itself is i */
-    double mean = (n - 1) / 2.0, sxy = 0, sxx = 0;
-    for (int r = 0; r < n; r++) {
-        double a = rows[r].index - mean, b = r - mean;
-        sxy += a * b;
-        sxx += a * a;
+    /* Pearson correlation of the row's own rank (its index) and its value's average rank */
+    double mean = (n - 1) / 2.0, sxy = 0, sxx = 0, syy = 0;
+    for (int r = 0; r < n;) {
+        int end = r;
+        while (end + 1 < n && rows[end + 1].value == rows[r].value) end++;
+        double b = (r + end) / 2.0 - mean;
+        for (int k = r; k <= end; k++) {
+            double a = rows[k].index - mean;
+            sxy += a * b;
+            sxx += a * a;
+            syy += b * b;
+        }
+        r = end + 1;
     }
-    return sxx > 0 ? sxy / sxx : 0;
+    return sxx > 0 && syy > 0 ? sxy / sqrt(sxx * syy) : 0;
 }
 
 double depth_share_inverted_frames(const float *depth, int frames, int width, int height)

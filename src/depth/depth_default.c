@@ -37,7 +37,7 @@ pg_status depth_default_model(char *path, size_t size)
     if (xdg && *xdg) snprintf(dir, sizeof dir, "%s/prodygs", xdg);
     else if (home && *home) snprintf(dir, sizeof dir, "%s/.cache/prodygs", home);
     else snprintf(dir, sizeof dir, "/tmp/prodygs-%u", (unsigned)getuid());
-    PG_TRY(pg_mkdir_p(dir));
+    PG_TRY(pg_private_dir(dir));
     PG_TRY(pg_path_join(path, size, dir, "fastdepth_224_int8.tflite"));
     snprintf(side, sizeof side, "%s.json", path);
     PG_TRY(write_if_different(path, depth_fastdepth_tflite, depth_fastdepth_tflite_size));

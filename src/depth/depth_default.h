@@ -20,7 +20,8 @@
  * output depth) into the user's cache folder ($XDG_CACHE_HOME/prodygs, else $HOME/.cache/prodygs,
  * else /tmp/prodygs-UID), unless identical files are there already, and gives the model's path:
  * every consumer (depth_net_open, the depth stage's content-hashed cache) then treats it like a
- * file the user passed. Fails with PG_ERR_IO naming the path it could not write. */
+ * file the user passed. The folder must pass pg_private_dir (yours, 0700, not a symbolic link);
+ * fails with PG_ERR_ENV naming the folder otherwise, or the path it could not write. */
 pg_status depth_default_model(char *path, size_t size);
 
 #endif

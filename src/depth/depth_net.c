@@ -37,6 +37,38 @@ static pg_status parse_kind(const char *text, const char *what, int *disparity)
     return PG_OK;
 }
 
+/* MODEL.json's "input_size" [w, h] into wh, 0 0 when the sidecar or the key is absent: the one
+ * check of it for fixed and dynamic models alike, so a malformed, NaN, fractional or negative
+ * size is blamed on the sidecar, never on the model. */
+static pg_status sidecar_input_size(const char *model_path, int wh[2])
+{
+    char side[4200];
+    snprintf(side, sizeof side, "%s.json", model_path);
+    wh[0] = wh[1] = 0;
+    if (!pg_path_exists(side)) return PG_OK;
+    cJSON *j;
+    PG_TRY(io_json_load(side, &j));
+    const cJSON *it = cJSON_GetObjectItemCaseSensitive(j, "input_size");
+    pg_status st = PG_OK;
+    if (it) {
+        int ok = cJSON_IsArray(it) && cJSON_GetArraySize(it) == 2;
+        for (int k = 0; ok && k < 2; k++) {
+            const cJSON *v = cJSON_GetArrayItem(it, k);
+            ok = cJSON_IsNumber(v) && v->valuedouble >= 1 && v->valuedouble <= 8192 && v->valuedouble == floor(v->valuedouble);
+            if (ok) wh[k] = (int)v->valuedouble;
+        }
+        if (!ok) {
+            char *text = cJSON_PrintUnformatted(it);
+            st = pg_fail(PG_ERR_FORMAT, "%s: \"input_size\" must be [width, height], whole numbers in 1..8192 (got %.60s)", side,
+                         text ? text : "?");
+            free(text);
+            wh[0] = wh[1] = 0;
+        }
+    }
+    cJSON_Delete(j);
+    return st;
+}
+
 /* Reads MODEL.json when it exists; keys are optional, wrong types or values fail. */
 static pg_status read_sidecar(depth_net *net)
 {
@@ -51,11 +83,11 @@ static pg_status read_sidecar(depth_net *net)
     const cJSON *it;
     if ((it = cJSON_GetObjectItemCaseSensitive(j, "name")) && cJSON_IsString(it)) snprintf(in->name, sizeof in->name, "%s", it->valuestring);
     if ((it = cJSON_GetObjectItemCaseSensitive(j, "license")) && cJSON_IsString(it)) snprintf(in->license, sizeof in->license, "%s", it->valuestring);
-    if (!st && cJSON_GetObjectItemCaseSensitive(j, "input_size") && !in->dynamic) { /* dynamic: used at load */
-        float wh[2];
-        st = io_json_get_floats(j, "input_size", side, wh, 2);
-        if (!st && ((int)wh[0] != in->width || (int)wh[1] != in->height))
-            st = pg_fail(PG_ERR_FORMAT, "%s: input_size %gx%g, but the model's input is fixed at %dx%d", side, wh[0], wh[1], in->width,
+    if (!st && !in->dynamic) { /* dynamic: used (and checked) at load */
+        int wh[2];
+        st = sidecar_input_size(net->path, wh);
+        if (!st && wh[0] && (wh[0] != in->width || wh[1] != in->height))
+            st = pg_fail(PG_ERR_FORMAT, "%s: input_size %dx%d, but the model's input is fixed at %dx%d", side, wh[0], wh[1], in->width,
                          in->height);
     }
     if (!st && cJSON_GetObjectItemCaseSensitive(j, "mean")) st = io_json_get_floats(j, "mean", side, in->mean, 3);
@@ -101,27 +133,12 @@ static int sidecar_multiple(const char *model_path, int def)
     return v >= 1 && v <= 1024 ? (int)v : def;
 }
 
-/* MODEL.json's "input_size" [w, h] into wh (0 when absent or not two positive numbers). */
-static void sidecar_input_size(const char *model_path, int wh[2])
-{
-    char side[4200];
-    snprintf(side, sizeof side, "%s.json", model_path);
-    wh[0] = wh[1] = 0;
-    cJSON *j;
-    if (!pg_path_exists(side) || io_json_load(side, &j) != PG_OK) return;
-    float v[2];
-    if (cJSON_GetObjectItemCaseSensitive(j, "input_size") && io_json_get_floats(j, "input_size", side, v, 2) == PG_OK && v[0] >= 1 &&
-        v[1] >= 1 && v[0] <= 8192 && v[1] <= 8192)
-        wh[0] = (int)v[0], wh[1] = (int)v[1];
-    cJSON_Delete(j);
-}
-
 /* A dynamic-input model as NCHW (1, 3, h, w): longer side size, the frame's aspect, sides
  * rounded to multiples of the sidecar's multiple_of; without a size, the sidecar's input_size. */
 static pg_status load_dynamic(depth_net *net, int size, int frame_width, int frame_height)
 {
     int wh[2];
-    sidecar_input_size(net->path, wh);
+    PG_TRY(sidecar_input_size(net->path, wh));
     if (!size && wh[0]) {
         int64_t fixed[4] = { 1, 3, wh[1], wh[0] };
         net->info.dynamic = 1;

@@ -4,6 +4,7 @@
 #include "core/mathx.h"
 #include "core/parallel.h"
 #include "depth/align.h"
+#include "depth/fuse.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -55,9 +56,20 @@ static float blob_factor(const float *d, const float *background, const int *pix
     return q < 1.0f - p->tolerance ? q : 1.0f;
 }
 
+/* The median still depth behind a blob, over its pixels that have one (0 when none does): the
+ * background of its pixels that were never still. */
+static float blob_behind(const float *background, const int *pixels, int count, float *vals)
+{
+    int m = 0;
+    for (int i = 0; i < count; i++)
+        if (background[pixels[i]] > 0) vals[m++] = background[pixels[i]];
+    return m ? pg_median_float(vals, m) : 0.0f;
+}
+
 typedef struct {
     int16_t *labels; /* (F, n) blob of each pixel, 1-based within its frame; 0 = none or too small */
     float *factor;  /* (F, max_blobs) each blob's own factor */
+    float *behind;  /* (F, max_blobs) the still depth behind each blob (blob_behind) */
     int *count;     /* (F) blobs per frame */
     int max_blobs;
 } blob_set;
@@ -76,6 +88,7 @@ static void label_frame(blob_set *b, const float *d, const unsigned char *still,
         int count = grow_blob(still, lab, W, H, (int)k, -1, pixels);
         if (count < p->min_area || nb >= b->max_blobs) continue; /* stays -1: visited, not a blob */
         fac[nb] = blob_factor(d, background, pixels, count, ratios, p);
+        b->behind[(size_t)f * b->max_blobs + nb] = blob_behind(background, pixels, count, ratios);
         nb++;
         for (int i = 0; i < count; i++) lab[pixels[i]] = (int16_t)nb;
     }
@@ -131,10 +144,16 @@ long depth_movers_in_front(float *depth, const unsigned char *still, const float
     b.max_blobs = most < INT16_MAX ? (int)most : INT16_MAX;
     b.labels = calloc((size_t)frames * n, sizeof(int16_t));
     b.factor = malloc((size_t)frames * b.max_blobs * sizeof(float));
+    b.behind = malloc((size_t)frames * b.max_blobs * sizeof(float));
     b.count = calloc((size_t)frames, sizeof(int));
     float *smoothed = malloc((size_t)frames * b.max_blobs * sizeof(float));
+    /* (n) the still depth of pixels static in too few frames for `background` (the ring the
+     * mask's dilation puts around a mover is still in the frames the mover is elsewhere); a
+     * pixel never still compares with its blob's median background */
+    float *seen = malloc(n * sizeof(float));
     long moved = 0;
-    int out_of_memory = !b.labels || !b.factor || !b.count || !smoothed;
+    int out_of_memory = !b.labels || !b.factor || !b.behind || !b.count || !smoothed || !seen;
+    if (!out_of_memory) out_of_memory = depth_static_reference(depth, still, frames, n, 1, seen) < 0;
     if (!out_of_memory) {
 #pragma omp parallel
         {
@@ -174,9 +193,18 @@ long depth_movers_in_front(float *depth, const unsigned char *still, const float
                 for (size_t k = 0; k < n; k++) {
                     if (!lab[k] || !depth_valid(d[k])) continue;
                     float s = smoothed[(size_t)f * b.max_blobs + lab[k] - 1];
-                    /* the still scene showing through the blob (where the mover was, or a gap
-                     * the dilation took in) already has its own depth */
-                    if (s >= 1.0f || (background[k] > 0 && fabsf(logf(background[k] / d[k])) < p->tolerance)) continue;
+                    /* the still scene showing through the blob (where the mover was, or the ring
+                     * of background the dilation took in) already has its own depth: a pixel
+                     * nearer its background's depth than the mover's (less than half the factor's
+                     * way, in log) is left alone */
+                    if (s >= 1.0f) continue;
+                    float behind = background[k] > 0 ? background[k]
+                                   : seen[k] > 0     ? seen[k]
+                                                     : b.behind[(size_t)f * b.max_blobs + lab[k] - 1];
+                    if (behind > 0) {
+                        float off = logf(behind / d[k]);
+                        if (fabsf(off) < p->tolerance || off > 0.5f * logf(s)) continue;
+                    }
                     d[k] *= s;
                 }
                 for (int i = 0; i < b.count[f]; i++) moved += smoothed[(size_t)f * b.max_blobs + i] < 1.0f;
@@ -186,7 +214,9 @@ long depth_movers_in_front(float *depth, const unsigned char *still, const float
     }
     free(b.labels);
     free(b.factor);
+    free(b.behind);
     free(b.count);
     free(smoothed);
+    free(seen);
     return out_of_memory ? -1 : moved;
 }

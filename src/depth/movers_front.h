@@ -26,8 +26,10 @@ void depth_movers_front_defaults(depth_movers_front_params *p, int width, int he
 
 /* depth (F, H*W): prepared depth, 0 = invalid, changed in place on moving blobs; still (F, H*W):
  * the static masks, 1 = still in that frame (the blobs are the 4-connected groups of the other
- * pixels); background (H*W): the still scene's depth per pixel, 0 = unknown. Returns the number
- * of blobs moved, -1 when out of memory. */
+ * pixels); background (H*W): the still scene's depth per pixel, 0 = unknown. A blob's pixel
+ * nearer the still depth seen there (background, else its median over the frames the pixel is
+ * still, else the blob's median background) than the mover's keeps its depth: the ring of background a dilated mask puts around the
+ * mover. Returns the number of blobs moved, -1 when out of memory. */
 long depth_movers_in_front(float *depth, const unsigned char *still, const float *background, int frames, int width,
                            int height, const depth_movers_front_params *p);
 

@@ -60,10 +60,11 @@ void ds_set_sizes(pg_dataset *ds, int src_w, int src_h)
     ds->src_height = src_h;
     io_video_target_size(&vo, src_w, src_h, &ds->width, &ds->height);
     /* A WxH that changes the aspect stretches the picture; the camera model follows, but the user
-     * probably meant one side only. Said once per process (every stage reopens the input). */
+     * probably meant one side only. Said once per process (every stage reopens the input), and
+     * only for the user's --size: a stage's own decode size (io_dataset_set_frame_size) is not one. */
     static int warned;
     double a0 = (double)src_w / src_h, a1 = (double)ds->width / ds->height;
-    if (!warned && fabs(a1 / a0 - 1.0) > 0.01) {
+    if (!warned && !ds->internal_size && fabs(a1 / a0 - 1.0) > 0.01) {
         warned = 1;
         pg_warn("%s: --size %dx%d changes the aspect ratio of the %dx%d input (%.3f -> %.3f): frames are stretched; "
                 "give one side (e.g. --size %dx0) to keep it", ds->path, ds->width, ds->height, src_w, src_h, a0, a1,
@@ -115,6 +116,8 @@ pg_status io_dataset_open(const char *path, const io_dataset_options *opt, pg_da
     char probe[4200];
     if (!pg_path_exists(path)) {
         st = pg_fail(PG_ERR_IO, "%s: no such file or folder", path);
+    } else if ((st = pg_check_input(path)) != PG_OK) {
+        /* a FIFO or device: nothing to open */
     } else if (pg_path_is_dir(path) &&
                ((pg_path_join(probe, sizeof probe, ds->path, "train_meta.json"), pg_path_exists(probe)) ||
                 (pg_path_join(probe, sizeof probe, ds->path, "test_meta.json"), pg_path_exists(probe)))) {
@@ -168,6 +171,7 @@ void io_dataset_set_frame_size(pg_dataset *ds, int width, int height)
     ds->opt.width = width;
     ds->opt.height = height;
     ds->opt.max_side = 0;
+    ds->internal_size = 1;
     ds_set_sizes(ds, ds->src_width, ds->src_height);
 }
 

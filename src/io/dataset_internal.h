@@ -26,6 +26,7 @@ struct pg_dataset {
     int first, stride;   /* selection in source frame indices */
     double fps;
     int src_width, src_height; /* source frame size (all cameras) */
+    int internal_size;         /* the size is a stage's own (io_dataset_set_frame_size), not the user's --size */
     int width, height;         /* output size */
 };
 

@@ -78,8 +78,8 @@ static int pfm_token(FILE *fp, char *buf, size_t size)
 pg_status io_pfm_load(const char *path, pg_array *arr)
 {
     memset(arr, 0, sizeof *arr);
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    FILE *fp;
+    PG_TRY(pg_open_read(path, &fp));
     char tag[8], ws[32], hs[32], ss[64];
     pg_status st = PG_OK;
     float *row = NULL;

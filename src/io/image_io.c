@@ -32,8 +32,8 @@ static void png_warning_quiet(png_structp png, png_const_charp msg)
 pg_status io_png_read_samples(const char *path, io_png_samples *out)
 {
     memset(out, 0, sizeof *out);
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    FILE *fp;
+    PG_TRY(pg_open_read(path, &fp));
     png_err_ctx ctx;
     ctx.message[0] = '\0';
     png_structp png = png_create_read_struct(PNG_LIBPNG_VER_STRING, &ctx, png_error_jump, png_warning_quiet);
@@ -146,8 +146,8 @@ static void jpeg_error_exit_jump(j_common_ptr cinfo)
 
 static pg_status load_jpeg(const char *path, pg_image *img)
 {
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open", path);
+    FILE *fp;
+    PG_TRY(pg_open_read(path, &fp));
     struct jpeg_decompress_struct cinfo;
     struct jpeg_error_jump err;
     uint8_t *volatile row = NULL;
@@ -192,8 +192,8 @@ pg_status io_image_load(const char *path, pg_image *img)
 {
     img->data = NULL;
     img->width = img->height = img->channels = 0;
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open", path);
+    FILE *fp;
+    PG_TRY(pg_open_read(path, &fp));
     uint8_t magic[8] = {0};
     size_t got = fread(magic, 1, sizeof magic, fp);
     fclose(fp);

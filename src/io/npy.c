@@ -166,8 +166,8 @@ static pg_status npy_open(const char *path, FILE **out, npy_dtype *dt, pg_array 
 {
     memset(arr, 0, sizeof *arr);
     *out = NULL;
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open", path);
+    FILE *fp;
+    PG_TRY(pg_open_read(path, &fp));
     uint8_t pre[12];
     pg_status st = PG_OK;
     char *header = NULL;

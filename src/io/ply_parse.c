@@ -1,5 +1,6 @@
 /* ply_parse.c - PLY header parsing, raw vertex access and the allocation-free probe. */
 #include "io/ply.h"
+#include "core/fileutil.h"
 #include "io/ply_internal.h"
 
 #include <math.h>
@@ -84,8 +85,8 @@ pg_status ply_read(const char *path, ply_file *pf)
 {
     memset(pf, 0, sizeof *pf);
     pf->sh_degree_comment = -1;
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    FILE *fp;
+    PG_TRY(pg_open_read(path, &fp));
     pg_status st = PG_OK;
     char line[1024];
     size_t total = 0;

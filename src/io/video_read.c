@@ -330,7 +330,7 @@ static pg_status av_input_open(const char *path, av_input *in, int open_decoder)
     char eb[128];
     memset(in, 0, sizeof *in);
     quiet_ffmpeg();
-    if (!pg_path_exists(path)) return pg_fail(PG_ERR_IO, "%s: no such file", path);
+    PG_TRY(pg_check_input(path)); /* a FIFO would block ffmpeg's open until a writer came */
     int r = avformat_open_input(&in->fmt, path, NULL, NULL);
     if (r < 0) return pg_fail(PG_ERR_FORMAT, "%s: not a readable video: %s", path, av_err(r, eb, sizeof eb));
     r = avformat_find_stream_info(in->fmt, NULL);
@@ -584,6 +584,9 @@ static pg_status read_video(const char *path, const io_video_options *opt, io_fr
         if (out->count == 0)
             st = pg_fail(PG_ERR_FORMAT, "%s: no frames decoded (decoded %d, first %d): file empty, garbled or truncated",
                          path, ds.decoded, ds.first);
+        else if (want > 0 && out->count < want && s->nb_frames > 0 && ds.decoded < s->nb_frames)
+            st = pg_fail(PG_ERR_FORMAT, "%s: truncated: header says %lld frames, only %d decode", path,
+                         (long long)s->nb_frames, ds.decoded); /* what was asked came from the header */
         else if (want > 0 && out->count < want)
             st = pg_fail(PG_ERR_ARG, "%s: asked for %d frames from %d with stride %d, but only %d exist", path, want,
                          ds.first, ds.stride, out->count);

@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 
 #include "core/fileutil.h"
 
@@ -24,8 +25,13 @@ pg_status nn_model_load_memory_shaped(const void *data, size_t size, const char 
     m->g.bind_ndim = ndim;
     for (int i = 0; i < ndim; i++) m->g.bind_dims[i] = dims[i];
     const uint8_t *d = data;
+    size_t nl = strlen(name);
+    int tflite_name = nl >= 7 && strcasecmp(name + nl - 7, ".tflite") == 0;
     pg_status st;
-    if (size >= 8 && memcmp(d + 4, "TFL3", 4) == 0) st = nn_tflite_import(d, size, name, &m->g);
+    /* the format is the identifier's; a .tflite file without it is a broken TFLite file, not an ONNX one */
+    if (size == 0) st = pg_fail(PG_ERR_FORMAT, "%s: empty file, not a model", name);
+    else if (size >= 8 && memcmp(d + 4, "TFL3", 4) == 0) st = nn_tflite_import(d, size, name, &m->g);
+    else if (tflite_name) st = pg_fail(PG_ERR_FORMAT, "%s: not a TFLite model (no TFL3 identifier at byte 4)", name);
     else st = nn_onnx_import(d, size, name, &m->g);
     if (!st) st = nn_graph_prepare(&m->g);
     if (!st && (m->g.num_inputs < 1 || m->g.tensors[m->g.inputs[0]].dtype != NN_F32))
@@ -48,8 +54,8 @@ pg_status nn_model_load_memory(const void *data, size_t size, const char *name, 
 pg_status nn_model_load_shaped(const char *path, int ndim, const int64_t *dims, nn_model **model)
 {
     *model = NULL;
-    FILE *f = fopen(path, "rb");
-    if (!f) return pg_fail(PG_ERR_IO, "%s: cannot open", path);
+    FILE *f;
+    PG_TRY(pg_open_read(path, &f));
     long len = -1;
     if (fseek(f, 0, SEEK_END) == 0) len = ftell(f);
     if (len < 0 || fseek(f, 0, SEEK_SET) != 0) { fclose(f); return pg_fail(PG_ERR_IO, "%s: cannot read", path); }

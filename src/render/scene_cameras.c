@@ -80,7 +80,7 @@ pg_status scene_cameras_for_model(const char *model, const char *explicit_path, 
         PG_TRY(pg_path_join_beside(path, sizeof path, model, names[k]));
         if (pg_path_exists(path)) return scene_cameras_load(path, sc);
     }
-    return pg_fail(PG_ERR_IO, "%s: no cameras.json next to the model (retrain, or give --cameras PATH)", model);
+    return pg_fail(PG_ERR_IO, "%s: no cameras.json beside the model (train writes it there: copy it back or retrain)", model);
 }
 
 int scene_cameras_find(const scene_cameras *sc, const char *name)

@@ -22,6 +22,7 @@
 #include <cblas.h>
 
 #include "core/fileutil.h"
+#include "core/output.h"
 #include "core/parallel.h"
 #include "core/progress.h"
 #include "depth/depth_net.h"
@@ -151,7 +152,7 @@ static void output_size(const pg_depth_config *c, const depth_net_info *info, in
     }
 }
 
-pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
+static pg_status depth_run(const pg_depth_config *c, pg_depth_report *r)
 {
     memset(r, 0, sizeof *r);
     PG_TRY(check_config(c));
@@ -251,8 +252,7 @@ pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
                 break;
             }
             st = io_dataset_frame(ds, cam, t, &img[nb]);
-            if (st) pg_fail_context(st, "%s: frame %d: ", c->input, t);
-            else batch[nb++] = t;
+            if (!st) batch[nb++] = t; /* a failure's message names the file (the reader knows which) */
             t++;
         }
         pg_status bst[DEPTH_MAX_NETS];
@@ -302,5 +302,17 @@ done:
     cJSON_Delete(key);
     io_dataset_close(ds);
     depth_net_close(net);
+    return st;
+}
+
+/* The output is claimed (checked and locked, core/output.h) before any work and held for the
+ * whole stage. */
+pg_status pg_depth_run(const pg_depth_config *c, pg_depth_report *r)
+{
+    memset(r, 0, sizeof *r);
+    if (!c->out) return depth_run(c, r); /* its own check names what is missing */
+    PG_TRY(pg_output_claim_file(c->out));
+    pg_status st = depth_run(c, r);
+    pg_output_release(c->out);
     return st;
 }

@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "core/fileutil.h"
+#include "core/output.h"
 #include "core/status.h"
 #include "io/ply.h"
 #include "io/splat_file.h"
@@ -82,10 +83,10 @@ static pg_status copy_cameras(const char *model, const char *out, pg_export_repo
 /* The file of a time request: to 3 decimals, so nearer times share a name (refused up front). */
 static void time_file_name(char *out, size_t size, float t, const char *format)
 {
-    snprintf(out, size, "time_%.3f.%s", t, format);
+    snprintf(out, size, "time_%.3f.%s", t == 0 ? 0.0f : t, format); /* -0 is 0: one file, not time_-0.000 beside it */
 }
 
-pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
+static pg_status export_run(const pg_export_config *c, pg_export_report *r)
 {
     memset(r, 0, sizeof *r);
     if (!c->model || !c->out) return pg_fail(PG_ERR_ARG, "export: model and out are required");
@@ -144,5 +145,17 @@ pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
     render_model_close(rm);
     if (staged && st) pg_staged_dir_abort(&out);
     else if (staged) st = pg_staged_dir_commit(&out);
+    return st;
+}
+
+/* The output is claimed (checked and locked, core/output.h) before any work and held for the
+ * whole stage. */
+pg_status pg_export_run(const pg_export_config *c, pg_export_report *r)
+{
+    memset(r, 0, sizeof *r);
+    if (!c->out) return export_run(c, r); /* its own check names what is missing */
+    PG_TRY(pg_output_claim_dir(c->out));
+    pg_status st = export_run(c, r);
+    pg_output_release(c->out);
     return st;
 }

@@ -9,6 +9,7 @@
 #include <zlib.h>
 
 #include "core/fileutil.h"
+#include "core/output.h"
 #include "io/json.h"
 
 typedef struct {
@@ -55,10 +56,11 @@ static pg_status hash_dir(content_hash *h, const char *path, int depth)
         else n++;
     }
     closedir(d);
-    if (st == PG_OK) qsort(names, n, sizeof *names, compare_names);
+    if (st == PG_OK && n > 0) qsort(names, n, sizeof *names, compare_names); /* an empty folder has no list */
     for (size_t i = 0; i < n && st == PG_OK; i++) {
         char child[4096];
         st = pg_path_join(child, sizeof child, path, names[i]);
+        if (st == PG_OK && pg_output_is_claimed(child)) continue; /* a run's --out inside its input folder */
         hash_bytes(h, names[i], strlen(names[i]) + 1);
         if (st == PG_OK) st = hash_path(h, child, depth + 1);
     }
@@ -70,8 +72,8 @@ static pg_status hash_dir(content_hash *h, const char *path, int depth)
 static pg_status hash_path(content_hash *h, const char *path, int depth)
 {
     if (pg_path_is_dir(path)) return hash_dir(h, path, depth);
-    FILE *f = fopen(path, "rb");
-    if (!f) return pg_fail(PG_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    FILE *f;
+    PG_TRY(pg_open_read(path, &f));
     static _Thread_local unsigned char buf[1 << 16];
     size_t got;
     while ((got = fread(buf, 1, sizeof buf, f)) > 0) hash_bytes(h, buf, got);

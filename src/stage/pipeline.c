@@ -7,8 +7,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "core/fileutil.h"
+#include "core/output.h"
 #include "core/parallel.h"
 #include "core/status.h"
 #include "core/resources.h"
@@ -97,14 +99,15 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
         return pg_fail(PG_ERR_ARG, "--proxy-render must be mesh or splat, not '%s'", c->proxy_render);
     if (c->max_angle < 0 || c->max_angle >= 90)
         return pg_fail(PG_ERR_ARG, "--max-angle must be in (0, 90) degrees (got %g)", c->max_angle);
-    if (c->fov < 0 || c->fov >= 180) return pg_fail(PG_ERR_ARG, "--fov must be in (0, 180) degrees (got %g)", c->fov);
+    if (c->fov < 0 || c->fov >= 179) return pg_fail(PG_ERR_ARG, "--fov must be in (0, 179) degrees (got %g)", c->fov);
     if (c->pad > 1 || (c->pad < 0 && c->pad != -1)) return pg_fail(PG_ERR_ARG, "--pad must be in [0, 1] (got %g)", c->pad);
     if (c->proxies < -1 || c->proxies > 256) return pg_fail(PG_ERR_ARG, "--proxies must be in 0..256 or all (got %d)", c->proxies);
     if (c->poses && strcmp(c->poses, "hemisphere") != 0 && strcmp(c->poses, "dataset") != 0)
         return pg_fail(PG_ERR_ARG, "--poses must be hemisphere or dataset (got '%s')", c->poses);
     if (c->depth_kind && strcmp(c->depth_kind, "depth") != 0 && strcmp(c->depth_kind, "disparity") != 0)
         return pg_fail(PG_ERR_ARG, "--depth-kind must be depth or disparity (got '%s')", c->depth_kind);
-    PG_TRY(stage_check_size("pipeline", c->width, c->height));
+    PG_TRY(stage_check_size("pipeline", "--size", c->width, c->height, 0));
+    PG_TRY(stage_check_size("pipeline", "--render-size", c->render_width, c->render_height, 1));
     const char *name = c->preset ? c->preset : "fast";
     for (size_t i = 0; i < sizeof presets / sizeof presets[0]; i++)
         if (strcmp(name, presets[i].name) == 0) {
@@ -354,8 +357,9 @@ static pg_status run_depth(pipeline_run *p, pipeline_plan *plan, const char *dir
     dc.threads = plan->threads;
     dc.out_width = plan->width; /* prepare reads depth at its working size: nothing larger is kept */
     dc.out_height = plan->height;
+    /* the model is keyed on its content (inputs), not its path: the built-in one's path follows
+     * XDG_CACHE_HOME */
     cJSON *config = cJSON_CreateObject(), *inputs;
-    cJSON_AddStringToObject(config, "model", c->depth_model);
     cJSON_AddStringToObject(config, "train_camera", plan->train_camera);
     cJSON_AddNumberToObject(config, "frames", c->frames);
     cJSON_AddNumberToObject(config, "width", plan->width);
@@ -557,22 +561,54 @@ static pg_status write_run_report(const pg_pipeline_config *c, const cJSON *conf
     return st;
 }
 
-pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
-{
-    memset(r, 0, sizeof *r);
-    r->train.test_psnr = r->train.train_psnr = r->train.train_psnr_moving = r->train.train_psnr_static = NAN;
-    r->evaluation.psnr = r->evaluation.ssim = r->evaluation.psnr_moving = NAN;
-    r->evaluation.train_psnr_moving = r->evaluation.train_psnr_static = NAN;
-    const preset *ps = NULL;
-    PG_TRY(check_config(c, &ps));
-    pipeline_plan plan;
-    PG_TRY(make_plan(c, ps, &plan, r));
-    if (c->on_plan) c->on_plan(r, c->user);
+/* The folders a run writes under OUT besides its markers; the run claims them (core/output.h)
+ * with OUT for its whole life, so a standalone stage pointed into a running pipeline is refused
+ * however far the run has got. */
+static const char *run_dirs[] = { "prepare", "proxies", "model", "renders", "depth" };
+#define RUN_CLAIMS (1 + (int)(sizeof run_dirs / sizeof run_dirs[0]) + 1) /* OUT, the folders, depth.npy */
 
+/* The k-th output a run claims into path: OUT, its stage folders, then the depth stage's file. */
+static pg_status run_claim_path(const pg_pipeline_config *c, int k, char *path, size_t size)
+{
+    if (k == 0) return snprintf(path, size, "%s", c->out) < (int)size ? PG_OK : pg_fail(PG_ERR_ARG, "%s: path too long", c->out);
+    if (k < RUN_CLAIMS - 1) return pg_path_join(path, size, c->out, run_dirs[k - 1]);
+    return pg_path_join(path, size, c->out, "depth/depth.npy");
+}
+
+/* Claims every output of the run; *claimed counts those taken (release_run gives them back). */
+static pg_status claim_run(const pg_pipeline_config *c, int *claimed)
+{
+    char path[4200];
+    *claimed = 0;
+    for (int k = 0; k < RUN_CLAIMS; k++) {
+        if (k == RUN_CLAIMS - 1 && !c->depth_model) break;
+        PG_TRY(run_claim_path(c, k, path, sizeof path));
+        PG_TRY(k == RUN_CLAIMS - 1 ? pg_output_claim_file(path) : pg_output_claim_dir(path));
+        (*claimed)++;
+    }
+    return PG_OK;
+}
+
+/* Gives back the run's claims, last first; a failed run that created OUT removes the folders it
+ * left empty (OUT/depth made for the depth file's lock, OUT itself), so a refused run leaves
+ * nothing. */
+static void release_run(const pg_pipeline_config *c, int claimed, int failed, int created)
+{
+    char path[4200];
+    for (int k = claimed - 1; k >= 0; k--)
+        if (run_claim_path(c, k, path, sizeof path) == PG_OK) pg_output_release(path);
+    if (failed && created && pg_path_join(path, sizeof path, c->out, "depth") == PG_OK) {
+        rmdir(path); /* only when empty */
+        rmdir(c->out);
+    }
+}
+
+/* prepare -> proxies -> train (-> evaluate, -> render) under OUT, claimed by the caller. */
+static pg_status run_stages(const pg_pipeline_config *c, const pipeline_plan *planned, pg_pipeline_report *r)
+{
+    pipeline_plan plan = *planned; /* run_depth fills in its depth file */
     double t0 = pg_time_seconds();
     char prepare_dir[4200], proxies_dir[4200], model_dir[4200];
-    PG_TRY(pg_mkdir_p(c->out));
-    PG_TRY(pg_dir_lock(c->out));
     r->started = 1;
     PG_TRY(pg_path_join(prepare_dir, sizeof prepare_dir, c->out, "prepare"));
     PG_TRY(pg_path_join(proxies_dir, sizeof proxies_dir, c->out, "proxies"));
@@ -622,6 +658,7 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
          * together, so a kill or a full disk mid-orbit never leaves renders/ with fixed*.mp4 alone */
         pg_staged_dir set;
         st = pg_staged_dir_begin(&set, renders, 0);
+        set.replace = 1; /* renders/ holds this run's videos only (no older size's fixed_compare.mp4) */
         for (int k = 0; k < 3 && !st; k++) {
             pg_render_config rc;
             pg_render_defaults(&rc);
@@ -656,3 +693,24 @@ pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
     cJSON_Delete(p.stages);
     return st;
 }
+
+pg_status pg_pipeline_run(const pg_pipeline_config *c, pg_pipeline_report *r)
+{
+    memset(r, 0, sizeof *r);
+    r->train.test_psnr = r->train.train_psnr = r->train.train_psnr_moving = r->train.train_psnr_static = NAN;
+    r->evaluation.psnr = r->evaluation.ssim = r->evaluation.psnr_moving = NAN;
+    r->evaluation.train_psnr_moving = r->evaluation.train_psnr_static = NAN;
+    const preset *ps = NULL;
+    PG_TRY(check_config(c, &ps));
+    int created = !pg_path_exists(c->out);
+    int claimed = 0;
+    pg_status st = claim_run(c, &claimed);
+    pipeline_plan plan;
+    if (!st) st = make_plan(c, ps, &plan, r);
+    if (!st && c->on_plan) c->on_plan(r, c->user);
+    if (!st) st = pg_mkdir_p(c->out);
+    if (!st) st = run_stages(c, &plan, r);
+    release_run(c, claimed, st != PG_OK, created);
+    return st;
+}
+

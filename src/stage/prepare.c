@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "core/fileutil.h"
+#include "core/output.h"
 #include "core/mathx.h"
 #include "core/parallel.h"
 #include "core/status.h"
@@ -49,7 +50,7 @@ cJSON *stage_prepare_config_json(const pg_prepare_config *c)
 static pg_status check_config(const pg_prepare_config *c, io_depth_kind *kind, depth_prepare_options *popt)
 {
     if (!c->input || !c->depth || !c->out) return pg_fail(PG_ERR_ARG, "prepare: input, depth (or depth_model) and out are required");
-    PG_TRY(stage_check_size("prepare", c->width, c->height));
+    PG_TRY(stage_check_size("prepare", "--size", c->width, c->height, 0));
     PG_TRY(stage_check_threads("prepare", c->threads));
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "prepare: --frames %d must be >= 1 (0 = all)", c->frames);
     if (!(c->depth_scale > 0.0f)) return pg_fail(PG_ERR_ARG, "prepare: --depth-scale %g must be > 0", c->depth_scale);
@@ -146,7 +147,7 @@ static pg_status prepare_with_model(const pg_prepare_config *c, pg_prepare_repor
     return PG_OK;
 }
 
-pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
+static pg_status prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
 {
     memset(r, 0, sizeof *r);
     if (c->depth_model) return prepare_with_model(c, r);
@@ -238,5 +239,17 @@ pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
     io_dataset_close(ds);
     if (st) pg_staged_dir_abort(&out);
     else st = pg_staged_dir_commit(&out);
+    return st;
+}
+
+/* The output is claimed (checked and locked, core/output.h) before any work and held for the
+ * whole stage. */
+pg_status pg_prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
+{
+    memset(r, 0, sizeof *r);
+    if (!c->out) return prepare_run(c, r); /* its own check names what is missing */
+    PG_TRY(pg_output_claim_dir(c->out));
+    pg_status st = prepare_run(c, r);
+    pg_output_release(c->out);
     return st;
 }

@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "core/fileutil.h"
+#include "core/output.h"
 #include "core/mathx.h"
 #include "core/parallel.h"
 #include "core/status.h"
@@ -222,7 +223,7 @@ static pg_status check_config(const pg_proxies_config *c, int *dataset_poses)
         return pg_fail(PG_ERR_ARG, "proxies: --proxies %d not in 0..%d", c->proxies, MAX_CAMS);
     if (!(c->max_angle > 0 && c->max_angle < 90))
         return pg_fail(PG_ERR_ARG, "proxies: --max-angle %g not in (0, 90) degrees", c->max_angle);
-    if (!(c->fov > 0 && c->fov < 180)) return pg_fail(PG_ERR_ARG, "proxies: --fov %g not in (0, 180)", c->fov);
+    if (!(c->fov > 0 && c->fov < 179)) return pg_fail(PG_ERR_ARG, "proxies: --fov %g not in (0, 179) degrees", c->fov); /* the dataset's limit */
     if (c->render && strcmp(c->render, "mesh") != 0 && strcmp(c->render, "splat") != 0)
         return pg_fail(PG_ERR_ARG, "proxies: --render must be mesh or splat, not '%s'", c->render);
     if (c->fit_steps < 0 || c->fit_steps > 100000)
@@ -232,7 +233,7 @@ static pg_status check_config(const pg_proxies_config *c, int *dataset_poses)
     if (c->frames < 0) return pg_fail(PG_ERR_ARG, "proxies: --frames %d is negative", c->frames);
     if (c->pose_scale < 0 || !isfinite(c->pose_scale)) return pg_fail(PG_ERR_ARG, "proxies: --pose-scale must be positive");
     if (c->depth_unit < 0 || !isfinite(c->depth_unit)) return pg_fail(PG_ERR_ARG, "proxies: depth unit must be positive");
-    PG_TRY(stage_check_size("proxies", c->width, c->height));
+    PG_TRY(stage_check_size("proxies", "--size", c->width, c->height, 0));
     PG_TRY(stage_check_threads("proxies", c->threads));
     *dataset_poses = -1;
     if (c->poses) {
@@ -257,7 +258,7 @@ static pg_status begin_output(const char *out, pg_staged_dir *staged)
     return pg_mkdir_p(staged->work);
 }
 
-pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
+static pg_status proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
 {
     memset(r, 0, sizeof *r);
     int use_dataset_poses;
@@ -463,5 +464,17 @@ done:
     free(idx);
     io_depth_destroy(&depth);
     io_dataset_close(ds);
+    return st;
+}
+
+/* The output is claimed (checked and locked, core/output.h) before any work and held for the
+ * whole stage. */
+pg_status pg_proxies_run(const pg_proxies_config *c, pg_proxies_report *r)
+{
+    memset(r, 0, sizeof *r);
+    if (!c->out) return proxies_run(c, r); /* its own check names what is missing */
+    PG_TRY(pg_output_claim_dir(c->out));
+    pg_status st = proxies_run(c, r);
+    pg_output_release(c->out);
     return st;
 }

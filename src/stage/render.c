@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "core/fileutil.h"
+#include "core/output.h"
 #include "core/status.h"
 #include "io/image_io.h"
 #include "render/camera_path_file.h"
@@ -57,7 +58,7 @@ static pg_status reference_frame(void *ctx, int step, float time, pg_image *img)
     return io_image_load(path, img);
 }
 
-pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
+static pg_status render_run(const pg_render_config *c, pg_render_report *r)
 {
     memset(r, 0, sizeof *r);
     if (!c->model || !c->out) return pg_fail(PG_ERR_ARG, "render: model and out are required");
@@ -74,7 +75,7 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
     if (c->yaw < -89 || c->yaw > 89 || c->pitch < -89 || c->pitch > 89)
         return pg_fail(PG_ERR_ARG, "render: --yaw/--pitch must be in [-89, 89] degrees, got %g/%g", c->yaw, c->pitch);
     PG_TRY(stage_check_threads("render", c->threads));
-    if (c->width || c->height) PG_TRY(stage_check_size("render", c->width, c->height));
+    PG_TRY(stage_check_size("render", "--size", c->width, c->height, 1));
     stage_use_threads(c->threads);
 
     scene_cameras *sc = pg_malloc(sizeof *sc, "cameras");
@@ -95,10 +96,10 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
     pg_camera real = { 0 }; /* the training camera at the asked size; paths keep its intrinsics */
     if (st == PG_OK) real = sc->cams[sc->real];
     if (st == PG_OK && (c->width || c->height)) {
-        int w = c->width ? c->width : (int)lroundf((float)c->height * real.width / real.height);
-        int h = c->height ? c->height : (int)lroundf((float)c->width * real.height / real.width);
-        if (k >= 0) pg_camera_resize(&sc->cams[k], w, h);
-        pg_camera_resize(&real, w, h);
+        int w, h;
+        st = stage_resolve_size("render", "--size", c->width, c->height, real.width, real.height, 1, &w, &h);
+        if (st == PG_OK && k >= 0) pg_camera_resize(&sc->cams[k], w, h);
+        if (st == PG_OK) pg_camera_resize(&real, w, h);
     }
     if (st == PG_OK) {
         int frames = render_model_frames(rm);
@@ -142,5 +143,17 @@ pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
     free(keys);
     free(key_times);
     free(sc);
+    return st;
+}
+
+/* The output is claimed (checked and locked, core/output.h) before any work and held for the
+ * whole stage. */
+pg_status pg_render_run(const pg_render_config *c, pg_render_report *r)
+{
+    memset(r, 0, sizeof *r);
+    if (!c->out) return render_run(c, r); /* its own check names what is missing */
+    PG_TRY(pg_output_claim_dir(c->out));
+    pg_status st = render_run(c, r);
+    pg_output_release(c->out);
     return st;
 }

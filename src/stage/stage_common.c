@@ -1,6 +1,8 @@
 /* stage_common.c - thread setup and size checks shared by the stages. */
 #include "stage/stage_internal.h"
 
+#include <math.h>
+
 #include "core/fileutil.h"
 #include "core/parallel.h"
 #include "core/status.h"
@@ -14,14 +16,34 @@ int stage_use_threads(int threads)
     return pg_get_threads();
 }
 
-pg_status stage_check_size(const char *stage, int width, int height)
+pg_status stage_check_size(const char *stage, const char *option, int width, int height, int even)
 {
     if (width == 0 && height == 0) return PG_OK;
     int ok_w = width == 0 || (width >= STAGE_MIN_SIDE && width <= STAGE_MAX_SIDE);
     int ok_h = height == 0 || (height >= STAGE_MIN_SIDE && height <= STAGE_MAX_SIDE);
     if (!ok_w || !ok_h)
-        return pg_fail(PG_ERR_ARG, "%s: --size %dx%d out of range (sides %d..%d, or 0 for one side to keep the aspect)",
-                       stage, width, height, STAGE_MIN_SIDE, STAGE_MAX_SIDE);
+        return pg_fail(PG_ERR_ARG, "%s: %s %dx%d out of range (sides %d..%d, or 0 for one side to keep the aspect)",
+                       stage, option, width, height, STAGE_MIN_SIDE, STAGE_MAX_SIDE);
+    if (even && (width % 2 || height % 2))
+        return pg_fail(PG_ERR_ARG, "%s: %s %dx%d: video sides must be even (H.264 keeps colour at half resolution), "
+                       "e.g. %dx%d", stage, option, width, height, width + width % 2, height + height % 2);
+    return PG_OK;
+}
+
+pg_status stage_resolve_size(const char *stage, const char *option, int width, int height, int from_w, int from_h,
+                             int even, int *w, int *h)
+{
+    PG_TRY(stage_check_size(stage, option, width, height, even));
+    *w = from_w;
+    *h = from_h;
+    if (width == 0 && height == 0) return PG_OK;
+    double other = width ? (double)width * from_h / from_w : (double)height * from_w / from_h;
+    long side = even ? 2 * lround(other / 2) : lround(other);
+    *w = width ? width : (int)side;
+    *h = height ? height : (int)side;
+    if (side < STAGE_MIN_SIDE || side > STAGE_MAX_SIDE)
+        return pg_fail(PG_ERR_ARG, "%s: %s %dx%d gives %dx%d at the source's %dx%d aspect: sides must be %d..%d", stage,
+                       option, width, height, *w, *h, from_w, from_h, STAGE_MIN_SIDE, STAGE_MAX_SIDE);
     return PG_OK;
 }
 

@@ -15,9 +15,16 @@
 int stage_use_threads(int threads);
 /* Checks a thread count: 0 (all cores) .. 256. */
 pg_status stage_check_threads(const char *stage, int threads);
-/* Checks a requested size: 0x0 keeps the input's, one side 0 keeps the aspect, else sides in
- * STAGE_MIN_SIDE..STAGE_MAX_SIDE. */
-pg_status stage_check_size(const char *stage, int width, int height);
+/* The one check of a requested size (--size, --render-size; option names it in the message):
+ * 0x0 keeps the input's, one side 0 keeps the aspect, else sides in
+ * STAGE_MIN_SIDE..STAGE_MAX_SIDE; even = 1 for videos, whose encoder would round an odd side up
+ * unasked (9x9 written as 10x10). */
+pg_status stage_check_size(const char *stage, const char *option, int width, int height, int even);
+/* Checks the request as stage_check_size and resolves it against a source of from_w x from_h: a
+ * 0 side follows the aspect (rounded to even for videos) and is refused outside the sides'
+ * range, so 8x0 is never written as 8x6. */
+pg_status stage_resolve_size(const char *stage, const char *option, int width, int height, int from_w, int from_h,
+                             int even, int *w, int *h);
 /* Checks the trainer options that both `train` and `run`/`eval` take, with one wording for both
  * (-1 = the trainer's default; widths 0 = the trainer's default too). */
 pg_status stage_check_trainer_options(const char *stage, int deform_width, int deform_head_width,

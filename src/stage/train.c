@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "core/fileutil.h"
+#include "core/output.h"
 #include "core/parallel.h"
 #include "core/status.h"
 #include "io/dataset.h"
@@ -237,7 +238,7 @@ static pg_status write_cameras(const char *dir, const train_set *ts)
     return st;
 }
 
-pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
+static pg_status train_run(const pg_train_config *c, pg_train_report *r)
 {
     memset(r, 0, sizeof *r);
     r->test_psnr = r->train_psnr = r->train_psnr_moving = r->train_psnr_static = NAN;
@@ -310,5 +311,17 @@ pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
 done:
     train_session_destroy(s);
     train_set_destroy(&ts);
+    return st;
+}
+
+/* The output is claimed (checked and locked, core/output.h) before any work and held for the
+ * whole stage. */
+pg_status pg_train_run(const pg_train_config *c, pg_train_report *r)
+{
+    memset(r, 0, sizeof *r);
+    if (!c->out) return train_run(c, r); /* its own check names what is missing */
+    PG_TRY(pg_output_claim_dir(c->out));
+    pg_status st = train_run(c, r);
+    pg_output_release(c->out);
     return st;
 }

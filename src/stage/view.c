@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "core/fileutil.h"
+#include "core/output.h"
 #include "core/parallel.h"
 #include "core/status.h"
 #include "io/json.h"
@@ -44,7 +45,7 @@ static char *meta_json(const scene_cameras *sc, int video_frames)
     return text;
 }
 
-pg_status pg_view_run(const pg_view_config *c, pg_view_report *r)
+static pg_status view_run(const pg_view_config *c, pg_view_report *r)
 {
     memset(r, 0, sizeof *r);
     if (!c->model || !c->out) return pg_fail(PG_ERR_ARG, "view: model and out are required");
@@ -88,6 +89,17 @@ pg_status pg_view_run(const pg_view_config *c, pg_view_report *r)
     cJSON_free(meta);
     train_model_destroy(&m);
     free(sc);
+    return st;
+}
+
+/* The output is claimed (checked and locked, core/output.h) before any work. */
+pg_status pg_view_run(const pg_view_config *c, pg_view_report *r)
+{
+    memset(r, 0, sizeof *r);
+    if (!c->out) return view_run(c, r); /* its own check names what is missing */
+    PG_TRY(pg_output_claim_dir(c->out));
+    pg_status st = view_run(c, r);
+    pg_output_release(c->out);
     return st;
 }
 

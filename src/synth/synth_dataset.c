@@ -12,6 +12,7 @@
 #include <cjson/cJSON.h>
 
 #include "core/fileutil.h"
+#include "core/output.h"
 #include "core/mathx.h"
 #include "core/progress.h"
 #include "core/rng.h"
@@ -559,10 +560,14 @@ pg_status synth_write_dataset(const char *out_dir, const synth_options *o)
     memset(&b, 0, sizeof b);
     b.video_backend = -1;
     pg_staged_dir out;
-    PG_TRY(pg_staged_dir_begin(&out, out_dir, 0));
-    pg_status st = write_dataset_impl(out.work, o, &b);
+    PG_TRY(pg_output_claim_dir(out_dir)); /* checked and locked before any work (core/output.h) */
+    pg_status st = pg_staged_dir_begin(&out, out_dir, 0);
+    if (!st) {
+        st = write_dataset_impl(out.work, o, &b);
+        if (st) pg_staged_dir_abort(&out);
+        else st = pg_staged_dir_commit(&out);
+    }
     writer_free(&b);
-    if (st) pg_staged_dir_abort(&out);
-    else st = pg_staged_dir_commit(&out);
+    pg_output_release(out_dir);
     return st;
 }

@@ -2,7 +2,8 @@
  * reference interpreter, then the importer, the runtime's prepare and (for small graphs) a run.
  * Seeds: tests/fuzz/corpus/tflite (small synthetic models written by tests/test_nn_tflite.c,
  * tests/test_nn_tflite_int.c (int8_ops.tflite: the integer ops) and tests/test_depth_model.c,
- * never the real model). */
+ * tests/test_reliability.c (input_8x8.tflite; empty.tflite and bad_magic.tflite: issue 70), never the
+ * real model). */
 #include "fuzz_common.h"
 #include "nn/nn.h"
 #include "nn/tflite.h"
