@@ -202,24 +202,30 @@ pg_status pg_write_file_atomic(const char *path, const void *data, size_t size)
     return pg_atomic_commit(&f);
 }
 
+/* Removes every entry of a folder, keeping the folder. */
+static pg_status empty_dir(const char *path)
+{
+    DIR *dir = opendir(path);
+    if (!dir) return pg_fail(PG_ERR_IO, "%s: cannot list: %s", path, strerror(errno));
+    pg_status rc = PG_OK;
+    struct dirent *e;
+    char child[4096];
+    while (rc == PG_OK && (e = readdir(dir)) != NULL) {
+        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
+        rc = pg_path_join(child, sizeof child, path, e->d_name);
+        if (rc == PG_OK) rc = pg_remove_tree(child);
+    }
+    closedir(dir);
+    return rc;
+}
+
 pg_status pg_remove_tree(const char *path)
 {
     struct stat st;
     if (lstat(path, &st) != 0)
         return errno == ENOENT || errno == ENOTDIR ? PG_OK : pg_fail(PG_ERR_IO, "%s: %s", path, strerror(errno));
     if (S_ISDIR(st.st_mode)) {
-        DIR *dir = opendir(path);
-        if (!dir) return pg_fail(PG_ERR_IO, "%s: cannot list: %s", path, strerror(errno));
-        pg_status rc = PG_OK;
-        struct dirent *e;
-        char child[4096];
-        while (rc == PG_OK && (e = readdir(dir)) != NULL) {
-            if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
-            rc = pg_path_join(child, sizeof child, path, e->d_name);
-            if (rc == PG_OK) rc = pg_remove_tree(child);
-        }
-        closedir(dir);
-        if (rc) return rc;
+        PG_TRY(empty_dir(path));
         if (rmdir(path) != 0) return pg_fail(PG_ERR_ENV, "%s: cannot remove: %s", path, strerror(errno));
         return PG_OK;
     }
@@ -240,23 +246,6 @@ pg_status pg_staged_dir_begin(pg_staged_dir *d, const char *dir, int resume)
     pg_status st = pg_mkdir_p(d->work);
     if (st) return pg_fail_context(st, "%s: output is not writable", d->final);
     return PG_OK;
-}
-
-/* Removes every entry of a folder, keeping the folder. */
-static pg_status empty_dir(const char *path)
-{
-    DIR *dir = opendir(path);
-    if (!dir) return pg_fail(PG_ERR_IO, "%s: cannot list: %s", path, strerror(errno));
-    pg_status rc = PG_OK;
-    struct dirent *e;
-    char child[4096];
-    while (rc == PG_OK && (e = readdir(dir)) != NULL) {
-        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
-        rc = pg_path_join(child, sizeof child, path, e->d_name);
-        if (rc == PG_OK) rc = pg_remove_tree(child);
-    }
-    closedir(dir);
-    return rc;
 }
 
 pg_status pg_staged_dir_commit(pg_staged_dir *d)
