@@ -41,15 +41,10 @@ static size_t dilate_far(float *rgb, float *z, float *z_next, int W, int H)
 }
 
 /* What crack filling left (disocclusions, the parts past the real frame's border): the farther of
- * the nearest filled pixels to the left and right on the row, i.e. the background beside the hole. */
-static void fill_rows(float *rgb, const float *z, int W, int H, const float fill[3])
+ * the nearest filled pixels to the left and right on the row, i.e. the background beside the hole.
+ * left: W longs of scratch. */
+static void fill_rows(float *rgb, const float *z, int W, int H, const float fill[3], long *left)
 {
-    long *left = malloc((size_t)W * sizeof(long));
-    if (!left) {
-        for (size_t o = 0; o < (size_t)W * H; o++)
-            if (!(z[o] > 0)) memcpy(rgb + 3 * o, fill, 3 * sizeof(float));
-        return;
-    }
     for (int y = 0; y < H; y++) {
         const float *zr = z + (size_t)y * W;
         float *row = rgb + (size_t)y * W * 3;
@@ -68,7 +63,6 @@ static void fill_rows(float *rgb, const float *z, int W, int H, const float fill
             memcpy(row + 3 * x, src < 0 ? fill : row + 3 * src, 3 * sizeof(float));
         }
     }
-    free(left);
 }
 
 pg_status eval_warp_baseline(const pg_camera *real, const float *rgb, const float *depth, const pg_camera *dst,
@@ -77,10 +71,16 @@ pg_status eval_warp_baseline(const pg_camera *real, const float *rgb, const floa
     int W = dst->width, H = dst->height;
     size_t n = (size_t)W * H;
     float *z = pg_malloc(2 * n * sizeof(float), "warp baseline depth");
-    if (!z) return PG_ERR_NOMEM;
+    long *left = pg_malloc((size_t)W * sizeof(long), "warp baseline rows");
+    if (!z || !left) {
+        free(z);
+        free(left);
+        return PG_ERR_NOMEM;
+    }
     pg_status st = proxy_forward_warp(real, rgb, depth, 1.0f, dst, out, z);
     for (int pass = 0; st == PG_OK && pass < 2 && dilate_far(out, z, z + n, W, H) > 0; pass++) {}
-    if (st == PG_OK) fill_rows(out, z, W, H, fill);
+    if (st == PG_OK) fill_rows(out, z, W, H, fill, left);
     free(z);
+    free(left);
     return st;
 }

@@ -138,7 +138,8 @@ static pg_status score_camera(eval_ctx *c, int k, int cam, eval_role role)
         pg_progress_report("eval", ++c->done, c->total, "camera=%s psnr=%.2f moving=%.2f", sc->names[k], s.psnr,
                            eval_region_psnr(&s.region[EVAL_MOVING]));
     }
-    io_dataset_release(c->ds, cam);
+    /* the test cameras' baselines show the real camera's frames again: keep them decoded */
+    if (!(role == EVAL_ROLE_TRAIN && c->results->baseline)) io_dataset_release(c->ds, cam);
     pg_image_destroy(&pred);
     pg_image_destroy(&work);
     free(moving);

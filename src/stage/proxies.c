@@ -83,11 +83,12 @@ static pg_status load_first_frames(pg_dataset *ds, int real_idx, int n, const in
     return st;
 }
 
-static void free_first_frames(pg_dataset *ds, int real_idx, int n, const int *idx, pg_image *real_img, pg_image *imgs)
+/* Frees what load_first_frames made and drops the other cameras' decoded frames (the real
+ * camera's stay: the proxies render from them next). */
+static void free_first_frames(pg_dataset *ds, int n, const int *idx, pg_image *real_img, pg_image *imgs)
 {
     pg_image_destroy(real_img);
-    for (int k = 0; k < n; k++) pg_image_destroy(&imgs[k]);
-    io_dataset_release(ds, real_idx);
+    for (int k = 0; k < n && imgs; k++) pg_image_destroy(&imgs[k]);
     for (int k = 0; k < n; k++) io_dataset_release(ds, idx[k]);
 }
 
@@ -115,8 +116,8 @@ static pg_status colmap_fit(pg_dataset *ds, int real_idx, const pg_camera *real,
     proxy_colmap_report cr;
     pg_status cs = st ? st : proxy_colmap_align(workdir, &rc, real_img.data, depth0, W, H, n, cc, ptrs, threads, &cr);
     pg_remove_tree(workdir);
-    if (imgs) free_first_frames(ds, real_idx, n, idx, &real_img, imgs);
-    io_dataset_set_frame_size(ds, W, H);
+    free_first_frames(ds, n, idx, &real_img, imgs);
+    io_dataset_set_frame_size(ds, W, H); /* drops the real camera's frames at the COLMAP size too */
     free(imgs);
     free(ptrs);
     free(cc);
@@ -172,11 +173,9 @@ static pg_status fit_scale(pg_dataset *ds, int real_idx, const pg_camera *real, 
         st = proxy_fit_pose_scale(real, real_img.data, depth0, n, cams, ptrs, &so, &rep);
         fit->scale = rep.scale, fit->cost = rep.cost;
     }
-    pg_image_destroy(&real_img);
-    for (int k = 0; k < n && imgs; k++) pg_image_destroy(&imgs[k]);
+    free_first_frames(ds, n, idx, &real_img, imgs);
     free(imgs);
     free(ptrs);
-    for (int k = 0; k < n; k++) io_dataset_release(ds, idx[k]);
     return st;
 }
 
