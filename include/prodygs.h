@@ -193,6 +193,12 @@ typedef struct {
     int use_static, use_cull; /* static Gaussians skip the network; frustum culling (1, 1) */
     int eval_train;         /* also score the real views, moving and static pixels apart */
     int stop_at_iter;       /* tests: stop after this iteration as if killed (0: off) */
+    /* the full-size phase (one real view): after the iterations, the still scene and the movers at
+     * the size of this source's frames (the video or dataset the training set was made from), the
+     * model's cameras at that size; NULL: off */
+    const char *full_size_input;
+    const char *full_size_camera; /* its camera (NULL: the first) */
+    int full_size_steps;    /* the movers' steps at full size (0: 4 per frame, 100 to 1200) */
 } pg_train_config;
 
 typedef struct {
@@ -200,6 +206,10 @@ typedef struct {
     double test_psnr;       /* NaN without test cameras */
     double train_psnr, train_psnr_moving, train_psnr_static; /* NaN unless eval_train (or empty) */
     double seconds;
+    /* the full-size phase: the input's size and the model scored there (NaN without the phase) */
+    int full_width, full_height, full_still_added;
+    double full_psnr, full_psnr_moving, full_psnr_static, full_seconds;
+    double full_psnr_before, full_psnr_moving_before; /* the working-size model drawn at that size */
 } pg_train_report;
 
 void pg_train_defaults(pg_train_config *c);

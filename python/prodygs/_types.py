@@ -81,14 +81,18 @@ class TrainConfig(C.Structure):
                 ("static_check_every", _i), ("deform_head_width", _i), ("deform_tres", _i),
                 ("deform_time_coarsen", _i), ("deform_time_warmup", _f), ("densify_movable", _f),
                 ("proxy_downscale", _i), ("use_static", _i), ("use_cull", _i), ("eval_train", _i),
-                ("stop_at_iter", _i)]
+                ("stop_at_iter", _i), ("full_size_input", _s), ("full_size_camera", _s),
+                ("full_size_steps", _i)]
 
 
 class TrainReport(C.Structure):
     _c_name = "pg_train_report"
     _fields_ = [("iterations", _i), ("gaussians", _i), ("static_gaussians", _i), ("threads", _i),
                 ("seed", _i), ("finished", _i), ("test_psnr", _d), ("train_psnr", _d),
-                ("train_psnr_moving", _d), ("train_psnr_static", _d), ("seconds", _d)]
+                ("train_psnr_moving", _d), ("train_psnr_static", _d), ("seconds", _d),
+                ("full_width", _i), ("full_height", _i), ("full_still_added", _i), ("full_psnr", _d),
+                ("full_psnr_moving", _d), ("full_psnr_static", _d), ("full_seconds", _d),
+                ("full_psnr_before", _d), ("full_psnr_moving_before", _d)]
 
 
 class EvaluateConfig(C.Structure):

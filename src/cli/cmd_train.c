@@ -51,6 +51,9 @@ int cmd_train(int argc, char **argv)
         {"--no-static", CLI_FLAG, &no_static, "send every Gaussian through the network"},
         {"--no-cull", CLI_FLAG, &no_cull, "no frustum culling before the network"},
         {"--eval-train", CLI_FLAG, &c.eval_train, "also report PSNR of the real views' moving and static pixels"},
+        {"--full-size", CLI_STR, &c.full_size_input, "after the iterations, fit the still scene and the movers at the size of this source's frames (the video or dataset the set was made from; one real view)"},
+        {"--full-size-camera", CLI_STR, &c.full_size_camera, "the --full-size source's camera that is the real view (default: its first)"},
+        {"--full-size-steps", CLI_INT, &c.full_size_steps, "the movers' steps at full size (default: 4 per frame, 100 to 1200)"},
     };
     cli_spec spec = {"prodygs train", "DIR --out MODEL [options]",
                      "Trains the 4D Gaussian model on a training set (from `prodygs proxies`) or a DyNeRF dataset.\n\n"
@@ -71,12 +74,15 @@ int cmd_train(int argc, char **argv)
     pg_status st = pg_train_run(&c, &r);
     if (st) return cli_fail(st);
     if (!r.finished) return 0; /* simulated kill (tests) */
-    char a[32], b[32], d[32], e[32];
+    char a[32], b[32], d[32], e[32], f[32], g[32];
     printf("{\"iterations\": %d, \"gaussians\": %d, \"static\": %d, \"test_psnr\": %s, \"train_real_psnr\": %s, "
-           "\"train_real_psnr_moving\": %s, \"train_real_psnr_static\": %s, \"threads\": %d, \"seed\": %d, "
-           "\"seconds\": %.1f}\n",
+           "\"train_real_psnr_moving\": %s, \"train_real_psnr_static\": %s, ",
            r.iterations, r.gaussians, r.static_gaussians, cli_json_number(r.test_psnr, 3, a, sizeof a),
            cli_json_number(r.train_psnr, 3, b, sizeof b), cli_json_number(r.train_psnr_moving, 3, d, sizeof d),
-           cli_json_number(r.train_psnr_static, 3, e, sizeof e), r.threads, r.seed, r.seconds);
+           cli_json_number(r.train_psnr_static, 3, e, sizeof e));
+    if (r.full_width > 0)
+        printf("\"full_size\": \"%dx%d\", \"full_psnr\": %s, \"full_psnr_moving\": %s, ", r.full_width, r.full_height,
+               cli_json_number(r.full_psnr, 3, f, sizeof f), cli_json_number(r.full_psnr_moving, 3, g, sizeof g));
+    printf("\"threads\": %d, \"seed\": %d, \"seconds\": %.1f}\n", r.threads, r.seed, r.seconds);
     return 0;
 }

@@ -15,6 +15,7 @@
 #include "core/status.h"
 #include "core/resources.h"
 #include "io/dataset.h"
+#include "train/detail.h"
 #include "train/train.h"
 #include "io/json.h"
 #include "io/video.h"
@@ -38,6 +39,7 @@ typedef struct {
     int proxies;  /* hemisphere proxy cameras (-1: all dataset cameras) */
     int max_side; /* shrink larger inputs so the longer side is at most this */
     int fit_steps; /* Adam steps of the proxies' per-frame fit (--proxy-render splat only) */
+    int full_size; /* then the full-size phase: the still scene and the movers at the input's size */
 } preset;
 
 /* fast: minutes on 2 cores for a short clip at up to 320 px. quality: twice the steps and 18
@@ -48,8 +50,9 @@ typedef struct {
  * time; docs/train.md "Held-out views against the budget").
  * 50 fit steps give the same proxies as 100 with monocular depth (docs/proxy.md) in half the time. */
 static const preset presets[] = {
-    { "fast", 1500, 8, 320, 50 },
-    { "quality", 3000, -1, 320, 100 },
+    { "fast", 1500, 8, 320, 50, 0 },
+    { "quality", 3000, -1, 320, 100, 0 },
+    { "full", 1000, 8, 320, 50, 1 },
 };
 
 void pg_pipeline_defaults(pg_pipeline_config *c)
@@ -74,7 +77,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
  * preset's numbers, so every stage gets the same values. */
 typedef struct {
     char train_camera[128], test_cameras[1024];
-    int width, height, iters, coarse_iters, densify_until, proxies, threads, fit_steps;
+    int width, height, iters, coarse_iters, densify_until, proxies, threads, fit_steps, full_size;
     float densify_movable; /* -1: the config's (or the trainer's rule) */
     const char *poses;
     char depth[4200];         /* the depth file prepare reads: c->depth or the depth stage's output */
@@ -114,7 +117,7 @@ static pg_status check_config(const pg_pipeline_config *c, const preset **p)
             *p = &presets[i];
             return PG_OK;
         }
-    return pg_fail(PG_ERR_ARG, "unknown preset '%s' (fast, quality)", name);
+    return pg_fail(PG_ERR_ARG, "unknown preset '%s' (fast, quality, full)", name);
 }
 
 /* Warns, before anything runs, when the run's estimated peak memory or disk exceeds what the
@@ -215,6 +218,7 @@ static pg_status make_plan(const pg_pipeline_config *c, const preset *p, pipelin
     }
     if (c->densify_until > 0) plan->densify_until = c->densify_until;
     plan->fit_steps = p->fit_steps;
+    plan->full_size = p->full_size;
     plan->proxies = c->proxies >= 0 ? c->proxies : (nt > 0 ? -1 : p->proxies);
     plan->poses = c->poses ? c->poses : nt > 0 ? "dataset" : "hemisphere";
     plan->threads = stage_use_threads(c->threads);
@@ -428,6 +432,18 @@ static pg_status read_train_scores(const char *dir, pg_train_report *r)
     if (!io_json_get_number(root, "train_real_psnr", path, &v)) r->train_psnr = v;
     if (!io_json_get_number(root, "train_real_psnr_moving", path, &v)) r->train_psnr_moving = v;
     if (!io_json_get_number(root, "train_real_psnr_static", path, &v)) r->train_psnr_static = v;
+    const cJSON *full = cJSON_GetObjectItem(root, "full_size");
+    if (cJSON_IsObject(full)) {
+        r->full_width = (int)io_json_number_or(full, "width", 0);
+        r->full_height = (int)io_json_number_or(full, "height", 0);
+        r->full_still_added = (int)io_json_number_or(full, "still_added", 0);
+        r->full_psnr = io_json_number_or(full, "psnr", NAN);
+        r->full_psnr_moving = io_json_number_or(full, "psnr_moving", NAN);
+        r->full_psnr_static = io_json_number_or(full, "psnr_static", NAN);
+        r->full_seconds = io_json_number_or(full, "seconds", NAN);
+        r->full_psnr_before = io_json_number_or(full, "psnr_before", NAN);
+        r->full_psnr_moving_before = io_json_number_or(full, "psnr_moving_before", NAN);
+    }
     cJSON_Delete(root);
     return PG_OK;
 }
@@ -461,6 +477,10 @@ static pg_status run_train(pipeline_run *p, const pipeline_plan *plan, const cha
     tc.seed = c->seed;
     tc.threads = plan->threads;
     tc.eval_train = 1; /* the training camera's moving/static PSNR: whether the motion was captured */
+    if (plan->full_size) { /* the source's frames at their own size, after the working size */
+        tc.full_size_input = c->input;
+        tc.full_size_camera = plan->train_camera;
+    }
     /* the proxies' marker holds the hashes of the video and depth they were made from */
     cJSON *config = stage_train_config_json(&tc), *inputs;
     pg_status st = hash_inputs(&inputs, "trainset", set_file, "proxies", proxies_done);
@@ -548,9 +568,18 @@ static pg_status write_run_report(const pg_pipeline_config *c, const cJSON *conf
     if (r->train.iterations)
         EMIT("\nTraining: %d iterations, %d Gaussians (%d static).\n", r->train.iterations, r->train.gaussians,
              r->train.static_gaussians);
+    if (r->train.full_width > 0)
+        EMIT("\nThe model at the training camera at the input's size, %dx%d, against the decoded input frames (%d frames "
+             "evenly spaced): PSNR %.2f dB; moving pixels %.2f dB, static pixels %.2f dB (moving: colour off the still "
+             "scene's median by > 0.12 in a channel, dilated 2 px). Before the full-size phase, the working-size model "
+             "drawn at that size: %.2f dB, moving %.2f dB. The phase added %d still Gaussians in %.0f s.\n",
+             r->train.full_width, r->train.full_height, TRAIN_DETAIL_SCORE_FRAMES, r->train.full_psnr,
+             r->train.full_psnr_moving, r->train.full_psnr_static, r->train.full_psnr_before,
+             r->train.full_psnr_moving_before, r->train.full_still_added, r->train.full_seconds);
     if (isfinite(r->train.train_psnr))
-        EMIT("\nThe model at the training camera against the input frames: PSNR %.2f dB; moving pixels %.2f dB, "
-             "static pixels %.2f dB (moving: colour off the pixel's temporal median by > 0.12, dilated 2 px).\n",
+        EMIT("\nThe model at the training camera against the input frames at the working size%s: PSNR %.2f dB; moving "
+             "pixels %.2f dB, static pixels %.2f dB (moving: colour off the pixel's temporal median by > 0.12, dilated 2 px).\n",
+             r->train.full_width > 0 ? " (the training set's)" : "",
              r->train.train_psnr, r->train.train_psnr_moving, r->train.train_psnr_static);
     if (cfg) EMIT("\n## Configuration\n\n```json\n%s\n```\n", cfg);
 #undef EMIT
@@ -668,7 +697,8 @@ static pg_status run_stages(const pg_pipeline_config *c, const pipeline_plan *pl
             rc.threads = plan.threads;
             rc.width = c->render_width;
             rc.height = c->render_height;
-            rc.reference_frames = k == 0 && pg_path_is_dir(reference) ? reference : NULL;
+            /* the side-by-side of the fixed view: the input at the model's size (not after the full-size phase) */
+            rc.reference_frames = k == 0 && !plan.full_size && pg_path_is_dir(reference) ? reference : NULL;
             pg_render_report rr;
             st = pg_render_run(&rc, &rr);
             fallback |= rr.fallback_png;

@@ -18,6 +18,7 @@
 #include "io/trainset.h"
 #include "train/train.h"
 #include "train/trainset.h"
+#include "train/detail.h"
 
 void pg_train_defaults(pg_train_config *c)
 {
@@ -60,6 +61,10 @@ cJSON *stage_train_config_json(const pg_train_config *c)
     for (size_t k = 0; k < sizeof floats / sizeof floats[0]; k++) cJSON_AddNumberToObject(j, float_names[k], floats[k]);
     cJSON_AddStringToObject(j, "real_cameras", c->real_cameras ? c->real_cameras : "");
     cJSON_AddStringToObject(j, "test_cameras", c->test_cameras ? c->test_cameras : "");
+    if (c->full_size_input) { /* the source's content is the proxies' input, hashed there */
+        cJSON_AddStringToObject(j, "full_size_camera", c->full_size_camera ? c->full_size_camera : "");
+        cJSON_AddNumberToObject(j, "full_size_steps", c->full_size_steps);
+    }
     return j;
 }
 
@@ -93,6 +98,8 @@ static pg_status check_config(const pg_train_config *c)
         return pg_fail(PG_ERR_ARG, "train: --deform-time-res %d out of range 2..100000 (0 = the trainer's rule)", c->deform_tres);
     if (c->checkpoint_every < 0) return pg_fail(PG_ERR_ARG, "train: --checkpoint-every must be >= 0");
     if (c->static_check_every < 0) return pg_fail(PG_ERR_ARG, "train: --static-check-every must be >= 0");
+    if (c->full_size_steps < 0 || c->full_size_steps > 1000000)
+        return pg_fail(PG_ERR_ARG, "train: --full-size-steps %d out of range 0..1000000", c->full_size_steps);
     return PG_OK;
 }
 
@@ -177,6 +184,19 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
     for (int k = 0; k < 4; k++)
         if (isfinite(scores[k])) cJSON_AddNumberToObject(root, names[k], scores[k]);
         else cJSON_AddNullToObject(root, names[k]);
+    if (r->full_width > 0) { /* the full-size phase: the model at the input's size */
+        cJSON *full = cJSON_AddObjectToObject(root, "full_size");
+        cJSON_AddNumberToObject(full, "width", r->full_width);
+        cJSON_AddNumberToObject(full, "height", r->full_height);
+        cJSON_AddNumberToObject(full, "frames_scored", TRAIN_DETAIL_SCORE_FRAMES);
+        cJSON_AddNumberToObject(full, "still_added", r->full_still_added);
+        cJSON_AddNumberToObject(full, "psnr", r->full_psnr);
+        cJSON_AddNumberToObject(full, "psnr_moving", r->full_psnr_moving);
+        cJSON_AddNumberToObject(full, "psnr_static", r->full_psnr_static);
+        cJSON_AddNumberToObject(full, "seconds", r->full_seconds);
+        cJSON_AddNumberToObject(full, "psnr_before", r->full_psnr_before);
+        cJSON_AddNumberToObject(full, "psnr_moving_before", r->full_psnr_moving_before);
+    }
     cJSON_AddNumberToObject(root, "seconds", r->seconds);
     train_timing tt;
     train_session_timing_total(s, &tt);
@@ -204,21 +224,25 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
 /* OUT/cameras.json: the set's cameras and scene box in the trainset.json layout (no image
  * paths) and in the user's units (the model's), which renders and evaluations read next to the
  * checkpoint. */
-static pg_status write_cameras(const char *dir, const train_set *ts)
+static pg_status write_cameras(const char *dir, const train_set *ts, int width, int height)
 {
+    /* the model's size: the set's, or the input's after the full-size phase (intrinsics scaled) */
+    const float kx = width > 0 ? (float)width / ts->width : 1.0f, ky = height > 0 ? (float)height / ts->height : 1.0f;
     io_trainset_camera *cams = pg_calloc((size_t)ts->num_views, sizeof *cams, "model cameras");
     if (!cams) return PG_ERR_NOMEM;
     int real = -1;
     for (int i = 0; i < ts->num_views; i++) {
         snprintf(cams[i].name, sizeof cams[i].name, "%s", ts->views[i].name);
         cams[i].cam = train_set_user_camera(ts, i);
+        cams[i].cam.width = (int)lroundf(cams[i].cam.width * kx), cams[i].cam.height = (int)lroundf(cams[i].cam.height * ky);
+        cams[i].cam.fx *= kx, cams[i].cam.cx *= kx, cams[i].cam.fy *= ky, cams[i].cam.cy *= ky;
         cams[i].role = ts->views[i].role;
         if (real < 0 && cams[i].role == IO_ROLE_REAL) real = i;
     }
     io_trainset_info info = { 0 };
     info.frames = ts->frames;
-    info.width = ts->width;
-    info.height = ts->height;
+    info.width = (int)lroundf(ts->width * kx);
+    info.height = (int)lroundf(ts->height * ky);
     info.fps = ts->fps;
     const float unit = train_set_unit(ts);
     info.near = ts->near_z * unit;
@@ -288,10 +312,21 @@ static pg_status train_run(const pg_train_config *c, pg_train_report *r)
     if ((st = pg_mkdir_p(c->out)) || (st = pg_path_join(ckpt, sizeof ckpt, c->out, "model.ckpt")) ||
         (st = pg_path_join(summary, sizeof summary, c->out, "train.json")))
         goto done;
-    if ((st = write_cameras(c->out, &ts))) goto done;
+    if ((st = write_cameras(c->out, &ts, 0, 0))) goto done;
     train_set_normalize_units(&ts);
     if ((st = train_session_create(&s, &ts, &cfg, ckpt, c->resume))) goto done;
     if ((st = train_session_run(s))) goto done;
+    r->full_psnr = r->full_psnr_moving = r->full_psnr_static = r->full_psnr_before = r->full_psnr_moving_before = NAN;
+    if (c->full_size_input && train_session_iteration(s) <= cfg.iters && !(cfg.stop_at_iter > 0)) {
+        train_detail_config dc = { c->full_size_input, c->full_size_camera, c->full_size_steps, 0 };
+        train_detail_scores sc;
+        if ((st = train_session_detail(s, &dc, &sc))) goto done;
+        r->full_width = sc.width, r->full_height = sc.height, r->full_still_added = sc.still_added;
+        r->full_psnr = sc.psnr, r->full_psnr_moving = sc.psnr_moving, r->full_psnr_static = sc.psnr_static;
+        r->full_seconds = sc.seconds;
+        r->full_psnr_before = sc.psnr_before, r->full_psnr_moving_before = sc.psnr_moving_before;
+        if ((st = write_cameras(c->out, &ts, sc.width, sc.height))) goto done;
+    }
     r->iterations = train_session_iteration(s);
     r->gaussians = train_session_gaussians(s);
     r->static_gaussians = train_session_static_count(s);

@@ -13,7 +13,8 @@
 
 static int average_due(const train_session *s)
 {
-    return s->cfg.average_decay > 0 && s->fine && s->iter >= s->cfg.densify_until;
+    /* not in the full-size phase, which adds still rows the average never saw */
+    return s->cfg.average_decay > 0 && s->fine && s->iter >= s->cfg.densify_until && !s->detail;
 }
 
 pg_status train_average_update(train_session *s)

@@ -140,6 +140,7 @@ void train_session_destroy(train_session *s)
     free(s->depth_t);
     free(s->depth_mask);
     optim_ssim_destroy(s->ssim);
+    train_detail_destroy(s->detail);
     optim_ssim_destroy(s->ssim_crop);
     free(s->d_rgb);
     free(s->d_depth);
@@ -689,10 +690,11 @@ static int load_target(train_session *s, int vi, int f, int moving)
 void train_update_filter(train_session *s)
 {
     const train_set *ts = s->ts;
-    pg_camera cams[ts->num_views > 0 ? ts->num_views : 1];
+    pg_camera cams[ts->num_views + 1];
     int ncam = 0;
     for (int v = 0; v < ts->num_views; v++)
         if (ts->views[v].role != IO_ROLE_TEST) cams[ncam++] = ts->views[v].cam;
+    if (s->detail) cams[ncam++] = s->detail->cam; /* the full-size phase draws finer */
     splat_filter3d_compute(s->g.means, s->g.count, cams, ncam, s->filter_var);
 }
 
@@ -877,12 +879,20 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, const 
     pg_camera cam = ts->views[vi].cam, whole = cam;
     int real = ts->views[vi].role == IO_ROLE_REAL;
     double t0 = pg_time_seconds(), t1;
-    int has_depth = load_target(s, vi, f, 1);
-    if (rect) {
-        crop_in_place(s->target.data, ts->width, 3, rect);
-        crop_in_place(s->mask, ts->width, 1, rect);
-        if (has_depth) crop_in_place(s->depth_t, ts->width, 1, rect);
-        cam = crop_camera(&cam, rect);
+    const int full = rect && real && s->detail; /* a full-size crop of the full-size phase */
+    int has_depth = 0;
+    if (full) {
+        train_detail_target(s, f, rect, s->target.data, s->mask);
+        whole = s->detail->cam;
+        cam = crop_camera(&whole, rect);
+    } else {
+        has_depth = load_target(s, vi, f, 1);
+        if (rect) {
+            crop_in_place(s->target.data, ts->width, 3, rect);
+            crop_in_place(s->mask, ts->width, 1, rect);
+            if (has_depth) crop_in_place(s->depth_t, ts->width, 1, rect);
+            cam = crop_camera(&cam, rect);
+        }
     }
     if (c->proxy_downscale == 2 && ts->views[vi].role == IO_ROLE_PROXY && cam.width >= 32 && cam.height >= 32) {
         train_halve_in_place(s->target.data, cam.width, cam.height, 3, 0);
@@ -931,7 +941,7 @@ static pg_status step_view(train_session *s, int vi, int f, float weight, const 
 
     /* the densification's statistics, while a densification is still to come (a long clip's
      * budget trains ~3/4 of its steps after the last one) */
-    const int densifying = s->iter + 1 < c->densify_until;
+    const int densifying = s->detail ? s->detail->densify : s->iter + 1 < c->densify_until;
     if (densifying) memset(s->vs_grad, 0, (size_t)s->g.count * sizeof(float));
     PG_TRY(splat_render_backward(s->raster, &s->d, &cam, &rs, s->d_rgb, has_depth ? s->d_depth : NULL, NULL, &s->dg,
                                  densifying ? s->vs_grad : NULL));
@@ -966,6 +976,7 @@ static pg_status step_views(train_session *s, int f, const int *views, const flo
     const pg_camera *cams[TRAIN_MAX_BATCH];
     for (int b = 0; b < nb; b++) {
         cams[b] = &ts->views[views[b]].cam;
+        if (rects && s->detail && ts->views[views[b]].role == IO_ROLE_REAL) cams[b] = &s->detail->cam;
         if (rects) { /* cull to the crops' frusta */
             crop_cams[b] = crop_camera(cams[b], rects + 4 * b);
             cams[b] = &crop_cams[b];
@@ -1041,6 +1052,18 @@ static const train_region *proxy_box_at(const train_session *s, int v, int f)
     return s->ts->views[v].role == IO_ROLE_PROXY ? train_motion_regions_at(&s->regions[v], f) : NULL;
 }
 
+/* A random window of frame f's full-size box, at most TRAIN_DETAIL_WINDOW a side: a box holds
+ * every mover of the frame (half of a classroom's frame), and a window of it costs a fraction. */
+static void full_size_window(train_session *s, int f, int *rect)
+{
+    memcpy(rect, s->detail->rect + 4 * (size_t)f, 4 * sizeof(int));
+    for (int k = 0; k < 2; k++)
+        if (rect[2 + k] > TRAIN_DETAIL_WINDOW) {
+            rect[k] += (int)pg_rng_below(&s->rng, (uint32_t)(rect[2 + k] - TRAIN_DETAIL_WINDOW + 1));
+            rect[2 + k] = TRAIN_DETAIL_WINDOW;
+        }
+}
+
 /* Motion crops k and k + 1 of a step: the real view and a proxy at one random frame with motion,
  * each rendered over the box around its movers alone. The moving part is a few percent of the
  * frame and changes with every frame, while the still scene is learnt from any frame; a crop costs
@@ -1058,6 +1081,10 @@ static pg_status step_motion_crops(train_session *s, int k, double *loss_out)
     const train_region *b = train_motion_regions_draw(&s->regions[s->crop_view], &s->rng, &f);
     if (!b) return PG_OK;
     rects[0] = b->x, rects[1] = b->y, rects[2] = b->w, rects[3] = b->h;
+    if (s->detail) { /* the full-size phase: a window of the real view's box at the input's size */
+        if (!s->detail->crop[f]) return PG_OK;
+        full_size_window(s, f, rects);
+    }
     int nb = 1;
     if (k + 1 < motion_crops(s) && s->proxy_crop_views > 0) {
         int moving = 0;
@@ -1101,6 +1128,8 @@ pg_status train_session_step(train_session *s)
     }
     double tf = pg_time_seconds();
     if (!one_time_per_step(s)) finish_fixed_rows(s);
+    if (s->detail) /* the still scene was fitted at full size already: its means stay where they are */
+        for (int k = 0; k < s->n_fixed_rows; k++) memset(s->gg.means + 3 * (size_t)s->step_rows[s->n_moving_rows + k], 0, 3 * sizeof(float));
     s->timing.deform_backward += (pg_time_seconds() - tf) * 1e3;
     if (s->fine) {
         double tr = pg_time_seconds();
@@ -1141,6 +1170,17 @@ pg_status train_session_step(train_session *s)
     return PG_OK;
 }
 
+
+pg_status train_render_frame(train_session *s, int f, const pg_camera *cam, pg_render_output *out)
+{
+    list_step_rows(s);
+    const pg_camera *cams[1] = { cam };
+    int nd;
+    PG_TRY(deform_all(s, cams, 1, train_frame_time(f, s->ts->frames), 1, &nd));
+    pg_render_settings rs = splat_default_settings();
+    memcpy(rs.background, s->cfg.bg, sizeof rs.background);
+    return splat_render_forward(s->raster, &s->d, cam, &rs, out);
+}
 
 pg_status train_session_run(train_session *s)
 {

@@ -11,6 +11,19 @@
 #include "train/motion_regions.h"
 #include "train/train.h"
 
+/* The full-size phase's data (detail.c): the real view at the input's size, the still scene's
+ * median there and the movers' boxes of every frame. */
+typedef struct {
+    pg_camera cam;       /* the real view at the input's size (the trainer's units) */
+    float *still;        /* (H, W, 3) per-pixel temporal median of sampled frames */
+    uint8_t **crop;      /* (frames) frame f's movers' box at full size, RGB, or NULL */
+    int *rect;           /* (frames, 4) x, y, w, h of each box */
+    int frames;
+    size_t max_px;       /* the largest box's pixels */
+    int max_w, max_h;    /* and the largest sides */
+    int densify;         /* the steps collect the movers' view-space gradients */
+} train_detail;
+
 struct train_session {
     const train_set *ts;
     train_config cfg;
@@ -72,6 +85,7 @@ struct train_session {
     train_timing timing_total; /* summed over this process's steps, in train.json */
     double sum_deformed, sum_movable; /* per fine iteration, for the speed report */
     long fine_steps;
+    train_detail *detail; /* the full-size phase's, NULL before it */
 };
 
 /* Adam groups of the network's flat parameter array (train_net_grid_end splits it). */
@@ -93,6 +107,14 @@ void train_blend_gaussians(pg_gaussians *dst, const pg_gaussians *src, train_ble
  * the camera of that image (pixel centres at (x + 0.5) x 2 of the full one). */
 void train_halve_in_place(float *buf, int w, int h, int c, int skip_zero);
 pg_camera train_half_camera(const pg_camera *cam);
+/* The whole model at frame f's time rendered with cam (the deformed copy d is redone). */
+pg_status train_render_frame(train_session *s, int f, const pg_camera *cam, pg_render_output *out);
+/* detail.c: rect (inside frame f's full-size box) into rgb (w x h x 3) and its loss weights into
+ * mask (1 + moving_weight on pixels off the still scene). */
+void train_detail_target(const train_session *s, int f, const int *rect, float *rgb, float *mask);
+/* the full-size steps' windows of a box are at most this many pixels a side */
+#define TRAIN_DETAIL_WINDOW 640
+void train_detail_destroy(train_detail *d);
 /* train_adam.c */
 pg_status train_adam_resize_gaussians(train_session *s, int n);
 pg_status train_adam_create_net(train_session *s);
