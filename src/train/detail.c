@@ -19,6 +19,8 @@
 #define DETAIL_STILL_SAMPLES 31
 /* a box's margin at full size, in pixels (the working-size box is already dilated) */
 #define DETAIL_BOX_PAD 8
+/* a box is kept in tiles of this many pixels a side, the moving ones only */
+#define DETAIL_TILE 32
 /* the still fit: full-size steps on the new Gaussians */
 #define DETAIL_STILL_STEPS 90
 #define DETAIL_STILL_LR_COLOUR 8.0f
@@ -47,7 +49,9 @@ void train_detail_destroy(train_detail *d)
     if (!d) return;
     free(d->still);
     for (int f = 0; d->crop && f < d->frames; f++) free(d->crop[f]);
+    for (int f = 0; d->tiles && f < d->frames; f++) free(d->tiles[f]);
     free(d->crop);
+    free(d->tiles);
     free(d->rect);
     free(d);
 }
@@ -57,19 +61,26 @@ static inline float max3(float a, float b, float c) { return fmaxf(a, fmaxf(b, c
 void train_detail_target(const train_session *s, int f, const int *r, float *rgb, float *mask)
 {
     const train_detail *d = s->detail;
-    const int *box = d->rect + 4 * (size_t)f, W = d->cam.width;
+    const int *box = d->rect + 4 * (size_t)f, W = d->cam.width, T = DETAIL_TILE, tw = (box[2] + T - 1) / T;
     const uint8_t *crop = d->crop[f];
+    const int *tiles = d->tiles[f];
     const float mw = s->cfg.moving_weight;
     #pragma omp parallel for schedule(static)
     for (int y = 0; y < r[3]; y++)
         for (int x = 0; x < r[2]; x++) {
             size_t i = (size_t)y * r[2] + x;
             const float *bg = d->still + 3 * ((size_t)(r[1] + y) * W + r[0] + x);
-            const uint8_t *src = crop + 3 * ((size_t)(r[1] - box[1] + y) * box[2] + r[0] - box[0] + x);
+            const int bx = r[0] - box[0] + x, by = r[1] - box[1] + y, k = tiles[(by / T) * tw + bx / T];
+            if (k < 0) { /* a still tile: the median */
+                memcpy(rgb + 3 * i, bg, 3 * sizeof(float));
+                mask[i] = 1.0f;
+                continue;
+            }
+            const uint8_t *src = crop + (((size_t)k * T + by % T) * T + bx % T) * 3;
             float diff = 0;
-            for (int k = 0; k < 3; k++) {
-                rgb[3 * i + k] = src[k] * (1.0f / 255.0f);
-                diff = fmaxf(diff, fabsf(rgb[3 * i + k] - bg[k]));
+            for (int c = 0; c < 3; c++) {
+                rgb[3 * i + c] = src[c] * (1.0f / 255.0f);
+                diff = fmaxf(diff, fabsf(rgb[3 * i + c] - bg[c]));
             }
             mask[i] = diff > DETAIL_MOVING ? 1.0f + mw : 1.0f;
         }
@@ -145,6 +156,52 @@ static void reader_close(frame_reader *r)
     r->ds = NULL;
 }
 
+/* Frame f's box (d->rect) kept in DETAIL_TILE tiles: those holding a moving pixel of the
+ * working-size view (its trainer mask, dilated) get their pixels, the others are the still scene's
+ * (the median) - a box holds every mover of the frame, half of a classroom's, and most of it is
+ * still. */
+static pg_status keep_box(const train_session *s, train_detail *d, int f, int real, const pg_image *img)
+{
+    const train_set *ts = s->ts;
+    const int *r = d->rect + 4 * (size_t)f, W = img->width, T = DETAIL_TILE;
+    const int tw = (r[2] + T - 1) / T, th = (r[3] + T - 1) / T;
+    const float kx = (float)W / ts->width, ky = (float)img->height / ts->height;
+    const uint8_t *mv = s->moving[real] + (size_t)f * ts->width * ts->height;
+    int *tiles = pg_malloc((size_t)tw * th * sizeof(int), "full-size box"), kept = 0;
+    if (!tiles) return PG_ERR_NOMEM;
+    for (int ty = 0; ty < th; ty++)
+        for (int tx = 0; tx < tw; tx++) {
+            int X0 = (int)((r[0] + tx * T) / kx), X1 = (int)ceilf((r[0] + (tx + 1) * T) / kx);
+            int Y0 = (int)((r[1] + ty * T) / ky), Y1 = (int)ceilf((r[1] + (ty + 1) * T) / ky);
+            X1 = X1 > ts->width ? ts->width : X1, Y1 = Y1 > ts->height ? ts->height : Y1;
+            int on = 0;
+            for (int y = Y0; y < Y1 && !on; y++)
+                for (int x = X0; x < X1 && !on; x++) on = mv[(size_t)y * ts->width + x];
+            tiles[ty * tw + tx] = on ? kept++ : -1;
+        }
+    uint8_t *px = pg_malloc((size_t)(kept > 0 ? kept : 1) * T * T * 3, "full-size box");
+    if (!px) {
+        free(tiles);
+        return PG_ERR_NOMEM;
+    }
+    for (int ty = 0; ty < th; ty++)
+        for (int tx = 0; tx < tw; tx++) {
+            int k = tiles[ty * tw + tx];
+            if (k < 0) continue;
+            for (int y = 0; y < T; y++)
+                for (int x = 0; x < T; x++) {
+                    int X = r[0] + tx * T + x, Y = r[1] + ty * T + y;
+                    if (X >= r[0] + r[2] || Y >= r[1] + r[3]) continue;
+                    for (int c = 0; c < 3; c++)
+                        px[(((size_t)k * T + y) * T + x) * 3 + c] =
+                            (uint8_t)lroundf(fminf(fmaxf(img->data[((size_t)Y * W + X) * 3 + c], 0.0f), 1.0f) * 255.0f);
+                }
+        }
+    d->crop[f] = px;
+    d->tiles[f] = tiles;
+    return PG_OK;
+}
+
 /* One pass over the source's frames at full size: the sampled frames' median (the still scene)
  * and each frame's movers' box, cut out. */
 static pg_status read_frames(train_session *s, const train_detail_config *c, train_detail *d)
@@ -177,9 +234,10 @@ static pg_status read_frames(train_session *s, const train_detail_config *c, tra
     uint8_t *samples[DETAIL_STILL_SAMPLES] = { 0 };
     const size_t values = (size_t)W * H * 3;
     d->crop = pg_calloc((size_t)F, sizeof *d->crop, "full-size boxes");
+    d->tiles = pg_calloc((size_t)F, sizeof *d->tiles, "full-size boxes");
     d->rect = pg_calloc((size_t)F * 4, sizeof *d->rect, "full-size boxes");
     d->still = pg_malloc(values * sizeof(float), "still scene");
-    if (!st && (!d->crop || !d->rect || !d->still)) st = PG_ERR_NOMEM;
+    if (!st && (!d->crop || !d->tiles || !d->rect || !d->still)) st = PG_ERR_NOMEM;
     for (int k = 0; k < n_samples && !st; k++)
         if (!(samples[k] = pg_malloc(values, "still samples"))) st = PG_ERR_NOMEM;
     pg_image img = { 0 };
@@ -197,14 +255,7 @@ static pg_status read_frames(train_session *s, const train_detail_config *c, tra
             x0 = x0 < 0 ? 0 : x0, y0 = y0 < 0 ? 0 : y0, x1 = x1 > W ? W : x1, y1 = y1 > H ? H : y1;
             int *r = d->rect + 4 * (size_t)f;
             r[0] = x0, r[1] = y0, r[2] = x1 - x0, r[3] = y1 - y0;
-            if (!(d->crop[f] = pg_malloc((size_t)r[2] * r[3] * 3, "full-size box"))) {
-                st = PG_ERR_NOMEM;
-                break;
-            }
-            for (int y = 0; y < r[3]; y++)
-                for (int x = 0; x < r[2] * 3; x++)
-                    d->crop[f][(size_t)y * r[2] * 3 + x] =
-                        (uint8_t)lroundf(fminf(fmaxf(img.data[((size_t)(y0 + y) * W + x0) * 3 + x], 0.0f), 1.0f) * 255.0f);
+            if ((st = keep_box(s, d, f, real, &img))) break;
             const int w = r[2] < TRAIN_DETAIL_WINDOW ? r[2] : TRAIN_DETAIL_WINDOW, h = r[3] < TRAIN_DETAIL_WINDOW ? r[3] : TRAIN_DETAIL_WINDOW;
             if ((size_t)w * h > d->max_px) d->max_px = (size_t)w * h;
             if (w > d->max_w) d->max_w = w;

@@ -16,7 +16,8 @@
 typedef struct {
     pg_camera cam;       /* the real view at the input's size (the trainer's units) */
     float *still;        /* (H, W, 3) per-pixel temporal median of sampled frames */
-    uint8_t **crop;      /* (frames) frame f's movers' box at full size, RGB, or NULL */
+    uint8_t **crop;      /* (frames) frame f's movers' box at full size: its moving tiles' RGB, or NULL */
+    int **tiles;         /* (frames) each tile of the box: its index in crop[f], -1 for a still tile */
     int *rect;           /* (frames, 4) x, y, w, h of each box */
     int frames;
     size_t max_px;       /* the largest box's pixels */
