@@ -48,6 +48,8 @@ void train_detail_destroy(train_detail *d)
 {
     if (!d) return;
     free(d->still);
+    free(d->score_rgb);
+    free(d->score_moving);
     for (int f = 0; d->crop && f < d->frames; f++) free(d->crop[f]);
     for (int f = 0; d->tiles && f < d->frames; f++) free(d->tiles[f]);
     free(d->crop);
@@ -156,16 +158,50 @@ static void reader_close(frame_reader *r)
     r->ds = NULL;
 }
 
+/* The k-th of n scored frames of a clip of F: evenly spaced, first and last included. */
+static int score_frame(int k, int n, int F) { return n > 1 ? (int)lround((double)k * (F - 1) / (n - 1)) : 0; }
+
+/* The scored frames' moving pixels: colour off the still scene by more than 0.12 in a channel,
+ * dilated 2 px (a square), once for the scores before and after the phase. */
+static void score_masks(train_detail *d)
+{
+    const int W = d->cam.width, H = d->cam.height;
+    const size_t px = (size_t)W * H;
+    for (int k = 0; k < d->score_frames; k++) {
+        const uint8_t *rgb = d->score_rgb + (size_t)k * px * 3;
+        uint8_t *grown = d->score_moving + (size_t)k * px, *mv = grown; /* off the still scene, then grown in place by rows */
+        for (size_t i = 0; i < px; i++) {
+            const float *b = d->still + 3 * i;
+            mv[i] = max3(fabsf(rgb[3 * i] / 255.0f - b[0]), fabsf(rgb[3 * i + 1] / 255.0f - b[1]),
+                         fabsf(rgb[3 * i + 2] / 255.0f - b[2])) > DETAIL_SCORE_MOVING;
+        }
+        uint8_t *row = pg_malloc(px, "score masks");
+        if (!row) continue; /* the moving part then counts without its border */
+        memcpy(row, mv, px);
+        for (int y = 0; y < H; y++)
+            for (int x = 0; x < W; x++) {
+                int on = 0;
+                for (int dy = -DETAIL_SCORE_DILATE; dy <= DETAIL_SCORE_DILATE && !on; dy++)
+                    for (int dx = -DETAIL_SCORE_DILATE; dx <= DETAIL_SCORE_DILATE && !on; dx++) {
+                        int yy = y + dy, xx = x + dx;
+                        on = yy >= 0 && yy < H && xx >= 0 && xx < W && row[(size_t)yy * W + xx];
+                    }
+                grown[(size_t)y * W + x] = (uint8_t)on;
+            }
+        free(row);
+    }
+}
+
 /* Frame f's box (d->rect) kept in DETAIL_TILE tiles: those holding a moving pixel of the
  * working-size view (its trainer mask, dilated) get their pixels, the others are the still scene's
  * (the median) - a box holds every mover of the frame, half of a classroom's, and most of it is
  * still. */
-static pg_status keep_box(const train_session *s, train_detail *d, int f, int real, const pg_image *img)
+static pg_status keep_box(const train_session *s, train_detail *d, int f, int real, const uint8_t *frame)
 {
     const train_set *ts = s->ts;
-    const int *r = d->rect + 4 * (size_t)f, W = img->width, T = DETAIL_TILE;
+    const int *r = d->rect + 4 * (size_t)f, W = d->cam.width, T = DETAIL_TILE;
     const int tw = (r[2] + T - 1) / T, th = (r[3] + T - 1) / T;
-    const float kx = (float)W / ts->width, ky = (float)img->height / ts->height;
+    const float kx = (float)W / ts->width, ky = (float)d->cam.height / ts->height;
     const uint8_t *mv = s->moving[real] + (size_t)f * ts->width * ts->height;
     int *tiles = pg_malloc((size_t)tw * th * sizeof(int), "full-size box"), kept = 0;
     if (!tiles) return PG_ERR_NOMEM;
@@ -188,14 +224,9 @@ static pg_status keep_box(const train_session *s, train_detail *d, int f, int re
         for (int tx = 0; tx < tw; tx++) {
             int k = tiles[ty * tw + tx];
             if (k < 0) continue;
-            for (int y = 0; y < T; y++)
-                for (int x = 0; x < T; x++) {
-                    int X = r[0] + tx * T + x, Y = r[1] + ty * T + y;
-                    if (X >= r[0] + r[2] || Y >= r[1] + r[3]) continue;
-                    for (int c = 0; c < 3; c++)
-                        px[(((size_t)k * T + y) * T + x) * 3 + c] =
-                            (uint8_t)lroundf(fminf(fmaxf(img->data[((size_t)Y * W + X) * 3 + c], 0.0f), 1.0f) * 255.0f);
-                }
+            const int X = r[0] + tx * T, w = X + T <= r[0] + r[2] ? T : r[0] + r[2] - X;
+            for (int y = 0; y < T && r[1] + ty * T + y < r[1] + r[3]; y++)
+                memcpy(px + ((size_t)k * T + y) * T * 3, frame + ((size_t)(r[1] + ty * T + y) * W + X) * 3, (size_t)w * 3);
         }
     d->crop[f] = px;
     d->tiles[f] = tiles;
@@ -240,22 +271,30 @@ static pg_status read_frames(train_session *s, const train_detail_config *c, tra
     if (!st && (!d->crop || !d->tiles || !d->rect || !d->still)) st = PG_ERR_NOMEM;
     for (int k = 0; k < n_samples && !st; k++)
         if (!(samples[k] = pg_malloc(values, "still samples"))) st = PG_ERR_NOMEM;
+    const int n_score = F < TRAIN_DETAIL_SCORE_FRAMES ? F : TRAIN_DETAIL_SCORE_FRAMES;
+    d->score_frames = n_score;
+    d->score_rgb = pg_malloc((size_t)n_score * values, "score frames");
+    d->score_moving = pg_malloc((size_t)n_score * W * H, "score frames");
+    uint8_t *frame = pg_malloc(values, "full-size frame");
+    if (!st && (!d->score_rgb || !d->score_moving || !frame)) st = PG_ERR_NOMEM;
     pg_image img = { 0 };
     double t0 = pg_time_seconds();
-    for (int f = 0; f < F && !st; f++) {
+    for (int f = 0, next_score = 0; f < F && !st; f++) {
         const int sample = (int)((long)f * n_samples / F), first = (int)(((long)sample * F + n_samples - 1) / n_samples);
         const train_region *b = s->crop_view >= 0 ? train_motion_regions_at(&s->regions[s->crop_view], f) : NULL;
-        if (f != first && !b) continue;
+        const int scored = next_score < n_score && f == score_frame(next_score, n_score, F);
+        if (f != first && !b && !scored) continue;
         if ((st = reader_frame(&rd, f, &img))) break;
-        if (f == first)
-            for (size_t i = 0; i < values; i++) samples[sample][i] = (uint8_t)lroundf(fminf(fmaxf(img.data[i], 0.0f), 1.0f) * 255.0f);
+        pg_image_to_rgb8(&img, frame);
+        if (f == first) memcpy(samples[sample], frame, values);
+        if (scored) memcpy(d->score_rgb + (size_t)next_score++ * values, frame, values);
         if (b) {
             int x0 = (int)floorf(b->x * kx) - DETAIL_BOX_PAD, y0 = (int)floorf(b->y * ky) - DETAIL_BOX_PAD;
             int x1 = (int)ceilf((b->x + b->w) * kx) + DETAIL_BOX_PAD, y1 = (int)ceilf((b->y + b->h) * ky) + DETAIL_BOX_PAD;
             x0 = x0 < 0 ? 0 : x0, y0 = y0 < 0 ? 0 : y0, x1 = x1 > W ? W : x1, y1 = y1 > H ? H : y1;
             int *r = d->rect + 4 * (size_t)f;
             r[0] = x0, r[1] = y0, r[2] = x1 - x0, r[3] = y1 - y0;
-            if ((st = keep_box(s, d, f, real, &img))) break;
+            if ((st = keep_box(s, d, f, real, frame))) break;
             const int w = r[2] < TRAIN_DETAIL_WINDOW ? r[2] : TRAIN_DETAIL_WINDOW, h = r[3] < TRAIN_DETAIL_WINDOW ? r[3] : TRAIN_DETAIL_WINDOW;
             if ((size_t)w * h > d->max_px) d->max_px = (size_t)w * h;
             if (w > d->max_w) d->max_w = w;
@@ -268,8 +307,10 @@ static pg_status read_frames(train_session *s, const train_detail_config *c, tra
     }
     pg_image_destroy(&img);
     reader_close(&rd);
+    free(frame);
     if (!st) median_frames(samples, n_samples, values, d->still);
     for (int k = 0; k < n_samples; k++) free(samples[k]);
+    if (!st) score_masks(d);
     return st;
 }
 
@@ -496,41 +537,23 @@ static pg_status detail_still(train_session *s, int max_new, int *added)
 /* The model at the input's size against the source's frames: TRAIN_DETAIL_SCORE_FRAMES evenly
  * spaced frames, PSNR over the image and on the moving pixels (colour off the still scene by more
  * than 0.12 in a channel, dilated 2 px, as evaluation defines them). */
-static pg_status score(train_session *s, const train_detail_config *c, double *psnr, double *psnr_moving,
-                       double *psnr_static)
+static pg_status score(train_session *s, double *psnr, double *psnr_moving, double *psnr_static)
 {
     const train_detail *d = s->detail;
-    const int W = d->cam.width, H = d->cam.height, F = s->ts->frames;
-    const int n = F < TRAIN_DETAIL_SCORE_FRAMES ? F : TRAIN_DETAIL_SCORE_FRAMES;
-    frame_reader rd;
-    uint8_t *mv = pg_malloc((size_t)W * H, "scores"), *grown = pg_malloc((size_t)W * H, "scores");
-    pg_status st = mv && grown ? reader_open(&rd, c) : PG_ERR_NOMEM;
-    pg_image img = { 0 };
+    const int W = d->cam.width, H = d->cam.height, F = s->ts->frames, n = d->score_frames;
+    const size_t px = (size_t)W * H;
+    pg_status st = PG_OK;
     double sum_db = 0, se_m = 0, se_s = 0, n_m = 0, n_s = 0;
     for (int k = 0; k < n && !st; k++) {
-        int f = n > 1 ? (int)lround((double)k * (F - 1) / (n - 1)) : 0;
-        if ((st = reader_frame(&rd, f, &img))) break;
-        for (size_t i = 0; i < (size_t)W * H; i++) {
-            const float *a = img.data + 3 * i, *b = d->still + 3 * i;
-            mv[i] = max3(fabsf(a[0] - b[0]), fabsf(a[1] - b[1]), fabsf(a[2] - b[2])) > DETAIL_SCORE_MOVING;
-        }
-        for (int y = 0; y < H; y++)
-            for (int x = 0; x < W; x++) {
-                int on = 0;
-                for (int dy = -DETAIL_SCORE_DILATE; dy <= DETAIL_SCORE_DILATE && !on; dy++)
-                    for (int dx = -DETAIL_SCORE_DILATE; dx <= DETAIL_SCORE_DILATE && !on; dx++) {
-                        int yy = y + dy, xx = x + dx;
-                        on = yy >= 0 && yy < H && xx >= 0 && xx < W && mv[(size_t)yy * W + xx];
-                    }
-                grown[(size_t)y * W + x] = (uint8_t)on;
-            }
+        const int f = score_frame(k, n, F);
+        const uint8_t *rgb = d->score_rgb + (size_t)k * px * 3, *grown = d->score_moving + (size_t)k * px;
         pg_render_output o;
         if ((st = train_render_frame(s, f, &d->cam, &o))) break;
         double se = 0;
         for (size_t i = 0; i < (size_t)W * H; i++) {
             double e = 0;
             for (int ch = 0; ch < 3; ch++) {
-                double v = fmin(fmax(o.rgb[3 * i + ch], 0.0), 1.0) - img.data[3 * i + ch];
+                double v = fmin(fmax(o.rgb[3 * i + ch], 0.0), 1.0) - rgb[3 * i + ch] / 255.0;
                 e += v * v;
             }
             se += e;
@@ -541,10 +564,6 @@ static pg_status score(train_session *s, const train_detail_config *c, double *p
         sum_db += mse > 0 ? -10.0 * log10(mse) : 100.0;
         pg_progress_report("detail", k + 1, n, "scoring at %dx%d: frame %d", W, H, f);
     }
-    pg_image_destroy(&img);
-    reader_close(&rd);
-    free(mv);
-    free(grown);
     *psnr = n > 0 ? sum_db / n : NAN;
     *psnr_moving = n_m > 0 ? -10.0 * log10(se_m / n_m) : NAN;
     *psnr_static = n_s > 0 ? -10.0 * log10(se_s / n_s) : NAN;
@@ -565,7 +584,7 @@ pg_status train_session_detail(train_session *s, const train_detail_config *c, t
     out->height = s->detail->cam.height;
     out->frames_scored = s->ts->frames < TRAIN_DETAIL_SCORE_FRAMES ? s->ts->frames : TRAIN_DETAIL_SCORE_FRAMES;
     double unused;
-    PG_TRY(score(s, c, &out->psnr_before, &out->psnr_moving_before, &unused));
+    PG_TRY(score(s, &out->psnr_before, &out->psnr_moving_before, &unused));
     PG_TRY(grow_buffers(s));
     PG_TRY(detail_still(s, c->max_still > 0 ? c->max_still : TRAIN_DETAIL_MAX_STILL, &out->still_added));
     const int steps = c->steps > 0 ? c->steps : train_detail_default_steps(s->ts->frames), cap = s->cfg.max_gaussians;
@@ -591,7 +610,7 @@ pg_status train_session_detail(train_session *s, const train_detail_config *c, t
     s->detail->densify = 0;
     if (!st) train_update_filter(s);
     if (!st && s->ckpt_path[0]) st = train_checkpoint_write(s, s->ckpt_path, 0);
-    if (!st) st = score(s, c, &out->psnr, &out->psnr_moving, &out->psnr_static);
+    if (!st) st = score(s, &out->psnr, &out->psnr_moving, &out->psnr_static);
     out->gaussians = s->g.count;
     out->seconds = pg_time_seconds() - t0;
     return st;

@@ -1222,22 +1222,16 @@ pg_status train_session_evaluate_parts(train_session *s, io_view_role role, trai
     const size_t px = (size_t)ts->width * ts->height;
     double sum = 0, sse[2] = {0, 0}, cnt[2] = {0, 0};
     int n = 0;
-    pg_render_settings rs = splat_default_settings();
-    memcpy(rs.background, s->cfg.bg, sizeof rs.background);
     uint8_t *moving = pg_malloc((size_t)ts->frames * px, "evaluation moving masks");
     if (!moving) return PG_ERR_NOMEM;
-    list_step_rows(s);
     pg_status st = PG_OK;
     for (int vi = 0; vi < ts->num_views && !st; vi++) {
         if (ts->views[vi].role != role) continue;
         st = depth_moving_masks(ts->views[vi].rgb, ts->frames, ts->width, ts->height, 0.12f, 2, moving);
         for (int f = 0; f < ts->frames && !st; f++) {
-            int nd;
             load_target(s, vi, f, 0);
-            const pg_camera *cam = &ts->views[vi].cam;
-            if ((st = deform_all(s, &cam, 1, train_frame_time(f, ts->frames), 1, &nd))) break;
             pg_render_output out;
-            if ((st = splat_render_forward(s->raster, &s->d, cam, &rs, &out))) break;
+            if ((st = train_render_frame(s, f, &ts->views[vi].cam, &out))) break;
             pg_image rendered = {ts->width, ts->height, 3, out.rgb};
             const float *mask = ts->views[vi].mask ? s->mask : NULL;
             sum += pg_image_psnr(&rendered, &s->target, mask);

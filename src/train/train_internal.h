@@ -23,6 +23,9 @@ typedef struct {
     size_t max_px;       /* the largest box's pixels */
     int max_w, max_h;    /* and the largest sides */
     int densify;         /* the steps collect the movers' view-space gradients */
+    int score_frames;     /* frames scored before and after the phase, kept from the one pass: */
+    uint8_t *score_rgb;   /* (score_frames, H, W, 3) */
+    uint8_t *score_moving; /* (score_frames, H, W) their moving pixels */
 } train_detail;
 
 struct train_session {
