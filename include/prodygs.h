@@ -108,6 +108,8 @@ typedef struct {
     int align;                /* per-frame scale/shift alignment (1) */
     int fuse;                 /* static pixels take their temporal median depth (1) */
     int planes;               /* static depth snapped onto the scene's dominant planes (1) */
+    int ground;               /* the floor and the wall placed by the vertical vanishing point (1) */
+    float fov;                /* single video: horizontal field of view in degrees (0: 60); datasets use their own */
     int movers_front;         /* moving blobs behind the still scene they cover brought in front (1) */
     int frames;               /* first N frames (0: all) */
     int width, height;        /* resize (0, 0: keep; one side 0 keeps the aspect) */
@@ -334,7 +336,7 @@ typedef struct {
     const char *proxy_render;         /* "mesh" (NULL: default) or "splat" */
     const char *depth_kind;
     float depth_scale;                /* 0: 1 */
-    int refine, align, fuse, planes, movers_front; /* (1, 1, 1, 1, 1) */
+    int refine, align, fuse, planes, ground, movers_front; /* (1, 1, 1, 1, 1, 1) */
     int pose_shift;                   /* dataset poses: scale and disparity shift to COLMAP's points (1; see pg_proxies_config) */
     int frames, width, height, iters; /* 0: all / the preset's */
     int deform_width;                 /* 0: the trainer's default */

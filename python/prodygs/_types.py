@@ -39,8 +39,8 @@ class PrepareConfig(C.Structure):
     _c_name = "pg_prepare_config"
     _fields_ = [("input", _s), ("depth", _s), ("depth_model", _s), ("out", _s), ("train_camera", _s),
                 ("depth_kind", _s), ("depth_scale", _f), ("refine", _s),
-                ("align", _i), ("fuse", _i), ("planes", _i), ("movers_front", _i), ("frames", _i),
-                ("width", _i), ("height", _i), ("threads", _i), ("keep_flow_vis", _i)]
+                ("align", _i), ("fuse", _i), ("planes", _i), ("ground", _i), ("fov", _f), ("movers_front", _i),
+                ("frames", _i), ("width", _i), ("height", _i), ("threads", _i), ("keep_flow_vis", _i)]
 
 
 class PrepareReport(C.Structure):
@@ -163,7 +163,7 @@ class PipelineConfig(C.Structure):
                 ("train_camera", _s), ("test_cameras", _s), ("poses", _s), ("proxies", _i),
                 ("max_angle", _f), ("fov", _f), ("pad", _f), ("pose_scale", _f), ("proxy_render", _s),
                 ("depth_kind", _s), ("depth_scale", _f), ("refine", _i), ("align", _i), ("fuse", _i),
-                ("planes", _i), ("movers_front", _i), ("pose_shift", _i), ("frames", _i), ("width", _i), ("height", _i),
+                ("planes", _i), ("ground", _i), ("movers_front", _i), ("pose_shift", _i), ("frames", _i), ("width", _i), ("height", _i),
                 ("iters", _i), ("deform_width", _i), ("deform_head_width", _i), ("deform_time_coarsen", _i),
                 ("deform_time_warmup", _f), ("densify_movable", _f), ("densify_until", _i),
                 ("proxy_downscale", _i), ("motion_crops", _i), ("views_per_step", _i),

@@ -11,7 +11,7 @@ int cmd_prepare(int argc, char **argv)
     pg_prepare_defaults(&c);
     const char *size = NULL, *kind = NULL;
     float scale = NAN; /* NAN: not given (the parser refuses NaN values) */
-    int no_refine = 0, no_align = 0, no_fuse = 0, no_planes = 0, no_movers_front = 0, no_flow_vis = 0;
+    int no_refine = 0, no_align = 0, no_fuse = 0, no_planes = 0, no_ground = 0, no_movers_front = 0, no_flow_vis = 0;
     const cli_option options[] = {
         { "--depth", CLI_STR, &c.depth, "per-frame depth: (F,H,W) .npy or a folder of .npy/.pfm/.png/.exr (or --depth-model)" },
         { "--depth-model", CLI_STR, &c.depth_model, "instead of --depth: a depth network (.tflite/.onnx) run first into DIR/depth.npy (default: the built-in FastDepth)" },
@@ -23,7 +23,9 @@ int cmd_prepare(int argc, char **argv)
         { "--no-align", CLI_FLAG, &no_align, "skip the per-frame scale/shift alignment (alpha=1, beta=0)" },
         { "--no-fuse", CLI_FLAG, &no_fuse, "keep per-frame depth on static pixels (default: their temporal median)" },
         { "--no-planes", CLI_FLAG, &no_planes, "do not snap static depth onto the scene's dominant planes (default: snap)" },
+        { "--no-ground", CLI_FLAG, &no_ground, "do not place the floor and the wall by the vertical vanishing point (default: place)" },
         { "--no-movers-front", CLI_FLAG, &no_movers_front, "leave moving blobs behind the still scene they cover where the depth put them (default: bring them in front)" },
+        { "--fov", CLI_FLOAT, &c.fov, "single video: horizontal field of view in degrees (default 60; datasets use their own)" },
         { "--frames", CLI_INT, &c.frames, "use only the first N frames (default: all)" },
         { "--size", CLI_STR, &size, "resize frames and depth to WxH (0 for one side keeps the aspect)" },
         { "--train-cam", CLI_STR, &c.train_camera, "dataset camera, name or index (default: the first)" },
@@ -54,6 +56,7 @@ int cmd_prepare(int argc, char **argv)
     c.align = !no_align;
     c.fuse = !no_fuse;
     c.planes = !no_planes;
+    c.ground = !no_ground;
     c.movers_front = !no_movers_front;
     c.keep_flow_vis = !no_flow_vis;
 

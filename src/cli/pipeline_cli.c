@@ -32,6 +32,7 @@ int pipeline_cli_options(pg_pipeline_config *c, pipeline_cli_text *t, cli_option
         { "--no-align", CLI_FLAG, &t->no_align, "skip temporal scale/shift alignment (ablation)" },
         { "--no-fuse", CLI_FLAG, &t->no_fuse, "keep per-frame depth on static pixels (no temporal median; ablation)" },
         { "--no-planes", CLI_FLAG, &t->no_planes, "do not snap static depth onto the scene's dominant planes (ablation)" },
+        { "--no-ground", CLI_FLAG, &t->no_ground, "do not place the floor and the wall by the vertical vanishing point (ablation)" },
         { "--no-movers-front", CLI_FLAG, &t->no_movers_front, "leave moving blobs where the depth put them, even behind the still scene they cover (ablation)" },
         { "--depth-kind", CLI_STR, &c->depth_kind, "depth (default) or disparity" },
         { "--depth-scale", CLI_FLOAT, &c->depth_scale, "multiply raw depth by S" },
@@ -93,6 +94,7 @@ int pipeline_cli_parse(const cli_spec *spec, int argc, char **argv, pg_pipeline_
     c->align = !t->no_align;
     c->fuse = !t->no_fuse;
     c->planes = !t->no_planes;
+    c->ground = !t->no_ground;
     c->movers_front = !t->no_movers_front;
     c->pose_shift = !t->no_pose_shift;
     size_t len = (size_t)snprintf(t->command, sizeof t->command, "prodygs");

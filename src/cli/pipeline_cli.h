@@ -7,7 +7,7 @@
 
 typedef struct {
     const char *size, *proxies; /* parsed by cli_parse_size / cli_parse_count_or_all */
-    int no_refine, no_align, no_fuse, no_planes, no_movers_front, no_pose_shift;
+    int no_refine, no_align, no_fuse, no_planes, no_ground, no_movers_front, no_pose_shift;
     char command[4096];         /* the command line, recorded in report.md */
     char depth_model[4096];     /* the built-in depth model's path when neither --depth nor --depth-model is given */
 } pipeline_cli_text;

@@ -25,12 +25,14 @@ void depth_prepare_defaults(depth_prepare_options *opt)
     opt->refine = DEPTH_REFINE_EDGE_SNAP;
     opt->align = 1;
     opt->fuse_static = 1;
+    opt->ground = 1;
     opt->snap_planes = 1;
     opt->movers_front = 1;
     opt->min_valid_fraction = 0.01f;
     depth_refine_defaults(&opt->refine_params);
     depth_static_defaults(&opt->static_params);
     depth_align_defaults(&opt->align_params);
+    depth_ground_defaults(&opt->ground_params);
     depth_scene_planes_defaults(&opt->planes_params);
 }
 
@@ -225,6 +227,15 @@ static pg_status prepare_frames(const depth_prepare_options *opt, const pg_image
         if (res->fused_pixels < 0) st = pg_fail(PG_ERR_NOMEM, "depth preparation: out of memory fusing static depth");
     }
 
+    /* 4a. The floor and the wall behind it placed by the camera's vertical direction (ground.h). */
+    if (!st && opt->ground && opt->ground_params.focal > 0) {
+        float *still = pg_malloc(n * sizeof(float), "still scene depth");
+        if (!still || depth_static_reference(res->depth, res->static_masks, F, n, min_static, still) < 0)
+            st = pg_fail(PG_ERR_NOMEM, "depth preparation: out of memory placing the floor");
+        if (!st) st = depth_ground_snap(&opt->ground_params, frames, F, res->depth, res->static_masks, still, W, H, &res->ground);
+        free(still);
+    }
+
     /* 4b. Static depth near a dominant plane of the scene takes the plane's depth (scene_planes.h). */
     if (!st && opt->snap_planes) {
         depth_scene_planes_params pp = opt->planes_params;
@@ -357,6 +368,8 @@ static pg_status write_json(const char *path, const depth_prepare_options *opt, 
     cJSON_AddStringToObject(set, "flow", opt->flow ? opt->flow->name : "tvl1");
     cJSON_AddBoolToObject(set, "align", opt->align);
     cJSON_AddBoolToObject(set, "fuse_static", opt->fuse_static);
+    cJSON_AddBoolToObject(set, "ground", opt->ground);
+    cJSON_AddNumberToObject(set, "focal", opt->ground_params.focal);
     cJSON_AddBoolToObject(set, "snap_planes", opt->snap_planes);
     cJSON_AddBoolToObject(set, "movers_front", opt->movers_front);
     cJSON_AddNumberToObject(set, "plane_tolerance", opt->planes_params.tolerance);
@@ -370,6 +383,21 @@ static pg_status write_json(const char *path, const depth_prepare_options *opt, 
     cJSON_AddNumberToObject(set, "align_iterations", opt->align_params.iterations);
     cJSON_AddBoolToObject(set, "align_fit_shift", opt->align_params.fit_shift);
     cJSON_AddNumberToObject(set, "min_valid_fraction", opt->min_valid_fraction);
+    if (opt->ground) {
+        const depth_ground_result *g = &res->ground;
+        cJSON *o = cJSON_AddObjectToObject(root, "ground");
+        cJSON_AddBoolToObject(o, "found", g->found);
+        cJSON_AddNumberToObject(o, "vanishing_point_share", g->vp_share);
+        cJSON_AddNumberToObject(o, "tilt_deg", g->tilt_deg);
+        cJSON *up = cJSON_AddArrayToObject(o, "up");
+        for (int k = 0; k < 3; k++) cJSON_AddItemToArray(up, cJSON_CreateNumber(g->up[k]));
+        cJSON_AddNumberToObject(o, "height", g->height);
+        cJSON_AddNumberToObject(o, "floor_share", g->floor_share);
+        cJSON_AddNumberToObject(o, "rest_scale", g->rest_scale);
+        cJSON_AddBoolToObject(o, "wall", g->wall);
+        cJSON_AddNumberToObject(o, "wall_span", g->wall_span);
+        cJSON_AddNumberToObject(o, "changed_values", (double)g->changed);
+    }
     if (opt->snap_planes) {
         /* 1/d = a x + b y + c with x, y the pixel centre over the width/height minus 0.5 */
         cJSON *pl = cJSON_AddArrayToObject(root, "planes");

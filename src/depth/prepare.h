@@ -29,6 +29,7 @@
 #include "core/image.h"
 #include "depth/align.h"
 #include "depth/flow.h"
+#include "depth/ground.h"
 #include "depth/movers_front.h"
 #include "depth/refine.h"
 #include "depth/scene_planes.h"
@@ -40,6 +41,8 @@ typedef struct {
     const depth_flow_backend *flow;  /* NULL = built-in TV-L1 */
     int align;                       /* 0: alpha = 1, beta = 0 for every frame (--no-align) */
     int fuse_static;                 /* 1: static pixels take their temporal median (fuse.h; --no-fuse) */
+    int ground;                      /* 1: the floor and the wall placed by the vertical vanishing point
+                                        (ground.h; needs ground_params.focal; --no-ground) */
     int snap_planes;                 /* 1: static depth snapped onto dominant planes (scene_planes.h; --no-planes) */
     int movers_front;                /* 1: moving blobs behind the still scene brought in front (movers_front.h;
                                         --no-movers-front) */
@@ -48,6 +51,7 @@ typedef struct {
     depth_refine_params refine_params;
     depth_static_params static_params;
     depth_align_params align_params;
+    depth_ground_params ground_params;
     depth_scene_planes_params planes_params;
     depth_movers_front_params movers_params; /* min_area 0: the image size's default */
 } depth_prepare_options;
@@ -75,6 +79,7 @@ typedef struct {
     depth_prepare_frame *info;    /* (F) */
     long fused_pixels;            /* pixels given their temporal median (fuse_static) */
     long movers_moved;            /* moving blobs brought in front of the still scene, over all frames */
+    depth_ground_result ground;   /* the floor and wall placed (ground) */
     depth_scene_planes_result planes; /* dominant planes found (snap_planes) */
     signed char *plane_label;     /* (H,W) plane index of each pixel, -1 none (snap_planes) */
     double seconds_refine, seconds_flow, seconds_align, seconds_total;

@@ -61,7 +61,7 @@ void pg_pipeline_defaults(pg_pipeline_config *c)
     c->preset = "fast";
     c->proxies = -1;
     c->pad = -1;
-    c->refine = c->align = c->fuse = c->planes = c->movers_front = c->pose_shift = 1;
+    c->refine = c->align = c->fuse = c->planes = c->ground = c->movers_front = c->pose_shift = 1;
     c->seed = 1;
     c->motion_crops = -1;
     c->views_per_step = train_default_config().views_per_step;
@@ -328,6 +328,8 @@ static pg_status run_prepare(pipeline_run *p, const pipeline_plan *plan, const c
     pc.align = c->align;
     pc.fuse = c->fuse;
     pc.planes = c->planes;
+    pc.ground = c->ground;
+    pc.fov = c->fov;
     pc.movers_front = c->movers_front;
     pc.frames = c->frames;
     pc.width = plan->width;
@@ -523,6 +525,7 @@ static cJSON *config_record(const pg_pipeline_config *c, const pipeline_plan *pl
     cJSON_AddBoolToObject(j, "align", c->align);
     cJSON_AddBoolToObject(j, "fuse", c->fuse);
     cJSON_AddBoolToObject(j, "planes", c->planes);
+    cJSON_AddBoolToObject(j, "ground", c->ground);
     cJSON_AddBoolToObject(j, "movers_front", c->movers_front);
     cJSON_AddNumberToObject(j, "iters", plan->iters);
     cJSON_AddNumberToObject(j, "frames", c->frames);

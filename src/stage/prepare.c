@@ -26,6 +26,7 @@ void pg_prepare_defaults(pg_prepare_config *c)
     c->align = 1;
     c->fuse = 1;
     c->planes = 1;
+    c->ground = 1;
     c->movers_front = 1;
     c->keep_flow_vis = 1;
 }
@@ -40,6 +41,8 @@ cJSON *stage_prepare_config_json(const pg_prepare_config *c)
     cJSON_AddBoolToObject(j, "align", c->align);
     cJSON_AddBoolToObject(j, "fuse", c->fuse);
     cJSON_AddBoolToObject(j, "planes", c->planes);
+    cJSON_AddBoolToObject(j, "ground", c->ground);
+    cJSON_AddNumberToObject(j, "fov", c->fov);
     cJSON_AddBoolToObject(j, "movers_front", c->movers_front);
     cJSON_AddNumberToObject(j, "frames", c->frames);
     cJSON_AddNumberToObject(j, "width", c->width);
@@ -67,6 +70,7 @@ static pg_status check_config(const pg_prepare_config *c, io_depth_kind *kind, d
     popt->align = c->align;
     popt->fuse_static = c->fuse;
     popt->snap_planes = c->planes;
+    popt->ground = c->ground;
     popt->movers_front = c->movers_front;
     popt->keep_flow = c->keep_flow_vis;
     return PG_OK;
@@ -161,6 +165,7 @@ static pg_status prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
     dopt.width = c->width;
     dopt.height = c->height;
     dopt.count = c->frames;
+    if (c->fov > 0) dopt.fov_deg = c->fov;
     PG_TRY(io_dataset_open(c->input, &dopt, &ds));
     int cam = 0;
     if (c->train_camera && io_dataset_resolve_camera(ds, c->train_camera, &cam) != PG_OK) {
@@ -175,6 +180,9 @@ static pg_status prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
         return begun;
     }
     const int F = io_dataset_num_frames(ds), W = io_dataset_width(ds), H = io_dataset_height(ds);
+    pg_camera camera;
+    io_dataset_camera(ds, cam, &camera);
+    popt.ground_params.focal = camera.fx * (float)W / (float)camera.width; /* the floor needs the focal length */
     pg_image *frames = calloc((size_t)(F > 0 ? F : 1), sizeof(pg_image));
     io_depth depth;
     memset(&depth, 0, sizeof depth);

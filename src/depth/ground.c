@@ -1,0 +1,491 @@
+/* ground.c - the floor and the wall behind it from the vertical vanishing point (see ground.h). */
+#include "depth/ground.h"
+
+#include "core/rng.h"
+#include "depth/plane.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define STILL_FRAMES 15
+#define VP_SAMPLES 2000
+#define VP_INLIER_DEG 1.5
+#define WALL_SAMPLES 500
+/* the floor lies at least this far below the horizon (up . ray, about 1 degree) */
+#define BELOW_HORIZON 0.02
+/* the floor's colour: the bottom rows' pixels within this of their dominant colour (per channel) */
+#define SEED_RADIUS 0.15
+/* pixels a floor column's top may climb on the sharper image */
+#define EDGE_CLIMB 4
+
+void depth_ground_defaults(depth_ground_params *p)
+{
+    p->focal = 0;
+    p->min_vp_share = 0.15f;
+    p->max_tilt_deg = 60;
+    p->colour_sigma = 3;
+    p->min_floor_share = 0.1f;
+    p->wall_tolerance = 0.02f;
+    p->wall_min_span = 0.4f;
+    p->wall_band = 0.35f;
+    p->seed = 1;
+}
+
+typedef struct {
+    float x, y;   /* normalised camera coordinates ((u - cx) / f, (v - cy) / f) */
+    float a, b;   /* unit normal of the edge (the gradient direction) */
+    float w;      /* gradient magnitude */
+} edgel;
+
+static int cmp_float(const void *a, const void *b)
+{
+    float x = *(const float *)a, y = *(const float *)b;
+    return (x > y) - (x < y);
+}
+
+static float median_of(float *v, size_t n)
+{
+    if (!n) return 0;
+    qsort(v, n, sizeof *v, cmp_float);
+    return n % 2 ? v[n / 2] : 0.5f * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* The per-pixel median colour of up to STILL_FRAMES evenly spaced frames: the still scene. */
+static void still_image(const pg_image *frames, int F, size_t n, float *rgb)
+{
+    int k = F < STILL_FRAMES ? F : STILL_FRAMES;
+    float v[STILL_FRAMES];
+    for (size_t i = 0; i < n; i++)
+        for (int c = 0; c < 3; c++) {
+            for (int j = 0; j < k; j++) v[j] = frames[k > 1 ? (long)j * (F - 1) / (k - 1) : 0].data[i * 3 + c];
+            rgb[i * 3 + c] = median_of(v, (size_t)k);
+        }
+}
+
+/* Is the edge through e pointing at the homogeneous point v (within VP_INLIER_DEG)? */
+static int points_at(const edgel *e, const double v[3], double cos_tol)
+{
+    double dx = v[0] - e->x * v[2], dy = v[1] - e->y * v[2];
+    double len = sqrt(dx * dx + dy * dy);
+    return len > 0 && fabs(-e->b * dx + e->a * dy) > cos_tol * len;
+}
+
+static void cross3(const double a[3], const double b[3], double out[3])
+{
+    out[0] = a[1] * b[2] - a[2] * b[1];
+    out[1] = a[2] * b[0] - a[0] * b[2];
+    out[2] = a[0] * b[1] - a[1] * b[0];
+}
+
+/* The eigenvector of the symmetric 3x3 M with the smallest eigenvalue, by inverse iteration
+ * from v (the RANSAC estimate, close to it). */
+static void smallest_eigenvector(const double M[9], double v[3])
+{
+    double tr = M[0] + M[4] + M[8], A[9];
+    memcpy(A, M, sizeof A);
+    for (int k = 0; k < 3; k++) A[k * 4] += 1e-9 * tr + 1e-300;
+    double c0 = A[4] * A[8] - A[5] * A[7], c1 = A[5] * A[6] - A[3] * A[8], c2 = A[3] * A[7] - A[4] * A[6];
+    double det = A[0] * c0 + A[1] * c1 + A[2] * c2;
+    if (fabs(det) < 1e-300) return;
+    double inv[9] = { c0, A[2] * A[7] - A[1] * A[8], A[1] * A[5] - A[2] * A[4],
+                      c1, A[0] * A[8] - A[2] * A[6], A[2] * A[3] - A[0] * A[5],
+                      c2, A[1] * A[6] - A[0] * A[7], A[0] * A[4] - A[1] * A[3] };
+    for (int it = 0; it < 30; it++) {
+        double w[3];
+        for (int r = 0; r < 3; r++) w[r] = (inv[r * 3] * v[0] + inv[r * 3 + 1] * v[1] + inv[r * 3 + 2] * v[2]) / det;
+        double nrm = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+        if (!(nrm > 0)) return;
+        for (int r = 0; r < 3; r++) v[r] = w[r] / nrm;
+    }
+}
+
+/* The vertical vanishing point as a unit direction in camera coordinates, from the
+ * near-vertical edges of the grey still image. Returns the inliers' share of the edge weight. */
+static double vertical_vanishing_point(const float *grey, int W, int H, double f, pg_rng *rng, double dir[3])
+{
+    size_t n = (size_t)W * H, m = 0;
+    float *mag = malloc(n * sizeof *mag);
+    edgel *e = malloc(n * sizeof *e);
+    double share = 0;
+    if (!mag || !e) goto done;
+    for (int y = 1; y < H - 1; y++)
+        for (int x = 1; x < W - 1; x++) {
+            const float *g = grey + (size_t)y * W + x;
+            float gx = (g[1 - W] + 2 * g[1] + g[1 + W] - g[-1 - W] - 2 * g[-1] - g[-1 + W]) / 8;
+            float gy = (g[W - 1] + 2 * g[W] + g[W + 1] - g[-W - 1] - 2 * g[-W] - g[-W + 1]) / 8;
+            mag[m] = hypotf(gx, gy);
+            e[m] = (edgel){ (float)((x + 0.5 - 0.5 * W) / f), (float)((y + 0.5 - 0.5 * H) / f), gx, gy, mag[m] };
+            m++;
+        }
+    /* strong edges (the top fifth, at least 0.01 per pixel) whose direction is within 35 degrees
+     * of the image's vertical */
+    float *sorted = malloc(m * sizeof *sorted);
+    if (!sorted) goto done;
+    memcpy(sorted, mag, m * sizeof *sorted);
+    qsort(sorted, m, sizeof *sorted, cmp_float);
+    float thr = sorted[m * 4 / 5] > 0.01f ? sorted[m * 4 / 5] : 0.01f;
+    free(sorted);
+    size_t k = 0;
+    double total = 0;
+    const double sin35 = sin(35 * 3.14159265358979 / 180);
+    for (size_t i = 0; i < m; i++) {
+        if (!(e[i].w > thr)) continue;
+        float a = e[i].a / e[i].w, b = e[i].b / e[i].w;
+        if (fabs(b) >= sin35) continue; /* the edge runs along (-b, a): near vertical when |b| is small */
+        e[k] = e[i];
+        e[k].a = a, e[k].b = b;
+        total += e[k].w;
+        k++;
+    }
+    if (k < 50) goto done;
+    const double cos_tol = cos(VP_INLIER_DEG * 3.14159265358979 / 180), min_dx = 0.125 * W / f;
+    double best = 0, v[3] = { 0, 1, 0 };
+    for (int s = 0; s < VP_SAMPLES; s++) {
+        const edgel *p = &e[pg_rng_below(rng, (uint32_t)k)], *q = &e[pg_rng_below(rng, (uint32_t)k)];
+        if (fabs(p->x - q->x) < min_dx) continue;
+        double l1[3] = { p->a, p->b, -(p->a * p->x + p->b * p->y) }, l2[3] = { q->a, q->b, -(q->a * q->x + q->b * q->y) }, c[3];
+        cross3(l1, l2, c);
+        double score = 0;
+        for (size_t i = 0; i < k; i++)
+            if (points_at(&e[i], c, cos_tol)) score += e[i].w;
+        if (score > best) best = score, memcpy(v, c, sizeof v);
+    }
+    /* least squares on the inliers: the point closest to all their lines */
+    for (int round = 0; round < 3 && best > 0; round++) {
+        double nv = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]), M[9] = { 0 };
+        for (int r = 0; r < 3; r++) v[r] /= nv;
+        best = 0;
+        for (size_t i = 0; i < k; i++) {
+            if (!points_at(&e[i], v, cos_tol)) continue;
+            double l[3] = { e[i].a, e[i].b, -(e[i].a * e[i].x + e[i].b * e[i].y) };
+            for (int r = 0; r < 3; r++)
+                for (int c = 0; c < 3; c++) M[r * 3 + c] += e[i].w * l[r] * l[c];
+            best += e[i].w;
+        }
+        smallest_eigenvector(M, v);
+    }
+    share = total > 0 ? best / total : 0;
+    memcpy(dir, v, sizeof v);
+done:
+    free(mag);
+    free(e);
+    return share;
+}
+
+/* Max (grow = 1) or min (grow = 0) of a mask over a (2r+1)^2 square, separably. */
+static void square_morph(unsigned char *m, unsigned char *tmp, int W, int H, int r, int grow)
+{
+    for (int pass = 0; pass < 2; pass++) {
+        const unsigned char *src = pass ? tmp : m;
+        unsigned char *dst = pass ? m : tmp;
+        for (int y = 0; y < H; y++)
+            for (int x = 0; x < W; x++) {
+                int v = grow ? 0 : 1;
+                for (int d = -r; d <= r; d++) {
+                    int xx = pass ? x : x + d, yy = pass ? y + d : y;
+                    if (xx < 0 || yy < 0 || xx >= W || yy >= H) continue;
+                    int s = src[(size_t)yy * W + xx];
+                    v = grow ? (v | s) : (v & s);
+                }
+                dst[(size_t)y * W + x] = (unsigned char)v;
+            }
+    }
+}
+
+/* Mahalanobis distance squared of colour v from mean under the inverse covariance inv. */
+static double colour_distance(const float *v, const double mean[3], const double inv[9])
+{
+    double d[3] = { v[0] - mean[0], v[1] - mean[1], v[2] - mean[2] }, q = 0;
+    for (int r = 0; r < 3; r++) q += d[r] * (inv[r * 3] * d[0] + inv[r * 3 + 1] * d[1] + inv[r * 3 + 2] * d[2]);
+    return q;
+}
+
+/* The floor: grown from the bottom rows through pixels of their colour (Mahalanobis distance in
+ * the still image blurred by sigma 2, which the texture does not break), below the horizon;
+ * closed over 5x5 so the texture leaves no holes. The blur stops the region a few pixels short
+ * of a wall's foot, where a pixel's depth changes fastest: each column's top then climbs up to
+ * EDGE_CLIMB pixels while the less blurred image (rgb1) is still the floor's colour. */
+static double grow_floor(const float *rgb, const float *rgb1, const float *below, int W, int H, float sigma, unsigned char *is_floor)
+{
+    memset(is_floor, 0, (size_t)W * H);
+    size_t n = (size_t)W * H, seeds = 0, kept = 0;
+    int y0 = H - (H + 15) / 16;
+    float *seed = malloc((size_t)W * (H - y0) * 3 * sizeof *seed), *chan = malloc((size_t)W * (H - y0) * sizeof *chan);
+    if (!seed || !chan) {
+        free(seed);
+        free(chan);
+        return -1;
+    }
+    for (int y = y0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            size_t i = (size_t)y * W + x;
+            if (below[i] > -BELOW_HORIZON) continue;
+            memcpy(seed + seeds * 3, rgb + i * 3, 3 * sizeof *seed);
+            seeds++;
+        }
+    /* the bottom rows' dominant colour: from the median, three rounds of the mean of the seeds
+     * within SEED_RADIUS of it (a table or a person there is not the floor) */
+    double mean[3] = { 0 }, cov[9] = { 0 };
+    for (int c = 0; c < 3; c++) {
+        for (size_t s = 0; s < seeds; s++) chan[s] = seed[s * 3 + c];
+        mean[c] = median_of(chan, seeds);
+    }
+    for (int round = 0; round < 3 && seeds; round++) {
+        double sum[3] = { 0 };
+        kept = 0;
+        for (size_t s = 0; s < seeds; s++) {
+            const float *v = seed + s * 3;
+            if (fabs(v[0] - mean[0]) > SEED_RADIUS || fabs(v[1] - mean[1]) > SEED_RADIUS || fabs(v[2] - mean[2]) > SEED_RADIUS) continue;
+            for (int c = 0; c < 3; c++) sum[c] += v[c];
+            kept++;
+        }
+        for (int c = 0; c < 3 && kept; c++) mean[c] = sum[c] / (double)kept;
+    }
+    for (size_t s = 0; s < seeds && kept; s++) {
+        const float *v = seed + s * 3;
+        if (fabs(v[0] - mean[0]) > SEED_RADIUS || fabs(v[1] - mean[1]) > SEED_RADIUS || fabs(v[2] - mean[2]) > SEED_RADIUS) continue;
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 3; c++) cov[r * 3 + c] += (v[r] - mean[r]) * (v[c] - mean[c]) / (double)kept;
+    }
+    free(seed);
+    free(chan);
+    if (seeds < (size_t)W || kept < seeds / 2) return 0; /* no floor colour holds most of the bottom rows */
+    for (int c = 0; c < 3; c++) cov[c * 4] += 1e-4;
+    double c0 = cov[4] * cov[8] - cov[5] * cov[7], c1 = cov[5] * cov[6] - cov[3] * cov[8], c2 = cov[3] * cov[7] - cov[4] * cov[6];
+    double det = cov[0] * c0 + cov[1] * c1 + cov[2] * c2;
+    double inv[9] = { c0 / det, (cov[2] * cov[7] - cov[1] * cov[8]) / det, (cov[1] * cov[5] - cov[2] * cov[4]) / det,
+                      c1 / det, (cov[0] * cov[8] - cov[2] * cov[6]) / det, (cov[2] * cov[3] - cov[0] * cov[5]) / det,
+                      c2 / det, (cov[1] * cov[6] - cov[0] * cov[7]) / det, (cov[0] * cov[4] - cov[1] * cov[3]) / det };
+    size_t *queue = malloc(n * sizeof *queue);
+    unsigned char *tmp = malloc(n);
+    if (!queue || !tmp) {
+        free(queue);
+        free(tmp);
+        return -1;
+    }
+    /* candidates: 1; reached from a seed: 2 */
+    for (size_t i = 0; i < n; i++) is_floor[i] = colour_distance(rgb + i * 3, mean, inv) < (double)sigma * sigma && below[i] <= -BELOW_HORIZON;
+    size_t head = 0, tail = 0;
+    for (int y = y0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            size_t i = (size_t)y * W + x;
+            if (is_floor[i] == 1) is_floor[i] = 2, queue[tail++] = i;
+        }
+    while (head < tail) {
+        size_t i = queue[head++];
+        int x = (int)(i % W), y = (int)(i / W);
+        size_t nb[4] = { i - 1, i + 1, i - W, i + W };
+        int ok[4] = { x > 0, x < W - 1, y > 0, y < H - 1 };
+        for (int k = 0; k < 4; k++)
+            if (ok[k] && is_floor[nb[k]] == 1) is_floor[nb[k]] = 2, queue[tail++] = nb[k];
+    }
+    for (size_t i = 0; i < n; i++) is_floor[i] = is_floor[i] == 2;
+    square_morph(is_floor, tmp, W, H, 2, 1);
+    square_morph(is_floor, tmp, W, H, 2, 0);
+    for (size_t i = 0; i < n; i++) is_floor[i] = is_floor[i] && below[i] <= -BELOW_HORIZON;
+    for (int x = 0; x < W; x++)
+        for (int y = 1; y < H; y++) {
+            size_t i = (size_t)y * W + x;
+            if (!is_floor[i] || is_floor[i - W]) continue;
+            for (int k = 1; k <= EDGE_CLIMB && y - k >= 0; k++) {
+                size_t j = (size_t)(y - k) * W + x;
+                if (is_floor[j] || below[j] > -BELOW_HORIZON || colour_distance(rgb1 + j * 3, mean, inv) >= 4.0 * sigma * sigma) break;
+                is_floor[j] = 3; /* climbed: not a start for this column's next climb */
+            }
+        }
+    size_t count = 0;
+    for (size_t i = 0; i < n; i++) {
+        is_floor[i] = is_floor[i] != 0;
+        count += is_floor[i];
+    }
+    free(queue);
+    free(tmp);
+    return (double)count / (double)n;
+}
+
+/* The vertical plane standing on the floor's top edge, when that edge is a straight line in 3D:
+ * RANSAC over the contact points in the floor plane's coordinates, then a total least squares
+ * refit. Writes its depth per pixel (0 where it is behind the camera); returns the inliers' span
+ * as a share of the width, 0 if there is no such line. */
+static double wall_plane(const int *top, const float *floor_depth, int W, int H, double f, const double up[3], const depth_ground_params *p,
+                         pg_rng *rng, float *wall_depth)
+{
+    double e1[3] = { up[1], -up[0], 0 }, e2[3];
+    double l1 = sqrt(e1[0] * e1[0] + e1[1] * e1[1]);
+    if (!(l1 > 1e-6)) return 0;
+    e1[0] /= l1, e1[1] /= l1;
+    cross3(up, e1, e2);
+    double *P = malloc((size_t)W * 3 * sizeof *P), *Q = malloc((size_t)W * 2 * sizeof *Q);
+    int *col = malloc((size_t)W * sizeof *col), m = 0;
+    double span = 0;
+    if (!P || !Q || !col) goto done;
+    for (int x = 0; x < W; x++) {
+        if (top[x] < 0) continue;
+        double z = floor_depth[(size_t)top[x] * W + x], *X = P + (size_t)m * 3;
+        X[0] = (x + 0.5 - 0.5 * W) / f * z, X[1] = (top[x] + 0.5 - 0.5 * H) / f * z, X[2] = z;
+        Q[m * 2] = X[0] * e1[0] + X[1] * e1[1] + X[2] * e1[2];
+        Q[m * 2 + 1] = X[0] * e2[0] + X[1] * e2[1] + X[2] * e2[2];
+        col[m++] = x;
+    }
+    if (m < W / 4) goto done;
+    int best = 0;
+    double bn[2] = { 0, 0 }, bq[2] = { 0, 0 };
+    for (int s = 0; s < WALL_SAMPLES; s++) {
+        int i = (int)pg_rng_below(rng, (uint32_t)m), j = (int)pg_rng_below(rng, (uint32_t)m);
+        if (abs(col[i] - col[j]) < W / 6) continue;
+        double dx = Q[j * 2] - Q[i * 2], dy = Q[j * 2 + 1] - Q[i * 2 + 1], len = sqrt(dx * dx + dy * dy);
+        if (!(len > 0)) continue;
+        double nx = -dy / len, ny = dx / len;
+        int count = 0;
+        for (int k = 0; k < m; k++) {
+            const double *X = P + (size_t)k * 3;
+            double dist = fabs((Q[k * 2] - Q[i * 2]) * nx + (Q[k * 2 + 1] - Q[i * 2 + 1]) * ny);
+            count += dist < p->wall_tolerance * sqrt(X[0] * X[0] + X[1] * X[1] + X[2] * X[2]);
+        }
+        if (count > best) best = count, bn[0] = nx, bn[1] = ny, bq[0] = Q[i * 2], bq[1] = Q[i * 2 + 1];
+    }
+    if (best < W / 4) goto done;
+    /* total least squares over the inliers: the line through their mean along their main axis */
+    double mq[2] = { 0, 0 }, sxx = 0, sxy = 0, syy = 0;
+    int lo = W, hi = -1, cnt = 0;
+    for (int k = 0; k < m; k++) {
+        const double *X = P + (size_t)k * 3;
+        double dist = fabs((Q[k * 2] - bq[0]) * bn[0] + (Q[k * 2 + 1] - bq[1]) * bn[1]);
+        if (!(dist < p->wall_tolerance * sqrt(X[0] * X[0] + X[1] * X[1] + X[2] * X[2]))) continue;
+        mq[0] += Q[k * 2], mq[1] += Q[k * 2 + 1], cnt++;
+        lo = col[k] < lo ? col[k] : lo, hi = col[k] > hi ? col[k] : hi;
+    }
+    mq[0] /= cnt, mq[1] /= cnt;
+    for (int k = 0; k < m; k++) {
+        const double *X = P + (size_t)k * 3;
+        double dist = fabs((Q[k * 2] - bq[0]) * bn[0] + (Q[k * 2 + 1] - bq[1]) * bn[1]);
+        if (!(dist < p->wall_tolerance * sqrt(X[0] * X[0] + X[1] * X[1] + X[2] * X[2]))) continue;
+        double a = Q[k * 2] - mq[0], b = Q[k * 2 + 1] - mq[1];
+        sxx += a * a, sxy += a * b, syy += b * b;
+    }
+    double angle = 0.5 * atan2(2 * sxy, sxx - syy); /* the main axis */
+    double nx = -sin(angle), ny = cos(angle);
+    span = (double)(hi - lo) / W;
+    if (span < p->wall_min_span) {
+        span = 0;
+        goto done;
+    }
+    double wn[3], wd;
+    for (int r = 0; r < 3; r++) wn[r] = nx * e1[r] + ny * e2[r];
+    wd = mq[0] * nx + mq[1] * ny; /* wn . X for X on the wall (e1, e2 orthonormal) */
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            double den = wn[0] * (x + 0.5 - 0.5 * W) / f + wn[1] * (y + 0.5 - 0.5 * H) / f + wn[2];
+            double z = fabs(den) > 1e-9 ? wd / den : 0;
+            wall_depth[(size_t)y * W + x] = z > 0 ? (float)z : 0.0f;
+        }
+done:
+    free(P);
+    free(Q);
+    free(col);
+    return span;
+}
+
+pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames, int F, float *depth,
+                            const unsigned char *static_masks, const float *still, int W, int H, depth_ground_result *res)
+{
+    memset(res, 0, sizeof *res);
+    if (!(p->focal > 0) || F < 1 || W < 16 || H < 16) return PG_OK;
+    const size_t n = (size_t)W * H;
+    const double f = p->focal;
+    pg_status st = PG_OK;
+    float *rgb = malloc(n * 3 * sizeof *rgb), *rgb2 = malloc(n * 3 * sizeof *rgb2), *grey = malloc(n * sizeof *grey), *tmp = malloc(n * sizeof *tmp);
+    float *below = malloc(n * sizeof *below), *floor_depth = malloc(n * sizeof *floor_depth);
+    float *wall_depth = calloc(n, sizeof *wall_depth), *ratios = malloc(n * sizeof *ratios);
+    unsigned char *is_floor = malloc(n);
+    int *top = malloc((size_t)W * sizeof *top);
+    if (!rgb || !rgb2 || !grey || !tmp || !below || !floor_depth || !wall_depth || !ratios || !is_floor || !top) {
+        st = PG_ERR_NOMEM;
+        goto done;
+    }
+    pg_rng rng;
+    pg_rng_seed(&rng, p->seed);
+    still_image(frames, F, n, rgb);
+    for (size_t i = 0; i < n; i++) grey[i] = (rgb[i * 3] + rgb[i * 3 + 1] + rgb[i * 3 + 2]) / 3;
+    depth_plane_gaussian_blur(grey, W, H, 1.0f, tmp, grey);
+    double dir[3] = { 0, 0, 0 };
+    res->vp_share = vertical_vanishing_point(grey, W, H, f, &rng, dir);
+    double len = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+    if (!(res->vp_share >= p->min_vp_share) || !(len > 0)) goto done;
+    double sgn = dir[1] < 0 ? 1 / len : -1 / len; /* up points to the image's top (-y) */
+    for (int r = 0; r < 3; r++) res->up[r] = dir[r] * sgn;
+    res->tilt_deg = acos(-res->up[1] < 1 ? -res->up[1] : 1) * 180 / 3.14159265358979;
+    if (!(res->tilt_deg <= p->max_tilt_deg)) goto done;
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++)
+            below[(size_t)y * W + x] = (float)(res->up[0] * (x + 0.5 - 0.5 * W) / f + res->up[1] * (y + 0.5 - 0.5 * H) / f + res->up[2]);
+    for (int c = 0; c < 3; c++) {
+        for (size_t i = 0; i < n; i++) grey[i] = rgb[i * 3 + c];
+        depth_plane_gaussian_blur(grey, W, H, 1.0f, tmp, grey);
+        for (size_t i = 0; i < n; i++) rgb[i * 3 + c] = grey[i];
+        depth_plane_gaussian_blur(grey, W, H, 1.7f, tmp, grey); /* sigma 2 in all */
+        for (size_t i = 0; i < n; i++) rgb2[i * 3 + c] = grey[i];
+    }
+    res->floor_share = grow_floor(rgb2, rgb, below, W, H, p->colour_sigma, is_floor);
+    if (res->floor_share < 0) {
+        st = PG_ERR_NOMEM;
+        goto done;
+    }
+    if (res->floor_share < p->min_floor_share) goto done;
+    /* the height that the still depth implies over the floor: z = h / (-up . ray) */
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++)
+        if (is_floor[i] && still[i] > 0) ratios[m++] = logf(still[i] * -below[i]);
+    if (m < n / 20) goto done;
+    res->height = exp(median_of(ratios, m));
+    for (size_t i = 0; i < n; i++) floor_depth[i] = below[i] < 0 ? (float)(res->height / -below[i]) : 0.0f;
+    /* the floor's top edge in each column (the floor run that starts in the bottom rows), and the
+     * factor that makes what stands there meet it */
+    m = 0;
+    for (int x = 0; x < W; x++) {
+        int y = H - 1;
+        while (y > H - 8 && !is_floor[(size_t)y * W + x]) y--;
+        top[x] = -1;
+        if (!is_floor[(size_t)y * W + x]) continue;
+        while (y > 0 && is_floor[(size_t)(y - 1) * W + x]) y--;
+        top[x] = y;
+        size_t above = (size_t)(y - 1) * W + x;
+        if (y > 0 && still[above] > 0) ratios[m++] = logf(floor_depth[(size_t)y * W + x] / still[above]);
+    }
+    res->rest_scale = m >= (size_t)W / 8 ? exp(median_of(ratios, m)) : 1.0;
+    res->wall_span = wall_plane(top, floor_depth, W, H, f, res->up, p, &rng, wall_depth);
+    res->wall = res->wall_span > 0;
+    res->found = 1;
+    const float q = (float)res->rest_scale, band = p->wall_band;
+    for (int t = 0; t < F; t++) {
+        float *d = depth + (size_t)t * n;
+        const unsigned char *s = static_masks + (size_t)t * n;
+        for (int y = 0; y < H; y++)
+            for (int x = 0; x < W; x++) {
+                size_t i = (size_t)y * W + x;
+                float v = d[i], o = v;
+                if (!(v > 0)) continue;
+                if (is_floor[i] && s[i]) {
+                    v = floor_depth[i];
+                } else {
+                    v *= q;
+                    float w = wall_depth[i];
+                    if (res->wall && s[i] && !is_floor[i] && top[x] > y && w > 0 && (fabsf(logf(v / w)) < band || v > w)) v = w;
+                }
+                if (v != o) d[i] = v, res->changed++;
+            }
+    }
+done:
+    free(rgb);
+    free(rgb2);
+    free(grey);
+    free(tmp);
+    free(below);
+    free(floor_depth);
+    free(wall_depth);
+    free(ratios);
+    free(is_floor);
+    free(top);
+    return st;
+}

@@ -1,0 +1,181 @@
+/* test_depth_ground.c - the floor and the wall placed by the vertical vanishing point (ground.h):
+ * a camera pitched down 20 degrees sees a striped wall standing on a textured floor; the given
+ * depth has the floor nearly flat and the wall turned (as FastDepth draws tabletop_dev). The stage
+ * must find the pitch, put both surfaces within 2 % of the truth and leave moving pixels to the
+ * rest's factor; with no vertical edges, a floor of no single colour or no focal length it must
+ * change nothing. */
+#include "testlib.h"
+#include "depth/ground.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum { W = 160, H = 120, F = 3 };
+#define FOCAL 140.0
+#define PITCH_DEG 20.0
+#define CAMERA_HEIGHT 1.5
+#define WALL_DISTANCE 6.0
+
+enum { SCENE_ROOM, SCENE_NO_VERTICALS, SCENE_MOTLEY_FLOOR };
+
+/* The true depth and colour of every pixel: the floor up . X = -height and the wall
+ * forward . X = distance, up and forward horizontal as seen by the pitched camera. */
+static void render_room(int scene, float *truth, unsigned char *is_floor, pg_image *img)
+{
+    const double p = PITCH_DEG * 3.14159265358979 / 180;
+    const double up[3] = { 0, -cos(p), -sin(p) }, fwd[3] = { 0, -sin(p), cos(p) };
+    for (int v = 0; v < H; v++)
+        for (int u = 0; u < W; u++) {
+            double r[3] = { (u + 0.5 - W / 2.0) / FOCAL, (v + 0.5 - H / 2.0) / FOCAL, 1 };
+            double du = up[0] * r[0] + up[1] * r[1] + up[2] * r[2], df = fwd[0] * r[0] + fwd[1] * r[1] + fwd[2] * r[2];
+            double zf = du < 0 ? CAMERA_HEIGHT / -du : 1e9, zw = df > 0 ? WALL_DISTANCE / df : 1e9;
+            size_t k = (size_t)v * W + u;
+            float *c = img->data + k * 3;
+            if (zf < zw) {
+                /* the floor: yellow with waves across the view (no vertical lines) */
+                double along = zf * df, across = zf * r[0];
+                double wave = 0.5 + 0.5 * sin(along * 9 + 0.8 * sin(across * 3));
+                c[0] = 0.9f, c[1] = (float)(0.7 + 0.15 * wave), c[2] = (float)(0.2 + 0.1 * wave);
+                static const float motley[4][3] = { { 0.9f, 0.8f, 0.25f }, { 0.1f, 0.3f, 0.9f }, { 0.2f, 0.8f, 0.3f }, { 0.6f, 0.1f, 0.5f } };
+                int cell = ((int)floor(across * 2) + 2 * (int)floor(along * 2)) & 3;
+                if (scene == SCENE_MOTLEY_FLOOR) memcpy(c, motley[cell], sizeof motley[cell]);
+                truth[k] = (float)zf, is_floor[k] = 1;
+            } else {
+                /* the wall: vertical pink and white stripes (or horizontal bands) */
+                double x = zw * r[0], height = -zw * du;
+                double s = scene == SCENE_NO_VERTICALS ? sin(height * 12) : sin(x * 14 + 0.5 * sin(x * 2));
+                float t = (float)(0.5 + 0.5 * tanh(2 * s)); /* soft edges, as a camera draws them */
+                c[0] = 0.95f, c[1] = 0.55f + 0.4f * t, c[2] = 0.55f + 0.4f * t;
+                truth[k] = (float)zw, is_floor[k] = 0;
+            }
+        }
+}
+
+/* A monocular network's idea of it: the floor almost one depth, the wall turned. */
+static void network_depth(const float *truth, const unsigned char *is_floor, float *d)
+{
+    for (int v = 0; v < H; v++)
+        for (int u = 0; u < W; u++) {
+            size_t k = (size_t)v * W + u;
+            double x = (u + 0.5) / W - 0.5;
+            d[k] = is_floor[k] ? (float)(2.0 * pow(truth[k], 0.3)) : (float)(0.6 * truth[k] * exp(0.4 * x));
+        }
+}
+
+/* Median |log(d / truth)| over the pixels of one surface, the global scale removed. */
+static double surface_error(const float *d, const float *truth, const unsigned char *is_floor, int which, double log_scale)
+{
+    size_t n = (size_t)W * H, m = 0;
+    double *e = malloc(n * sizeof *e);
+    for (size_t i = 0; i < n; i++)
+        if (is_floor[i] == which) e[m++] = fabs(log(d[i] / truth[i]) - log_scale);
+    for (size_t i = 1; i < m; i++)
+        for (size_t j = i; j > 0 && e[j - 1] > e[j]; j--) {
+            double t = e[j];
+            e[j] = e[j - 1], e[j - 1] = t;
+        }
+    double med = m ? e[m / 2] : 1e9;
+    free(e);
+    return med;
+}
+
+static double median_log_ratio(const float *d, const float *truth)
+{
+    size_t n = (size_t)W * H;
+    double *e = malloc(n * sizeof *e);
+    for (size_t i = 0; i < n; i++) e[i] = log(d[i] / truth[i]);
+    for (size_t i = 1; i < n; i++)
+        for (size_t j = i; j > 0 && e[j - 1] > e[j]; j--) {
+            double t = e[j];
+            e[j] = e[j - 1], e[j - 1] = t;
+        }
+    double med = e[n / 2];
+    free(e);
+    return med;
+}
+
+typedef struct {
+    pg_image frames[F];
+    float truth[W * H], still[W * H], depth[F * W * H];
+    unsigned char is_floor[W * H], static_masks[F * W * H];
+} room;
+
+static room *make_room(int scene)
+{
+    room *r = calloc(1, sizeof *r);
+    for (int t = 0; t < F; t++) pg_image_create(&r->frames[t], W, H, 3);
+    render_room(scene, r->truth, r->is_floor, &r->frames[0]);
+    for (int t = 1; t < F; t++) memcpy(r->frames[t].data, r->frames[0].data, sizeof(float) * 3 * W * H);
+    network_depth(r->truth, r->is_floor, r->still);
+    for (int t = 0; t < F; t++) memcpy(r->depth + (size_t)t * W * H, r->still, sizeof r->still);
+    memset(r->static_masks, 1, sizeof r->static_masks);
+    return r;
+}
+
+static void free_room(room *r)
+{
+    for (int t = 0; t < F; t++) pg_image_destroy(&r->frames[t]);
+    free(r);
+}
+
+static void test_room(void)
+{
+    room *r = make_room(SCENE_ROOM);
+    /* frame 2 has a "mover": 10 x 10 pixels in the floor that are not static */
+    for (int v = 90; v < 100; v++)
+        for (int u = 70; u < 80; u++) r->static_masks[2 * W * H + v * W + u] = 0;
+    double s0 = median_log_ratio(r->depth, r->truth);
+    double floor_before = surface_error(r->depth, r->truth, r->is_floor, 1, s0);
+    double wall_before = surface_error(r->depth, r->truth, r->is_floor, 0, s0);
+    depth_ground_params p;
+    depth_ground_defaults(&p);
+    p.focal = (float)FOCAL;
+    depth_ground_result res;
+    CHECK_OK(depth_ground_snap(&p, r->frames, F, r->depth, r->static_masks, r->still, W, H, &res));
+    CHECK(res.found, "res.found");
+    CHECK(fabs(res.tilt_deg - PITCH_DEG) < 1.0, "tilt %.2f deg, true %.0f", res.tilt_deg, PITCH_DEG);
+    CHECK(res.wall, "res.wall");
+    CHECK(res.floor_share > 0.4 && res.floor_share < 0.8, "res.floor_share > 0.4 && res.floor_share < 0.8");
+    double s1 = median_log_ratio(r->depth, r->truth);
+    double floor_after = surface_error(r->depth, r->truth, r->is_floor, 1, s1);
+    double wall_after = surface_error(r->depth, r->truth, r->is_floor, 0, s1);
+    printf("ground: tilt %.2f deg (true %.0f), vp share %.2f, floor %.2f of the image, rest x%.3f, wall span %.2f\n", res.tilt_deg,
+           PITCH_DEG, res.vp_share, res.floor_share, res.rest_scale, res.wall_span);
+    printf("ground: median |log error| floor %.4f -> %.4f, wall %.4f -> %.4f\n", floor_before, floor_after, wall_before, wall_after);
+    CHECK(floor_before > 0.1 && wall_before > 0.05, "floor_before > 0.1 && wall_before > 0.05");
+    CHECK(floor_after < 0.02, "floor_after < 0.02");
+    CHECK(wall_after < 0.02, "wall_after < 0.02");
+    /* the mover keeps its own depth, times the rest's factor */
+    size_t k = 2 * W * H + 95 * W + 75;
+    CHECK(fabs(r->depth[k] - r->still[95 * W + 75] * res.rest_scale) < 1e-3 * r->depth[k], "mover depth %g, expected %g", r->depth[k], r->still[95 * W + 75] * res.rest_scale);
+    free_room(r);
+}
+
+/* Each case must leave the depth exactly as it was. */
+static void test_left_alone(int scene, float focal, const char *what)
+{
+    room *r = make_room(scene);
+    depth_ground_params p;
+    depth_ground_defaults(&p);
+    p.focal = focal;
+    depth_ground_result res;
+    CHECK_OK(depth_ground_snap(&p, r->frames, F, r->depth, r->static_masks, r->still, W, H, &res));
+    int same = 1;
+    for (int t = 0; t < F; t++) same &= memcmp(r->depth + (size_t)t * W * H, r->still, sizeof r->still) == 0;
+    printf("ground, %s: found %d, vp share %.2f, floor %.2f\n", what, res.found, res.vp_share, res.floor_share);
+    CHECK(!res.found, "!res.found");
+    CHECK(res.changed == 0, "res.changed == 0");
+    CHECK(same, "same");
+    free_room(r);
+}
+
+int main(void)
+{
+    test_room();
+    test_left_alone(SCENE_NO_VERTICALS, (float)FOCAL, "no vertical edges");
+    test_left_alone(SCENE_MOTLEY_FLOOR, (float)FOCAL, "a floor of four colours");
+    test_left_alone(SCENE_ROOM, 0, "no focal length");
+    return test_summary("test_depth_ground");
+}
