@@ -29,6 +29,7 @@ void depth_ground_defaults(depth_ground_params *p)
     p->wall_tolerance = 0.02f;
     p->wall_min_span = 0.4f;
     p->wall_band = 0.35f;
+    p->min_disagreement = 0.05f;
     p->seed = 1;
 }
 
@@ -439,6 +440,11 @@ pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames
         if (is_floor[i] && still[i] > 0) ratios[m++] = logf(still[i] * -below[i]);
     if (m < n / 20) goto done;
     res->height = exp(median_of(ratios, m));
+    /* a depth that already draws this floor (within the vanishing point's own uncertainty) is
+     * left as it is: the plane would only trade its error for the tilt's */
+    for (size_t k = 0; k < m; k++) ratios[k] = fabsf(ratios[k] - (float)log(res->height));
+    res->floor_disagreement = median_of(ratios, m);
+    if (res->floor_disagreement < p->min_disagreement) goto done;
     for (size_t i = 0; i < n; i++) floor_depth[i] = below[i] < 0 ? (float)(res->height / -below[i]) : 0.0f;
     /* the floor's top edge in each column (the floor run that starts in the bottom rows), and the
      * factor that makes what stands there meet it */

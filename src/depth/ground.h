@@ -27,6 +27,9 @@
  *     stands on it; static pixels above the edge whose rescaled depth is within wall_band (in
  *     log) of that plane take its depth.
  *
+ * A depth whose floor already is that plane within min_disagreement (the vanishing point is good to
+ * about a degree; tabletop_dev's depth_mono and ground truth miss it by less) is left alone.
+ *
  * Needs the focal length (pixels at the depth's size; the principal point is the centre); skipped
  * without one, without a vanishing point or without a floor (result.found = 0).
  * tabletop_dev, FastDepth: median |log error| of the depth against the ground truth (global
@@ -48,6 +51,7 @@ typedef struct {
     float wall_tolerance;   /* a contact point's distance to the wall line, relative to its range (0.02) */
     float wall_min_span;    /* the wall line's inliers span this share of the width (0.4) */
     float wall_band;        /* |log(d / d_wall)| within which a pixel takes the wall (0.35) */
+    float min_disagreement; /* the depth's floor must miss the plane by this (median |log|, 0.05) */
     uint64_t seed;
 } depth_ground_params;
 
@@ -58,6 +62,7 @@ typedef struct {
     double up[3];           /* camera coordinates (x right, y down, z forward) */
     double height;          /* the floor is up . X = -height, depth units */
     double floor_share;     /* share of the image that is floor */
+    double floor_disagreement; /* median |log| between the still depth's floor and the plane */
     double rest_scale;      /* the factor on everything that is not floor */
     int wall;               /* a wall plane was placed */
     double wall_span;       /* share of the width its contact inliers span */

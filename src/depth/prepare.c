@@ -393,6 +393,7 @@ static pg_status write_json(const char *path, const depth_prepare_options *opt, 
         for (int k = 0; k < 3; k++) cJSON_AddItemToArray(up, cJSON_CreateNumber(g->up[k]));
         cJSON_AddNumberToObject(o, "height", g->height);
         cJSON_AddNumberToObject(o, "floor_share", g->floor_share);
+        cJSON_AddNumberToObject(o, "floor_disagreement", g->floor_disagreement);
         cJSON_AddNumberToObject(o, "rest_scale", g->rest_scale);
         cJSON_AddBoolToObject(o, "wall", g->wall);
         cJSON_AddNumberToObject(o, "wall_span", g->wall_span);
