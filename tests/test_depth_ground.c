@@ -5,6 +5,7 @@
  * rest's factor; with no vertical edges, a floor of no single colour or no focal length it must
  * change nothing. */
 #include "testlib.h"
+#include "core/parallel.h"
 #include "depth/ground.h"
 
 #include <math.h>
@@ -67,16 +68,12 @@ static void network_depth(const float *truth, const unsigned char *is_floor, flo
 /* Median |log(d / truth)| over the pixels of one surface, the global scale removed. */
 static double surface_error(const float *d, const float *truth, const unsigned char *is_floor, int which, double log_scale)
 {
-    size_t n = (size_t)W * H, m = 0;
+    size_t n = (size_t)W * H;
+    int m = 0;
     double *e = malloc(n * sizeof *e);
     for (size_t i = 0; i < n; i++)
         if (is_floor[i] == which) e[m++] = fabs(log(d[i] / truth[i]) - log_scale);
-    for (size_t i = 1; i < m; i++)
-        for (size_t j = i; j > 0 && e[j - 1] > e[j]; j--) {
-            double t = e[j];
-            e[j] = e[j - 1], e[j - 1] = t;
-        }
-    double med = m ? e[m / 2] : 1e9;
+    double med = m ? pg_median(e, m) : 1e9;
     free(e);
     return med;
 }
@@ -86,12 +83,7 @@ static double median_log_ratio(const float *d, const float *truth)
     size_t n = (size_t)W * H;
     double *e = malloc(n * sizeof *e);
     for (size_t i = 0; i < n; i++) e[i] = log(d[i] / truth[i]);
-    for (size_t i = 1; i < n; i++)
-        for (size_t j = i; j > 0 && e[j - 1] > e[j]; j--) {
-            double t = e[j];
-            e[j] = e[j - 1], e[j - 1] = t;
-        }
-    double med = e[n / 2];
+    double med = pg_median(e, (int)n);
     free(e);
     return med;
 }

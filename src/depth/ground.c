@@ -1,6 +1,8 @@
 /* ground.c - the floor and the wall behind it from the vertical vanishing point (see ground.h). */
 #include "depth/ground.h"
 
+#include "core/mathx.h"
+#include "core/parallel.h"
 #include "core/rng.h"
 #include "depth/plane.h"
 
@@ -39,19 +41,6 @@ typedef struct {
     float w;      /* gradient magnitude */
 } edgel;
 
-static int cmp_float(const void *a, const void *b)
-{
-    float x = *(const float *)a, y = *(const float *)b;
-    return (x > y) - (x < y);
-}
-
-static float median_of(float *v, size_t n)
-{
-    if (!n) return 0;
-    qsort(v, n, sizeof *v, cmp_float);
-    return n % 2 ? v[n / 2] : 0.5f * (v[n / 2 - 1] + v[n / 2]);
-}
-
 /* The per-pixel median colour of up to STILL_FRAMES evenly spaced frames: the still scene. */
 static void still_image(const pg_image *frames, int F, size_t n, float *rgb)
 {
@@ -60,7 +49,7 @@ static void still_image(const pg_image *frames, int F, size_t n, float *rgb)
     for (size_t i = 0; i < n; i++)
         for (int c = 0; c < 3; c++) {
             for (int j = 0; j < k; j++) v[j] = frames[k > 1 ? (long)j * (F - 1) / (k - 1) : 0].data[i * 3 + c];
-            rgb[i * 3 + c] = median_of(v, (size_t)k);
+            rgb[i * 3 + c] = pg_median_float(v, k);
         }
 }
 
@@ -79,6 +68,19 @@ static void cross3(const double a[3], const double b[3], double out[3])
     out[2] = a[0] * b[1] - a[1] * b[0];
 }
 
+/* inv = A^-1 for a 3x3 matrix (row-major) by cofactors; returns 0 when A is singular. */
+static int invert3(const double A[9], double inv[9])
+{
+    double c0 = A[4] * A[8] - A[5] * A[7], c1 = A[5] * A[6] - A[3] * A[8], c2 = A[3] * A[7] - A[4] * A[6];
+    double det = A[0] * c0 + A[1] * c1 + A[2] * c2;
+    if (!(fabs(det) > 1e-300)) return 0;
+    const double adj[9] = { c0, A[2] * A[7] - A[1] * A[8], A[1] * A[5] - A[2] * A[4],
+                            c1, A[0] * A[8] - A[2] * A[6], A[2] * A[3] - A[0] * A[5],
+                            c2, A[1] * A[6] - A[0] * A[7], A[0] * A[4] - A[1] * A[3] };
+    for (int k = 0; k < 9; k++) inv[k] = adj[k] / det;
+    return 1;
+}
+
 /* The eigenvector of the symmetric 3x3 M with the smallest eigenvalue, by inverse iteration
  * from v (the RANSAC estimate, close to it). */
 static void smallest_eigenvector(const double M[9], double v[3])
@@ -86,15 +88,11 @@ static void smallest_eigenvector(const double M[9], double v[3])
     double tr = M[0] + M[4] + M[8], A[9];
     memcpy(A, M, sizeof A);
     for (int k = 0; k < 3; k++) A[k * 4] += 1e-9 * tr + 1e-300;
-    double c0 = A[4] * A[8] - A[5] * A[7], c1 = A[5] * A[6] - A[3] * A[8], c2 = A[3] * A[7] - A[4] * A[6];
-    double det = A[0] * c0 + A[1] * c1 + A[2] * c2;
-    if (fabs(det) < 1e-300) return;
-    double inv[9] = { c0, A[2] * A[7] - A[1] * A[8], A[1] * A[5] - A[2] * A[4],
-                      c1, A[0] * A[8] - A[2] * A[6], A[2] * A[3] - A[0] * A[5],
-                      c2, A[1] * A[6] - A[0] * A[7], A[0] * A[4] - A[1] * A[3] };
+    double inv[9];
+    if (!invert3(A, inv)) return;
     for (int it = 0; it < 30; it++) {
         double w[3];
-        for (int r = 0; r < 3; r++) w[r] = (inv[r * 3] * v[0] + inv[r * 3 + 1] * v[1] + inv[r * 3 + 2] * v[2]) / det;
+        for (int r = 0; r < 3; r++) w[r] = inv[r * 3] * v[0] + inv[r * 3 + 1] * v[1] + inv[r * 3 + 2] * v[2];
         double nrm = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
         if (!(nrm > 0)) return;
         for (int r = 0; r < 3; r++) v[r] = w[r] / nrm;
@@ -124,7 +122,7 @@ static double vertical_vanishing_point(const float *grey, int W, int H, double f
     float *sorted = malloc(m * sizeof *sorted);
     if (!sorted) goto done;
     memcpy(sorted, mag, m * sizeof *sorted);
-    qsort(sorted, m, sizeof *sorted, cmp_float);
+    qsort(sorted, m, sizeof *sorted, pg_cmp_float);
     float thr = sorted[m * 4 / 5] > 0.01f ? sorted[m * 4 / 5] : 0.01f;
     free(sorted);
     size_t k = 0;
@@ -194,6 +192,12 @@ static void square_morph(unsigned char *m, unsigned char *tmp, int W, int H, int
     }
 }
 
+/* Is colour v within SEED_RADIUS of mean in every channel? */
+static int near_colour(const float *v, const double mean[3])
+{
+    return fabs(v[0] - mean[0]) <= SEED_RADIUS && fabs(v[1] - mean[1]) <= SEED_RADIUS && fabs(v[2] - mean[2]) <= SEED_RADIUS;
+}
+
 /* Mahalanobis distance squared of colour v from mean under the inverse covariance inv. */
 static double colour_distance(const float *v, const double mean[3], const double inv[9])
 {
@@ -230,14 +234,14 @@ static double grow_floor(const float *rgb, const float *rgb1, const float *below
     double mean[3] = { 0 }, cov[9] = { 0 };
     for (int c = 0; c < 3; c++) {
         for (size_t s = 0; s < seeds; s++) chan[s] = seed[s * 3 + c];
-        mean[c] = median_of(chan, seeds);
+        mean[c] = pg_median_float(chan, (int)seeds);
     }
     for (int round = 0; round < 3 && seeds; round++) {
         double sum[3] = { 0 };
         kept = 0;
         for (size_t s = 0; s < seeds; s++) {
             const float *v = seed + s * 3;
-            if (fabs(v[0] - mean[0]) > SEED_RADIUS || fabs(v[1] - mean[1]) > SEED_RADIUS || fabs(v[2] - mean[2]) > SEED_RADIUS) continue;
+            if (!near_colour(v, mean)) continue;
             for (int c = 0; c < 3; c++) sum[c] += v[c];
             kept++;
         }
@@ -245,7 +249,7 @@ static double grow_floor(const float *rgb, const float *rgb1, const float *below
     }
     for (size_t s = 0; s < seeds && kept; s++) {
         const float *v = seed + s * 3;
-        if (fabs(v[0] - mean[0]) > SEED_RADIUS || fabs(v[1] - mean[1]) > SEED_RADIUS || fabs(v[2] - mean[2]) > SEED_RADIUS) continue;
+        if (!near_colour(v, mean)) continue;
         for (int r = 0; r < 3; r++)
             for (int c = 0; c < 3; c++) cov[r * 3 + c] += (v[r] - mean[r]) * (v[c] - mean[c]) / (double)kept;
     }
@@ -253,11 +257,8 @@ static double grow_floor(const float *rgb, const float *rgb1, const float *below
     free(chan);
     if (seeds < (size_t)W || kept < seeds / 2) return 0; /* no floor colour holds most of the bottom rows */
     for (int c = 0; c < 3; c++) cov[c * 4] += 1e-4;
-    double c0 = cov[4] * cov[8] - cov[5] * cov[7], c1 = cov[5] * cov[6] - cov[3] * cov[8], c2 = cov[3] * cov[7] - cov[4] * cov[6];
-    double det = cov[0] * c0 + cov[1] * c1 + cov[2] * c2;
-    double inv[9] = { c0 / det, (cov[2] * cov[7] - cov[1] * cov[8]) / det, (cov[1] * cov[5] - cov[2] * cov[4]) / det,
-                      c1 / det, (cov[0] * cov[8] - cov[2] * cov[6]) / det, (cov[2] * cov[3] - cov[0] * cov[5]) / det,
-                      c2 / det, (cov[1] * cov[6] - cov[0] * cov[7]) / det, (cov[0] * cov[4] - cov[1] * cov[3]) / det };
+    double inv[9];
+    if (!invert3(cov, inv)) return 0; /* cannot happen: the diagonal is raised by 1e-4 */
     size_t *queue = malloc(n * sizeof *queue);
     unsigned char *tmp = malloc(n);
     if (!queue || !tmp) {
@@ -305,6 +306,14 @@ static double grow_floor(const float *rgb, const float *rgb1, const float *below
     return (double)count / (double)n;
 }
 
+/* Does contact point k (3D point X, floor-plane coordinates q) lie on the line through q0 with
+ * unit normal n, within tol of its range? */
+static int on_line(const double X[3], const double q[2], const double q0[2], const double n[2], double tol)
+{
+    double dist = fabs((q[0] - q0[0]) * n[0] + (q[1] - q0[1]) * n[1]);
+    return dist < tol * sqrt(X[0] * X[0] + X[1] * X[1] + X[2] * X[2]);
+}
+
 /* The vertical plane standing on the floor's top edge, when that edge is a straight line in 3D:
  * RANSAC over the contact points in the floor plane's coordinates, then a total least squares
  * refit. Writes its depth per pixel (0 where it is behind the camera); returns the inliers' span
@@ -337,31 +346,23 @@ static double wall_plane(const int *top, const float *floor_depth, int W, int H,
         if (abs(col[i] - col[j]) < W / 6) continue;
         double dx = Q[j * 2] - Q[i * 2], dy = Q[j * 2 + 1] - Q[i * 2 + 1], len = sqrt(dx * dx + dy * dy);
         if (!(len > 0)) continue;
-        double nx = -dy / len, ny = dx / len;
+        const double nrm[2] = { -dy / len, dx / len };
         int count = 0;
-        for (int k = 0; k < m; k++) {
-            const double *X = P + (size_t)k * 3;
-            double dist = fabs((Q[k * 2] - Q[i * 2]) * nx + (Q[k * 2 + 1] - Q[i * 2 + 1]) * ny);
-            count += dist < p->wall_tolerance * sqrt(X[0] * X[0] + X[1] * X[1] + X[2] * X[2]);
-        }
-        if (count > best) best = count, bn[0] = nx, bn[1] = ny, bq[0] = Q[i * 2], bq[1] = Q[i * 2 + 1];
+        for (int k = 0; k < m; k++) count += on_line(P + (size_t)k * 3, Q + k * 2, Q + i * 2, nrm, p->wall_tolerance);
+        if (count > best) best = count, bn[0] = nrm[0], bn[1] = nrm[1], bq[0] = Q[i * 2], bq[1] = Q[i * 2 + 1];
     }
     if (best < W / 4) goto done;
     /* total least squares over the inliers: the line through their mean along their main axis */
     double mq[2] = { 0, 0 }, sxx = 0, sxy = 0, syy = 0;
     int lo = W, hi = -1, cnt = 0;
     for (int k = 0; k < m; k++) {
-        const double *X = P + (size_t)k * 3;
-        double dist = fabs((Q[k * 2] - bq[0]) * bn[0] + (Q[k * 2 + 1] - bq[1]) * bn[1]);
-        if (!(dist < p->wall_tolerance * sqrt(X[0] * X[0] + X[1] * X[1] + X[2] * X[2]))) continue;
+        if (!on_line(P + (size_t)k * 3, Q + k * 2, bq, bn, p->wall_tolerance)) continue;
         mq[0] += Q[k * 2], mq[1] += Q[k * 2 + 1], cnt++;
         lo = col[k] < lo ? col[k] : lo, hi = col[k] > hi ? col[k] : hi;
     }
     mq[0] /= cnt, mq[1] /= cnt;
     for (int k = 0; k < m; k++) {
-        const double *X = P + (size_t)k * 3;
-        double dist = fabs((Q[k * 2] - bq[0]) * bn[0] + (Q[k * 2 + 1] - bq[1]) * bn[1]);
-        if (!(dist < p->wall_tolerance * sqrt(X[0] * X[0] + X[1] * X[1] + X[2] * X[2]))) continue;
+        if (!on_line(P + (size_t)k * 3, Q + k * 2, bq, bn, p->wall_tolerance)) continue;
         double a = Q[k * 2] - mq[0], b = Q[k * 2 + 1] - mq[1];
         sxx += a * a, sxy += a * b, syy += b * b;
     }
@@ -439,11 +440,11 @@ pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames
     for (size_t i = 0; i < n; i++)
         if (is_floor[i] && still[i] > 0) ratios[m++] = logf(still[i] * -below[i]);
     if (m < n / 20) goto done;
-    res->height = exp(median_of(ratios, m));
+    res->height = exp(pg_median_float(ratios, (int)m));
     /* a depth that already draws this floor (within the vanishing point's own uncertainty) is
      * left as it is: the plane would only trade its error for the tilt's */
     for (size_t k = 0; k < m; k++) ratios[k] = fabsf(ratios[k] - (float)log(res->height));
-    res->floor_disagreement = median_of(ratios, m);
+    res->floor_disagreement = pg_median_float(ratios, (int)m);
     if (res->floor_disagreement < p->min_disagreement) goto done;
     for (size_t i = 0; i < n; i++) floor_depth[i] = below[i] < 0 ? (float)(res->height / -below[i]) : 0.0f;
     /* the floor's top edge in each column (the floor run that starts in the bottom rows), and the
@@ -459,7 +460,7 @@ pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames
         size_t above = (size_t)(y - 1) * W + x;
         if (y > 0 && still[above] > 0) ratios[m++] = logf(floor_depth[(size_t)y * W + x] / still[above]);
     }
-    res->rest_scale = m >= (size_t)W / 8 ? exp(median_of(ratios, m)) : 1.0;
+    res->rest_scale = m >= (size_t)W / 8 ? exp(pg_median_float(ratios, (int)m)) : 1.0;
     res->wall_span = wall_plane(top, floor_depth, W, H, f, res->up, p, &rng, wall_depth);
     res->wall = res->wall_span > 0;
     res->found = 1;
