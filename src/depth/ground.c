@@ -32,6 +32,9 @@ void depth_ground_defaults(depth_ground_params *p)
     p->wall_min_span = 0.4f;
     p->wall_band = 0.35f;
     p->min_disagreement = 0.05f;
+    p->floor_colour = 0.08f;
+    p->object_join = 0.04f;
+    p->min_contact = 3;
     p->seed = 1;
 }
 
@@ -51,6 +54,17 @@ static void still_image(const pg_image *frames, int F, size_t n, float *rgb)
             for (int j = 0; j < k; j++) v[j] = frames[k > 1 ? (long)j * (F - 1) / (k - 1) : 0].data[i * 3 + c];
             rgb[i * 3 + c] = pg_median_float(v, k);
         }
+}
+
+/* Each channel of an interleaved RGB image blurred by a Gaussian of sigma (in may be out). */
+static void blur_rgb(const float *in, int W, int H, float sigma, float *grey, float *tmp, float *out)
+{
+    const size_t n = (size_t)W * H;
+    for (int c = 0; c < 3; c++) {
+        for (size_t i = 0; i < n; i++) grey[i] = in[i * 3 + c];
+        depth_plane_gaussian_blur(grey, W, H, sigma, tmp, grey);
+        for (size_t i = 0; i < n; i++) out[i * 3 + c] = grey[i];
+    }
 }
 
 /* Is the edge through e pointing at the homogeneous point v (within VP_INLIER_DEG)? */
@@ -389,6 +403,74 @@ done:
     return span;
 }
 
+/* Scratch for stand_on_floor, one frame's worth. */
+typedef struct {
+    unsigned char *floor; /* the floor as this frame shows it */
+    float *rgb, *grey, *tmp; /* the frame, blurred like the still image */
+    int *label, *stack, *first, *count;
+    float *ratio, *factor;
+} anchor_scratch;
+
+/* Every object stands where it meets the floor. A monocular network's error is smooth across the
+ * image, so an object's depth is off by what the floor's is off by where it touches it: the
+ * pixels that are not floor are grouped into depth-continuous blobs (|log| step under
+ * p->object_join), and each blob that has floor directly below some of its pixels is scaled by the
+ * median plane / depth over them; a blob that touches no floor takes rest (the wall's factor).
+ * Moving pixels over the floor whose colour is the still image's there are floor (the ring a
+ * dilated mask puts around a mover); the network cannot tell: FastDepth draws tabletop_dev's
+ * rolling ball and sliding block at the floor's depth. Writes the frame's floor mask, each
+ * pixel's blob and each blob's factor into a; returns the number of blobs. */
+static int stand_on_floor(const pg_image *frame, const float *d, const unsigned char *s, const unsigned char *is_floor,
+                          const float *floor_depth, const float *still_rgb, int W, int H, double rest, const depth_ground_params *p,
+                          anchor_scratch *a)
+{
+    const size_t n = (size_t)W * H;
+    blur_rgb(frame->data, W, H, 1.0f, a->grey, a->tmp, a->rgb);
+    for (size_t i = 0; i < n; i++) {
+        float off = 0;
+        for (int c = 0; c < 3; c++) off = fmaxf(off, fabsf(a->rgb[i * 3 + c] - still_rgb[i * 3 + c]));
+        a->floor[i] = is_floor[i] && (s[i] || off < p->floor_colour);
+    }
+    for (size_t i = 0; i < n; i++) a->label[i] = -1;
+    const float join = p->object_join;
+    int blobs = 0;
+    for (size_t seed = 0; seed < n; seed++) {
+        if (a->floor[seed] || a->label[seed] >= 0 || !(d[seed] > 0)) continue;
+        int top = 0;
+        a->stack[top++] = (int)seed;
+        a->label[seed] = blobs;
+        while (top > 0) {
+            int i = a->stack[--top], x = i % W, y = i / W;
+            int nb[4] = { x > 0 ? i - 1 : -1, x < W - 1 ? i + 1 : -1, y > 0 ? i - W : -1, y < H - 1 ? i + W : -1 };
+            for (int k = 0; k < 4; k++) {
+                int j = nb[k];
+                if (j < 0 || a->floor[j] || a->label[j] >= 0 || !(d[j] > 0) || fabsf(logf(d[j] / d[i])) >= join) continue;
+                a->label[j] = blobs;
+                a->stack[top++] = j;
+            }
+        }
+        blobs++;
+    }
+    /* the contact ratios, grouped by blob */
+    for (int b = 0; b < blobs; b++) a->count[b] = 0;
+    for (size_t i = 0; i + W < n; i++)
+        if (a->label[i] >= 0 && a->floor[i + W]) a->count[a->label[i]]++;
+    int total = 0;
+    for (int b = 0; b < blobs; b++) a->first[b] = total, total += a->count[b], a->count[b] = 0;
+    for (size_t i = 0; i + W < n; i++)
+        if (a->label[i] >= 0 && a->floor[i + W]) {
+            int b = a->label[i];
+            a->ratio[a->first[b] + a->count[b]++] = logf(floor_depth[i + W] / d[i + W]);
+        }
+    /* the contact bounds an object from behind: what stands on the floor is not behind the floor
+     * seen just below it (a ball's silhouette ends in front of its contact, a lifted block's far in
+     * front), so a network that puts it nearer than that keeps its depth, times rest */
+    for (int b = 0; b < blobs; b++)
+        a->factor[b] = a->count[b] >= p->min_contact ? fminf(expf(pg_median_float(a->ratio + a->first[b], a->count[b])), (float)rest)
+                                                     : (float)rest;
+    return blobs;
+}
+
 pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames, int F, float *depth,
                             const unsigned char *static_masks, const float *still, int W, int H, depth_ground_result *res)
 {
@@ -402,7 +484,11 @@ pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames
     float *wall_depth = calloc(n, sizeof *wall_depth), *ratios = malloc(n * sizeof *ratios);
     unsigned char *is_floor = malloc(n);
     int *top = malloc((size_t)W * sizeof *top);
-    if (!rgb || !rgb2 || !grey || !tmp || !below || !floor_depth || !wall_depth || !ratios || !is_floor || !top) {
+    anchor_scratch a = { malloc(n), malloc(n * 3 * sizeof(float)), malloc(n * sizeof(float)), malloc(n * sizeof(float)),
+                         malloc(n * sizeof(int)), malloc(n * sizeof(int)), malloc(n * sizeof(int)), malloc(n * sizeof(int)),
+                         malloc(n * sizeof(float)), malloc(n * sizeof(float)) };
+    if (!rgb || !rgb2 || !grey || !tmp || !below || !floor_depth || !wall_depth || !ratios || !is_floor || !top || !a.floor ||
+        !a.rgb || !a.grey || !a.tmp || !a.label || !a.stack || !a.first || !a.count || !a.ratio || !a.factor) {
         st = PG_ERR_NOMEM;
         goto done;
     }
@@ -422,13 +508,8 @@ pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames
     for (int y = 0; y < H; y++)
         for (int x = 0; x < W; x++)
             below[(size_t)y * W + x] = (float)(res->up[0] * (x + 0.5 - 0.5 * W) / f + res->up[1] * (y + 0.5 - 0.5 * H) / f + res->up[2]);
-    for (int c = 0; c < 3; c++) {
-        for (size_t i = 0; i < n; i++) grey[i] = rgb[i * 3 + c];
-        depth_plane_gaussian_blur(grey, W, H, 1.0f, tmp, grey);
-        for (size_t i = 0; i < n; i++) rgb[i * 3 + c] = grey[i];
-        depth_plane_gaussian_blur(grey, W, H, 1.7f, tmp, grey); /* sigma 2 in all */
-        for (size_t i = 0; i < n; i++) rgb2[i * 3 + c] = grey[i];
-    }
+    blur_rgb(rgb, W, H, 1.0f, grey, tmp, rgb);
+    blur_rgb(rgb, W, H, 1.7f, grey, tmp, rgb2); /* sigma 2 in all */
     res->floor_share = grow_floor(rgb2, rgb, below, W, H, p->colour_sigma, is_floor);
     if (res->floor_share < 0) {
         st = PG_ERR_NOMEM;
@@ -464,19 +545,22 @@ pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames
     res->wall_span = wall_plane(top, floor_depth, W, H, f, res->up, p, &rng, wall_depth);
     res->wall = res->wall_span > 0;
     res->found = 1;
-    const float q = (float)res->rest_scale, band = p->wall_band;
+    const float band = p->wall_band;
     for (int t = 0; t < F; t++) {
         float *d = depth + (size_t)t * n;
         const unsigned char *s = static_masks + (size_t)t * n;
+        int blobs = stand_on_floor(&frames[t], d, s, is_floor, floor_depth, rgb, W, H, res->rest_scale, p, &a);
+        for (int b = 0; b < blobs; b++) res->anchored += a.count[b] >= p->min_contact;
+        res->blobs += blobs;
         for (int y = 0; y < H; y++)
             for (int x = 0; x < W; x++) {
                 size_t i = (size_t)y * W + x;
                 float v = d[i], o = v;
                 if (!(v > 0)) continue;
-                if (is_floor[i] && s[i]) {
+                if (a.floor[i]) {
                     v = floor_depth[i];
                 } else {
-                    v *= q;
+                    v *= a.factor[a.label[i]];
                     float w = wall_depth[i];
                     if (res->wall && s[i] && !is_floor[i] && top[x] > y && w > 0 && (fabsf(logf(v / w)) < band || v > w)) v = w;
                 }
@@ -494,5 +578,15 @@ done:
     free(ratios);
     free(is_floor);
     free(top);
+    free(a.floor);
+    free(a.rgb);
+    free(a.grey);
+    free(a.tmp);
+    free(a.label);
+    free(a.stack);
+    free(a.first);
+    free(a.count);
+    free(a.ratio);
+    free(a.factor);
     return st;
 }

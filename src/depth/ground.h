@@ -19,9 +19,11 @@
  *     within colour_sigma (Mahalanobis) of the bottom rows' colour; it needs min_floor_share.
  *  3. Its height: the median of what the still depth implies over the floor. Static floor pixels
  *     take the plane's depth.
- *  4. Everything else stands on the floor: the network's depth of the rest is rescaled by one
- *     factor so that it meets the floor where it touches it (the pixels just above the floor's
- *     top edge), movers included. FastDepth puts tabletop_dev's wall 27 % too far for its table.
+ *  4. Everything else stands on the floor. The rest factor makes the pixels just above the floor's
+ *     top edge meet it (FastDepth puts tabletop_dev's wall 27 % too far for its table). Then each
+ *     frame's non-floor pixels are grouped into depth-continuous objects, and an object with floor
+ *     directly below it is scaled by the floor's own correction there (plane / depth), or by the
+ *     rest factor when that puts it nearer: an object is never behind the floor seen below it.
  *  5. The wall: where the floor's top edge is a straight line in 3D over at least wall_min_span
  *     of the image width (RANSAC on the floor plane, within wall_tolerance), a vertical plane
  *     stands on it; static pixels above the edge whose rescaled depth is within wall_band (in
@@ -52,6 +54,9 @@ typedef struct {
     float wall_min_span;    /* the wall line's inliers span this share of the width (0.4) */
     float wall_band;        /* |log(d / d_wall)| within which a pixel takes the wall (0.35) */
     float min_disagreement; /* the depth's floor must miss the plane by this (median |log|, 0.05) */
+    float floor_colour;     /* a moving pixel over the floor within this of the still colour is floor (0.08) */
+    float object_join;      /* neighbours of one object differ by less than this in log depth (0.04) */
+    int min_contact;        /* an object meets the floor in at least this many pixels (3) */
     uint64_t seed;
 } depth_ground_params;
 
@@ -66,6 +71,8 @@ typedef struct {
     double rest_scale;      /* the factor on everything that is not floor */
     int wall;               /* a wall plane was placed */
     double wall_span;       /* share of the width its contact inliers span */
+    long blobs;             /* objects over all frames (depth-continuous groups of non-floor pixels) */
+    long anchored;          /* of them, standing on the floor (scaled by their own contact) */
     long changed;           /* (frame, pixel) values changed */
 } depth_ground_result;
 

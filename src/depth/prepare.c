@@ -398,6 +398,8 @@ static pg_status write_json(const char *path, const depth_prepare_options *opt, 
         cJSON_AddBoolToObject(o, "wall", g->wall);
         cJSON_AddNumberToObject(o, "wall_span", g->wall_span);
         cJSON_AddNumberToObject(o, "changed_values", (double)g->changed);
+        cJSON_AddNumberToObject(o, "objects", (double)g->blobs);
+        cJSON_AddNumberToObject(o, "objects_on_floor", (double)g->anchored);
     }
     if (opt->snap_planes) {
         /* 1/d = a x + b y + c with x, y the pixel centre over the width/height minus 0.5 */
