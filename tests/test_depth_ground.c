@@ -178,8 +178,33 @@ static void test_left_alone(int scene, float focal, const char *what)
     free_room(r);
 }
 
+/* A ring of cameras around the scene knows the vertical; a forward-facing row does not. */
+static void test_rig_up(void)
+{
+    pg_camera ring[8], row[8];
+    const float world_up[3] = { 0, -1, 0 }, target[3] = { 0, 0, 0 }; /* y points down, as in Panoptic */
+    for (int k = 0; k < 8; k++) {
+        double a = k * 2 * 3.14159265358979 / 8;
+        float eye[3] = { (float)(4 * cos(a)), (float)(-1.5 - 0.3 * (k % 2)), (float)(4 * sin(a)) };
+        pg_camera_from_fov(&ring[k], W, H, 60);
+        pg_camera_look_at(&ring[k], eye, target, world_up);
+        float eye2[3] = { (float)(k - 3.5) * 0.2f, -1.5f, -4 };
+        pg_camera_from_fov(&row[k], W, H, 60);
+        pg_camera_look_at(&row[k], eye2, target, world_up);
+    }
+    float up[3], expected[3];
+    int found = depth_ground_rig_up(ring, 8, 3, up);
+    for (int r = 0; r < 3; r++) expected[r] = ring[3].R[r * 3] * world_up[0] + ring[3].R[r * 3 + 1] * world_up[1] + ring[3].R[r * 3 + 2] * world_up[2];
+    double dot = up[0] * expected[0] + up[1] * expected[1] + up[2] * expected[2];
+    printf("ground, ring of 8 cameras: up found %d, %.2f deg from the truth\n", found, acos(dot < 1 ? dot : 1) * 180 / 3.14159265358979);
+    CHECK(found, "the ring's up found");
+    CHECK(dot > cos(1.0 * 3.14159265358979 / 180), "up within 1 deg of the truth (cos %.6f)", dot);
+    CHECK(!depth_ground_rig_up(row, 8, 3, up), "a forward-facing row gives no up");
+}
+
 int main(void)
 {
+    test_rig_up();
     test_room();
     test_left_alone(SCENE_NO_VERTICALS, (float)FOCAL, "no vertical edges");
     test_left_alone(SCENE_MOTLEY_FLOOR, (float)FOCAL, "a floor of four colours");

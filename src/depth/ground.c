@@ -24,6 +24,8 @@
 void depth_ground_defaults(depth_ground_params *p)
 {
     p->focal = 0;
+    p->up_known = 0;
+    p->up[0] = p->up[1] = p->up[2] = 0;
     p->min_vp_share = 0.15f;
     p->max_tilt_deg = 60;
     p->colour_sigma = 3;
@@ -471,6 +473,41 @@ static int stand_on_floor(const pg_image *frame, const float *d, const unsigned 
     return blobs;
 }
 
+/* A rig of cameras standing around the scene (a dome, a ring; not a forward-facing row) knows the
+ * vertical: the camera centres spread least along it, and cameras are mounted roughly upright, so
+ * the sign is the one against their mean image-down direction. Accepted when the cameras' optical
+ * axes average to under half a unit (they look in from around) and the centres' least variance is
+ * under 0.36 of the mean of the other two. */
+int depth_ground_rig_up(const pg_camera *cams, int count, int ref, float up[3])
+{
+    if (count < 4 || ref < 0 || ref >= count) return 0;
+    double mean[3] = { 0 }, axis[3] = { 0 }, down[3] = { 0 }, M[9] = { 0 };
+    float C[32][3];
+    if (count > 32) count = 32;
+    for (int k = 0; k < count; k++) {
+        pg_camera_center(&cams[k], C[k]);
+        for (int r = 0; r < 3; r++) {
+            mean[r] += C[k][r] / count;
+            axis[r] += cams[k].R[6 + r] / count;
+            down[r] += cams[k].R[3 + r] / count;
+        }
+    }
+    if (sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]) >= 0.5) return 0;
+    for (int k = 0; k < count; k++)
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 3; c++) M[r * 3 + c] += (C[k][r] - mean[r]) * (C[k][c] - mean[c]);
+    double v[3] = { -down[0], -down[1], -down[2] };
+    smallest_eigenvector(M, v);
+    double Mv[3], least = 0, trace = M[0] + M[4] + M[8];
+    for (int r = 0; r < 3; r++) Mv[r] = M[r * 3] * v[0] + M[r * 3 + 1] * v[1] + M[r * 3 + 2] * v[2];
+    least = v[0] * Mv[0] + v[1] * Mv[1] + v[2] * Mv[2];
+    if (!(least < 0.36 * 0.5 * (trace - least))) return 0;
+    if (v[0] * down[0] + v[1] * down[1] + v[2] * down[2] > 0) v[0] = -v[0], v[1] = -v[1], v[2] = -v[2];
+    const float *R = cams[ref].R;
+    for (int r = 0; r < 3; r++) up[r] = (float)(R[r * 3] * v[0] + R[r * 3 + 1] * v[1] + R[r * 3 + 2] * v[2]);
+    return 1;
+}
+
 pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames, int F, float *depth,
                             const unsigned char *static_masks, const float *still, int W, int H, depth_ground_result *res)
 {
@@ -497,8 +534,8 @@ pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames
     still_image(frames, F, n, rgb);
     for (size_t i = 0; i < n; i++) grey[i] = (rgb[i * 3] + rgb[i * 3 + 1] + rgb[i * 3 + 2]) / 3;
     depth_plane_gaussian_blur(grey, W, H, 1.0f, tmp, grey);
-    double dir[3] = { 0, 0, 0 };
-    res->vp_share = vertical_vanishing_point(grey, W, H, f, &rng, dir);
+    double dir[3] = { p->up[0], p->up[1], p->up[2] };
+    res->vp_share = p->up_known ? 1 : vertical_vanishing_point(grey, W, H, f, &rng, dir);
     double len = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
     if (!(res->vp_share >= p->min_vp_share) || !(len > 0)) goto done;
     double sgn = dir[1] < 0 ? 1 / len : -1 / len; /* up points to the image's top (-y) */

@@ -10,7 +10,8 @@
  * coordinates. A plane with a known normal has one unknown left, its distance, and the depth's
  * own floor fixes that in its units.
  *
- *  1. The still image (per-pixel median of up to 15 frames); its near-vertical edge pixels vote
+ *  1. The still image (per-pixel median of up to 15 frames); unless the up direction is given (a
+ *     dataset's rig, see stage/prepare.c), its near-vertical edge pixels vote
  *     for the vertical vanishing point by RANSAC (the line through each edge pixel along its edge
  *     direction), refined by least squares in homogeneous coordinates (a camera that looks level
  *     has it at infinity). Accepted when its inliers carry min_vp_share of the edge weight and it
@@ -41,11 +42,14 @@
 
 #include <stdint.h>
 
+#include "core/camera.h"
 #include "core/image.h"
 #include "core/status.h"
 
 typedef struct {
     float focal;            /* pixels at the depth's size; <= 0 skips the stage */
+    int up_known;           /* up (camera coordinates) is given (a camera rig's vertical): no vanishing point */
+    float up[3];
     float min_vp_share;     /* share of the near-vertical edge weight on the vanishing point (0.15) */
     float max_tilt_deg;     /* the up direction within this of the image's up (60) */
     float colour_sigma;     /* floor colour: Mahalanobis radius around the bottom rows' (3) */
@@ -77,6 +81,10 @@ typedef struct {
 } depth_ground_result;
 
 void depth_ground_defaults(depth_ground_params *p);
+
+/* The up direction in camera ref's coordinates from a rig of count cameras around the scene (see
+ * ground.c); 0 when the rig does not tell (a forward-facing row, fewer than 4 cameras). */
+int depth_ground_rig_up(const pg_camera *cams, int count, int ref, float up[3]);
 
 /* frames: F RGB images (W x H); depth (F, W*H) aligned depth, 0 = invalid, updated in place;
  * static_masks (F, W*H); still (W*H) the still scene's depth (0 = unknown). Fails only for memory. */

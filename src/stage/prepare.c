@@ -13,6 +13,7 @@
 #include "core/parallel.h"
 #include "core/status.h"
 #include "depth/depth_check.h"
+#include "depth/ground.h"
 #include "depth/prepare.h"
 #include "io/dataset.h"
 #include "io/depth_io.h"
@@ -183,6 +184,11 @@ static pg_status prepare_run(const pg_prepare_config *c, pg_prepare_report *r)
     pg_camera camera;
     io_dataset_camera(ds, cam, &camera);
     popt.ground_params.focal = camera.fx * (float)W / (float)camera.width; /* the floor needs the focal length */
+    pg_camera rig[32];
+    int rig_count = io_dataset_num_cameras(ds) < 32 ? io_dataset_num_cameras(ds) : 32, ref = -1;
+    for (int k = 0; k < rig_count; k++) io_dataset_camera(ds, k, &rig[k]);
+    if (cam < 32) ref = cam;
+    popt.ground_params.up_known = depth_ground_rig_up(rig, rig_count, ref, popt.ground_params.up);
     pg_image *frames = calloc((size_t)(F > 0 ? F : 1), sizeof(pg_image));
     io_depth depth;
     memset(&depth, 0, sizeof depth);
