@@ -409,22 +409,24 @@ done:
 typedef struct {
     unsigned char *floor; /* the floor as this frame shows it */
     float *rgb, *grey, *tmp; /* the frame, blurred like the still image */
-    int *label, *stack, *first, *count;
+    int *label, *stack, *first, *count, *contact;
+    unsigned char *moving; /* per blob */
     float *ratio, *factor;
+    float *sheet;          /* per blob: unit normal and distance of a mover's sheet (distance 0: none) */
 } anchor_scratch;
 
 /* Every object stands where it meets the floor. A monocular network's error is smooth across the
- * image, so an object's depth is off by what the floor's is off by where it touches it: the
- * pixels that are not floor are grouped into depth-continuous blobs (|log| step under
- * p->object_join), and each blob that has floor directly below some of its pixels is scaled by the
- * median plane / depth over them; a blob that touches no floor takes rest (the wall's factor).
- * Moving pixels over the floor whose colour is the still image's there are floor (the ring a
- * dilated mask puts around a mover); the network cannot tell: FastDepth draws tabletop_dev's
- * rolling ball and sliding block at the floor's depth. Writes the frame's floor mask, each
- * pixel's blob and each blob's factor into a; returns the number of blobs. */
+ * image, so a still object's depth is off by what the floor's is off by where it touches it: the
+ * still pixels that are not floor are grouped into depth-continuous blobs (|log| step under
+ * p->object_join), and a blob with floor directly below some of its pixels is scaled by the
+ * median plane / depth over them. Movers are grouped by connection alone and, standing on the
+ * floor, become vertical sheets through their contacts. A blob that touches no floor takes rest
+ * (the wall's factor). Moving pixels over the floor whose colour is the still image's there are
+ * floor (the ring a dilated mask puts around a mover). Writes the frame's floor mask, each pixel's
+ * blob and each blob's factor and sheet into a; returns the number of blobs. */
 static int stand_on_floor(const pg_image *frame, const float *d, const unsigned char *s, const unsigned char *is_floor,
-                          const float *floor_depth, const float *still_rgb, int W, int H, double rest, const depth_ground_params *p,
-                          anchor_scratch *a)
+                          const float *floor_depth, const float *still_rgb, int W, int H, double focal, const double up[3],
+                          double rest, const depth_ground_params *p, anchor_scratch *a)
 {
     const size_t n = (size_t)W * H;
     blur_rgb(frame->data, W, H, 1.0f, a->grey, a->tmp, a->rgb);
@@ -438,6 +440,7 @@ static int stand_on_floor(const pg_image *frame, const float *d, const unsigned 
     int blobs = 0;
     for (size_t seed = 0; seed < n; seed++) {
         if (a->floor[seed] || a->label[seed] >= 0 || !(d[seed] > 0)) continue;
+        const int moving = !s[seed];
         int top = 0;
         a->stack[top++] = (int)seed;
         a->label[seed] = blobs;
@@ -446,12 +449,13 @@ static int stand_on_floor(const pg_image *frame, const float *d, const unsigned 
             int nb[4] = { x > 0 ? i - 1 : -1, x < W - 1 ? i + 1 : -1, y > 0 ? i - W : -1, y < H - 1 ? i + W : -1 };
             for (int k = 0; k < 4; k++) {
                 int j = nb[k];
-                if (j < 0 || a->floor[j] || a->label[j] >= 0 || !(d[j] > 0) || fabsf(logf(d[j] / d[i])) >= join) continue;
+                if (j < 0 || a->floor[j] || a->label[j] >= 0 || !(d[j] > 0) || (s[j] == 0) != moving) continue;
+                if (!moving && fabsf(logf(d[j] / d[i])) >= join) continue;
                 a->label[j] = blobs;
                 a->stack[top++] = j;
             }
         }
-        blobs++;
+        a->moving[blobs++] = (unsigned char)moving;
     }
     /* the contact ratios, grouped by blob */
     for (int b = 0; b < blobs; b++) a->count[b] = 0;
@@ -462,6 +466,7 @@ static int stand_on_floor(const pg_image *frame, const float *d, const unsigned 
     for (size_t i = 0; i + W < n; i++)
         if (a->label[i] >= 0 && a->floor[i + W]) {
             int b = a->label[i];
+            a->contact[a->first[b] + a->count[b]] = (int)(i + W);
             a->ratio[a->first[b] + a->count[b]++] = logf(floor_depth[i + W] / d[i + W]);
         }
     /* the contact bounds an object from behind: what stands on the floor is not behind the floor
@@ -470,6 +475,32 @@ static int stand_on_floor(const pg_image *frame, const float *d, const unsigned 
     for (int b = 0; b < blobs; b++)
         a->factor[b] = a->count[b] >= p->min_contact ? fminf(expf(pg_median_float(a->ratio + a->first[b], a->count[b])), (float)rest)
                                                      : (float)rest;
+    /* a mover standing on the floor is a vertical sheet through its contact, facing the camera:
+     * FastDepth draws classroom_cam3's walking person at the wall's depth above the waist, and a
+     * sheet at his feet keeps him whole. Its normal: the horizontal part of the mean contact
+     * point's direction; its distance: the median over the contacts. */
+    for (int b = 0; b < blobs; b++) {
+        float *sheet = a->sheet + b * 4;
+        sheet[3] = 0;
+        if (!a->moving[b] || a->count[b] < p->min_contact) continue;
+        double mean[3] = { 0, 0, 0 };
+        for (int k = 0; k < a->count[b]; k++) {
+            int j = a->contact[a->first[b] + k];
+            double r[3] = { ((j % W) + 0.5 - 0.5 * W) / focal, ((j / W) + 0.5 - 0.5 * H) / focal, 1 };
+            for (int c = 0; c < 3; c++) mean[c] += floor_depth[j] * r[c];
+        }
+        double along = mean[0] * up[0] + mean[1] * up[1] + mean[2] * up[2], nrm[3], len = 0;
+        for (int c = 0; c < 3; c++) nrm[c] = mean[c] - along * up[c], len += nrm[c] * nrm[c];
+        if (!(len > 0)) continue;
+        len = sqrt(len);
+        for (int k = 0; k < a->count[b]; k++) {
+            int j = a->contact[a->first[b] + k];
+            double r[3] = { ((j % W) + 0.5 - 0.5 * W) / focal, ((j / W) + 0.5 - 0.5 * H) / focal, 1 };
+            a->ratio[a->first[b] + k] = (float)(floor_depth[j] * (nrm[0] * r[0] + nrm[1] * r[1] + nrm[2] * r[2]) / len);
+        }
+        for (int c = 0; c < 3; c++) sheet[c] = (float)(nrm[c] / len);
+        sheet[3] = pg_median_float(a->ratio + a->first[b], a->count[b]);
+    }
     return blobs;
 }
 
@@ -523,9 +554,11 @@ pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames
     int *top = malloc((size_t)W * sizeof *top);
     anchor_scratch a = { malloc(n), malloc(n * 3 * sizeof(float)), malloc(n * sizeof(float)), malloc(n * sizeof(float)),
                          malloc(n * sizeof(int)), malloc(n * sizeof(int)), malloc(n * sizeof(int)), malloc(n * sizeof(int)),
-                         malloc(n * sizeof(float)), malloc(n * sizeof(float)) };
+                         malloc(n * sizeof(int)), malloc(n), malloc(n * sizeof(float)), malloc(n * sizeof(float)),
+                         malloc(n * 4 * sizeof(float)) };
     if (!rgb || !rgb2 || !grey || !tmp || !below || !floor_depth || !wall_depth || !ratios || !is_floor || !top || !a.floor ||
-        !a.rgb || !a.grey || !a.tmp || !a.label || !a.stack || !a.first || !a.count || !a.ratio || !a.factor) {
+        !a.rgb || !a.grey || !a.tmp || !a.label || !a.stack || !a.first || !a.count || !a.ratio || !a.factor || !a.contact || !a.moving ||
+        !a.sheet) {
         st = PG_ERR_NOMEM;
         goto done;
     }
@@ -586,7 +619,7 @@ pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames
     for (int t = 0; t < F; t++) {
         float *d = depth + (size_t)t * n;
         const unsigned char *s = static_masks + (size_t)t * n;
-        int blobs = stand_on_floor(&frames[t], d, s, is_floor, floor_depth, rgb, W, H, res->rest_scale, p, &a);
+        int blobs = stand_on_floor(&frames[t], d, s, is_floor, floor_depth, rgb, W, H, f, res->up, res->rest_scale, p, &a);
         for (int b = 0; b < blobs; b++) res->anchored += a.count[b] >= p->min_contact;
         res->blobs += blobs;
         for (int y = 0; y < H; y++)
@@ -597,7 +630,9 @@ pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames
                 if (a.floor[i]) {
                     v = floor_depth[i];
                 } else {
-                    v *= a.factor[a.label[i]];
+                    const float *sheet = a.sheet + a.label[i] * 4;
+                    double facing = sheet[0] * (x + 0.5 - 0.5 * W) / f + sheet[1] * (y + 0.5 - 0.5 * H) / f + sheet[2];
+                    v = sheet[3] > 0 && facing > 0.05 ? (float)(sheet[3] / facing) : v * a.factor[a.label[i]];
                     float w = wall_depth[i];
                     if (res->wall && s[i] && !is_floor[i] && top[x] > y && w > 0 && (fabsf(logf(v / w)) < band || v > w)) v = w;
                 }
@@ -625,5 +660,8 @@ done:
     free(a.count);
     free(a.ratio);
     free(a.factor);
+    free(a.contact);
+    free(a.moving);
+    free(a.sheet);
     return st;
 }

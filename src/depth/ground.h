@@ -22,9 +22,11 @@
  *     take the plane's depth.
  *  4. Everything else stands on the floor. The rest factor makes the pixels just above the floor's
  *     top edge meet it (FastDepth puts tabletop_dev's wall 27 % too far for its table). Then each
- *     frame's non-floor pixels are grouped into depth-continuous objects, and an object with floor
- *     directly below it is scaled by the floor's own correction there (plane / depth), or by the
- *     rest factor when that puts it nearer: an object is never behind the floor seen below it.
+ *     frame's non-floor pixels are grouped into objects (movers by connection, still ones by depth
+ *     continuity too). A still object with floor directly below it is scaled by the floor's own
+ *     correction there (plane / depth), or by the rest factor when that puts it nearer: an object
+ *     is never behind the floor seen below it. A mover with floor below becomes a vertical sheet
+ *     through its contact, facing the camera (a person is drawn whole at his feet's distance).
  *  5. The wall: where the floor's top edge is a straight line in 3D over at least wall_min_span
  *     of the image width (RANSAC on the floor plane, within wall_tolerance), a vertical plane
  *     stands on it; static pixels above the edge whose rescaled depth is within wall_band (in
