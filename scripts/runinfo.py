@@ -40,7 +40,7 @@ def read_run(path):
         r["command"] = m.group(1) if m else None
         r["peak_mib"] = _num(r"Peak memory ([\d.,]+) MiB", text)
         r["seconds"] = _num(r"Total ([\d.,]+) s", text)
-        r["train_psnr"] = _num(r"training camera against the input frames: PSNR ([\d.]+) dB", text)
+        r["train_psnr"] = _num(r"training camera against the input frames(?: at [^:]*)?: PSNR ([\d.]+) dB", text)
         r["train_psnr_moving"] = _num(r"moving pixels ([\d.]+) dB", text)
         r["train_psnr_static"] = _num(r"static pixels ([\d.]+) dB", text)
         r["gaussians"] = _num(r"iterations, ([\d,]+) Gaussians", text)
