@@ -69,6 +69,15 @@ static void blur_rgb(const float *in, int W, int H, float sigma, float *grey, fl
     }
 }
 
+/* The ray through pixel (x, y)'s centre in camera coordinates, z = 1 (principal point at the
+ * image centre, focal f). */
+static void pixel_ray(int x, int y, int W, int H, double f, double r[3])
+{
+    r[0] = (x + 0.5 - 0.5 * W) / f;
+    r[1] = (y + 0.5 - 0.5 * H) / f;
+    r[2] = 1;
+}
+
 /* Is the edge through e pointing at the homogeneous point v (within VP_INLIER_DEG)? */
 static int points_at(const edgel *e, const double v[3], double cos_tol)
 {
@@ -129,8 +138,10 @@ static double vertical_vanishing_point(const float *grey, int W, int H, double f
             const float *g = grey + (size_t)y * W + x;
             float gx = (g[1 - W] + 2 * g[1] + g[1 + W] - g[-1 - W] - 2 * g[-1] - g[-1 + W]) / 8;
             float gy = (g[W - 1] + 2 * g[W] + g[W + 1] - g[-W - 1] - 2 * g[-W] - g[-W + 1]) / 8;
+            double r[3];
+            pixel_ray(x, y, W, H, f, r);
             mag[m] = hypotf(gx, gy);
-            e[m] = (edgel){ (float)((x + 0.5 - 0.5 * W) / f), (float)((y + 0.5 - 0.5 * H) / f), gx, gy, mag[m] };
+            e[m] = (edgel){ (float)r[0], (float)r[1], gx, gy, mag[m] };
             m++;
         }
     /* strong edges (the top fifth, at least 0.01 per pixel) whose direction is within 35 degrees
@@ -349,7 +360,8 @@ static double wall_plane(const int *top, const float *floor_depth, int W, int H,
     for (int x = 0; x < W; x++) {
         if (top[x] < 0) continue;
         double z = floor_depth[(size_t)top[x] * W + x], *X = P + (size_t)m * 3;
-        X[0] = (x + 0.5 - 0.5 * W) / f * z, X[1] = (top[x] + 0.5 - 0.5 * H) / f * z, X[2] = z;
+        pixel_ray(x, top[x], W, H, f, X);
+        for (int c = 0; c < 3; c++) X[c] *= z;
         Q[m * 2] = X[0] * e1[0] + X[1] * e1[1] + X[2] * e1[2];
         Q[m * 2 + 1] = X[0] * e2[0] + X[1] * e2[1] + X[2] * e2[2];
         col[m++] = x;
@@ -486,7 +498,8 @@ static int stand_on_floor(const pg_image *frame, const float *d, const unsigned 
         double mean[3] = { 0, 0, 0 };
         for (int k = 0; k < a->count[b]; k++) {
             int j = a->contact[a->first[b] + k];
-            double r[3] = { ((j % W) + 0.5 - 0.5 * W) / focal, ((j / W) + 0.5 - 0.5 * H) / focal, 1 };
+            double r[3];
+            pixel_ray(j % W, j / W, W, H, focal, r);
             for (int c = 0; c < 3; c++) mean[c] += floor_depth[j] * r[c];
         }
         double along = mean[0] * up[0] + mean[1] * up[1] + mean[2] * up[2], nrm[3], len = 0;
@@ -495,7 +508,8 @@ static int stand_on_floor(const pg_image *frame, const float *d, const unsigned 
         len = sqrt(len);
         for (int k = 0; k < a->count[b]; k++) {
             int j = a->contact[a->first[b] + k];
-            double r[3] = { ((j % W) + 0.5 - 0.5 * W) / focal, ((j / W) + 0.5 - 0.5 * H) / focal, 1 };
+            double r[3];
+            pixel_ray(j % W, j / W, W, H, focal, r);
             a->ratio[a->first[b] + k] = (float)(floor_depth[j] * (nrm[0] * r[0] + nrm[1] * r[1] + nrm[2] * r[2]) / len);
         }
         for (int c = 0; c < 3; c++) sheet[c] = (float)(nrm[c] / len);
@@ -552,10 +566,11 @@ pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames
     float *wall_depth = calloc(n, sizeof *wall_depth), *ratios = malloc(n * sizeof *ratios);
     unsigned char *is_floor = malloc(n);
     int *top = malloc((size_t)W * sizeof *top);
-    anchor_scratch a = { malloc(n), malloc(n * 3 * sizeof(float)), malloc(n * sizeof(float)), malloc(n * sizeof(float)),
-                         malloc(n * sizeof(int)), malloc(n * sizeof(int)), malloc(n * sizeof(int)), malloc(n * sizeof(int)),
-                         malloc(n * sizeof(int)), malloc(n), malloc(n * sizeof(float)), malloc(n * sizeof(float)),
-                         malloc(n * 4 * sizeof(float)) };
+    anchor_scratch a = { .floor = malloc(n), .rgb = malloc(n * 3 * sizeof(float)), .grey = malloc(n * sizeof(float)),
+                         .tmp = malloc(n * sizeof(float)), .label = malloc(n * sizeof(int)), .stack = malloc(n * sizeof(int)),
+                         .first = malloc(n * sizeof(int)), .count = malloc(n * sizeof(int)), .contact = malloc(n * sizeof(int)),
+                         .moving = malloc(n), .ratio = malloc(n * sizeof(float)), .factor = malloc(n * sizeof(float)),
+                         .sheet = malloc(n * 4 * sizeof(float)) };
     if (!rgb || !rgb2 || !grey || !tmp || !below || !floor_depth || !wall_depth || !ratios || !is_floor || !top || !a.floor ||
         !a.rgb || !a.grey || !a.tmp || !a.label || !a.stack || !a.first || !a.count || !a.ratio || !a.factor || !a.contact || !a.moving ||
         !a.sheet) {
@@ -568,9 +583,9 @@ pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames
     for (size_t i = 0; i < n; i++) grey[i] = (rgb[i * 3] + rgb[i * 3 + 1] + rgb[i * 3 + 2]) / 3;
     depth_plane_gaussian_blur(grey, W, H, 1.0f, tmp, grey);
     double dir[3] = { p->up[0], p->up[1], p->up[2] };
-    res->vp_share = p->up_known ? 1 : vertical_vanishing_point(grey, W, H, f, &rng, dir);
+    if (!p->up_known) res->vp_share = vertical_vanishing_point(grey, W, H, f, &rng, dir);
     double len = sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
-    if (!(res->vp_share >= p->min_vp_share) || !(len > 0)) goto done;
+    if (!(p->up_known || res->vp_share >= p->min_vp_share) || !(len > 0)) goto done;
     double sgn = dir[1] < 0 ? 1 / len : -1 / len; /* up points to the image's top (-y) */
     for (int r = 0; r < 3; r++) res->up[r] = dir[r] * sgn;
     res->tilt_deg = acos(-res->up[1] < 1 ? -res->up[1] : 1) * 180 / 3.14159265358979;
@@ -631,8 +646,8 @@ pg_status depth_ground_snap(const depth_ground_params *p, const pg_image *frames
                     v = floor_depth[i];
                 } else {
                     const float *sheet = a.sheet + a.label[i] * 4;
-                    double facing = sheet[0] * (x + 0.5 - 0.5 * W) / f + sheet[1] * (y + 0.5 - 0.5 * H) / f + sheet[2];
-                    v = sheet[3] > 0 && facing > 0.05 ? (float)(sheet[3] / facing) : v * a.factor[a.label[i]];
+                    double facing = sheet[3] > 0 ? sheet[0] * (x + 0.5 - 0.5 * W) / f + sheet[1] * (y + 0.5 - 0.5 * H) / f + sheet[2] : 0;
+                    v = facing > 0.05 ? (float)(sheet[3] / facing) : v * a.factor[a.label[i]];
                     float w = wall_depth[i];
                     if (res->wall && s[i] && !is_floor[i] && top[x] > y && w > 0 && (fabsf(logf(v / w)) < band || v > w)) v = w;
                 }

@@ -68,7 +68,7 @@ typedef struct {
 
 typedef struct {
     int found;              /* the floor plane was placed */
-    double vp_share;        /* edge weight on the vanishing point */
+    double vp_share;        /* edge weight on the vanishing point (0 when the rig gave up) */
     double tilt_deg;        /* angle between the up direction and the image's up */
     double up[3];           /* camera coordinates (x right, y down, z forward) */
     double height;          /* the floor is up . X = -height, depth units */
@@ -77,8 +77,8 @@ typedef struct {
     double rest_scale;      /* the factor on everything that is not floor */
     int wall;               /* a wall plane was placed */
     double wall_span;       /* share of the width its contact inliers span */
-    long blobs;             /* objects over all frames (depth-continuous groups of non-floor pixels) */
-    long anchored;          /* of them, standing on the floor (scaled by their own contact) */
+    long blobs;             /* objects over all frames (movers, and depth-continuous groups of still non-floor pixels) */
+    long anchored;          /* of them, standing on the floor (a sheet or their own contact's factor) */
     long changed;           /* (frame, pixel) values changed */
 } depth_ground_result;
 

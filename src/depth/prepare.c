@@ -388,7 +388,7 @@ static pg_status write_json(const char *path, const depth_prepare_options *opt, 
         cJSON *o = cJSON_AddObjectToObject(root, "ground");
         cJSON_AddBoolToObject(o, "found", g->found);
         cJSON_AddStringToObject(o, "up_from", opt->ground_params.up_known ? "camera rig" : "vanishing point");
-        cJSON_AddNumberToObject(o, "vanishing_point_share", opt->ground_params.up_known ? 0 : g->vp_share);
+        cJSON_AddNumberToObject(o, "vanishing_point_share", g->vp_share);
         cJSON_AddNumberToObject(o, "tilt_deg", g->tilt_deg);
         cJSON *up = cJSON_AddArrayToObject(o, "up");
         for (int k = 0; k < 3; k++) cJSON_AddItemToArray(up, cJSON_CreateNumber(g->up[k]));
