@@ -209,7 +209,7 @@ typedef struct {
     double train_psnr, train_psnr_moving, train_psnr_static; /* NaN unless eval_train (or empty) */
     double seconds;
     /* the full-size phase: the input's size and the model scored there (NaN without the phase) */
-    int full_width, full_height, full_still_added;
+    int full_width, full_height, full_still_added, full_movers_frozen;
     double full_psnr, full_psnr_moving, full_psnr_static, full_seconds;
     double full_psnr_before, full_psnr_moving_before; /* the working-size model drawn at that size */
 } pg_train_report;

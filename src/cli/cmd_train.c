@@ -53,7 +53,7 @@ int cmd_train(int argc, char **argv)
         {"--eval-train", CLI_FLAG, &c.eval_train, "also report PSNR of the real views' moving and static pixels"},
         {"--full-size", CLI_STR, &c.full_size_input, "after the iterations, fit the still scene and the movers at the size of this source's frames (the video or dataset the set was made from; one real view)"},
         {"--full-size-camera", CLI_STR, &c.full_size_camera, "the --full-size source's camera that is the real view (default: its first)"},
-        {"--full-size-steps", CLI_INT, &c.full_size_steps, "the movers' steps at full size (default: 4 per frame, 100 to 1200)"},
+        {"--full-size-steps", CLI_INT, &c.full_size_steps, "the movers' steps at full size (default: 3 per frame, 100 to 1200)"},
     };
     cli_spec spec = {"prodygs train", "DIR --out MODEL [options]",
                      "Trains the 4D Gaussian model on a training set (from `prodygs proxies`) or a DyNeRF dataset.\n\n"

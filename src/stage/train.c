@@ -190,6 +190,7 @@ static pg_status write_summary(const char *path, const train_set *ts, const trai
         cJSON_AddNumberToObject(full, "height", r->full_height);
         cJSON_AddNumberToObject(full, "frames_scored", TRAIN_DETAIL_SCORE_FRAMES);
         cJSON_AddNumberToObject(full, "still_added", r->full_still_added);
+        cJSON_AddNumberToObject(full, "movers_frozen", r->full_movers_frozen);
         cJSON_AddNumberToObject(full, "psnr", r->full_psnr);
         cJSON_AddNumberToObject(full, "psnr_moving", r->full_psnr_moving);
         cJSON_AddNumberToObject(full, "psnr_static", r->full_psnr_static);
@@ -322,6 +323,7 @@ static pg_status train_run(const pg_train_config *c, pg_train_report *r)
         train_detail_scores sc;
         if ((st = train_session_detail(s, &dc, &sc))) goto done;
         r->full_width = sc.width, r->full_height = sc.height, r->full_still_added = sc.still_added;
+        r->full_movers_frozen = sc.movers_frozen;
         r->full_psnr = sc.psnr, r->full_psnr_moving = sc.psnr_moving, r->full_psnr_static = sc.psnr_static;
         r->full_seconds = sc.seconds;
         r->full_psnr_before = sc.psnr_before, r->full_psnr_moving_before = sc.psnr_moving_before;

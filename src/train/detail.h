@@ -28,7 +28,7 @@ typedef struct {
 /* the movers' steps: TRAIN_DETAIL_STEPS_PER_FRAME per frame (each frame's box a few times),
  * within [TRAIN_DETAIL_MIN_STEPS, TRAIN_DETAIL_STEPS] */
 #define TRAIN_DETAIL_STEPS 1200
-#define TRAIN_DETAIL_STEPS_PER_FRAME 4
+#define TRAIN_DETAIL_STEPS_PER_FRAME 3
 #define TRAIN_DETAIL_MIN_STEPS 100
 int train_detail_default_steps(int frames);
 #define TRAIN_DETAIL_MAX_STILL 900000
@@ -39,6 +39,7 @@ typedef struct {
     double psnr, psnr_moving, psnr_static;
     double psnr_before, psnr_moving_before; /* the working-size model rendered at full size, as scored */
     int still_added;        /* still Gaussians added at full size */
+    int movers_frozen;      /* movable Gaussians made still first: never over a moving pixel */
     int gaussians;          /* after the phase */
     double seconds;
 } train_detail_scores;

@@ -754,6 +754,30 @@ static double depth_loss(train_session *s, const float *depth, int W, int H, flo
     return w * l;
 }
 
+/* Row i's deformed attributes (s->d) minus its canonical ones (s->g): position, log-scales,
+ * rotation, opacity, then the SH floats (0 past the set's stride: no change). */
+#define TRAIN_ROW_DELTAS 59
+static void row_deltas(const train_session *s, int i, float *dl)
+{
+    memset(dl, 0, TRAIN_ROW_DELTAS * sizeof(float));
+    for (int a = 0; a < 3; a++) dl[a] = s->d.means[3 * i + a] - s->g.means[3 * i + a];
+    for (int a = 0; a < 3; a++) dl[3 + a] = s->d.log_scales[3 * i + a] - s->g.log_scales[3 * i + a];
+    for (int a = 0; a < 4; a++) dl[6 + a] = s->d.quats[4 * i + a] - s->g.quats[4 * i + a];
+    dl[10] = s->d.opacity[i] - s->g.opacity[i];
+    for (int a = 0; a < s->g.sh_stride; a++) dl[11 + a] = splat_gaussians_sh(&s->d, i)[a] - splat_gaussians_sh(&s->g, i)[a];
+}
+
+/* Row i made still with its mean deltas dl baked into its canonical parameters. */
+static void bake_still(train_session *s, int i, const float *dl)
+{
+    for (int a = 0; a < 3; a++) s->g.means[3 * i + a] += dl[a];
+    for (int a = 0; a < 3; a++) s->g.log_scales[3 * i + a] += dl[3 + a];
+    for (int a = 0; a < 4; a++) s->g.quats[4 * i + a] += dl[6 + a];
+    s->g.opacity[i] += dl[10];
+    for (int a = 0; a < s->g.sh_stride; a++) splat_gaussians_sh(&s->g, i)[a] += dl[11 + a];
+    s->is_static[i] = 1;
+}
+
 /* Learned static flags: evaluates the network for every movable Gaussian at 5 times; those
  * whose predicted deltas hardly change over time (position by < static_eps * extent, the other
  * attributes by < 0.02) get the mean delta baked into their canonical parameters and are
@@ -776,12 +800,8 @@ static pg_status check_static(train_session *s)
         if ((st = train_net_forward(s->net, &s->g, s->idx, n, (float)k / (K - 1), S, &s->d))) break;
         for (int j = 0; j < n; j++) {
             int i = s->idx[j];
-            float dl[59] = { 0 }; /* SH past the set's stride: none, no change */
-            for (int a = 0; a < 3; a++) dl[a] = s->d.means[3 * i + a] - s->g.means[3 * i + a];
-            for (int a = 0; a < 3; a++) dl[3 + a] = s->d.log_scales[3 * i + a] - s->g.log_scales[3 * i + a];
-            for (int a = 0; a < 4; a++) dl[6 + a] = s->d.quats[4 * i + a] - s->g.quats[4 * i + a];
-            dl[10] = s->d.opacity[i] - s->g.opacity[i];
-            for (int a = 0; a < S; a++) dl[11 + a] = splat_gaussians_sh(&s->d, i)[a] - splat_gaussians_sh(&s->g, i)[a];
+            float dl[TRAIN_ROW_DELTAS];
+            row_deltas(s, i, dl);
             for (int a = 0; a < 59; a++) {
                 size_t o = (size_t)j * 59 + a;
                 lo[o] = k ? fminf(lo[o], dl[a]) : dl[a];
@@ -796,13 +816,7 @@ static pg_status check_static(train_session *s)
         int ok = 1;
         for (int a = 0; a < 59 && ok; a++) ok = hi[o + a] - lo[o + a] < (a < 3 ? pos_tol : 0.02f);
         if (!ok) continue;
-        int i = s->idx[j];
-        for (int a = 0; a < 3; a++) s->g.means[3 * i + a] += mean[o + a];
-        for (int a = 0; a < 3; a++) s->g.log_scales[3 * i + a] += mean[o + 3 + a];
-        for (int a = 0; a < 4; a++) s->g.quats[4 * i + a] += mean[o + 6 + a];
-        s->g.opacity[i] += mean[o + 10];
-        for (int a = 0; a < S; a++) splat_gaussians_sh(&s->g, i)[a] += mean[o + 11 + a];
-        s->is_static[i] = 1;
+        bake_still(s, s->idx[j], mean + o);
         train_average_restart(s);
     }
     (void)N;
@@ -810,6 +824,55 @@ static pg_status check_static(train_session *s)
     free(hi);
     free(mean);
     return st;
+}
+
+/* The movable rows that never cover a moving pixel of the real view (its trainer mask, at every
+ * FREEZE_EVERY-th frame, the deformed centre's pixel and its 8 neighbours) made still, their mean
+ * deltas over those frames baked in: at the working size they are blurred still scene (the
+ * seated people, a mover's halo), and drawn over the full-size still scene they hide it. */
+#define FREEZE_EVERY 4
+int train_freeze_off_motion(train_session *s)
+{
+    const train_set *ts = s->ts;
+    int real = 0;
+    while (real < ts->num_views && ts->views[real].role != IO_ROLE_REAL) real++;
+    if (!s->fine || real == ts->num_views || !s->moving || !s->moving[real]) return 0;
+    const pg_camera *cam = &ts->views[real].cam;
+    const int W = ts->width, H = ts->height, D = TRAIN_ROW_DELTAS;
+    int n = 0;
+    for (int i = 0; i < s->g.count; i++)
+        if (!s->is_static[i]) s->idx[n++] = i;
+    float *mean = pg_calloc((size_t)(n > 0 ? n : 1) * D, sizeof(float), "freeze");
+    uint8_t *hit = pg_calloc((size_t)(n > 0 ? n : 1), 1, "freeze");
+    int samples = 0, frozen = 0;
+    for (int f = 0; mean && hit && f < ts->frames; f += FREEZE_EVERY, samples++) {
+        blend_used(s, &s->d, &s->g, TRAIN_BLEND_COPY);
+        if (train_net_forward(s->net, &s->g, s->idx, n, train_frame_time(f, ts->frames), s->g.sh_stride, &s->d)) break;
+        const uint8_t *mv = s->moving[real] + (size_t)f * W * H;
+        #pragma omp parallel for schedule(static)
+        for (int j = 0; j < n; j++) {
+            const int i = s->idx[j];
+            float dl[TRAIN_ROW_DELTAS], uv[2];
+            row_deltas(s, i, dl);
+            for (int a = 0; a < D; a++) mean[(size_t)j * D + a] += dl[a];
+            if (pg_camera_project(cam, s->d.means + 3 * (size_t)i, uv) <= 0.01f) continue;
+            const int x = (int)floorf(uv[0]), y = (int)floorf(uv[1]);
+            for (int dy = -1; dy <= 1 && !hit[j]; dy++)
+                for (int dx = -1; dx <= 1 && !hit[j]; dx++) {
+                    const int xx = x + dx, yy = y + dy;
+                    if (xx >= 0 && xx < W && yy >= 0 && yy < H && mv[(size_t)yy * W + xx]) hit[j] = 1;
+                }
+        }
+    }
+    for (int j = 0; mean && hit && j < n; j++) {
+        if (hit[j]) continue;
+        for (int a = 0; a < D; a++) mean[(size_t)j * D + a] /= samples;
+        bake_still(s, s->idx[j], mean + (size_t)j * D);
+        frozen++;
+    }
+    free(mean);
+    free(hit);
+    return frozen;
 }
 
 /* Keeps the rect (x0, y0, w, h) of the (W, c)-channel image in buf, packed at its start: rows
