@@ -22,7 +22,7 @@
 /* a box is kept in tiles of this many pixels a side, the moving ones only */
 #define DETAIL_TILE 32
 /* the still fit: full-size steps on the new Gaussians (90 left the edges and the movers' holes
- * off the median by 0.019 L1, 300 by 0.003) */
+ * off the median by 0.019 L1, 300 under 0.003) */
 #define DETAIL_STILL_STEPS 300
 #define DETAIL_STILL_LR_COLOUR 8.0f
 /* a pixel whose colour is this far (largest channel) from the working-size model's gets its own
@@ -621,7 +621,7 @@ pg_status train_session_detail(train_session *s, const train_detail_config *c, t
     double unused;
     PG_TRY(score(s, &out->psnr_before, &out->psnr_moving_before, &unused));
     PG_TRY(grow_buffers(s));
-    out->movers_frozen = train_freeze_off_motion(s);
+    PG_TRY(train_freeze_off_motion(s, &out->movers_frozen));
     PG_TRY(detail_still(s, c->max_still > 0 ? c->max_still : TRAIN_DETAIL_MAX_STILL, &out->still_added));
     const int steps = c->steps > 0 ? c->steps : train_detail_default_steps(s->ts->frames), cap = s->cfg.max_gaussians;
     s->cfg.max_gaussians = s->g.count + DETAIL_MAX_NEW_MOVERS;

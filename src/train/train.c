@@ -791,9 +791,9 @@ static pg_status check_static(train_session *s)
     size_t N = (size_t)s->g.count;
     const int S = s->g.sh_stride;
     enum { K = 5 };
-    float *lo = pg_malloc((size_t)n * 59 * sizeof(float), "static check");
-    float *hi = pg_malloc((size_t)n * 59 * sizeof(float), "static check");
-    float *mean = pg_calloc((size_t)n * 59, sizeof(float), "static check");
+    float *lo = pg_malloc((size_t)n * TRAIN_ROW_DELTAS * sizeof(float), "static check");
+    float *hi = pg_malloc((size_t)n * TRAIN_ROW_DELTAS * sizeof(float), "static check");
+    float *mean = pg_calloc((size_t)n * TRAIN_ROW_DELTAS, sizeof(float), "static check");
     pg_status st = (lo && hi && mean) ? PG_OK : PG_ERR_NOMEM;
     for (int k = 0; k < K && !st; k++) {
         blend_used(s, &s->d, &s->g, TRAIN_BLEND_COPY);
@@ -802,8 +802,8 @@ static pg_status check_static(train_session *s)
             int i = s->idx[j];
             float dl[TRAIN_ROW_DELTAS];
             row_deltas(s, i, dl);
-            for (int a = 0; a < 59; a++) {
-                size_t o = (size_t)j * 59 + a;
+            for (int a = 0; a < TRAIN_ROW_DELTAS; a++) {
+                size_t o = (size_t)j * TRAIN_ROW_DELTAS + a;
                 lo[o] = k ? fminf(lo[o], dl[a]) : dl[a];
                 hi[o] = k ? fmaxf(hi[o], dl[a]) : dl[a];
                 mean[o] += dl[a] / K;
@@ -812,9 +812,9 @@ static pg_status check_static(train_session *s)
     }
     float pos_tol = s->cfg.static_eps * s->extent;
     for (int j = 0; j < n && !st; j++) {
-        size_t o = (size_t)j * 59;
+        size_t o = (size_t)j * TRAIN_ROW_DELTAS;
         int ok = 1;
-        for (int a = 0; a < 59 && ok; a++) ok = hi[o + a] - lo[o + a] < (a < 3 ? pos_tol : 0.02f);
+        for (int a = 0; a < TRAIN_ROW_DELTAS && ok; a++) ok = hi[o + a] - lo[o + a] < (a < 3 ? pos_tol : 0.02f);
         if (!ok) continue;
         bake_still(s, s->idx[j], mean + o);
         train_average_restart(s);
@@ -831,23 +831,26 @@ static pg_status check_static(train_session *s)
  * deltas over those frames baked in: at the working size they are blurred still scene (the
  * seated people, a mover's halo), and drawn over the full-size still scene they hide it. */
 #define FREEZE_EVERY 4
-int train_freeze_off_motion(train_session *s)
+pg_status train_freeze_off_motion(train_session *s, int *frozen)
 {
     const train_set *ts = s->ts;
     int real = 0;
     while (real < ts->num_views && ts->views[real].role != IO_ROLE_REAL) real++;
-    if (!s->fine || real == ts->num_views || !s->moving || !s->moving[real]) return 0;
+    *frozen = 0;
+    if (!s->fine || real == ts->num_views || !s->moving || !s->moving[real]) return PG_OK;
     const pg_camera *cam = &ts->views[real].cam;
     const int W = ts->width, H = ts->height, D = TRAIN_ROW_DELTAS;
     int n = 0;
     for (int i = 0; i < s->g.count; i++)
         if (!s->is_static[i]) s->idx[n++] = i;
-    float *mean = pg_calloc((size_t)(n > 0 ? n : 1) * D, sizeof(float), "freeze");
-    uint8_t *hit = pg_calloc((size_t)(n > 0 ? n : 1), 1, "freeze");
-    int samples = 0, frozen = 0;
-    for (int f = 0; mean && hit && f < ts->frames; f += FREEZE_EVERY, samples++) {
+    if (n == 0) return PG_OK;
+    float *mean = pg_calloc((size_t)n * D, sizeof(float), "freeze");
+    uint8_t *hit = pg_calloc((size_t)n, 1, "freeze");
+    pg_status st = mean && hit ? PG_OK : PG_ERR_NOMEM;
+    int samples = 0;
+    for (int f = 0; f < ts->frames && !st; f += FREEZE_EVERY, samples++) {
         blend_used(s, &s->d, &s->g, TRAIN_BLEND_COPY);
-        if (train_net_forward(s->net, &s->g, s->idx, n, train_frame_time(f, ts->frames), s->g.sh_stride, &s->d)) break;
+        if ((st = train_net_forward(s->net, &s->g, s->idx, n, train_frame_time(f, ts->frames), s->g.sh_stride, &s->d))) break;
         const uint8_t *mv = s->moving[real] + (size_t)f * W * H;
         #pragma omp parallel for schedule(static)
         for (int j = 0; j < n; j++) {
@@ -864,15 +867,15 @@ int train_freeze_off_motion(train_session *s)
                 }
         }
     }
-    for (int j = 0; mean && hit && j < n; j++) {
+    for (int j = 0; !st && j < n; j++) {
         if (hit[j]) continue;
         for (int a = 0; a < D; a++) mean[(size_t)j * D + a] /= samples;
         bake_still(s, s->idx[j], mean + (size_t)j * D);
-        frozen++;
+        (*frozen)++;
     }
     free(mean);
     free(hit);
-    return frozen;
+    return st;
 }
 
 /* Keeps the rect (x0, y0, w, h) of the (W, c)-channel image in buf, packed at its start: rows

@@ -136,8 +136,8 @@ static inline int train_still_frozen(const train_session *s)
 /* init.c */
 pg_status train_init_gaussians(train_session *s);
 /* train.c: the movable rows that never cover the real view's moving pixels made still (their
- * count) */
-int train_freeze_off_motion(train_session *s);
+ * count into frozen) */
+pg_status train_freeze_off_motion(train_session *s, int *frozen);
 /* densify.c */
 pg_status train_ensure_side(train_session *s, int n);
 pg_status train_resize_all(train_session *s, int n);
